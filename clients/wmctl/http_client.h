@@ -1,0 +1,36 @@
+#pragma once
+
+#include <chrono>
+#include <stdexcept>
+#include <string>
+
+namespace wm::client {
+
+/// The server could not be reached (refused, timed out, bad URL).
+class ConnectionError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct HttpResult {
+  int status = 0;
+  std::string content_type;
+  std::string body;
+};
+
+/// A minimal blocking HTTP/1.1 client for http://host:port URLs (one connection per request).
+class HttpClient {
+ public:
+  /// @throw ConnectionError for a URL that is not http://host[:port][/].
+  explicit HttpClient(const std::string& base_url, std::chrono::seconds timeout = std::chrono::seconds(60));
+  /// @throw ConnectionError when the server cannot be reached.
+  HttpResult request(const std::string& method, const std::string& target, const std::string& body = {},
+                     const std::string& content_type = "application/json", const std::string& token = {}) const;
+
+ private:
+  std::string host_;
+  std::string port_;
+  std::chrono::seconds timeout_;
+};
+
+}  // namespace wm::client

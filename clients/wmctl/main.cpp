@@ -1,0 +1,187 @@
+// wmctl: the command-line client of wmd, over the HTTP/JSON API only.
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "clients/wmctl/http_client.h"
+
+namespace {
+
+using nlohmann::json;
+
+constexpr int kExitOk = 0;
+constexpr int kExitServerError = 1;  // the server answered with an error status
+constexpr int kExitUsage = 2;
+constexpr int kExitUnreachable = 3;
+
+const char* kUsage =
+    "usage: wmctl [--server URL] [--token TOKEN] [--json] COMMAND\n"
+    "commands:\n"
+    "  health                         server status, counts and loaded rules\n"
+    "  floorplan load FILE            load a JSON floor plan (replaces the current one)\n"
+    "  floorplan show                 print the loaded floor plan\n"
+    "  primitives post FILE           post line primitives (JSON, as POST /api/v1/primitives), print decisions\n"
+    "  map                            objects and observed elements\n"
+    "  decisions [--since SEQ] [--limit N] [--element ID]   the decision log\n"
+    "options:\n"
+    "  --server URL   default http://127.0.0.1:8080 (or $WMCTL_SERVER)\n"
+    "  --json         print the server's JSON as it came (for scripts)\n";
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct ServerError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw UsageError("cannot read '" + path + "'");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+json parse_answer(const wm::client::HttpResult& r) {
+  json body = json::parse(r.body, nullptr, false);
+  if (r.status >= 400) {
+    std::string message = "server answered " + std::to_string(r.status);
+    if (body.is_object() && body.contains("error"))
+      message += " " + body.value("error", "") + ": " + body.value("detail", "");
+    else
+      message += ": " + r.body.substr(0, 200);
+    throw ServerError(message);
+  }
+  if (body.is_discarded()) throw ServerError("server answered something that is not JSON");
+  return body;
+}
+
+std::string fixed(double v, int digits = 3) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(digits) << v;
+  return s.str();
+}
+
+std::string point(const json& p) { return "(" + fixed(p[0].get<double>()) + ", " + fixed(p[1].get<double>()) + ")"; }
+
+std::string optional_text(const json& v) { return v.is_null() ? "-" : v.get<std::string>(); }
+
+void print_decision(const json& d) {
+  std::cout << "#" << d["seq"].get<long long>() << "  " << std::left << std::setw(13) << d["action"].get<std::string>()
+            << std::setw(24) << d["rule"].get<std::string>() << " element " << std::setw(12) << optional_text(d["element"])
+            << " object " << std::setw(12) << optional_text(d["object"]) << (d["fallback"].get<bool>() ? " FALLBACK" : "")
+            << "\n      " << d["explanation"].get<std::string>() << "\n";
+}
+
+void print_map(const json& m) {
+  std::cout << "map version " << m["version"] << ", plan '" << m["plan"].get<std::string>() << "': " << m["objects"].size()
+            << " objects, " << m["elements"].size() << " observed elements\n";
+  for (const auto& o : m["objects"]) {
+    std::string attributes;
+    for (const auto& a : o["attributes"]) attributes += (attributes.empty() ? "" : ",") + a.get<std::string>();
+    std::cout << "  object " << std::left << std::setw(14) << o["id"].get<std::string>() << std::setw(10)
+              << o["kind"].get<std::string>() << " [" << attributes << "] pose (" << fixed(o["pose"]["x"].get<double>()) << ", "
+              << fixed(o["pose"]["y"].get<double>()) << ", " << fixed(o["pose"]["theta"].get<double>(), 4) << ") edges "
+              << o["edges"].size() << ", confirmed " << o["confirmations"] << ", adjusted " << o["adjustments"] << "\n";
+  }
+  for (const auto& e : m["elements"])
+    std::cout << "  element " << std::left << std::setw(8) << e["id"].get<std::string>() << point(e["p0"]) << " -> "
+              << point(e["p1"]) << "  support " << e["support"] << ", source " << e["source"].get<std::string>() << "\n";
+}
+
+int run(const std::vector<std::string>& args) {
+  std::string server = std::getenv("WMCTL_SERVER") ? std::getenv("WMCTL_SERVER") : "http://127.0.0.1:8080";
+  std::string token;
+  bool raw_json = false;
+  std::vector<std::string> words;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--server" || args[i] == "--token") {
+      if (i + 1 >= args.size()) throw UsageError(args[i] + " needs a value");
+      (args[i] == "--server" ? server : token) = args[++i];
+    } else if (args[i] == "--json") {
+      raw_json = true;
+    } else if (args[i] == "--help" || args[i] == "-h") {
+      std::cout << kUsage;
+      return kExitOk;
+    } else {
+      words.push_back(args[i]);
+    }
+  }
+  if (words.empty()) throw UsageError("no command");
+  const wm::client::HttpClient client(server);
+  const auto emit = [&](const json& body, auto&& readable) {
+    if (raw_json) std::cout << body.dump(2) << "\n";
+    else readable(body);
+    return kExitOk;
+  };
+  const std::string& command = words[0];
+  if (command == "health" && words.size() == 1) {
+    return emit(parse_answer(client.request("GET", "/api/v1/health")), [](const json& h) {
+      std::cout << "status " << h["status"].get<std::string>() << ", map version " << h["version"] << ", plan '"
+                << h["plan"].get<std::string>() << "', " << h["objects"] << " objects, " << h["elements"] << " elements\n";
+      for (const auto& f : h["rules"]["files"]) std::cout << "rules: " << f["path"].get<std::string>() << "\n";
+      if (!h["rules"]["last_error"].get<std::string>().empty())
+        std::cout << "last rules error: " << h["rules"]["last_error"].get<std::string>() << "\n";
+    });
+  }
+  if (command == "floorplan" && words.size() == 3 && words[1] == "load") {
+    return emit(parse_answer(client.request("PUT", "/api/v1/floorplan", read_file(words[2]), "application/json", token)),
+                [](const json& r) {
+                  std::cout << "loaded floor plan '" << r["name"].get<std::string>() << "': " << r["objects"] << " objects, "
+                            << r["edges"] << " edges (map version " << r["version"] << ")\n";
+                });
+  }
+  if (command == "floorplan" && words.size() == 2 && words[1] == "show") {
+    const auto plan = parse_answer(client.request("GET", "/api/v1/floorplan"));
+    std::cout << plan.dump(2) << "\n";
+    return kExitOk;
+  }
+  if (command == "primitives" && words.size() == 3 && words[1] == "post") {
+    return emit(parse_answer(client.request("POST", "/api/v1/primitives", read_file(words[2]), "application/json", token)),
+                [](const json& r) {
+                  std::cout << "observation " << r["seq"] << " applied, map version " << r["version"] << "\n";
+                  for (const auto& d : r["decisions"]) print_decision(d);
+                });
+  }
+  if (command == "map" && words.size() == 1) return emit(parse_answer(client.request("GET", "/api/v1/map")), print_map);
+  if (command == "decisions") {
+    std::string query;
+    for (std::size_t i = 1; i < words.size(); i += 2) {
+      if (i + 1 >= words.size() || (words[i] != "--since" && words[i] != "--limit" && words[i] != "--element"))
+        throw UsageError("decisions takes --since SEQ, --limit N, --element ID");
+      query += (query.empty() ? "?" : "&") + words[i].substr(2) + "=" + words[i + 1];
+    }
+    return emit(parse_answer(client.request("GET", "/api/v1/decisions" + query)), [](const json& r) {
+      for (const auto& d : r["decisions"]) print_decision(d);
+      std::cout << r["decisions"].size() << " decisions\n";
+    });
+  }
+  throw UsageError("unknown command '" + command + "'");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(std::vector<std::string>(argv + 1, argv + argc));
+  } catch (const UsageError& e) {
+    std::cerr << "wmctl: " << e.what() << "\n" << kUsage;
+    return kExitUsage;
+  } catch (const wm::client::ConnectionError& e) {
+    std::cerr << "wmctl: " << e.what() << "\n";
+    return kExitUnreachable;
+  } catch (const ServerError& e) {
+    std::cerr << "wmctl: " << e.what() << "\n";
+    return kExitServerError;
+  } catch (const std::exception& e) {
+    std::cerr << "wmctl: " << e.what() << "\n";
+    return kExitServerError;
+  }
+}

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Installs the Debian packages worldmodel needs (idempotent; runs apt-get only when something is missing).
+set -euo pipefail
+packages=(
+  build-essential cmake ninja-build pkg-config
+  libeigen3-dev libboost-dev libboost-system-dev nlohmann-json3-dev libsqlite3-dev sqlite3
+  swi-prolog-core swi-prolog-core-packages
+  libgtest-dev libgmock-dev googletest libbenchmark-dev
+  zlib1g-dev curl python3 python3-ezdxf
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  sudo_cmd=()
+  [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi

@@ -1,0 +1,39 @@
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "rules/engine.h"
+#include "server/api/router.h"
+#include "server/http/http_server.h"
+#include "server/service/world_service.h"
+#include "server/storage/store.h"
+
+namespace wm::config {
+
+/// Bad command line or configuration: wmd prints it with the usage and exits with status 2.
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Everything wmd is configured with, validated once at start-up.
+struct ServerConfig {
+  storage::StoreOptions store{"worldmodel.db", true};
+  rules::EngineOptions rules;
+  service::ServiceOptions service;
+  api::ApiOptions api;
+  http::HttpOptions http;
+  std::optional<std::filesystem::path> floor_plan_file;  // loaded at start (demo), replacing the stored plan
+  bool help = false;
+};
+
+/// Parses wmd's arguments. Unknown flags, missing values and out-of-range numbers throw ConfigError.
+ServerConfig parse_command_line(const std::vector<std::string>& args, const std::filesystem::path& default_rules_dir);
+
+std::string usage();
+
+}  // namespace wm::config

@@ -1,0 +1,26 @@
+#pragma once
+
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "server/world/update.h"
+
+namespace wm::json_codec {
+
+/// Limits on a posted primitives request; bigger or stranger input is refused with 400.
+struct PrimitiveLimits {
+  std::size_t max_segments = 10000;
+  double max_abs_coordinate_m = 1.0e5;
+  double min_length_m = 1.0e-3;
+};
+
+/// Parses and validates POST /api/v1/primitives. @throw api::ApiError(400) naming the bad field.
+world::Observation parse_primitives(std::string_view body, const Eigen::Matrix2d& default_cov, const PrimitiveLimits& limits);
+
+nlohmann::json object_json(const world::ObjectState& object, const world::WorldOptions& options);
+nlohmann::json element_json(const world::Element& element);
+nlohmann::json map_json(const world::WorldState& state, const world::WorldOptions& options);
+nlohmann::json decision_json(const world::DecisionRecord& decision);
+
+}  // namespace wm::json_codec

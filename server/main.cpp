@@ -1,0 +1,82 @@
+// wmd: the world-model server. Builds the object graph (store → knowledge base → world service → HTTP)
+// and passes references down; nothing global.
+#include <csignal>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+#include <pthread.h>
+
+#include "apriori/floor_plan.h"
+#include "server/api/router.h"
+#include "server/config/server_config.h"
+#include "server/http/http_server.h"
+#include "server/service/world_service.h"
+#include "server/storage/store.h"
+
+#ifndef WM_DEFAULT_RULES_DIR
+#define WM_DEFAULT_RULES_DIR "rules/prolog"
+#endif
+
+namespace {
+
+std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot read '" + path.string() + "'");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace wm;
+  // Signals are taken by one thread with sigwait; every other thread (Asio, Prolog, writer) inherits the mask.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  config::ServerConfig cfg;
+  try {
+    cfg = config::parse_command_line(std::vector<std::string>(argv + 1, argv + argc), WM_DEFAULT_RULES_DIR);
+  } catch (const config::ConfigError& e) {
+    std::cerr << "wmd: " << e.what() << "\n" << config::usage();
+    return 2;
+  }
+  if (cfg.help) {
+    std::cout << config::usage();
+    return 0;
+  }
+  try {
+    storage::Store store(cfg.store);
+    rules::Engine engine(cfg.rules);
+    service::WorldService world(cfg.service, store, engine);
+    if (cfg.floor_plan_file) {
+      auto plan = apriori::parse_floor_plan_json(read_file(*cfg.floor_plan_file), cfg.api.plan_limits);
+      std::cout << "wmd: loaded floor plan '" << plan.name << "' (" << plan.objects.size() << " objects) from "
+                << cfg.floor_plan_file->string() << "\n";
+      world.load_floor_plan(std::move(plan));
+    }
+    api::Services services{cfg.api, world};
+    http::HttpServer server(cfg.http, [&services](const api::Request& r) { return api::handle_request(r, services); });
+    std::thread signal_waiter([&server, signals] {
+      int signal = 0;
+      sigwait(&signals, &signal);
+      server.stop();
+    });
+    std::cout << "wmd: database " << cfg.store.path << ", rules " << cfg.rules.rules_dir.string() << "\n"
+              << "wmd: listening on http://" << cfg.http.bind_address << ":" << server.port() << "/" << std::endl;
+    server.run();
+    pthread_kill(signal_waiter.native_handle(), SIGTERM);  // wakes the waiter when run() ended otherwise
+    signal_waiter.join();
+    std::cout << "wmd: stopped" << std::endl;
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: " << e.what() << std::endl;
+    return 1;
+  }
+}

@@ -1,0 +1,89 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+struct sqlite3;
+struct sqlite3_stmt;
+
+namespace wm::storage {
+
+/// A failed SQLite call; what() carries the sqlite3_errmsg text and the statement or action.
+class StorageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// One open connection (RAII). Not copyable; use from one thread at a time.
+class Connection {
+ public:
+  /// Opens (creating when `create`) the database file. @throw StorageError.
+  Connection(const std::string& path, bool create);
+  ~Connection();
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  /// Runs one or more statements without results. @throw StorageError.
+  void exec(std::string_view sql);
+  sqlite3* handle() const { return db_; }
+
+ private:
+  sqlite3* db_ = nullptr;
+};
+
+/// A prepared statement (RAII). Bind indices start at 1, column indices at 0.
+class Statement {
+ public:
+  /// @throw StorageError when the SQL does not compile.
+  Statement(Connection& connection, std::string_view sql);
+  ~Statement();
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  Statement& bind(int index, std::int64_t value);
+  Statement& bind(int index, double value);
+  Statement& bind(int index, std::string_view value);
+  Statement& bind_blob(int index, const void* data, std::size_t bytes);
+  Statement& bind_null(int index);
+  Statement& bind(int index, const std::optional<std::string>& value);
+  Statement& bind(int index, const std::optional<double>& value);
+
+  /// Advances; true while a row is available. @throw StorageError.
+  bool step();
+  /// Steps a statement that returns no rows, then resets it for reuse.
+  void run();
+  void reset();
+
+  std::int64_t column_int(int column) const;
+  double column_double(int column) const;
+  std::string column_text(int column) const;
+  std::optional<std::string> column_optional_text(int column) const;
+  std::optional<double> column_optional_double(int column) const;
+  std::vector<double> column_doubles(int column) const;  // a BLOB of native doubles
+
+ private:
+  void check(int rc, const char* what) const;
+  sqlite3* db_ = nullptr;
+  sqlite3_stmt* stmt_ = nullptr;
+  std::string sql_;
+};
+
+/// RAII transaction: BEGIN IMMEDIATE on construction, ROLLBACK unless commit() ran.
+class Transaction {
+ public:
+  explicit Transaction(Connection& connection);
+  ~Transaction();
+  Transaction(const Transaction&) = delete;
+  Transaction& operator=(const Transaction&) = delete;
+  void commit();
+
+ private:
+  Connection& connection_;
+  bool done_ = false;
+};
+
+}  // namespace wm::storage

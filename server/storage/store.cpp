@@ -1,0 +1,254 @@
+#include "server/storage/store.h"
+
+#include <chrono>
+
+#include "apriori/floor_plan.h"
+
+namespace wm::storage {
+namespace {
+
+// Each entry moves the schema from version i to i+1. Never edit a shipped entry: append a new one.
+constexpr const char* kMigrations[] = {
+    R"sql(
+CREATE TABLE meta(key TEXT PRIMARY KEY, value INTEGER NOT NULL);
+CREATE TABLE floor_plan(id INTEGER PRIMARY KEY CHECK (id = 1), name TEXT NOT NULL, plan_json TEXT NOT NULL,
+                        loaded_version INTEGER NOT NULL);
+CREATE TABLE objects(ord INTEGER PRIMARY KEY, id TEXT NOT NULL UNIQUE, x REAL NOT NULL, y REAL NOT NULL,
+                     theta REAL NOT NULL, pose_cov BLOB NOT NULL, confirmations INTEGER NOT NULL,
+                     adjustments INTEGER NOT NULL, updated_version INTEGER NOT NULL);
+CREATE TABLE elements(number INTEGER PRIMARY KEY, rho REAL NOT NULL, phi REAL NOT NULL, cov BLOB NOT NULL,
+                      t0 REAL NOT NULL, t1 REAL NOT NULL, support INTEGER NOT NULL, source TEXT NOT NULL,
+                      observer TEXT NOT NULL, created_version INTEGER NOT NULL, updated_version INTEGER NOT NULL);
+CREATE TABLE observations(seq INTEGER PRIMARY KEY, kind TEXT NOT NULL, observer TEXT NOT NULL, stamp REAL NOT NULL,
+                          received_at REAL NOT NULL, payload TEXT NOT NULL);
+CREATE TABLE decisions(seq INTEGER PRIMARY KEY, observation_seq INTEGER NOT NULL REFERENCES observations(seq),
+                       idx INTEGER NOT NULL, action TEXT NOT NULL, rule TEXT NOT NULL, explanation TEXT NOT NULL,
+                       element TEXT, object TEXT, mahalanobis_sq REAL, fallback INTEGER NOT NULL,
+                       observer TEXT NOT NULL, p0x REAL NOT NULL, p0y REAL NOT NULL, p1x REAL NOT NULL, p1y REAL NOT NULL);
+CREATE INDEX decisions_by_element ON decisions(element);
+)sql",
+};
+constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
+static_assert(kMigrationCount == Store::kSchemaVersion);
+
+double now_unix_s() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+template <typename Matrix>
+void bind_matrix(Statement& s, int index, const Matrix& m) {
+  s.bind_blob(index, m.data(), sizeof(double) * static_cast<std::size_t>(m.size()));
+}
+
+template <typename Matrix>
+Matrix read_matrix(const Statement& s, int column) {
+  const auto values = s.column_doubles(column);
+  Matrix m;
+  if (values.size() != static_cast<std::size_t>(m.size())) throw StorageError("corrupt matrix in database");
+  for (Eigen::Index i = 0; i < m.size(); ++i) m.data()[i] = values[static_cast<std::size_t>(i)];
+  return m;
+}
+
+}  // namespace
+
+Store::Store(const StoreOptions& options) : options_(options), writer_(options.path, true), reader_(options.path, false) {
+  writer_.exec("PRAGMA journal_mode=WAL");
+  writer_.exec(options_.synchronous_full ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
+  writer_.exec("PRAGMA foreign_keys=ON");
+  migrate();
+}
+
+int Store::schema_version() {
+  Statement s(writer_, "PRAGMA user_version");
+  s.step();
+  return static_cast<int>(s.column_int(0));
+}
+
+void Store::migrate() {
+  const int found = schema_version();
+  if (found > kSchemaVersion)
+    throw StorageError("database '" + options_.path + "' has schema version " + std::to_string(found) +
+                       ", newer than this build's " + std::to_string(kSchemaVersion) + ": refusing to touch it");
+  for (int v = found; v < kSchemaVersion; ++v) {
+    Transaction tx(writer_);
+    writer_.exec(kMigrations[v]);
+    writer_.exec("PRAGMA user_version = " + std::to_string(v + 1));
+    tx.commit();
+  }
+}
+
+world::WorldState Store::load(const world::WorldOptions& options) {
+  world::WorldState state;
+  {
+    Statement s(writer_, "SELECT key, value FROM meta");
+    while (s.step()) {
+      const auto key = s.column_text(0);
+      const auto value = s.column_int(1);
+      if (key == "version") state.version = value;
+      else if (key == "next_element_number") state.next_element_number = value;
+      else if (key == "last_observation_seq") state.last_observation_seq = value;
+      else if (key == "last_decision_seq") state.last_decision_seq = value;
+    }
+  }
+  {
+    Statement s(writer_, "SELECT name, plan_json FROM floor_plan WHERE id = 1");
+    if (s.step()) {
+      const auto plan = apriori::parse_floor_plan_json(s.column_text(1));
+      state.plan_name = plan.name;
+      state.objects = world::make_objects(plan, options, 0);
+      world::rebuild_object_index(state);
+    }
+  }
+  {
+    Statement s(writer_,
+                "SELECT ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version FROM objects ORDER BY ord");
+    while (s.step()) {
+      const auto ord = static_cast<std::size_t>(s.column_int(0));
+      if (ord >= state.objects.size() || state.objects[ord].plan->id != s.column_text(1))
+        throw StorageError("objects table does not match the stored floor plan");
+      auto& object = state.objects[ord];
+      fusion::Pose2D pose{s.column_double(2), s.column_double(3), s.column_double(4)};
+      object.body = fusion::RigidObject(pose, read_matrix<Eigen::Matrix3d>(s, 5), object.body.edges());
+      object.confirmations = s.column_int(6);
+      object.adjustments = s.column_int(7);
+      object.updated_version = s.column_int(8);
+    }
+  }
+  {
+    Statement s(writer_,
+                "SELECT number, rho, phi, cov, t0, t1, support, source, observer, created_version, updated_version "
+                "FROM elements ORDER BY number");
+    while (s.step()) {
+      world::Element e;
+      e.number = s.column_int(0);
+      e.segment.line.rho_m = s.column_double(1);
+      e.segment.line.phi_rad = s.column_double(2);
+      e.segment.line.cov = read_matrix<Eigen::Matrix2d>(s, 3);
+      e.segment.t0_m = s.column_double(4);
+      e.segment.t1_m = s.column_double(5);
+      e.support = s.column_int(6);
+      e.source = s.column_text(7);
+      e.observer = s.column_text(8);
+      e.created_version = s.column_int(9);
+      e.updated_version = s.column_int(10);
+      state.elements.emplace(e.number, std::move(e));
+    }
+  }
+  return state;
+}
+
+void Store::write_counters(const world::WorldState& state) {
+  Statement s(writer_, "INSERT INTO meta(key, value) VALUES (?1, ?2) ON CONFLICT(key) DO UPDATE SET value = excluded.value");
+  s.bind(1, std::string_view("version")).bind(2, state.version).run();
+  s.bind(1, std::string_view("next_element_number")).bind(2, state.next_element_number).run();
+  s.bind(1, std::string_view("last_observation_seq")).bind(2, state.last_observation_seq).run();
+  s.bind(1, std::string_view("last_decision_seq")).bind(2, state.last_decision_seq).run();
+}
+
+void Store::write_objects(const world::UpdateResult& update) {
+  Statement s(writer_,
+              "INSERT INTO objects(ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version) "
+              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9) ON CONFLICT(ord) DO UPDATE SET id = excluded.id, x = excluded.x, "
+              "y = excluded.y, theta = excluded.theta, pose_cov = excluded.pose_cov, confirmations = excluded.confirmations, "
+              "adjustments = excluded.adjustments, updated_version = excluded.updated_version");
+  for (auto index : update.changed_objects) {
+    const auto& o = update.state.objects.at(index);
+    const auto& pose = o.body.pose();
+    s.bind(1, static_cast<std::int64_t>(index)).bind(2, std::string_view(o.plan->id));
+    s.bind(3, pose.x_m).bind(4, pose.y_m).bind(5, pose.theta_rad);
+    bind_matrix(s, 6, o.body.pose_cov());
+    s.bind(7, o.confirmations).bind(8, o.adjustments).bind(9, o.updated_version).run();
+  }
+}
+
+void Store::insert_observation(std::int64_t seq, std::string_view kind, const std::string& observer, double stamp,
+                               std::string_view payload) {
+  Statement s(writer_,
+              "INSERT INTO observations(seq, kind, observer, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+  s.bind(1, seq).bind(2, kind).bind(3, std::string_view(observer)).bind(4, stamp).bind(5, now_unix_s()).bind(6, payload).run();
+}
+
+void Store::commit_observation(const world::UpdateResult& update, const world::Observation& observation,
+                               std::string_view payload_json) {
+  Transaction tx(writer_);
+  insert_observation(update.state.last_observation_seq, observation.source, observation.observer, observation.stamp_s,
+                     payload_json);
+  {
+    Statement s(writer_,
+                "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
+                "updated_version) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11) ON CONFLICT(number) DO UPDATE SET "
+                "rho = excluded.rho, phi = excluded.phi, cov = excluded.cov, t0 = excluded.t0, t1 = excluded.t1, "
+                "support = excluded.support, updated_version = excluded.updated_version");
+    for (auto number : update.changed_elements) {
+      const auto& e = update.state.elements.at(number);
+      s.bind(1, e.number).bind(2, e.segment.line.rho_m).bind(3, e.segment.line.phi_rad);
+      bind_matrix(s, 4, e.segment.line.cov);
+      s.bind(5, e.segment.t0_m).bind(6, e.segment.t1_m).bind(7, e.support);
+      s.bind(8, std::string_view(e.source)).bind(9, std::string_view(e.observer));
+      s.bind(10, e.created_version).bind(11, e.updated_version).run();
+    }
+  }
+  write_objects(update);
+  {
+    Statement s(writer_,
+                "INSERT INTO decisions(seq, observation_seq, idx, action, rule, explanation, element, object, "
+                "mahalanobis_sq, fallback, observer, p0x, p0y, p1x, p1y) "
+                "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)");
+    for (const auto& d : update.decisions) {
+      s.bind(1, d.seq).bind(2, d.observation_seq).bind(3, d.index);
+      s.bind(4, std::string_view(d.action)).bind(5, std::string_view(d.rule)).bind(6, std::string_view(d.explanation));
+      s.bind(7, d.element).bind(8, d.object).bind(9, d.mahalanobis_sq).bind(10, std::int64_t{d.fallback});
+      s.bind(11, std::string_view(d.observer));
+      s.bind(12, d.p0.x()).bind(13, d.p0.y()).bind(14, d.p1.x()).bind(15, d.p1.y()).run();
+    }
+  }
+  write_counters(update.state);
+  tx.commit();
+}
+
+void Store::commit_floor_plan(const world::UpdateResult& update, const apriori::FloorPlan& plan) {
+  const std::string text = apriori::to_json_text(plan);
+  Transaction tx(writer_);
+  writer_.exec("DELETE FROM objects");
+  {
+    Statement s(writer_,
+                "INSERT INTO floor_plan(id, name, plan_json, loaded_version) VALUES (1, ?1, ?2, ?3) "
+                "ON CONFLICT(id) DO UPDATE SET name = excluded.name, plan_json = excluded.plan_json, "
+                "loaded_version = excluded.loaded_version");
+    s.bind(1, std::string_view(plan.name)).bind(2, std::string_view(text)).bind(3, update.state.version).run();
+  }
+  write_objects(update);
+  write_counters(update.state);
+  tx.commit();
+}
+
+std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std::size_t limit,
+                                                    const std::optional<std::string>& element) {
+  std::lock_guard lock(reader_mutex_);
+  Statement s(reader_,
+              "SELECT seq, observation_seq, idx, action, rule, explanation, element, object, mahalanobis_sq, fallback, "
+              "observer, p0x, p0y, p1x, p1y FROM decisions WHERE seq > ?1 AND (?2 IS NULL OR element = ?2) "
+              "ORDER BY seq LIMIT ?3");
+  s.bind(1, since_seq).bind(2, element).bind(3, static_cast<std::int64_t>(limit));
+  std::vector<world::DecisionRecord> result;
+  while (s.step()) {
+    world::DecisionRecord d;
+    d.seq = s.column_int(0);
+    d.observation_seq = s.column_int(1);
+    d.index = s.column_int(2);
+    d.action = s.column_text(3);
+    d.rule = s.column_text(4);
+    d.explanation = s.column_text(5);
+    d.element = s.column_optional_text(6);
+    d.object = s.column_optional_text(7);
+    d.mahalanobis_sq = s.column_optional_double(8);
+    d.fallback = s.column_int(9) != 0;
+    d.observer = s.column_text(10);
+    d.p0 = {s.column_double(11), s.column_double(12)};
+    d.p1 = {s.column_double(13), s.column_double(14)};
+    result.push_back(std::move(d));
+  }
+  return result;
+}
+
+}  // namespace wm::storage
