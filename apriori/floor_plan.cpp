@@ -4,6 +4,7 @@
 #include <cmath>
 #include <set>
 
+#include <Eigen/Eigenvalues>
 #include <nlohmann/json.hpp>
 
 namespace wm::apriori {

@@ -146,7 +146,7 @@ Response get_floor_plan(const Request& req, Services& s) {
 Response post_primitives(const Request& req, Services& s) {
   require_token(req, s);
   require_json_body(req);
-  auto observation = json_codec::parse_primitives(req.body(), s.world.options().world.default_primitive_cov, s.options.primitive_limits);
+  auto observation = json_codec::parse_primitives(req.body(), s.world.options().world, s.options.primitive_limits);
   const auto outcome = s.world.post_primitives(std::move(observation), req.body());
   json decisions = json::array();
   for (const auto& d : outcome.decisions) decisions.push_back(json_codec::decision_json(d));

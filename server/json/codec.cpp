@@ -56,7 +56,7 @@ json segment_json(const fusion::LineSegment& s) {
 
 }  // namespace
 
-world::Observation parse_primitives(std::string_view body, const Eigen::Matrix2d& default_cov, const PrimitiveLimits& limits) {
+world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits) {
   json doc;
   try {
     doc = json::parse(body.begin(), body.end());
@@ -92,9 +92,14 @@ world::Observation parse_primitives(std::string_view body, const Eigen::Matrix2d
     const auto p1 = point(s["p1"], field(path, "p1"), limits.max_abs_coordinate_m);
     if ((p1 - p0).norm() < limits.min_length_m)
       throw api::bad_request(path, "segment shorter than " + std::to_string(limits.min_length_m) + " m");
-    const Eigen::Matrix2d cov = s.contains("cov") ? covariance(s["cov"], field(path, "cov")) : default_cov;
     try {
-      observation.segments.push_back({fusion::LineSegment::from_points(p0, p1, cov)});
+      if (s.contains("cov")) {
+        observation.segments.push_back({fusion::LineSegment::from_points(p0, p1, covariance(s["cov"], field(path, "cov")))});
+      } else {
+        auto segment = fusion::LineSegment::from_points(p0, p1, Eigen::Matrix2d::Identity());
+        segment.line.cov = world::midpoint_line_cov(segment, options.default_offset_sigma_m, options.default_angle_sigma_rad);
+        observation.segments.push_back({segment});
+      }
     } catch (const std::invalid_argument& e) {
       throw api::bad_request(path, e.what());
     }
@@ -107,7 +112,7 @@ json object_json(const world::ObjectState& object, const world::WorldOptions& op
   const auto& pose = object.body.pose();
   json edges = json::array();
   for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
-    json e = segment_json(object.body.world_edge(k, options.apriori_edge_noise));
+    json e = segment_json(world::apriori_edge(object, k, options));
     e["id"] = world::edge_id(plan.id, k);
     edges.push_back(std::move(e));
   }

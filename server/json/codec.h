@@ -16,7 +16,7 @@ struct PrimitiveLimits {
 };
 
 /// Parses and validates POST /api/v1/primitives. @throw api::ApiError(400) naming the bad field.
-world::Observation parse_primitives(std::string_view body, const Eigen::Matrix2d& default_cov, const PrimitiveLimits& limits);
+world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits);
 
 nlohmann::json object_json(const world::ObjectState& object, const world::WorldOptions& options);
 nlohmann::json element_json(const world::Element& element);

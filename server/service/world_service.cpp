@@ -71,7 +71,7 @@ std::vector<rules::ObjectFacts> WorldService::facts(const world::WorldState& sta
     f.kind = object.plan->kind;
     f.attributes = object.plan->attributes;
     for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
-      const auto edge = object.body.world_edge(k, options_.world.apriori_edge_noise);
+      const auto edge = world::apriori_edge(object, k, options_.world);
       f.edges.push_back({world::edge_id(f.id, k), edge.line.rho_m, edge.line.phi_rad, edge.length_m()});
     }
     result.push_back(std::move(f));

@@ -20,9 +20,9 @@ struct Candidates {
 Candidates collect_candidates(const WorldState& state, const WorldOptions& options) {
   Candidates c;
   for (std::size_t i = 0; i < state.objects.size(); ++i) {
-    const auto& body = state.objects[i].body;
-    for (std::size_t k = 0; k < body.edges().size(); ++k) {
-      c.segments.push_back(body.world_edge(k, options.apriori_edge_noise));
+    const auto& object = state.objects[i];
+    for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
+      c.segments.push_back(apriori_edge(object, k, options));
       c.refs.push_back({i, k, 0});
     }
   }
@@ -124,7 +124,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     } else if (record.action == "rigid_adjust") {
       auto& object = state.objects[*ref->object];
       try {
-        object.body = object.body.updated(ref->edge, seen.line, options.apriori_edge_noise);
+        object.body = object.body.updated(ref->edge, seen.line, apriori_edge_noise(object, ref->edge, options));
         ++object.adjustments;
         object.updated_version = state.version;
         result.changed_objects.insert(*ref->object);

@@ -40,6 +40,23 @@ void rebuild_object_index(WorldState& state) {
   for (std::size_t i = 0; i < state.objects.size(); ++i) state.object_index.emplace(state.objects[i].plan->id, i);
 }
 
+Eigen::Matrix2d midpoint_line_cov(const fusion::LineSegment& segment, double sigma_offset_m, double sigma_angle_rad) {
+  const double t_mid = 0.5 * (segment.t0_m + segment.t1_m);
+  Eigen::Matrix2d jacobian;
+  jacobian << 1.0, t_mid, 0.0, 1.0;
+  return jacobian * Eigen::Vector2d(sigma_offset_m * sigma_offset_m, sigma_angle_rad * sigma_angle_rad).asDiagonal() *
+         jacobian.transpose();
+}
+
+Eigen::Matrix2d apriori_edge_noise(const ObjectState& object, std::size_t k, const WorldOptions& options) {
+  const auto drawn = object.body.world_edge(k, Eigen::Matrix2d::Zero());
+  return midpoint_line_cov(drawn, options.apriori_offset_sigma_m, options.apriori_angle_sigma_rad);
+}
+
+fusion::LineSegment apriori_edge(const ObjectState& object, std::size_t k, const WorldOptions& options) {
+  return object.body.world_edge(k, apriori_edge_noise(object, k, options));
+}
+
 std::string edge_id(const std::string& object_id, std::size_t k) { return object_id + "/" + std::to_string(k); }
 
 }  // namespace wm::world

@@ -20,11 +20,15 @@ namespace wm::world {
 /// Numbers the world model uses when a request does not give them. Validated once by the config reader.
 struct WorldOptions {
   fusion::MatchOptions match;
-  /// (ρ, φ) covariance of a posted segment without "cov": σρ = 1 cm, σφ = 0.01 rad.
-  Eigen::Matrix2d default_primitive_cov = Eigen::Vector2d(1e-4, 1e-4).asDiagonal();
-  /// How far a drawn CAD edge may be from the built one, added to every a-priori edge's covariance
-  /// (σρ = 2 cm, σφ = 0.01 rad): drawings are good but not exact.
-  Eigen::Matrix2d apriori_edge_noise = Eigen::Vector2d(4e-4, 1e-4).asDiagonal();
+  /// Uncertainty of a posted segment without "cov": σ across the line at the segment's midpoint [m] and σ of
+  /// its direction [rad]. Stated at the midpoint because a plain diagonal (ρ, φ) covariance would be wrong for
+  /// any segment far from the origin (ρ and φ are correlated through the lever arm); see midpoint_line_cov.
+  double default_offset_sigma_m = 0.01;
+  double default_angle_sigma_rad = 0.01;
+  /// How far a drawn CAD edge may be from the built one, in the same midpoint form, added to every a-priori
+  /// edge's covariance on top of its object's pose uncertainty: drawings are good but not exact.
+  double apriori_offset_sigma_m = 0.02;
+  double apriori_angle_sigma_rad = 0.005;
   /// Pose covariance of plan objects that do not state one (σxy = 5 cm, σθ = 0.05 rad).
   Eigen::Matrix3d default_pose_cov = Eigen::Vector3d(2.5e-3, 2.5e-3, 2.5e-3).asDiagonal();
 };
@@ -72,6 +76,16 @@ struct WorldState {
 /// Builds the object states of a plan (poses as drawn). @throw std::invalid_argument from fusion on bad geometry.
 std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options, std::int64_t version);
 void rebuild_object_index(WorldState& state);
+
+/// (ρ, φ) covariance of a line known to σ_offset [m] across the segment's midpoint and σ_angle [rad] in
+/// direction: J diag(σ_offset², σ_angle²) Jᵀ with J = [[1, t_mid], [0, 1]], t_mid the midpoint's coordinate
+/// along the line (∂ρ/∂φ at a fixed midpoint).
+Eigen::Matrix2d midpoint_line_cov(const fusion::LineSegment& segment, double sigma_offset_m, double sigma_angle_rad);
+
+/// The CAD drawing's own uncertainty for edge k of an object (midpoint form of the options above).
+Eigen::Matrix2d apriori_edge_noise(const ObjectState& object, std::size_t k, const WorldOptions& options);
+/// Edge k of an object in the world frame, with pose uncertainty and drawing noise in its covariance.
+fusion::LineSegment apriori_edge(const ObjectState& object, std::size_t k, const WorldOptions& options);
 
 /// Edge id as the API names it: "<object>/<k>".
 std::string edge_id(const std::string& object_id, std::size_t k);
