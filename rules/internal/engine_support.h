@@ -1,0 +1,298 @@
+#pragma once
+
+// The Prolog half of rules::Engine: the `wm_engine` support module (loading, self-check, dispatch,
+// limits, fact replacement). Internal to engine.cpp; kept as text here so that the library needs no
+// file at run time. It is not a rule file: users never edit it.
+
+namespace wm::rules::internal {
+
+inline constexpr const char* kSupportModuleSourceId = "wm_engine_support.pl";
+
+inline constexpr const char* kSupportModule = R"wm_pl(
+:- module(wm_engine, []).
+/* Support module of wm::rules::Engine (loaded by engine.cpp from this text; not a rule file).
+   Entry points, all called from C++ and all catching every error they can report:
+     init/0, set_floor_plan/1, decide/5, reload/6, shutdown/0, message_text/2. */
+:- use_module(library(time), [call_with_time_limit/2]).
+:- use_module(library(sha), [sha_hash/3, hash_atom/2]).
+:- use_module(library(lists), [member/2]).
+:- use_module(library(apply), [foldl/4]).
+:- use_module(library(prolog_codewalk), [prolog_walk_code/1]).
+:- use_module(library(error), [must_be/2]).
+
+:- dynamic active_rules/1.          % active_rules(Module): the module decide/5 is answered from
+:- dynamic retired_rules/2.         % retired_rules(Module, RetiredAt [s]): freed after a grace period
+:- thread_local collecting/0.       % this thread is loading rule files: capture its messages
+:- thread_local load_problem/1.     % load_problem(String) "file:line: text"
+:- thread_local source_path/2.      % source_path(SourceId, Path): source ids are unique per load
+
+:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
+
+% Without base(system), an undefined predicate in wm_kb or a rules module falls through to `user`.
+init :-
+    set_module(wm_kb:base(system)),
+    clear_facts.
+
+clear_facts :-
+    retractall(wm_kb:object(_, _)),
+    retractall(wm_kb:attribute(_, _)),
+    retractall(wm_kb:edge(_, _, _, _, _)).
+
+%!  set_floor_plan(+Objects) is det.
+%   Objects: list of object(Id, Kind, Attributes, Edges), Edges: list of edge(Id, Rho, Phi, Length).
+%   All facts are replaced in one transaction: other threads see the old or the new plan, never half.
+set_floor_plan(Objects) :-
+    must_be(list, Objects),
+    transaction(( clear_facts,
+                  forall(member(Object, Objects), assert_object(Object)) )).
+
+assert_object(object(Id, Kind, Attributes, Edges)) :-
+    assertz(wm_kb:object(Id, Kind)),
+    sort(Attributes, Unique),
+    forall(member(A, Unique), assertz(wm_kb:attribute(Id, A))),
+    forall(member(edge(E, Rho, Phi, Length), Edges),
+           assertz(wm_kb:edge(Id, E, Rho, Phi, Length))).
+
+%!  decide(+Observation, +Match, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Result = decision(Action:atom, Rule:string, Explanation:string) | error(Message:string).
+decide(Observation, Match, InferenceLimit, TimeLimit, Result) :-
+    (   active_rules(M)
+    ->  run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result)
+    ;   Result = error("no rules are active")
+    ).
+
+run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result) :-
+    catch(call_with_time_limit(TimeLimit,
+                               limited_decide(M, Observation, Match, InferenceLimit, Answer)),
+          E, Answer = exception(E)),
+    answer_result(Answer, InferenceLimit, TimeLimit, Result).
+
+limited_decide(M, Observation, Match, InferenceLimit, Answer) :-
+    call_with_inference_limit(M:decide(Observation, Match, Action, Rule, Explanation),
+                              InferenceLimit, Status),
+    !,
+    (   Status == inference_limit_exceeded
+    ->  Answer = inference_limit
+    ;   Answer = answer(Action, Rule, Explanation)
+    ).
+limited_decide(_, _, _, _, failed).
+
+answer_result(answer(Action, Rule, Explanation), _, _, Result) :- !,
+    (   \+ atom(Action)
+    ->  format(string(Msg), "decide/5 answered an action that is not an atom: ~q", [Action]),
+        Result = error(Msg)
+    ;   \+ ( atom(Rule) ; string(Rule) )
+    ->  format(string(Msg), "decide/5 answered a rule name that is not an atom: ~q", [Rule]),
+        Result = error(Msg)
+    ;   var(Explanation)
+    ->  Result = error("decide/5 left the explanation unbound")
+    ;   atom_string(Rule, RuleString),
+        explanation_string(Explanation, ExplanationString),
+        Result = decision(Action, RuleString, ExplanationString)
+    ).
+answer_result(failed, _, _, error("no rule applies (decide/5 failed)")) :- !.
+answer_result(inference_limit, Limit, _, error(Msg)) :- !,
+    format(string(Msg), "inference limit of ~D exceeded (does a rule loop?)", [Limit]).
+answer_result(exception(E), _, TimeLimit, error(Msg)) :-
+    (   time_limit_error(E)
+    ->  format(string(Msg), "time limit of ~w s exceeded (does a rule loop or block?)", [TimeLimit])
+    ;   message_text(E, Text),
+        format(string(Msg), "decide/5 raised: ~w", [Text])
+    ).
+
+time_limit_error(E) :- E == time_limit_exceeded, !.
+time_limit_error(time_limit_exceeded(_)).
+
+explanation_string(E, S) :- catch(text_to_string(E, S), _, fail), !.
+explanation_string(E, S) :- format(string(S), "~W", [E, [quoted(true), max_depth(20)]]).
+
+%!  message_text(+Term, -Text:string) is det.
+%   The message SWI-Prolog would print for Term, without a location prefix, on one or more lines.
+message_text(Term, Text) :-
+    (   Term = error(Formal, file(_, _, _, _)) -> Bare = error(Formal, _) ; Bare = Term ),
+    (   catch('$messages':translate_message(Bare, Lines, []), _, fail),
+        catch(with_output_to(string(S0), print_message_lines(current_output, '', Lines)), _, fail)
+    ->  split_string(S0, "", " \n", [Text])
+    ;   format(string(Text), "~q", [Term])
+    ).
+
+%!  reload(+Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result) is det.
+%   Loads Files, a list of file(Path, AbsolutePath) (Path is shown in messages), into a fresh module,
+%   self-checks it and makes it active.
+%   Result = ok(Hashes) with Hashes a list of sha256 hex atoms in the order of Files,
+%          | error(Problems), a non-empty list of strings "file:line: text"; then nothing changed.
+reload(Files, RulesDir, InferenceLimit, TimeLimit, GracePeriod, Result) :-
+    flag(wm_rules_counter, N, N+1),
+    format(atom(M), "wm_rules_~d", [N]),
+    set_module(M:base(system)),
+    add_import_module(M, wm_kb, start),
+    retractall(load_problem(_)),
+    retractall(source_path(_, _)),
+    setup_call_cleanup(assertz(collecting),
+                       load_all(Files, M, N, Hashes),
+                       retractall(collecting)),
+    (   \+ load_problem(_)
+    ->  check_undefined_calls(M)
+    ;   true
+    ),
+    findall(P, load_problem(P), LoadProblems),
+    (   LoadProblems == []
+    ->  self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems)
+    ;   Problems = LoadProblems
+    ),
+    retractall(load_problem(_)),
+    (   Problems == []
+    ->  activate(M, GracePeriod),
+        Result = ok(Hashes)
+    ;   free_module(M),
+        Result = error(Problems)
+    ).
+
+load_all([], _, _, []).
+load_all([File|Files], M, N, [Hash|Hashes]) :-
+    load_one(File, M, N, Hash),
+    load_all(Files, M, N, Hashes).
+
+load_one(file(Path, AbsolutePath), M, N, Hash) :-
+    format(atom(Id), "~w#~d", [Path, N]),
+    assertz(source_path(Id, Path)),
+    catch(( read_file_to_string(AbsolutePath, Text, [encoding(utf8)]),
+            sha_hash(Text, Digest, [algorithm(sha256), encoding(utf8)]),
+            hash_atom(Digest, Hash),
+            setup_call_cleanup(open_string(Text, Stream),
+                               load_files(M:Id, [stream(Stream)]),
+                               close(Stream)),
+            check_not_module(Id, M, Path)
+          ),
+          E,
+          problem_at(Path, 0, E)),
+    (   var(Hash) -> Hash = '' ; true ).
+
+check_not_module(Id, M, Path) :-
+    (   source_file_property(Id, module(Other)), Other \== M
+    ->  format(string(P), "~w:1: rule files are plain clauses: remove the module declaration (~w)",
+               [Path, Other]),
+        assertz(load_problem(P))
+    ;   true
+    ).
+
+problem_at(File, Line, Term) :-
+    message_text(Term, Text0),
+    findall(Id-Path, source_path(Id, Path), SourceIds),
+    foldl(source_id_to_path, SourceIds, Text0, Text),
+    format(string(P), "~w:~w: ~w", [File, Line, Text]),
+    assertz(load_problem(P)).
+
+%   Messages name the unique source ids ("path#N"); users know the path.
+source_id_to_path(Id-Path, Text0, Text) :-
+    atomic_list_concat(Parts, Id, Text0),
+    atomic_list_concat(Parts, Path, Atom),
+    atom_string(Atom, Text).
+
+:- multifile user:message_hook/3.
+user:message_hook(Term, Kind, _Lines) :-
+    ( Kind == error ; Kind == warning ),
+    collecting,
+    message_location(Term, File, Line),
+    problem_at(File, Line, Term).
+
+message_location(Term, Path, Line) :-
+    (   Term = error(_, file(Id, Line, _, _))
+    ->  true
+    ;   source_location(Id, Line)
+    ->  true
+    ;   Id = '?', Line = 0
+    ),
+    (   source_path(Id, Path) -> true ; Path = Id ).
+
+%   A call to a predicate that neither the rule files, the facts, `system` nor the autoloadable
+%   libraries define is a typo that would otherwise only show as fallback decisions.
+check_undefined_calls(M) :-
+    catch(prolog_walk_code([ module(M), undefined(trace), on_trace(undefined_call(M)),
+                             infer_meta_predicates(false) ]),
+          E, problem_at('?', 0, E)).
+
+undefined_call(M, Callee, Caller, Location) :-
+    (   Location = clause(Ref),
+        clause_property(Ref, file(Id)),
+        clause_property(Ref, line_count(Line))
+    ->  ( source_path(Id, Path) -> true ; Path = Id )
+    ;   Path = '?', Line = 0
+    ),
+    unqualified(M, Callee, CalleePI),
+    unqualified(M, Caller, CallerPI),
+    format(string(P), "~w:~w: ~q calls the undefined predicate ~q", [Path, Line, CallerPI, CalleePI]),
+    assertz(load_problem(P)).
+
+unqualified(M, M:Head, Name/Arity) :- !, functor(Head, Name, Arity).
+unqualified(_, Q:Head, Q:Name/Arity) :- callable(Head), !, functor(Head, Name, Arity).
+unqualified(_, Goal, Goal).
+
+%   The canonical cases every rule set must answer with an atom action.
+canonical_case('matched solid',
+               observation(self_check, 2.0, 0.0, 4.0), element(wm_check_e1, wm_check_wall, 0.5)).
+canonical_case('matched element not in the plan',
+               observation(self_check, 2.0, 0.0, 4.0), element(wm_check_e2, none, 0.5)).
+canonical_case('matched not_deformable',
+               observation(self_check, 1.0, 1.5707963267948966, 0.8), element(wm_check_e3, wm_check_table, 0.5)).
+canonical_case('unmatched',
+               observation(self_check, 3.0, 3.141592653589793, 1.0), none).
+
+canonical_facts :-
+    set_floor_plan([ object(wm_check_wall, wall, [solid], [edge(wm_check_e1, 2.0, 0.0, 4.0)]),
+                     object(wm_check_table, table, [not_deformable],
+                            [edge(wm_check_e3, 1.0, 1.5707963267948966, 0.8)]) ]).
+
+self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems) :-
+    (   \+ defines_decide(M)
+    ->  format(string(P), "~w: no rule file defines decide/5", [RulesDir]),
+        Problems = [P]
+    ;   decide_location(M, Location),
+        snapshot(( canonical_facts,
+                   findall(P, ( canonical_case(Name, Observation, Match),
+                                run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result),
+                                Result = error(Msg),
+                                format(string(P), "~w: self-check '~w' (~q, ~q): ~w",
+                                       [Location, Name, Observation, Match, Msg]) ),
+                           Problems) ))
+    ).
+
+defines_decide(M) :-
+    current_predicate(M:decide/5),
+    \+ predicate_property(M:decide(_, _, _, _, _), imported_from(_)).
+
+decide_location(M, Location) :-
+    (   predicate_property(M:decide(_, _, _, _, _), file(Id)),
+        predicate_property(M:decide(_, _, _, _, _), line_count(Line))
+    ->  ( source_path(Id, Path) -> true ; Path = Id ),
+        format(string(Location), "~w:~w", [Path, Line])
+    ;   Location = "decide/5"
+    ).
+
+activate(M, GracePeriod) :-
+    get_time(Now),
+    forall(active_rules(Old), assertz(retired_rules(Old, Now))),
+    transaction(( retractall(active_rules(_)), assertz(active_rules(M)) )),
+    free_retired(Now, GracePeriod).
+
+%   A retired module is freed only when no decision can still run in it (one started before the
+%   switch ends within the time limit).
+free_retired(Now, GracePeriod) :-
+    forall(( retired_rules(Old, At), Now - At > GracePeriod ),
+           ( free_module(Old), retractall(retired_rules(Old, _)) )).
+
+free_module(M) :-
+    forall(( current_predicate(M:Name/Arity),
+             functor(Head, Name, Arity),
+             predicate_property(M:Head, implementation_module(M)) ),
+           catch(abolish(M:Name/Arity), _, true)).
+
+shutdown :-
+    forall(active_rules(M), free_module(M)),
+    forall(retired_rules(M, _), free_module(M)),
+    retractall(active_rules(_)),
+    retractall(retired_rules(_, _)),
+    clear_facts.
+)wm_pl";
+
+}  // namespace wm::rules::internal

@@ -1,0 +1,93 @@
+/*  world_model.pl — the shipped rules of the world-model knowledge base.
+
+    A new line primitive is first matched numerically (in C++) against the vector map; these rules
+    then decide what happens to it (DESIGN.md, "The rules"). C++ does the numbers, this file only
+    decides and explains.
+
+    CONTRACT FOR RULE WRITERS (every *.pl file of the rules directory is loaded; *.plt is ignored)
+
+    - Write plain clauses: no `:- module` directive. All files of the directory are loaded, sorted by
+      name, into one fresh module; an edit only becomes active after a reload that loads every file
+      without any error OR warning (singleton variables, discontiguous clauses... count) and passes
+      the self-check below. Otherwise the previous rules stay active and the reload reports
+      "file:line: message" for each problem.
+    - Only `system` predicates, autoloadable library predicates and the facts below are visible;
+      predicates of `user` are not.
+
+    Facts (asserted by C++ from the floor plan; they exist, possibly empty, at all times):
+
+        object(ObjectId, Kind).                          % atoms, e.g. object(w1, wall)
+        attribute(ObjectId, Attribute).                  % atoms, e.g. solid, not_deformable
+        edge(ObjectId, EdgeId, Rho, Phi, Length).        % world frame, Hesse normal form:
+                                                         % x cos Phi + y sin Phi = Rho;
+                                                         % Rho [m] >= 0, Phi [rad], Length [m]
+
+    The decision predicate a rule set must define:
+
+        % decide(+Observation, +Match, -Action, -Rule, -Explanation)
+        % Observation = observation(Source, Rho, Phi, Length)   Source atom; Rho [m], Phi [rad],
+        %                                                       Length [m] (floats)
+        % Match = none                                  nothing in the map matched
+        %       | element(ElementId, ObjectId, D2)      matched an a-priori edge of ObjectId
+        %       | element(ElementId, none, D2)          matched an observed element not in the plan
+        %         (D2: squared Mahalanobis distance of the match, a float)
+        % Action = delete | merge | rigid_adjust | add  (atoms; rule sets may add others that the
+        %                                                server knows)
+        % Rule = atom naming the rule that fired (logged with the decision)
+        % Explanation = string or atom, human readable, with the numbers
+
+    Only the first solution counts. Each decision runs under an inference limit and a time limit.
+    A decision that fails, throws, hits a limit or answers a non-atom action is replaced by the
+    fallback `add` (rule `fallback`), which keeps the observation and changes nothing else.
+
+    Self-check at every (re)load, on temporary facts: decide/5 must be defined in these files and
+    answer an atom action for a matched solid wall, a matched element not in the plan, a matched
+    not_deformable object and an unmatched observation.
+
+    The rule names below (solid_confirmed, unknown_element_merged, not_deformable_rigid,
+    unmatched_added, apriori_confirmed) are part of the API: clients and logs refer to them.
+*/
+
+%   1. A match on a solid a-priori object (a wall) confirms the plan: the observation is dropped.
+decide(observation(Source, _, _, _), element(Element, Object, D2), delete, solid_confirmed,
+       Explanation) :-
+    Object \== none,
+    attribute(Object, solid),
+    !,
+    format(string(Explanation),
+           "~w matched element ~w of solid object ~w (d2 = ~4f): the plan is confirmed, \c
+            the observation is deleted",
+           [Source, Element, Object, D2]).
+%   2. A match on an element that is not in the plan (e.g. a temporary wall of boxes): fuse both.
+decide(observation(Source, _, _, _), element(Element, none, D2), merge, unknown_element_merged,
+       Explanation) :-
+    !,
+    format(string(Explanation),
+           "~w matched element ~w, which is not in the floor plan (d2 = ~4f): merged by \c
+            Kalman fusion",
+           [Source, Element, D2]).
+%   3. A match on a not_deformable object (a table, a wardrobe): move the object, keep its shape.
+decide(observation(Source, _, _, _), element(Element, Object, D2), rigid_adjust,
+       not_deformable_rigid, Explanation) :-
+    attribute(Object, not_deformable),
+    !,
+    format(string(Explanation),
+           "~w matched element ~w of not_deformable object ~w (d2 = ~4f): the object's pose \c
+            is adjusted, its shape kept",
+           [Source, Element, Object, D2]).
+%   4. Nothing matched: a new element.
+decide(observation(Source, Rho, Phi, Length), none, add, unmatched_added, Explanation) :-
+    !,
+    format(string(Explanation),
+           "~w observed a line (rho = ~4f m, phi = ~4f rad, length = ~4f m) that matches \c
+            nothing: added as a new element",
+           [Source, Rho, Phi, Length]).
+%   5. A match on any other a-priori object: the plan element is confirmed, nothing changes.
+decide(observation(Source, _, _, _), element(Element, Object, D2), delete, apriori_confirmed,
+       Explanation) :-
+    object(Object, Kind),
+    !,
+    format(string(Explanation),
+           "~w matched element ~w of a-priori ~w ~w (d2 = ~4f): the plan element is confirmed, \c
+            the observation is deleted",
+           [Source, Element, Kind, Object, D2]).

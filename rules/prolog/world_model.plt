@@ -1,0 +1,97 @@
+/*  plunit tests for world_model.pl.
+
+    Run:  swipl -g run_tests -t halt rules/prolog/world_model.plt
+
+    world_model.pl is loaded the way rules::Engine loads it: into a fresh module whose base module is
+    `system` and whose default import module is `wm_kb`, the facts module defined below. Each test
+    installs its own facts with with_facts/2.
+*/
+:- use_module(library(plunit)).
+:- use_module(library(lists)).
+
+%   The test-facts module: the same dynamic facts the C++ engine asserts from the floor plan.
+:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
+:- set_module(wm_kb:base(system)).
+
+:- prolog_load_context(directory, Dir),
+   directory_file_path(Dir, 'world_model.pl', File),
+   set_module(wm_rules_under_test:base(system)),
+   add_import_module(wm_rules_under_test, wm_kb, start),
+   load_files(wm_rules_under_test:File, []).
+
+%!  with_facts(+Facts, :Goal) is semidet.
+%   Runs Goal with exactly Facts (object/2, attribute/2, edge/5 terms) in wm_kb.
+with_facts(Facts, Goal) :-
+    setup_call_cleanup(set_facts(Facts), once(Goal), set_facts([])).
+
+set_facts(Facts) :-
+    retractall(wm_kb:object(_, _)),
+    retractall(wm_kb:attribute(_, _)),
+    retractall(wm_kb:edge(_, _, _, _, _)),
+    forall(member(F, Facts), assertz(wm_kb:F)).
+
+plan([ object(w1, wall), attribute(w1, solid), edge(w1, w1_e0, 2.0, 0.0, 4.0),
+       object(t1, table), attribute(t1, not_deformable), edge(t1, t1_e0, 1.0, 1.5707963, 0.8),
+       object(d1, door), edge(d1, d1_e0, 3.0, 0.0, 0.9),
+       object(x1, cupboard), attribute(x1, solid), attribute(x1, not_deformable)
+     ]).
+
+%   decide(+Match, -Action, -Rule, -Explanation) with the standard plan and a lidar observation.
+decide(Match, Action, Rule, Explanation) :-
+    plan(Facts),
+    with_facts(Facts,
+               wm_rules_under_test:decide(observation(lidar, 2.0, 0.0, 3.5), Match,
+                                          Action, Rule, Explanation)).
+
+:- begin_tests(world_model).
+
+test(solid_object_is_deleted_and_confirmed, [Action-Rule == delete-solid_confirmed]) :-
+    decide(element(e7, w1, 0.25), Action, Rule, _).
+
+test(element_not_in_plan_is_merged, [Action-Rule == merge-unknown_element_merged]) :-
+    decide(element(e8, none, 1.5), Action, Rule, _).
+
+test(not_deformable_object_is_rigidly_adjusted, [Action-Rule == rigid_adjust-not_deformable_rigid]) :-
+    decide(element(e9, t1, 0.5), Action, Rule, _).
+
+test(unmatched_observation_is_added, [Action-Rule == add-unmatched_added]) :-
+    decide(none, Action, Rule, _).
+
+test(plain_apriori_object_is_confirmed, [Action-Rule == delete-apriori_confirmed]) :-
+    decide(element(e10, d1, 0.1), Action, Rule, _).
+
+test(solid_wins_over_not_deformable, [Rule == solid_confirmed]) :-
+    decide(element(e11, x1, 0.1), _, Rule, _).
+
+test(unknown_object_gets_no_decision, [fail]) :-
+    decide(element(e12, ghost, 0.1), _, _, _).
+
+test(only_first_solution_per_match, [Count == 1]) :-
+    plan(Facts),
+    with_facts(Facts,
+               aggregate_all(count,
+                             wm_rules_under_test:decide(observation(lidar, 2.0, 0.0, 3.5),
+                                                        element(e7, w1, 0.25), _, _, _),
+                             Count)).
+
+test(explanation_names_element_object_and_distance) :-
+    decide(element(e7, w1, 0.25), _, _, Explanation),
+    string(Explanation),
+    once(sub_string(Explanation, _, _, _, "e7")),
+    once(sub_string(Explanation, _, _, _, "w1")),
+    once(sub_string(Explanation, _, _, _, "0.2500")).
+
+test(unmatched_explanation_gives_the_line) :-
+    decide(none, _, _, Explanation),
+    once(sub_string(Explanation, _, _, _, "rho = 2.0000 m")),
+    once(sub_string(Explanation, _, _, _, "length = 3.5000 m")).
+
+test(attributes_come_from_the_facts, [Rule == apriori_confirmed]) :-
+    with_facts([object(w1, wall)],
+               wm_rules_under_test:decide(observation(lidar, 2.0, 0.0, 3.5),
+                                          element(e7, w1, 0.25), _, Rule, _)).
+
+test(rules_do_not_see_user_predicates, [error(existence_error(procedure, _))]) :-
+    wm_rules_under_test:wm_undefined_helper.
+
+:- end_tests(world_model).

@@ -1,0 +1,115 @@
+#include "server/world/update.h"
+
+#include <gtest/gtest.h>
+
+namespace wm::world {
+namespace {
+
+apriori::FloorPlan lab() {
+  apriori::PlanObject wall;
+  wall.id = "wall-n";
+  wall.kind = "wall";
+  wall.attributes = {"solid"};
+  wall.polylines = {{{0, 10}, {20, 10}}};
+  apriori::PlanObject table;
+  table.id = "table-1";
+  table.kind = "table";
+  table.attributes = {"not_deformable"};
+  table.pose = {5, 5, 0.3};
+  table.polygon = {{-0.6, -0.4}, {0.6, -0.4}, {0.6, 0.4}, {-0.6, 0.4}};
+  return {"lab", {wall, table}};
+}
+
+Observation observe(std::initializer_list<std::pair<Eigen::Vector2d, Eigen::Vector2d>> segments, const WorldOptions& o) {
+  Observation obs;
+  obs.observer = "robot";
+  for (const auto& [a, b] : segments) {
+    auto s = fusion::LineSegment::from_points(a, b, Eigen::Matrix2d::Identity());
+    s.line.cov = midpoint_line_cov(s, o.default_offset_sigma_m, o.default_angle_sigma_rad);
+    obs.segments.push_back({s});
+  }
+  return obs;
+}
+
+// Answers a fixed action, and records what the rules were asked.
+struct FixedRules {
+  std::string action;
+  std::vector<rules::DecisionQuery> asked;
+  rules::Decision operator()(const rules::DecisionQuery& q) {
+    asked.push_back(q);
+    return {action, "test_rule", "because the test says so", false};
+  }
+};
+
+TEST(UpdateTest, QueryNamesTheMatchedEdgeAndItsObject) {
+  WorldOptions options;
+  const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
+  FixedRules rules{"delete", {}};
+  const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
+  ASSERT_EQ(rules.asked.size(), 1u);
+  EXPECT_EQ(rules.asked[0].element_id, "wall-n/0");
+  EXPECT_EQ(rules.asked[0].object_id, "wall-n");
+  EXPECT_GT(rules.asked[0].mahalanobis_sq, 0.0);
+  EXPECT_EQ(result.decisions[0].action, "delete");
+  EXPECT_EQ(result.state.objects[0].confirmations, 1);
+  EXPECT_EQ(result.state.version, start.version + 1);
+  EXPECT_EQ(start.objects[0].confirmations, 0) << "the input state must not change";
+}
+
+TEST(UpdateTest, LaterSegmentsOfARequestSeeTheEarlierOnes) {
+  WorldOptions options;
+  FixedRules rules{"add", {}};
+  const auto obs = observe({{{10, 3}, {13, 3}}, {{12, 3.001}, {15, 3.0}}}, options);
+  const auto first = apply_observation(WorldState{}, obs, 1, options, std::ref(rules));
+  ASSERT_EQ(rules.asked.size(), 2u);
+  EXPECT_FALSE(rules.asked[0].element_id.has_value());
+  EXPECT_EQ(rules.asked[1].element_id, "e1");  // the element the first segment added
+  EXPECT_FALSE(rules.asked[1].object_id.has_value());
+  EXPECT_EQ(first.state.elements.size(), 2u);
+}
+
+TEST(UpdateTest, ActionsThatDoNotFitTheMatchFallBackToAdd) {
+  WorldOptions options;
+  const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
+  for (const std::string action : {"merge", "frobnicate"}) {
+    FixedRules rules{action, {}};
+    const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
+    ASSERT_EQ(result.decisions.size(), 1u);
+    EXPECT_EQ(result.decisions[0].action, "add") << action;
+    EXPECT_EQ(result.decisions[0].rule, "fallback");
+    EXPECT_TRUE(result.decisions[0].fallback);
+    EXPECT_NE(result.decisions[0].explanation.find(action), std::string::npos);
+    EXPECT_EQ(result.state.elements.size(), 1u);
+    EXPECT_EQ(result.state.objects[0].confirmations, 0);
+  }
+  FixedRules rigid{"rigid_adjust", {}};
+  const auto unmatched = apply_observation(start, observe({{{30, 30}, {31, 31}}}, options), 1, options, std::ref(rigid));
+  EXPECT_TRUE(unmatched.decisions[0].fallback);
+}
+
+TEST(UpdateTest, CollinearWallsAcrossADoorwayStayApart) {
+  WorldOptions options;
+  FixedRules rules{"add", {}};
+  auto state = apply_observation(WorldState{}, observe({{{0, 5}, {4, 5}}}, options), 1, options, std::ref(rules)).state;
+  state = apply_observation(state, observe({{{5, 5}, {9, 5}}}, options), 2, options, std::ref(rules)).state;
+  EXPECT_FALSE(rules.asked[1].element_id.has_value()) << "a 1 m doorway must not be bridged";
+  FixedRules merge{"merge", {}};
+  const auto result = apply_observation(state, observe({{{1, 5.002}, {3, 5.0}}}, options), 3, options, std::ref(merge));
+  EXPECT_EQ(merge.asked[0].element_id, "e1");
+  EXPECT_EQ(result.decisions[0].action, "merge");
+  EXPECT_EQ(result.state.elements.at(1).support, 2);
+  EXPECT_EQ(result.state.elements.at(2).support, 1);
+}
+
+TEST(UpdateTest, MidpointCovarianceCarriesTheLeverArm) {
+  auto s = fusion::LineSegment::from_points({10, 3}, {14, 3}, Eigen::Matrix2d::Identity());
+  const auto c = midpoint_line_cov(s, 0.01, 0.02);
+  const double t_mid = 0.5 * (s.t0_m + s.t1_m);
+  EXPECT_NEAR(std::abs(t_mid), 12.0, 1e-9);
+  EXPECT_NEAR(c(1, 1), 4e-4, 1e-15);
+  EXPECT_NEAR(c(0, 1), t_mid * 4e-4, 1e-12);
+  EXPECT_NEAR(c(0, 0), 1e-4 + t_mid * t_mid * 4e-4, 1e-12);
+}
+
+}  // namespace
+}  // namespace wm::world
