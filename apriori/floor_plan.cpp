@@ -163,6 +163,9 @@ FloorPlan parse_floor_plan_json(std::string_view text_in, const FloorPlanLimits&
     doc = json::parse(text_in.begin(), text_in.end());
   } catch (const json::parse_error& e) {
     throw FloorPlanError("", std::string("malformed JSON: ") + e.what());
+  } catch (const json::out_of_range& e) {
+    // nlohmann refuses literals like 1e999 that overflow a double: they would become Inf.
+    throw FloorPlanError("", std::string("number out of range (must be finite): ") + e.what());
   }
   if (!doc.is_object()) throw FloorPlanError("", "a floor plan is a JSON object with \"objects\"");
   require_known_keys(doc, "", {"name", "units", "objects", "description"});

@@ -104,7 +104,8 @@ int run(const std::vector<std::string>& args) {
   for (std::size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--server" || args[i] == "--token") {
       if (i + 1 >= args.size()) throw UsageError(args[i] + " needs a value");
-      (args[i] == "--server" ? server : token) = args[++i];
+      std::string& target = args[i] == "--server" ? server : token;
+      target = args[++i];
     } else if (args[i] == "--json") {
       raw_json = true;
     } else if (args[i] == "--help" || args[i] == "-h") {

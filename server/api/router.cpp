@@ -81,14 +81,14 @@ bool has_content_type(const Request& req, std::string_view wanted) {
   const auto semicolon = value.find(';');
   auto type = value.substr(0, semicolon);
   while (!type.empty() && type.back() == ' ') type.remove_suffix(1);
-  return boost::beast::iequals(type, wanted);
+  return boost::beast::iequals(type, boost::beast::string_view(wanted.data(), wanted.size()));
 }
 
 void require_json_body(const Request& req) {
+  if (req.body().empty()) throw bad_request("", "empty body");
   if (!has_content_type(req, "application/json"))
     throw ApiError(415, "unsupported_media_type",
                    "send the body as Content-Type: application/json (got '" + std::string(req[http::field::content_type]) + "')");
-  if (req.body().empty()) throw bad_request("", "empty body");
 }
 
 void require_token(const Request& req, const Services& s) {
@@ -166,7 +166,8 @@ Response get_decisions(const Request& req, const Target& t, Services& s) {
 }
 
 Response route(const Request& req, Services& s) {
-  const Target t = parse_target(req.target());
+  const auto raw_target = req.target();
+  const Target t = parse_target(std::string_view(raw_target.data(), raw_target.size()));
   const auto method = req.method();
   const auto& path = t.path;
   const std::string objects_prefix = "/api/v1/objects/";

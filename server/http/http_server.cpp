@@ -1,5 +1,7 @@
 #include "server/http/http_server.h"
 
+#include <array>
+#include <chrono>
 #include <iostream>
 #include <optional>
 #include <thread>
@@ -74,7 +76,27 @@ class Session : public std::enable_shared_from_this<Session> {
   void close() {
     beast::error_code ignored;
     stream_.socket().shutdown(tcp::socket::shutdown_send, ignored);
+    // Lingering close: read and discard what the client still sends (the rest of an oversized body)
+    // so that closing does not reset the connection before the client has read our answer.
+    stream_.expires_after(std::chrono::seconds(5));
+    drain();
   }
+
+  void drain() {
+    stream_.async_read_some(net::buffer(discard_), [self = shared_from_this()](beast::error_code ec, std::size_t n) {
+      self->drained_bytes_ += n;
+      if (ec || self->drained_bytes_ > kMaxDrainBytes) {
+        beast::error_code ignored;
+        self->stream_.socket().close(ignored);
+        return;
+      }
+      self->drain();
+    });
+  }
+
+  static constexpr std::size_t kMaxDrainBytes = std::size_t{256} << 20;
+  std::array<char, 64 * 1024> discard_{};
+  std::size_t drained_bytes_ = 0;
 
   beast::tcp_stream stream_;
   beast::flat_buffer buffer_;

@@ -62,6 +62,9 @@ world::Observation parse_primitives(std::string_view body, const world::WorldOpt
     doc = json::parse(body.begin(), body.end());
   } catch (const json::parse_error& e) {
     throw api::bad_request("", std::string("malformed JSON: ") + e.what());
+  } catch (const json::out_of_range& e) {
+    // nlohmann refuses literals like 1e999 that overflow a double: they would become Inf.
+    throw api::bad_request("", std::string("number out of range (must be finite): ") + e.what());
   }
   if (!doc.is_object()) throw api::bad_request("", "expected an object with \"segments\"");
   for (const auto& [key, value] : doc.items())

@@ -1,5 +1,7 @@
 #include <cmath>
 
+#include <Eigen/Core>
+
 #include "e2e_fixture.h"
 
 namespace wm::testing {

@@ -4,7 +4,7 @@
 
 #include <gtest/gtest.h>
 
-#include "support/wmd_process.h"
+#include "support/temp_dir.h"
 
 namespace wm::storage {
 namespace {
