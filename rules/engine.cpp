@@ -160,6 +160,20 @@ struct Engine::Impl {
   predicate_t pred_decide = nullptr;
   predicate_t pred_reload = nullptr;
   predicate_t pred_shutdown = nullptr;
+  predicate_t pred_decide_context = nullptr;
+  predicate_t pred_decide_batch = nullptr;
+  predicate_t pred_set_elements = nullptr;
+  predicate_t pred_update_elements = nullptr;
+  predicate_t pred_add_decisions = nullptr;
+  predicate_t pred_prune = nullptr;
+  predicate_t pred_query = nullptr;
+  predicate_t pred_dry_run = nullptr;
+  functor_t f_context = 0;
+  functor_t f_case = 0;
+  functor_t f_element_fact = 0;
+  functor_t f_decision_fact = 0;
+  functor_t f_file = 0;
+  functor_t f_text = 0;
   functor_t f_observation = 0;
   functor_t f_element = 0;
   functor_t f_object = 0;
@@ -181,6 +195,9 @@ struct Engine::Impl {
   void load_support_module();
   void call_or_throw(predicate_t pred, term_t args, const char* function);
   std::vector<std::string> rule_files() const;
+  void put_rule_files(term_t list, const std::vector<std::string>& paths, const RuleText* candidate) const;
+  void put_case(term_t observation, term_t match, term_t context, const DecisionQuery& query) const;
+  Decision read_result(term_t result);
 };
 
 // Loads the wm_engine support module from its text. Loading it again (a later Engine in the same
@@ -267,6 +284,20 @@ Engine::Engine(const EngineOptions& options) {
     d.pred_decide = PL_predicate("decide", 5, kSupportModuleName);
     d.pred_reload = PL_predicate("reload", 6, kSupportModuleName);
     d.pred_shutdown = PL_predicate("shutdown", 0, kSupportModuleName);
+    d.pred_decide_context = PL_predicate("decide", 6, kSupportModuleName);
+    d.pred_decide_batch = PL_predicate("decide_batch", 4, kSupportModuleName);
+    d.pred_set_elements = PL_predicate("set_elements", 1, kSupportModuleName);
+    d.pred_update_elements = PL_predicate("update_elements", 2, kSupportModuleName);
+    d.pred_add_decisions = PL_predicate("add_decisions", 2, kSupportModuleName);
+    d.pred_prune = PL_predicate("prune", 4, kSupportModuleName);
+    d.pred_query = PL_predicate("query", 5, kSupportModuleName);
+    d.pred_dry_run = PL_predicate("dry_run", 6, kSupportModuleName);
+    d.f_context = PL_new_functor(PL_new_atom("context"), 2);
+    d.f_case = PL_new_functor(PL_new_atom("case"), 3);
+    d.f_element_fact = PL_new_functor(PL_new_atom("element"), 8);
+    d.f_decision_fact = PL_new_functor(PL_new_atom("decision"), 7);
+    d.f_file = PL_new_functor(PL_new_atom("file"), 2);
+    d.f_text = PL_new_functor(PL_new_atom("text"), 2);
     d.f_observation = PL_new_functor(PL_new_atom("observation"), 4);
     d.f_element = PL_new_functor(PL_new_atom("element"), 3);
     d.f_object = PL_new_functor(PL_new_atom("object"), 4);
@@ -349,9 +380,10 @@ void Engine::set_floor_plan(const std::vector<ObjectFacts>& objects) {
   impl_->call_or_throw(d.pred_set_floor_plan, list, kFunction);
 }
 
-Decision Engine::decide(const DecisionQuery& query) {
+namespace {
+
+void validate_query(const DecisionQuery& query) {
   constexpr const char* kFunction = "decide";
-  require_attached(kFunction);
   require_finite(query.rho_m, kFunction, "rho_m");
   require_finite(query.phi_rad, kFunction, "phi_rad");
   require_finite(query.length_m, kFunction, "length_m");
@@ -363,62 +395,106 @@ Decision Engine::decide(const DecisionQuery& query) {
   if (query.object_id && *query.object_id == "none") {
     throw std::invalid_argument("decide: object_id 'none' is reserved (use nullopt for \"not in the plan\")");
   }
+}
 
-  Impl& d = *impl_;
-  std::string error;
-  {
-    Frame frame;
-    // decide(+Observation, +Match, +InferenceLimit, +TimeLimit, -Result)
-    term_t args = PL_new_term_refs(5);
-    term_t fields = PL_new_term_refs(4);
-    put_atom(fields, query.source);
-    put_float(fields + 1, query.rho_m);
-    put_float(fields + 2, query.phi_rad);
-    put_float(fields + 3, query.length_m);
-    if (!PL_cons_functor_v(args, d.f_observation, fields)) throw RuleError("decide: out of Prolog stack");
-    if (query.element_id) {
-      term_t match = PL_new_term_refs(3);
-      put_atom(match, *query.element_id);
-      if (query.object_id) {
-        put_atom(match + 1, *query.object_id);
-      } else {
-        PL_put_atom(match + 1, d.a_none);
-      }
-      put_float(match + 2, query.mahalanobis_sq);
-      if (!PL_cons_functor_v(args + 1, d.f_element, match)) throw RuleError("decide: out of Prolog stack");
-    } else {
-      PL_put_atom(args + 1, d.a_none);
-    }
-    if (!PL_put_int64(args + 2, d.options.inference_limit)) throw RuleError("decide: out of Prolog stack");
-    put_float(args + 3, d.options.time_limit_s);
+}  // namespace
 
-    if (auto call_error = call_once(d.pred_decide, args)) {
-      error = *call_error;
+void Engine::Impl::put_case(term_t observation, term_t match, term_t context, const DecisionQuery& query) const {
+  term_t fields = PL_new_term_refs(4);
+  put_atom(fields, query.source);
+  put_float(fields + 1, query.rho_m);
+  put_float(fields + 2, query.phi_rad);
+  put_float(fields + 3, query.length_m);
+  if (!PL_cons_functor_v(observation, f_observation, fields)) throw RuleError("decide: out of Prolog stack");
+  if (query.element_id) {
+    term_t parts = PL_new_term_refs(3);
+    put_atom(parts, *query.element_id);
+    if (query.object_id) {
+      put_atom(parts + 1, *query.object_id);
     } else {
-      term_t result = args + 4;
-      term_t part = PL_new_term_ref();
-      if (PL_is_functor(result, d.f_decision)) {
-        Decision decision;
-        std::optional<std::string> texts[3];
-        for (int i = 0; i < 3; ++i) {
-          if (PL_get_arg(i + 1, result, part)) texts[i] = text_of(part);
-        }
-        if (texts[0] && texts[1] && texts[2]) {
-          decision.action = std::move(*texts[0]);
-          decision.rule = std::move(*texts[1]);
-          decision.explanation = std::move(*texts[2]);
-          return decision;
-        }
-        error = "malformed decision " + written(result);
-      } else if (PL_is_functor(result, d.f_error) && PL_get_arg(1, result, part)) {
-        error = text_of(part).value_or(written(part));
-      } else {
-        error = "malformed decision " + written(result);
-      }
+      PL_put_atom(parts + 1, a_none);
     }
+    put_float(parts + 2, query.mahalanobis_sq);
+    if (!PL_cons_functor_v(match, f_element, parts)) throw RuleError("decide: out of Prolog stack");
+  } else {
+    PL_put_atom(match, a_none);
   }
-  d.set_last_error(error);
+  term_t context_parts = PL_new_term_refs(2);
+  put_atom(context_parts, query.origin);
+  put_atom(context_parts + 1, query.sensor.empty() ? std::string_view("unknown") : std::string_view(query.sensor));
+  if (!PL_cons_functor_v(context, f_context, context_parts)) throw RuleError("decide: out of Prolog stack");
+}
+
+// A decision(Action, Rule, Explanation) or error(Message) term; errors become the fallback decision.
+Decision Engine::Impl::read_result(term_t result) {
+  std::string error;
+  term_t part = PL_new_term_ref();
+  if (PL_is_functor(result, f_decision)) {
+    std::optional<std::string> texts[3];
+    for (int i = 0; i < 3; ++i) {
+      if (PL_get_arg(i + 1, result, part)) texts[i] = text_of(part);
+    }
+    if (texts[0] && texts[1] && texts[2]) {
+      return Decision{std::move(*texts[0]), std::move(*texts[1]), std::move(*texts[2]), false};
+    }
+    error = "malformed decision " + written(result);
+  } else if (PL_is_functor(result, f_error) && PL_get_arg(1, result, part)) {
+    error = text_of(part).value_or(written(part));
+  } else {
+    error = "malformed decision " + written(result);
+  }
+  set_last_error(error);
   return Decision{"add", "fallback", "rules failed: " + error, true};
+}
+
+Decision Engine::decide(const DecisionQuery& query) {
+  require_attached("decide");
+  validate_query(query);
+  Impl& d = *impl_;
+  Frame frame;
+  // decide(+Observation, +Match, +Context, +InferenceLimit, +TimeLimit, -Result)
+  term_t args = PL_new_term_refs(6);
+  d.put_case(args, args + 1, args + 2, query);
+  if (!PL_put_int64(args + 3, d.options.inference_limit)) throw RuleError("decide: out of Prolog stack");
+  put_float(args + 4, d.options.time_limit_s);
+  if (auto call_error = call_once(d.pred_decide_context, args)) {
+    d.set_last_error(*call_error);
+    return Decision{"add", "fallback", "rules failed: " + *call_error, true};
+  }
+  return d.read_result(args + 5);
+}
+
+std::vector<Decision> Engine::decide_batch(const std::vector<DecisionQuery>& queries) {
+  require_attached("decide_batch");
+  for (const auto& query : queries) validate_query(query);
+  Impl& d = *impl_;
+  Frame frame;
+  // decide_batch(+Cases, +InferenceLimit, +TimeLimit, -Results)
+  term_t args = PL_new_term_refs(4);
+  PL_put_nil(args);
+  term_t item = PL_new_term_ref();
+  term_t parts = PL_new_term_refs(3);
+  for (auto query = queries.rbegin(); query != queries.rend(); ++query) {
+    d.put_case(parts, parts + 1, parts + 2, *query);
+    if (!PL_cons_functor_v(item, d.f_case, parts)) throw RuleError("decide_batch: out of Prolog stack");
+    cons(args, item);
+  }
+  if (!PL_put_int64(args + 1, d.options.inference_limit)) throw RuleError("decide_batch: out of Prolog stack");
+  // The whole batch may use the time of all its decisions.
+  put_float(args + 2, d.options.time_limit_s * static_cast<double>(std::max<std::size_t>(1, queries.size())));
+  std::vector<Decision> decisions;
+  decisions.reserve(queries.size());
+  if (auto call_error = call_once(d.pred_decide_batch, args)) {
+    d.set_last_error(*call_error);
+    for (std::size_t i = 0; i < queries.size(); ++i)
+      decisions.push_back(Decision{"add", "fallback", "rules failed: " + *call_error, true});
+    return decisions;
+  }
+  term_t list = PL_copy_term_ref(args + 3);
+  term_t head = PL_new_term_ref();
+  while (PL_get_list(list, head, list)) decisions.push_back(d.read_result(head));
+  if (decisions.size() != queries.size()) throw RuleError("decide_batch: wrong number of results");
+  return decisions;
 }
 
 RulesStatus Engine::reload() {
@@ -436,19 +512,7 @@ RulesStatus Engine::reload() {
       Frame frame;
       // reload(+Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result)
       term_t args = PL_new_term_refs(6);
-      term_t item = PL_new_term_ref();
-      PL_put_nil(args);
-      term_t file_args = PL_new_term_refs(2);
-      const functor_t f_file = PL_new_functor(PL_new_atom("file"), 2);
-      for (auto path = paths.rbegin(); path != paths.rend(); ++path) {
-        // Read through the absolute path: Prolog's idea of the working directory may differ.
-        put_atom(file_args, *path);
-        std::error_code ec;
-        const auto absolute = std::filesystem::absolute(*path, ec);
-        put_atom(file_args + 1, ec ? *path : absolute.string());
-        if (!PL_cons_functor_v(item, f_file, file_args)) throw RuleError("reload: out of Prolog stack");
-        cons(args, item);
-      }
+      d.put_rule_files(args, paths, nullptr);
       put_atom(args + 1, d.options.rules_dir.string());
       if (!PL_put_int64(args + 2, d.options.inference_limit)) throw RuleError("reload: out of Prolog stack");
       put_float(args + 3, d.options.time_limit_s);
@@ -489,6 +553,294 @@ RulesStatus Engine::reload() {
 RulesStatus Engine::status() const {
   std::lock_guard lock(impl_->status_mutex);
   return impl_->status;
+}
+
+void Engine::Impl::put_rule_files(term_t list, const std::vector<std::string>& paths, const RuleText* candidate) const {
+  term_t item = PL_new_term_ref();
+  term_t file_args = PL_new_term_refs(2);
+  PL_put_nil(list);
+  std::vector<std::string> names;
+  bool candidate_placed = false;
+  auto put_candidate = [&] {
+    put_atom(file_args, (options.rules_dir / candidate->name).string());
+    if (!PL_put_chars(file_args + 1, PL_STRING | REP_UTF8, candidate->text.size(), candidate->text.data()) ||
+        !PL_cons_functor_v(item, f_text, file_args)) {
+      throw RuleError("rules: out of Prolog stack");
+    }
+    cons(list, item);
+  };
+  // Built back to front: files stay sorted by name, the candidate in its place.
+  for (auto path = paths.rbegin(); path != paths.rend(); ++path) {
+    const std::string name = std::filesystem::path(*path).filename().string();
+    if (candidate && !candidate_placed && candidate->name >= name) {
+      candidate_placed = true;
+      put_candidate();
+      if (candidate->name == name) continue;
+    }
+    // Read through the absolute path: Prolog's idea of the working directory may differ.
+    put_atom(file_args, *path);
+    std::error_code ec;
+    const auto absolute = std::filesystem::absolute(*path, ec);
+    put_atom(file_args + 1, ec ? *path : absolute.string());
+    if (!PL_cons_functor_v(item, f_file, file_args)) throw RuleError("rules: out of Prolog stack");
+    cons(list, item);
+  }
+  if (candidate && !candidate_placed) put_candidate();
+}
+
+namespace {
+
+void put_optional_atom(term_t t, const std::optional<std::string>& text, atom_t none) {
+  if (text) {
+    put_atom(t, *text);
+  } else {
+    PL_put_atom(t, none);
+  }
+}
+
+QueryValue query_value(term_t t) {
+  QueryValue v;
+  switch (PL_term_type(t)) {
+    case PL_VARIABLE:
+      v.kind = QueryValue::Kind::unbound;
+      v.text = "_";
+      break;
+    case PL_ATOM:
+    case PL_NIL:
+      v.kind = QueryValue::Kind::atom;
+      v.text = text_of(t).value_or(written(t));
+      break;
+    case PL_STRING:
+      v.kind = QueryValue::Kind::string;
+      v.text = text_of(t).value_or("");
+      break;
+    case PL_INTEGER: {
+      int64_t value = 0;
+      if (PL_get_int64(t, &value)) {
+        v.kind = QueryValue::Kind::integer;
+        v.integer = value;
+      } else {
+        v.kind = QueryValue::Kind::compound;
+        v.text = written(t);
+      }
+      break;
+    }
+    case PL_FLOAT:
+      v.kind = QueryValue::Kind::floating;
+      if (!PL_get_float(t, &v.floating)) v.text = written(t);
+      break;
+    case PL_LIST_PAIR: {
+      term_t list = PL_copy_term_ref(t);
+      term_t head = PL_new_term_ref();
+      v.kind = QueryValue::Kind::list;
+      while (PL_get_list(list, head, list)) v.items.push_back(query_value(head));
+      if (!PL_get_nil(list)) {  // a partial list: show it as written
+        v.kind = QueryValue::Kind::compound;
+        v.items.clear();
+        v.text = written(t);
+      }
+      break;
+    }
+    default:
+      v.kind = QueryValue::Kind::compound;
+      v.text = written(t);
+  }
+  return v;
+}
+
+void put_element_fact(term_t t, functor_t f, const ElementFacts& e) {
+  if (e.id.empty()) throw std::invalid_argument("set_elements: an element id is empty");
+  require_finite(e.rho_m, "set_elements", "rho_m");
+  require_finite(e.phi_rad, "set_elements", "phi_rad");
+  require_finite(e.length_m, "set_elements", "length_m");
+  require_finite(e.updated_at_unix_s, "set_elements", "updated_at_unix_s");
+  term_t a = PL_new_term_refs(8);
+  put_atom(a, e.id);
+  put_atom(a + 1, e.source);
+  put_atom(a + 2, e.observer);
+  put_float(a + 3, e.rho_m);
+  put_float(a + 4, e.phi_rad);
+  put_float(a + 5, e.length_m);
+  if (!PL_put_int64(a + 6, e.support)) throw RuleError("set_elements: out of Prolog stack");
+  put_float(a + 7, e.updated_at_unix_s);
+  if (!PL_cons_functor_v(t, f, a)) throw RuleError("set_elements: out of Prolog stack");
+}
+
+}  // namespace
+
+void Engine::set_elements(const std::vector<ElementFacts>& elements) {
+  require_attached("set_elements");
+  Impl& d = *impl_;
+  Frame frame;
+  term_t list = PL_new_term_ref();
+  term_t item = PL_new_term_ref();
+  PL_put_nil(list);
+  for (auto e = elements.rbegin(); e != elements.rend(); ++e) {
+    put_element_fact(item, d.f_element_fact, *e);
+    cons(list, item);
+  }
+  d.call_or_throw(d.pred_set_elements, list, "set_elements");
+}
+
+void Engine::update_elements(const std::vector<ElementFacts>& upserts, const std::vector<std::string>& removed) {
+  require_attached("update_elements");
+  Impl& d = *impl_;
+  Frame frame;
+  term_t args = PL_new_term_refs(2);
+  term_t item = PL_new_term_ref();
+  PL_put_nil(args);
+  for (auto e = upserts.rbegin(); e != upserts.rend(); ++e) {
+    put_element_fact(item, d.f_element_fact, *e);
+    cons(args, item);
+  }
+  PL_put_nil(args + 1);
+  for (auto id = removed.rbegin(); id != removed.rend(); ++id) {
+    put_atom(item, *id);
+    cons(args + 1, item);
+  }
+  d.call_or_throw(d.pred_update_elements, args, "update_elements");
+}
+
+void Engine::add_decisions(const std::vector<DecisionFacts>& decisions, std::size_t keep_last) {
+  require_attached("add_decisions");
+  Impl& d = *impl_;
+  Frame frame;
+  term_t args = PL_new_term_refs(2);
+  term_t item = PL_new_term_ref();
+  term_t a = PL_new_term_refs(7);
+  PL_put_nil(args);
+  for (auto r = decisions.rbegin(); r != decisions.rend(); ++r) {
+    require_finite(r->at_unix_s, "add_decisions", "at_unix_s");
+    if (!PL_put_int64(a, r->seq)) throw RuleError("add_decisions: out of Prolog stack");
+    put_atom(a + 1, r->action);
+    put_atom(a + 2, r->rule);
+    put_optional_atom(a + 3, r->element, d.a_none);
+    put_optional_atom(a + 4, r->object, d.a_none);
+    put_atom(a + 5, r->observer);
+    put_float(a + 6, r->at_unix_s);
+    if (!PL_cons_functor_v(item, d.f_decision_fact, a)) throw RuleError("add_decisions: out of Prolog stack");
+    cons(args, item);
+  }
+  if (!PL_put_int64(args + 1, static_cast<std::int64_t>(keep_last))) throw RuleError("add_decisions: out of Prolog stack");
+  d.call_or_throw(d.pred_add_decisions, args, "add_decisions");
+}
+
+std::vector<PruneOrder> Engine::prune_orders(std::size_t max) {
+  require_attached("prune_orders");
+  Impl& d = *impl_;
+  Frame frame;
+  // prune(+Max, +InferenceLimit, +TimeLimit, -Result)
+  term_t args = PL_new_term_refs(4);
+  if (!PL_put_int64(args, static_cast<std::int64_t>(max)) || !PL_put_int64(args + 1, d.options.inference_limit)) {
+    throw RuleError("prune_orders: out of Prolog stack");
+  }
+  put_float(args + 2, d.options.time_limit_s);
+  d.call_or_throw(d.pred_prune, args, "prune_orders");
+  term_t result = args + 3;
+  term_t part = PL_new_term_ref();
+  if (PL_is_functor(result, d.f_error) && PL_get_arg(1, result, part)) {
+    d.set_last_error(text_of(part).value_or(written(part)));
+    return {};
+  }
+  std::vector<PruneOrder> orders;
+  term_t list = PL_new_term_ref();
+  term_t head = PL_new_term_ref();
+  if (!PL_get_arg(1, result, list)) throw RuleError("prune_orders: malformed answer " + written(result));
+  while (PL_get_list(list, head, list)) {
+    PruneOrder order;
+    std::optional<std::string> texts[3];
+    for (int i = 0; i < 3; ++i) {
+      if (PL_get_arg(i + 1, head, part)) texts[i] = text_of(part);
+    }
+    if (!texts[0] || !texts[1] || !texts[2]) throw RuleError("prune_orders: malformed order " + written(head));
+    orders.push_back({std::move(*texts[0]), std::move(*texts[1]), std::move(*texts[2])});
+  }
+  return orders;
+}
+
+QueryResult Engine::query(const std::string& goal, std::size_t max_solutions) {
+  require_attached("query");
+  Impl& d = *impl_;
+  Frame frame;
+  // query(+Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result)
+  term_t args = PL_new_term_refs(5);
+  if (!PL_put_chars(args, PL_STRING | REP_UTF8, goal.size(), goal.data()) ||
+      !PL_put_int64(args + 1, static_cast<std::int64_t>(max_solutions)) ||
+      !PL_put_int64(args + 2, d.options.inference_limit)) {
+    throw RuleError("query: out of Prolog stack");
+  }
+  put_float(args + 3, d.options.time_limit_s);
+  if (auto error = call_once(d.pred_query, args)) throw QueryError(QueryError::Reason::failed, *error);
+  term_t result = args + 4;
+  atom_t name = 0;
+  std::size_t arity = 0;
+  if (!PL_get_name_arity(result, &name, &arity)) throw RuleError("query: malformed answer " + written(result));
+  const std::string kind = PL_atom_chars(name);
+  term_t part = PL_new_term_ref();
+  if (kind != "ok") {
+    const std::string message = PL_get_arg(1, result, part) ? text_of(part).value_or(written(part)) : written(result);
+    const auto reason = kind == "syntax" ? QueryError::Reason::syntax
+                        : kind == "unsafe" ? QueryError::Reason::unsafe
+                        : kind == "limit" ? QueryError::Reason::limit
+                                          : QueryError::Reason::failed;
+    throw QueryError(reason, message);
+  }
+  QueryResult answer;
+  term_t list = PL_new_term_ref();
+  term_t head = PL_new_term_ref();
+  if (!PL_get_arg(1, result, list)) throw RuleError("query: malformed answer");
+  while (PL_get_list(list, head, list)) answer.variables.push_back(text_of(head).value_or("?"));
+  if (!PL_get_arg(2, result, list)) throw RuleError("query: malformed answer");
+  term_t row = PL_new_term_ref();
+  while (PL_get_list(list, row, list)) {
+    std::vector<QueryValue> values;
+    while (PL_get_list(row, head, row)) values.push_back(query_value(head));
+    answer.solutions.push_back(std::move(values));
+  }
+  int truncated = 0;
+  if (PL_get_arg(3, result, part) && PL_get_bool(part, &truncated)) answer.truncated = truncated != 0;
+  return answer;
+}
+
+std::vector<Decision> Engine::dry_run(const RuleText& candidate, const std::vector<DecisionQuery>& queries) {
+  require_attached("dry_run");
+  const auto name = std::filesystem::path(candidate.name);
+  if (candidate.name.empty() || name.has_parent_path() || name.extension() != ".pl" || candidate.name.front() == '.') {
+    throw std::invalid_argument("dry_run: the candidate needs a plain file name ending in .pl (got '" + candidate.name + "')");
+  }
+  for (const auto& query : queries) validate_query(query);
+  Impl& d = *impl_;
+  const std::vector<std::string> paths = d.rule_files();
+  Frame frame;
+  // dry_run(+Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result)
+  term_t args = PL_new_term_refs(6);
+  d.put_rule_files(args, paths, &candidate);
+  put_atom(args + 1, d.options.rules_dir.string());
+  PL_put_nil(args + 2);
+  term_t item = PL_new_term_ref();
+  term_t parts = PL_new_term_refs(3);
+  for (auto query = queries.rbegin(); query != queries.rend(); ++query) {
+    d.put_case(parts, parts + 1, parts + 2, *query);
+    if (!PL_cons_functor_v(item, d.f_case, parts)) throw RuleError("dry_run: out of Prolog stack");
+    cons(args + 2, item);
+  }
+  if (!PL_put_int64(args + 3, d.options.inference_limit)) throw RuleError("dry_run: out of Prolog stack");
+  put_float(args + 4, d.options.time_limit_s);
+  d.call_or_throw(d.pred_dry_run, args, "dry_run");
+  term_t result = args + 5;
+  term_t list = PL_new_term_ref();
+  term_t head = PL_new_term_ref();
+  if (!PL_get_arg(1, result, list)) throw RuleError("dry_run: malformed answer " + written(result));
+  if (!PL_is_functor(result, d.f_ok)) {
+    std::string message;
+    while (PL_get_list(list, head, list)) message += (message.empty() ? "" : "\n") + text_of(head).value_or(written(head));
+    throw RuleError(message.empty() ? "dry_run: the candidate rules were rejected" : message);
+  }
+  std::vector<Decision> decisions;
+  const std::string last_error = status().last_error;
+  while (PL_get_list(list, head, list)) decisions.push_back(d.read_result(head));
+  d.set_last_error(last_error);  // a candidate's failures are not the active rules' errors
+  return decisions;
 }
 
 ThreadAttachment::ThreadAttachment(Engine& /*engine*/) {

@@ -50,6 +50,70 @@ struct DecisionQuery {
   std::optional<std::string> element_id;  // matched element (nullopt = unmatched)
   std::optional<std::string> object_id;   // a-priori object of that element (nullopt = not in the plan)
   double mahalanobis_sq = 0;              // squared Mahalanobis distance of the match, >= 0
+  /// Context the rules read with observation_origin/1 and observation_sensor/1.
+  std::string origin = "client";  // client | scan | grid
+  std::string sensor = "unknown"; // laser | sonar | ... | unknown
+};
+
+/// One observed map element (not in the plan), as the rules see it (wm_kb:element/8):
+/// element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt).
+struct ElementFacts {
+  std::string id;        // e.g. "e12"
+  std::string source;    // client | scan | grid
+  std::string observer;  // e.g. "robot-1"
+  double rho_m = 0, phi_rad = 0, length_m = 0;
+  std::int64_t support = 1;        // observations fused into it
+  double updated_at_unix_s = 0;    // wall-clock time of its last change [s]
+};
+
+/// One logged decision, as the rules see it (wm_kb:decision/7):
+/// decision(Seq, Action, Rule, Element, Object, Observer, At) with `none` for a missing element/object.
+struct DecisionFacts {
+  std::int64_t seq = 0;
+  std::string action, rule;
+  std::optional<std::string> element, object;
+  std::string observer;
+  double at_unix_s = 0;
+};
+
+/// An element the rules' prune/3 asks to remove.
+struct PruneOrder {
+  std::string element_id;
+  std::string rule;
+  std::string explanation;
+};
+
+/// A value bound by a query: JSON-like, no Prolog types.
+struct QueryValue {
+  enum class Kind { unbound, atom, string, integer, floating, list, compound };
+  Kind kind = Kind::unbound;
+  std::string text;            // atom/string text; compound: the term as writeq/1 prints it
+  std::int64_t integer = 0;    // Kind::integer (integers beyond 64 bits come as Kind::compound text)
+  double floating = 0;         // Kind::floating
+  std::vector<QueryValue> items;  // Kind::list
+};
+
+struct QueryResult {
+  std::vector<std::string> variables;                 // named variables of the goal, in order
+  std::vector<std::vector<QueryValue>> solutions;     // one row per solution, values by variable
+  bool truncated = false;                             // more solutions than asked for exist
+};
+
+/// A query the knowledge base refuses or cannot finish.
+class QueryError : public RuleError {
+ public:
+  enum class Reason { syntax, unsafe, limit, failed };
+  QueryError(Reason reason, const std::string& message) : RuleError(message), reason_(reason) {}
+  Reason reason() const { return reason_; }
+
+ private:
+  Reason reason_;
+};
+
+/// A rule file given in memory (a candidate for a dry run).
+struct RuleText {
+  std::string name;  // file name, e.g. "world_model.pl"; replaces the file of that name, if any
+  std::string text;
 };
 
 struct Decision {
@@ -115,6 +179,34 @@ class Engine {
   RulesStatus reload();
 
   RulesStatus status() const;
+
+  /// Decides many queries in one Prolog call (one time limit around the batch, the inference limit per
+  /// query); each result as decide() gives it, including fallbacks. Same exceptions as decide().
+  std::vector<Decision> decide_batch(const std::vector<DecisionQuery>& queries);
+
+  /// Replaces all wm_kb:element/8 facts. @throw std::invalid_argument for a non-finite number or an
+  /// empty id; RuleError when the thread is not attached.
+  void set_elements(const std::vector<ElementFacts>& elements);
+  /// Inserts or replaces the given elements and removes the ids in `removed`, in one transaction.
+  void update_elements(const std::vector<ElementFacts>& upserts, const std::vector<std::string>& removed);
+  /// Appends decision/7 facts, keeping only the `keep_last` newest in the knowledge base.
+  void add_decisions(const std::vector<DecisionFacts>& decisions, std::size_t keep_last);
+
+  /// Asks the active rules' prune/3 (if any clause exists) for at most `max` elements to remove,
+  /// under the limits. A failing rule gives an empty list and sets status().last_error.
+  std::vector<PruneOrder> prune_orders(std::size_t max);
+
+  /// Runs a read-only goal (Prolog text, e.g. "attribute(O, solid)") against the knowledge base: the
+  /// facts and the active rules. Checked with library(sandbox) and refused when it writes to the
+  /// database; run inside snapshot/1 under the inference and time limits.
+  /// @throw QueryError (syntax, unsafe, limit, failed); RuleError when the thread is not attached.
+  QueryResult query(const std::string& goal, std::size_t max_solutions);
+
+  /// Loads the current rule files, with `candidate` replacing (or adding) the file of its name, aside;
+  /// decides every query with them; frees them. The active rules, facts and map are untouched.
+  /// @throw RuleError with "file:line: message" lines when the candidate set does not load or fails the
+  ///        self-check (like reload()).
+  std::vector<Decision> dry_run(const RuleText& candidate, const std::vector<DecisionQuery>& queries);
 
  private:
   struct Impl;

@@ -12,11 +12,13 @@ inline constexpr const char* kSupportModule = R"wm_pl(
 :- module(wm_engine, []).
 /* Support module of wm::rules::Engine (loaded by engine.cpp from this text; not a rule file).
    Entry points, all called from C++ and all catching every error they can report:
-     init/0, set_floor_plan/1, decide/5, reload/6, shutdown/0, message_text/2. */
+     init/0, set_floor_plan/1, set_elements/1, update_elements/2, add_decisions/2, decide/6,
+     decide_batch/4, reload/6, dry_run/6, prune/4, query/5, shutdown/0, message_text/2. */
 :- use_module(library(time), [call_with_time_limit/2]).
 :- use_module(library(sha), [sha_hash/3, hash_atom/2]).
-:- use_module(library(lists), [member/2]).
-:- use_module(library(apply), [foldl/4]).
+:- use_module(library(lists), [member/2, append/3]).
+:- use_module(library(pairs), [pairs_keys_values/3]).
+:- use_module(library(apply), [foldl/4, maplist/2, maplist/3]).
 :- use_module(library(prolog_codewalk), [prolog_walk_code/1]).
 :- use_module(library(error), [must_be/2]).
 
@@ -26,7 +28,18 @@ inline constexpr const char* kSupportModule = R"wm_pl(
 :- thread_local load_problem/1.     % load_problem(String) "file:line: text"
 :- thread_local source_path/2.      % source_path(SourceId, Path): source ids are unique per load
 
+:- use_module(library(sandbox), [safe_goal/1]).
+:- use_module(library(solution_sequences), [limit/2]).
+
 :- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
+%   Observed map elements and recent decisions, kept in step with the map by the server.
+:- dynamic wm_kb:element/8, wm_kb:decision/7.
+
+%   What the rules can ask about the observation being decided (set per decision, backtrackable).
+wm_kb:observation_origin(Origin) :-
+    (   nb_current(wm_context, context(O, _)) -> Origin = O ; Origin = unknown ).
+wm_kb:observation_sensor(Sensor) :-
+    (   nb_current(wm_context, context(_, S)) -> Sensor = S ; Sensor = unknown ).
 
 % Without base(system), an undefined predicate in wm_kb or a rules module falls through to `user`.
 init :-
@@ -37,6 +50,35 @@ clear_facts :-
     retractall(wm_kb:object(_, _)),
     retractall(wm_kb:attribute(_, _)),
     retractall(wm_kb:edge(_, _, _, _, _)).
+
+%!  set_elements(+Elements) is det.
+%   Replaces every element/8 fact. Elements: list of element(Id, Source, Observer, Rho, Phi, Length,
+%   Support, UpdatedAt).
+set_elements(Elements) :-
+    must_be(list, Elements),
+    transaction(( retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+                  forall(member(E, Elements), assertz(wm_kb:E)) )).
+
+%!  update_elements(+Upserts, +RemovedIds) is det.
+update_elements(Upserts, Removed) :-
+    transaction(( forall(member(element(Id, _, _, _, _, _, _, _), Upserts),
+                         retractall(wm_kb:element(Id, _, _, _, _, _, _, _))),
+                  forall(member(Id, Removed), retractall(wm_kb:element(Id, _, _, _, _, _, _, _))),
+                  forall(member(E, Upserts), assertz(wm_kb:E)) )).
+
+%!  add_decisions(+Decisions, +KeepLast) is det.
+%   Appends decision/7 facts and forgets all but the KeepLast newest (the full log is in SQLite).
+add_decisions(Decisions, KeepLast) :-
+    forall(member(D, Decisions), assertz(wm_kb:D)),
+    flag(wm_decision_facts, N0, N0),
+    length(Decisions, Added),
+    Excess is N0 + Added - KeepLast,
+    forget_oldest_decisions(Excess),
+    flag(wm_decision_facts, _, min(N0 + Added, KeepLast)).
+
+forget_oldest_decisions(N) :- N =< 0, !.
+forget_oldest_decisions(N) :-
+    (   retract(wm_kb:decision(_, _, _, _, _, _, _)) -> N1 is N - 1, forget_oldest_decisions(N1) ; true ).
 
 %!  set_floor_plan(+Objects) is det.
 %   Objects: list of object(Id, Kind, Attributes, Edges), Edges: list of edge(Id, Rho, Phi, Length).
@@ -60,6 +102,34 @@ decide(Observation, Match, InferenceLimit, TimeLimit, Result) :-
     ->  run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result)
     ;   Result = error("no rules are active")
     ).
+
+%!  decide(+Observation, +Match, +Context, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Context = context(Origin, Sensor), what observation_origin/1 and observation_sensor/1 answer.
+decide(Observation, Match, Context, InferenceLimit, TimeLimit, Result) :-
+    b_setval(wm_context, Context),
+    decide(Observation, Match, InferenceLimit, TimeLimit, Result).
+
+%!  decide_batch(+Cases, +InferenceLimit, +TimeLimit, -Results) is det.
+%   Cases: list of case(Observation, Match, Context); one time limit around the whole batch (it costs
+%   more than a decision), the inference limit per case.
+decide_batch(Cases, InferenceLimit, TimeLimit, Results) :-
+    (   active_rules(M)
+    ->  catch(call_with_time_limit(TimeLimit, decide_cases(Cases, M, InferenceLimit, Results)),
+              E, ( message_text(E, Text), length(Cases, N), length(Results, N),
+                   format(string(Msg), "batch stopped: ~w", [Text]),
+                   maplist(=(error(Msg)), Results) ))
+    ;   length(Cases, N), length(Results, N), maplist(=(error("no rules are active")), Results)
+    ).
+
+decide_cases([], _, _, []).
+decide_cases([case(Observation, Match, Context)|Cases], M, InferenceLimit, [Result|Results]) :-
+    b_setval(wm_context, Context),
+    (   catch(limited_decide(M, Observation, Match, InferenceLimit, Answer), E, Answer = exception(E))
+    ->  true
+    ;   Answer = failed
+    ),
+    answer_result(Answer, InferenceLimit, 0, Result),
+    decide_cases(Cases, M, InferenceLimit, Results).
 
 run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result) :-
     catch(call_with_time_limit(TimeLimit,
@@ -122,10 +192,23 @@ message_text(Term, Text) :-
 %   Result = ok(Hashes) with Hashes a list of sha256 hex atoms in the order of Files,
 %          | error(Problems), a non-empty list of strings "file:line: text"; then nothing changed.
 reload(Files, RulesDir, InferenceLimit, TimeLimit, GracePeriod, Result) :-
+    load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems),
+    (   Problems == []
+    ->  activate(M, GracePeriod),
+        Result = ok(Hashes)
+    ;   free_module(M),
+        Result = error(Problems)
+    ).
+
+%!  load_aside(+Files, +RulesDir, +InferenceLimit, +TimeLimit, -Module, -Hashes, -Problems) is det.
+%   Loads Files into a fresh module and self-checks it; nothing else changes. Files: file(Path,
+%   AbsolutePath) read from disk, or text(Path, Text) given in memory (a dry-run candidate).
+load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems) :-
     flag(wm_rules_counter, N, N+1),
     format(atom(M), "wm_rules_~d", [N]),
     set_module(M:base(system)),
     add_import_module(M, wm_kb, start),
+    declare_hooks(M),
     retractall(load_problem(_)),
     retractall(source_path(_, _)),
     setup_call_cleanup(assertz(collecting),
@@ -140,24 +223,143 @@ reload(Files, RulesDir, InferenceLimit, TimeLimit, GracePeriod, Result) :-
     ->  self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems)
     ;   Problems = LoadProblems
     ),
-    retractall(load_problem(_)),
+    retractall(load_problem(_)).
+
+%   Extension points any rule file may add clauses to, whatever the order the files load in:
+%   override/5 (tried by the shipped decide/5 before its own rules) and prune/3 (asked after each
+%   update which observed elements to remove).
+declare_hooks(M) :-
+    forall(member(Name/Arity, [override/5, prune/3]),
+           ( dynamic(M:Name/Arity), multifile(M:Name/Arity), discontiguous(M:Name/Arity) )).
+
+%!  dry_run(+Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Loads Files aside like reload/6, answers every case(Observation, Match, Context) with them, and
+%   frees them again: the active rules and the facts are untouched.
+%   Result = ok(Results) (decide_batch/4 results) | error(Problems).
+dry_run(Files, RulesDir, Cases, InferenceLimit, TimeLimit, Result) :-
+    load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, _, Problems),
     (   Problems == []
-    ->  activate(M, GracePeriod),
-        Result = ok(Hashes)
-    ;   free_module(M),
-        Result = error(Problems)
+    ->  length(Cases, N),
+        BatchLimit is TimeLimit * max(1, N),
+        catch(call_with_time_limit(BatchLimit,
+                                   snapshot(decide_cases(Cases, M, InferenceLimit, Results))),
+              E, ( message_text(E, Text), format(string(Msg), "dry run stopped: ~w", [Text]),
+                   length(Results, N), maplist(=(error(Msg)), Results) )),
+        Result = ok(Results)
+    ;   Result = error(Problems)
+    ),
+    free_module(M).
+
+%!  prune(+Max, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Asks the active rules' prune/3 which elements to remove.
+%   Result = ok(List of prune(ElementId, Rule, Explanation)) | error(Message).
+prune(Max, InferenceLimit, TimeLimit, Result) :-
+    (   active_rules(M)
+    ->  catch(call_with_time_limit(TimeLimit,
+                  call_with_inference_limit(
+                      findall(prune(E, R, X), limit(Max, prune_answer(M, E, R, X)), Orders),
+                      InferenceLimit, Status)),
+              Error, true),
+        (   nonvar(Error)
+        ->  message_text(Error, Text), format(string(Msg), "prune/3 raised: ~w", [Text]),
+            Result = error(Msg)
+        ;   Status == inference_limit_exceeded
+        ->  format(string(Msg), "prune/3: inference limit of ~D exceeded", [InferenceLimit]),
+            Result = error(Msg)
+        ;   Result = ok(Orders)
+        )
+    ;   Result = ok([])
     ).
+
+prune_answer(M, E, R, X) :-
+    M:prune(E, R0, X0),
+    atom(E),
+    atom_string(R0, R),
+    explanation_string(X0, X).
+
+%!  query(+Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Runs a read-only goal given as text against the knowledge base (the active rules module, which
+%   sees the facts). Result = ok(Names, Rows, Truncated) with Rows a list of lists of values in the
+%   order of Names | syntax(Message) | unsafe(Message) | limit(Message) | error(Message).
+query(Text, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
+    (   active_rules(M) -> true ; M = wm_kb ),
+    (   catch(term_string(Goal, Text, [variable_names(Bindings), module(M)]), E,
+              ( message_text(E, Msg), Result = syntax(Msg) ))
+    ->  (   nonvar(Result)
+        ->  true
+        ;   var(Goal)
+        ->  Result = syntax("the query is a variable, not a goal")
+        ;   run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result)
+        )
+    ;   Result = syntax("the query text is not a term")
+    ).
+
+run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
+    (   forbidden_subgoal(Goal, Bad)
+    ->  format(string(Msg), "~q changes the knowledge base; queries are read-only", [Bad]),
+        Result = unsafe(Msg)
+    ;   catch(safe_goal(M:Goal), E, true),
+        nonvar(E)
+    ->  message_text(E, Msg0),
+        format(string(Msg), "refused by the sandbox: ~w", [Msg0]),
+        Result = unsafe(Msg)
+    ;   pairs_keys_values(Bindings, Names0, Vars),
+        maplist(atom_string, Names0, Names),
+        Max1 is MaxSolutions + 1,
+        %  snapshot/1 discards any database change a called rule might still make.
+        catch(call_with_time_limit(TimeLimit,
+                  call_with_inference_limit(
+                      snapshot(findall(Vars, limit(Max1, M:Goal), Rows0)),
+                      InferenceLimit, Status)),
+              E2, true),
+        (   nonvar(E2)
+        ->  (   time_limit_error(E2)
+            ->  format(string(Msg), "time limit of ~w s exceeded", [TimeLimit]), Result = limit(Msg)
+            ;   message_text(E2, Msg0), format(string(Msg), "the query raised: ~w", [Msg0]),
+                Result = error(Msg)
+            )
+        ;   Status == inference_limit_exceeded
+        ->  format(string(Msg), "inference limit of ~D exceeded", [InferenceLimit]), Result = limit(Msg)
+        ;   length(Rows0, Count),
+            (   Count > MaxSolutions
+            ->  length(Rows, MaxSolutions), append(Rows, _, Rows0), Truncated = true
+            ;   Rows = Rows0, Truncated = false
+            ),
+            Result = ok(Names, Rows, Truncated)
+        )
+    ).
+
+%   Database writes the sandbox lets through (it accepts assertz/1 on the calling module).
+forbidden_subgoal(Goal, Goal) :-
+    callable(Goal),
+    ( Goal = _:G -> true ; G = Goal ),
+    callable(G),
+    functor(G, Name, Arity),
+    forbidden(Name, Arity), !.
+forbidden_subgoal(Goal, Bad) :-
+    compound(Goal),
+    Goal =.. [_|Args],
+    member(Arg, Args),
+    forbidden_subgoal(Arg, Bad), !.
+
+forbidden(Name, _) :-
+    memberchk(Name, [assert, asserta, assertz, retract, retractall, abolish, erase, recorda, recordz,
+                     flag, nb_setval, b_setval, set_prolog_flag, dynamic, multifile, discontiguous,
+                     compile_predicates, garbage_collect_clauses, transaction, snapshot]).
 
 load_all([], _, _, []).
 load_all([File|Files], M, N, [Hash|Hashes]) :-
     load_one(File, M, N, Hash),
     load_all(Files, M, N, Hashes).
 
-load_one(file(Path, AbsolutePath), M, N, Hash) :-
+load_one(file(Path, AbsolutePath), M, N, Hash) :- !,
+    catch(read_file_to_string(AbsolutePath, Text, [encoding(utf8)]), E,
+          ( problem_at(Path, 0, E), Text = "" )),
+    load_one(text(Path, Text), M, N, Hash).
+load_one(text(Path, Text), M, N, Hash) :-
     format(atom(Id), "~w#~d", [Path, N]),
     assertz(source_path(Id, Path)),
-    catch(( read_file_to_string(AbsolutePath, Text, [encoding(utf8)]),
-            sha_hash(Text, Digest, [algorithm(sha256), encoding(utf8)]),
+    catch(( sha_hash(Text, Digest, [algorithm(sha256), encoding(utf8)]),
             hash_atom(Digest, Hash),
             setup_call_cleanup(open_string(Text, Stream),
                                load_files(M:Id, [stream(Stream)]),
@@ -292,7 +494,10 @@ shutdown :-
     forall(retired_rules(M, _), free_module(M)),
     retractall(active_rules(_)),
     retractall(retired_rules(_, _)),
-    clear_facts.
+    clear_facts,
+    retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+    retractall(wm_kb:decision(_, _, _, _, _, _, _)),
+    flag(wm_decision_facts, _, 0).
 )wm_pl";
 
 }  // namespace wm::rules::internal

@@ -36,6 +36,23 @@
         % Rule = atom naming the rule that fired (logged with the decision)
         % Explanation = string or atom, human readable, with the numbers
 
+    More facts and context the rules may read:
+
+        element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt)
+                                     % observed map elements not in the plan; Source = client | scan
+                                     % | grid; Support = observations fused; UpdatedAt [unix s]
+        decision(Seq, Action, Rule, Element, Object, Observer, At)
+                                     % the most recent decisions (Element/Object `none` if absent)
+        observation_origin(Origin)   % of the observation being decided: client | scan | grid
+        observation_sensor(Sensor)   % laser | sonar | unknown
+
+    Extension points (any rule file may add clauses, in any file order; see rules/examples/):
+
+        override(Observation, Match, Action, Rule, Explanation)
+                                     % tried before the rules below; the first answer wins
+        prune(ElementId, Rule, Explanation)
+                                     % asked after each update: elements to remove from the map
+
     Only the first solution counts. Each decision runs under an inference limit and a time limit.
     A decision that fails, throws, hits a limit or answers a non-atom action is replaced by the
     fallback `add` (rule `fallback`), which keeps the observation and changes nothing else.
@@ -48,6 +65,14 @@
     unmatched_added, apriori_confirmed) are part of the API: clients and logs refer to them.
 */
 
+:- dynamic override/5, prune/3.
+:- multifile override/5, prune/3.
+:- discontiguous override/5, prune/3.
+
+%   0. Extensions first (glass, movable objects, ...: rules/examples/).
+decide(Observation, Match, Action, Rule, Explanation) :-
+    override(Observation, Match, Action, Rule, Explanation),
+    !.
 %   1. A match on a solid a-priori object (a wall) confirms the plan: the observation is dropped.
 decide(observation(Source, _, _, _), element(Element, Object, D2), delete, solid_confirmed,
        Explanation) :-

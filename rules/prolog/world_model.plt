@@ -10,7 +10,7 @@
 :- use_module(library(lists)).
 
 %   The test-facts module: the same dynamic facts the C++ engine asserts from the floor plan.
-:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
+:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7.
 :- set_module(wm_kb:base(system)).
 
 :- prolog_load_context(directory, Dir),

@@ -1,5 +1,7 @@
 #include "server/api/router.h"
 
+#include <algorithm>
+
 #include <charconv>
 #include <map>
 
@@ -103,23 +105,94 @@ void require_token(const Request& req, const Services& s) {
 
 Response get_health(const Request& req, Services& s) {
   const auto snap = s.world.snapshot();
-  const auto rules = s.world.rules_status();
-  json files = json::array();
-  for (const auto& f : rules.files) files.push_back({{"path", f.path}, {"checksum", f.sha256_or_checksum}, {"loaded_at", f.loaded_at_unix_s}});
   return json_response(req, {{"status", "ok"},
                              {"version", snap->version},
                              {"plan", snap->plan_name},
                              {"objects", snap->objects.size()},
                              {"elements", snap->elements.size()},
                              {"last_decision_seq", snap->last_decision_seq},
-                             {"rules", {{"files", files}, {"generation", rules.generation}, {"last_error", rules.last_error}}}});
+                             {"rules", json_codec::rules_status_json(s.world.rules_status())}});
 }
 
 Response get_rules(const Request& req, Services& s) {
-  const auto rules = s.world.rules_status();
-  json files = json::array();
-  for (const auto& f : rules.files) files.push_back({{"path", f.path}, {"checksum", f.sha256_or_checksum}, {"loaded_at", f.loaded_at_unix_s}});
-  return json_response(req, {{"files", files}, {"generation", rules.generation}, {"last_error", rules.last_error}});
+  return json_response(req, json_codec::rules_status_json(s.world.rules_status()));
+}
+
+json parse_json_object(const Request& req) {
+  require_json_body(req);
+  json doc = json::parse(req.body(), nullptr, false);
+  if (doc.is_discarded()) throw bad_request("", "malformed JSON");
+  if (!doc.is_object()) throw bad_request("", "expected a JSON object");
+  return doc;
+}
+
+std::string string_field(const json& doc, const std::string& key, std::size_t max_size) {
+  const auto it = doc.find(key);
+  if (it == doc.end()) throw bad_request(key, "missing field");
+  if (!it->is_string()) throw bad_request(key, "expected a string");
+  const auto text = it->get<std::string>();
+  if (text.empty() || text.size() > max_size)
+    throw bad_request(key, "expected 1 to " + std::to_string(max_size) + " characters");
+  return text;
+}
+
+std::size_t count_field(const json& doc, const std::string& key, std::size_t fallback, std::size_t max) {
+  const auto it = doc.find(key);
+  if (it == doc.end()) return fallback;
+  if (!it->is_number_integer() || it->get<std::int64_t>() < 1 || it->get<std::int64_t>() > static_cast<std::int64_t>(max))
+    throw bad_request(key, "expected an integer in [1, " + std::to_string(max) + "]");
+  return static_cast<std::size_t>(it->get<std::int64_t>());
+}
+
+void require_known_keys(const json& doc, std::initializer_list<std::string_view> known) {
+  for (const auto& [key, value] : doc.items())
+    if (std::find(known.begin(), known.end(), key) == known.end()) throw bad_request(key, "unknown field");
+}
+
+Response post_rules_reload(const Request& req, Services& s) {
+  require_token(req, s);
+  const auto status = s.world.reload_rules();
+  return json_response(req, json_codec::rules_status_json(status));
+}
+
+Response post_rules_dry_run(const Request& req, Services& s) {
+  require_token(req, s);
+  const json doc = parse_json_object(req);
+  require_known_keys(doc, {"file", "text", "last"});
+  rules::RuleText candidate{string_field(doc, "file", 255), string_field(doc, "text", 4u << 20)};
+  const std::size_t last = count_field(doc, "last", 1000, 100000);
+  const auto outcome = s.world.dry_run(candidate, last);
+  json changes = json::array();
+  for (const auto& c : outcome.changes)
+    changes.push_back({{"recorded", json_codec::decision_json(c.recorded)}, {"candidate", json_codec::decision_json(c.candidate)}});
+  return json_response(req, {{"file", candidate.name}, {"redecided", outcome.redecided}, {"changed", outcome.changes.size()},
+                             {"changes", changes}});
+}
+
+Response post_query(const Request& req, Services& s) {
+  const json doc = parse_json_object(req);
+  require_known_keys(doc, {"goal", "max_solutions"});
+  const auto goal = string_field(doc, "goal", 64 * 1024);
+  const auto max_solutions = count_field(doc, "max_solutions", 100, 10000);
+  try {
+    return json_response(req, json_codec::query_result_json(s.world.query(goal, max_solutions)));
+  } catch (const rules::QueryError& e) {
+    switch (e.reason()) {
+      case rules::QueryError::Reason::syntax: throw ApiError(400, "bad_query", e.what());
+      case rules::QueryError::Reason::unsafe: throw ApiError(403, "forbidden_goal", e.what());
+      case rules::QueryError::Reason::limit: throw ApiError(422, "query_limit", e.what());
+      case rules::QueryError::Reason::failed: break;
+    }
+    throw ApiError(422, "query_error", e.what());
+  }
+}
+
+Response get_history(const Request& req, Services& s, const std::string& id, bool exists) {
+  const auto rows = s.world.store().decisions(0, 10000, id);
+  if (rows.empty() && !exists) throw ApiError(404, "not_found", "no element or object '" + id + "' and no decision about it");
+  json list = json::array();
+  for (const auto& d : rows) list.push_back(json_codec::decision_json(d));
+  return json_response(req, {{"id", id}, {"exists", exists}, {"decisions", std::move(list)}});
 }
 
 Response put_floor_plan(const Request& req, Services& s) {
@@ -201,6 +274,18 @@ Response route(const Request& req, Services& s) {
     if (method != http::verb::get) method_not_allowed("GET");
     return get_rules(req, s);
   }
+  if (path == "/api/v1/rules/reload") {
+    if (method != http::verb::post) method_not_allowed("POST");
+    return post_rules_reload(req, s);
+  }
+  if (path == "/api/v1/rules/dry-run") {
+    if (method != http::verb::post) method_not_allowed("POST");
+    return post_rules_dry_run(req, s);
+  }
+  if (path == "/api/v1/query") {
+    if (method != http::verb::post) method_not_allowed("POST");
+    return post_query(req, s);
+  }
   if (path == "/api/v1/objects" || path == "/api/v1/elements") {
     if (method != http::verb::get) method_not_allowed("GET");
     const auto snap = s.world.snapshot();
@@ -210,6 +295,17 @@ Response route(const Request& req, Services& s) {
     else
       for (const auto& [n, e] : snap->elements) list.push_back(json_codec::element_json(e));
     return json_response(req, {{"version", snap->version}, {path == "/api/v1/objects" ? "objects" : "elements", list}});
+  }
+  const std::string history_suffix = "/history";
+  if ((path.rfind(objects_prefix, 0) == 0 || path.rfind(elements_prefix, 0) == 0) && path.size() > history_suffix.size() &&
+      path.compare(path.size() - history_suffix.size(), history_suffix.size(), history_suffix) == 0) {
+    if (method != http::verb::get) method_not_allowed("GET");
+    const bool is_object = path.rfind(objects_prefix, 0) == 0;
+    const auto prefix_size = is_object ? objects_prefix.size() : elements_prefix.size();
+    const auto id = path.substr(prefix_size, path.size() - prefix_size - history_suffix.size());
+    const auto snap = s.world.snapshot();
+    const bool exists = is_object ? snap->find_object(id) != nullptr : snap->find_element(id) != nullptr;
+    return get_history(req, s, id, exists);
   }
   if (path.rfind(objects_prefix, 0) == 0) {
     if (method != http::verb::get) method_not_allowed("GET");
@@ -233,7 +329,9 @@ Response route(const Request& req, Services& s) {
                                {"endpoints", {"GET /api/v1/health", "GET /api/v1/map", "GET /api/v1/objects[/{id}]",
                                               "GET /api/v1/elements[/{id}]", "GET|PUT /api/v1/floorplan",
                                               "POST /api/v1/primitives", "GET /api/v1/decisions?since=SEQ&limit=N",
-                                              "GET /api/v1/rules"}}});
+                                              "GET /api/v1/rules", "POST /api/v1/rules/reload",
+                                              "POST /api/v1/rules/dry-run", "POST /api/v1/query",
+                                              "GET /api/v1/elements/{id}/history", "GET /api/v1/objects/{id}/history"}}});
   }
   throw ApiError(404, "not_found", "no resource at '" + path + "'");
 }

@@ -29,6 +29,9 @@ std::string usage() {
          "  --threads N            HTTP I/O threads (default 4)\n"
          "  --gate-chi2 X          χ² gate (2 dof) for matching segments (default 5.991, 95 %)\n"
          "  --max-gap M            largest gap [m] between collinear extents still matched (default 0.10)\n"
+         "  --no-watch-rules       do not reload the rules when their files change (POST /api/v1/rules/reload still does)\n"
+         "  --rule-inferences N    inference limit per decision and query (default 200000)\n"
+         "  --rule-time-limit S    time limit per decision and query [s] (default 1)\n"
          "  --sync normal|full     SQLite synchronous mode (default full: durable across power loss)\n"
          "  --help                 this text\n";
 }
@@ -36,10 +39,15 @@ std::string usage() {
 ServerConfig parse_command_line(const std::vector<std::string>& args, const std::filesystem::path& default_rules_dir) {
   ServerConfig c;
   c.rules.rules_dir = default_rules_dir;
+  bool watch_rules = true;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& flag = args[i];
     if (flag == "--help" || flag == "-h") {
       c.help = true;
+      continue;
+    }
+    if (flag == "--no-watch-rules") {
+      watch_rules = false;
       continue;
     }
     if (i + 1 >= args.size()) throw ConfigError(flag.rfind("--", 0) == 0 ? flag + ": missing value" : "unexpected argument '" + flag + "'");
@@ -54,6 +62,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     else if (flag == "--threads") c.http.threads = parse_number<int>(flag, value, 1, 64);
     else if (flag == "--gate-chi2") c.service.world.match.gate_chi2 = parse_number<double>(flag, value, 0.01, 1e4);
     else if (flag == "--max-gap") c.service.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
+    else if (flag == "--rule-inferences") c.rules.inference_limit = parse_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
+    else if (flag == "--rule-time-limit") c.rules.time_limit_s = parse_number<double>(flag, value, 0.001, 60.0);
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";
@@ -64,6 +74,7 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
   if (c.store.path.empty()) throw ConfigError("--db: must not be empty");
   if (!std::filesystem::is_directory(c.rules.rules_dir))
     throw ConfigError("--rules: '" + c.rules.rules_dir.string() + "' is not a directory");
+  if (watch_rules) c.service.watch_rules_dir = c.rules.rules_dir;
   if (c.floor_plan_file && !std::filesystem::is_regular_file(*c.floor_plan_file))
     throw ConfigError("--floorplan: cannot read '" + c.floor_plan_file->string() + "'");
   return c;

@@ -1,6 +1,7 @@
 #include "server/json/codec.h"
 
 #include <cmath>
+#include <regex>
 
 #include "server/api/api_error.h"
 
@@ -68,13 +69,21 @@ world::Observation parse_primitives(std::string_view body, const world::WorldOpt
   }
   if (!doc.is_object()) throw api::bad_request("", "expected an object with \"segments\"");
   for (const auto& [key, value] : doc.items())
-    if (key != "source" && key != "stamp" && key != "segments") throw api::bad_request(key, "unknown field");
+    if (key != "source" && key != "stamp" && key != "segments" && key != "sensor")
+      throw api::bad_request(key, "unknown field");
   world::Observation observation;
   observation.observer = "anonymous";
   if (auto it = doc.find("source"); it != doc.end()) {
     if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
       throw api::bad_request("source", "expected a non-empty string of at most 128 characters");
     observation.observer = it->get<std::string>();
+  }
+  if (auto it = doc.find("sensor"); it != doc.end()) {
+    // An atom the rules compare against (observation_sensor/1), e.g. laser or sonar.
+    static const std::regex kSensor("[a-z][a-z0-9_]{0,31}");
+    if (!it->is_string() || !std::regex_match(it->get<std::string>(), kSensor))
+      throw api::bad_request("sensor", "expected a lower-case name like \"laser\" or \"sonar\"");
+    observation.sensor = it->get<std::string>();
   }
   if (auto it = doc.find("stamp"); it != doc.end()) observation.stamp_s = finite_number(*it, "stamp", 1e12);
   auto it = doc.find("segments");
@@ -150,6 +159,26 @@ json map_json(const world::WorldState& state, const world::WorldOptions& options
   return {{"version", state.version}, {"plan", state.plan_name}, {"objects", std::move(objects)}, {"elements", std::move(elements)}};
 }
 
+namespace {
+
+json optional_text(const std::optional<std::string>& text) { return text ? json(*text) : json(nullptr); }
+
+// The numbers a decision changed (see DecisionRecord::before), labelled.
+json state_numbers_json(const std::string& action, const std::vector<double>& v) {
+  if (v.size() == 6) {
+    return {{"rho", v[0]}, {"phi", v[1]}, {"cov", json::array({json::array({v[2], v[3]}), json::array({v[4], v[5]})})}};
+  }
+  if (v.size() == 12) {
+    json cov = json::array();
+    for (int r = 0; r < 3; ++r) cov.push_back(json::array({v[3 + 3 * r], v[4 + 3 * r], v[5 + 3 * r]}));
+    return {{"pose", {{"x", v[0]}, {"y", v[1]}, {"theta", v[2]}}}, {"pose_cov", cov}};
+  }
+  (void)action;
+  return nullptr;
+}
+
+}  // namespace
+
 json decision_json(const world::DecisionRecord& d) {
   json j = {{"seq", d.seq},
             {"observation", d.observation_seq},
@@ -157,13 +186,65 @@ json decision_json(const world::DecisionRecord& d) {
             {"action", d.action},
             {"rule", d.rule},
             {"explanation", d.explanation},
-            {"element", d.element ? json(*d.element) : json(nullptr)},
-            {"object", d.object ? json(*d.object) : json(nullptr)},
+            {"element", optional_text(d.element)},
+            {"object", optional_text(d.object)},
+            {"matched", {{"element", optional_text(d.matched_element)}, {"object", optional_text(d.matched_object)}}},
             {"mahalanobis_sq", d.mahalanobis_sq ? json(*d.mahalanobis_sq) : json(nullptr)},
             {"fallback", d.fallback},
             {"source", d.observer},
-            {"observed", {{"p0", point_json(d.p0)}, {"p1", point_json(d.p1)}}}};
+            {"origin", d.origin},
+            {"sensor", d.sensor},
+            {"observed",
+             {{"p0", point_json(d.p0)}, {"p1", point_json(d.p1)}, {"rho", d.rho_m}, {"phi", d.phi_rad},
+              {"cov", matrix_json(d.observed_cov)}}}};
+  if (!d.before.empty()) j["before"] = state_numbers_json(d.action, d.before);
+  if (!d.after.empty()) j["after"] = state_numbers_json(d.action, d.after);
   return j;
+}
+
+json decision_json(const rules::Decision& d) {
+  return {{"action", d.action}, {"rule", d.rule}, {"explanation", d.explanation}, {"fallback", d.fallback}};
+}
+
+json rules_status_json(const rules::RulesStatus& status) {
+  json files = json::array();
+  for (const auto& f : status.files)
+    files.push_back({{"path", f.path}, {"checksum", f.sha256_or_checksum}, {"loaded_at", f.loaded_at_unix_s}});
+  return {{"files", files}, {"generation", status.generation}, {"last_error", status.last_error}};
+}
+
+namespace {
+
+json query_value_json(const rules::QueryValue& v) {
+  using Kind = rules::QueryValue::Kind;
+  switch (v.kind) {
+    case Kind::unbound: return nullptr;
+    case Kind::atom:
+    case Kind::string:
+    case Kind::compound: return v.text;
+    case Kind::integer: return v.integer;
+    case Kind::floating: return std::isfinite(v.floating) ? json(v.floating) : json(nullptr);
+    case Kind::list: {
+      json items = json::array();
+      for (const auto& item : v.items) items.push_back(query_value_json(item));
+      return items;
+    }
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+json query_result_json(const rules::QueryResult& result) {
+  json solutions = json::array();
+  for (const auto& row : result.solutions) {
+    json solution = json::object();
+    for (std::size_t i = 0; i < row.size() && i < result.variables.size(); ++i)
+      solution[result.variables[i]] = query_value_json(row[i]);
+    solutions.push_back(std::move(solution));
+  }
+  return {{"variables", result.variables}, {"solutions", solutions}, {"count", result.solutions.size()},
+          {"truncated", result.truncated}};
 }
 
 }  // namespace wm::json_codec

@@ -22,5 +22,10 @@ nlohmann::json object_json(const world::ObjectState& object, const world::WorldO
 nlohmann::json element_json(const world::Element& element);
 nlohmann::json map_json(const world::WorldState& state, const world::WorldOptions& options);
 nlohmann::json decision_json(const world::DecisionRecord& decision);
+nlohmann::json decision_json(const rules::Decision& decision);
+nlohmann::json rules_status_json(const rules::RulesStatus& status);
+/// {"variables": [...], "solutions": [{"X": value, ...}], "count": n, "truncated": bool}; atoms and strings
+/// as JSON strings, numbers as numbers, lists as arrays, other compound terms as their Prolog text.
+nlohmann::json query_result_json(const rules::QueryResult& result);
 
 }  // namespace wm::json_codec

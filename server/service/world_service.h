@@ -1,33 +1,45 @@
 #pragma once
 
-#include <condition_variable>
-#include <deque>
-#include <functional>
-#include <future>
+#include <filesystem>
 #include <memory>
 #include <mutex>
-#include <thread>
+#include <optional>
 
 #include "rules/engine.h"
+#include "server/service/prolog_worker.h"
+#include "server/service/rules_watcher.h"
 #include "server/storage/store.h"
 #include "server/world/update.h"
 
 namespace wm::service {
 
-/// The writer queue is full: the caller should answer 503 and the client retry later.
-class Busy : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
 struct ServiceOptions {
   world::WorldOptions world;
   std::size_t max_queued_requests = 256;
+  /// Watch the rules directory and reload on change (nullopt: reload only on request).
+  std::optional<std::filesystem::path> watch_rules_dir;
+  /// Decisions the knowledge base keeps as decision/7 facts (the full log is in SQLite).
+  std::size_t decision_facts_kept = 10000;
+  /// At most this many elements pruned per update.
+  std::size_t max_prune_per_update = 1000;
+};
+
+/// One re-decided observation of a dry run whose decision differs.
+struct DryRunChange {
+  world::DecisionRecord recorded;  // as it was decided and logged
+  rules::Decision candidate;       // what the candidate rules answer to the same question
+};
+
+struct DryRunOutcome {
+  std::size_t redecided = 0;
+  std::vector<DryRunChange> changes;
 };
 
 /// Owns the world model. One writer thread applies every change (match → rules → apply → store) in
 /// arrival order; readers take immutable snapshots that are swapped after each committed request, so
-/// they never block the writer and never see half an update. Prolog decisions run on the writer thread.
+/// they never block the writer and never see half an update. Prolog decisions run on the writer thread;
+/// knowledge-base queries and dry runs run on a second Prolog thread, so a slow query never holds up
+/// ingest. The knowledge base mirrors the committed map: objects, elements, recent decisions.
 class WorldService {
  public:
   /// Starts the writer with the state loaded from `store`. @throw storage::StorageError, rules::RuleError.
@@ -50,14 +62,24 @@ class WorldService {
   PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json);
   /// Replaces the floor plan (store and knowledge base facts). Returns the new map version.
   std::int64_t load_floor_plan(apriori::FloorPlan plan);
+
   rules::RulesStatus rules_status();
+  /// Reloads the rule files atomically. @throw rules::RuleError ("file:line: message" lines); the previous
+  /// rules stay active then.
+  rules::RulesStatus reload_rules();
+  /// Read-only knowledge-base query. @throw rules::QueryError, Busy.
+  rules::QueryResult query(const std::string& goal, std::size_t max_solutions);
+  /// Re-decides the last `count` logged segment decisions with `candidate` in place of the file of its
+  /// name, and returns those whose action or rule would differ. Each is asked the question it was asked
+  /// then (same match): later observations are not replayed against a map that would have diverged.
+  /// @throw rules::RuleError when the candidate does not load; std::invalid_argument for a bad name.
+  DryRunOutcome dry_run(const rules::RuleText& candidate, std::size_t count);
 
  private:
-  template <typename F>
-  auto run_on_writer(F&& work) -> decltype(work());
-  void writer_loop();
   void publish(world::WorldState state);
-  std::vector<rules::ObjectFacts> facts(const world::WorldState& state) const;
+  std::vector<rules::ObjectFacts> object_facts(const world::WorldState& state) const;
+  void sync_all_facts(const world::WorldState& state);
+  void on_rules_changed();
 
   const ServiceOptions options_;
   storage::Store& store_;
@@ -66,11 +88,10 @@ class WorldService {
   mutable std::mutex snapshot_mutex_;
   std::shared_ptr<const world::WorldState> snapshot_;
 
-  std::mutex queue_mutex_;
-  std::condition_variable queue_cv_;
-  std::deque<std::function<void()>> queue_;
-  bool stopping_ = false;
-  std::thread writer_;
+  // Declared last: destroyed first, so their threads stop before the members they use go away.
+  std::unique_ptr<PrologWorker> writer_;
+  std::unique_ptr<PrologWorker> reader_;
+  std::unique_ptr<RulesWatcher> watcher_;
 };
 
 }  // namespace wm::service

@@ -1,6 +1,8 @@
 #include "server/storage/store.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include "apriori/floor_plan.h"
 
@@ -27,6 +29,18 @@ CREATE TABLE decisions(seq INTEGER PRIMARY KEY, observation_seq INTEGER NOT NULL
                        observer TEXT NOT NULL, p0x REAL NOT NULL, p0y REAL NOT NULL, p1x REAL NOT NULL, p1y REAL NOT NULL);
 CREATE INDEX decisions_by_element ON decisions(element);
 )sql",
+    // v2: what explanations, dry runs and age-based pruning need.
+    R"sql(
+ALTER TABLE elements ADD COLUMN updated_at REAL NOT NULL DEFAULT 0;
+ALTER TABLE decisions ADD COLUMN origin TEXT NOT NULL DEFAULT 'client';
+ALTER TABLE decisions ADD COLUMN sensor TEXT NOT NULL DEFAULT 'unknown';
+ALTER TABLE decisions ADD COLUMN matched_element TEXT;
+ALTER TABLE decisions ADD COLUMN matched_object TEXT;
+ALTER TABLE decisions ADD COLUMN observed BLOB;
+ALTER TABLE decisions ADD COLUMN before BLOB;
+ALTER TABLE decisions ADD COLUMN after BLOB;
+CREATE INDEX decisions_by_matched_element ON decisions(matched_element);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);
@@ -38,6 +52,14 @@ double now_unix_s() {
 template <typename Matrix>
 void bind_matrix(Statement& s, int index, const Matrix& m) {
   s.bind_blob(index, m.data(), sizeof(double) * static_cast<std::size_t>(m.size()));
+}
+
+void bind_doubles(Statement& s, int index, const std::vector<double>& values) {
+  if (values.empty()) {
+    s.bind_null(index);
+  } else {
+    s.bind_blob(index, values.data(), sizeof(double) * values.size());
+  }
 }
 
 template <typename Matrix>
@@ -116,8 +138,8 @@ world::WorldState Store::load(const world::WorldOptions& options) {
   }
   {
     Statement s(writer_,
-                "SELECT number, rho, phi, cov, t0, t1, support, source, observer, created_version, updated_version "
-                "FROM elements ORDER BY number");
+                "SELECT number, rho, phi, cov, t0, t1, support, source, observer, created_version, updated_version, "
+                "updated_at FROM elements ORDER BY number");
     while (s.step()) {
       world::Element e;
       e.number = s.column_int(0);
@@ -131,6 +153,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
       e.observer = s.column_text(8);
       e.created_version = s.column_int(9);
       e.updated_version = s.column_int(10);
+      e.updated_at_unix_s = s.column_double(11);
       state.elements.emplace(e.number, std::move(e));
     }
   }
@@ -176,30 +199,44 @@ void Store::commit_observation(const world::UpdateResult& update, const world::O
   {
     Statement s(writer_,
                 "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
-                "updated_version) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11) ON CONFLICT(number) DO UPDATE SET "
+                "updated_version, updated_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12) "
+                "ON CONFLICT(number) DO UPDATE SET "
                 "rho = excluded.rho, phi = excluded.phi, cov = excluded.cov, t0 = excluded.t0, t1 = excluded.t1, "
-                "support = excluded.support, updated_version = excluded.updated_version");
+                "support = excluded.support, updated_version = excluded.updated_version, updated_at = excluded.updated_at");
     for (auto number : update.changed_elements) {
       const auto& e = update.state.elements.at(number);
       s.bind(1, e.number).bind(2, e.segment.line.rho_m).bind(3, e.segment.line.phi_rad);
       bind_matrix(s, 4, e.segment.line.cov);
       s.bind(5, e.segment.t0_m).bind(6, e.segment.t1_m).bind(7, e.support);
       s.bind(8, std::string_view(e.source)).bind(9, std::string_view(e.observer));
-      s.bind(10, e.created_version).bind(11, e.updated_version).run();
+      s.bind(10, e.created_version).bind(11, e.updated_version).bind(12, e.updated_at_unix_s).run();
     }
+  }
+  {
+    Statement s(writer_, "DELETE FROM elements WHERE number = ?1");
+    for (auto number : update.removed_elements) s.bind(1, number).run();
   }
   write_objects(update);
   {
     Statement s(writer_,
                 "INSERT INTO decisions(seq, observation_seq, idx, action, rule, explanation, element, object, "
-                "mahalanobis_sq, fallback, observer, p0x, p0y, p1x, p1y) "
-                "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)");
+                "mahalanobis_sq, fallback, observer, p0x, p0y, p1x, p1y, origin, sensor, matched_element, matched_object, "
+                "observed, before, after) "
+                "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22)");
     for (const auto& d : update.decisions) {
       s.bind(1, d.seq).bind(2, d.observation_seq).bind(3, d.index);
       s.bind(4, std::string_view(d.action)).bind(5, std::string_view(d.rule)).bind(6, std::string_view(d.explanation));
       s.bind(7, d.element).bind(8, d.object).bind(9, d.mahalanobis_sq).bind(10, std::int64_t{d.fallback});
       s.bind(11, std::string_view(d.observer));
-      s.bind(12, d.p0.x()).bind(13, d.p0.y()).bind(14, d.p1.x()).bind(15, d.p1.y()).run();
+      s.bind(12, d.p0.x()).bind(13, d.p0.y()).bind(14, d.p1.x()).bind(15, d.p1.y());
+      s.bind(16, std::string_view(d.origin)).bind(17, std::string_view(d.sensor));
+      s.bind(18, d.matched_element).bind(19, d.matched_object);
+      const std::vector<double> observed{d.rho_m, d.phi_rad, d.observed_cov(0, 0), d.observed_cov(0, 1),
+                                         d.observed_cov(1, 0), d.observed_cov(1, 1)};
+      bind_doubles(s, 20, observed);
+      bind_doubles(s, 21, d.before);
+      bind_doubles(s, 22, d.after);
+      s.run();
     }
   }
   write_counters(update.state);
@@ -222,32 +259,68 @@ void Store::commit_floor_plan(const world::UpdateResult& update, const apriori::
   tx.commit();
 }
 
+namespace {
+
+constexpr const char* kDecisionColumns =
+    "SELECT seq, observation_seq, idx, action, rule, explanation, element, object, mahalanobis_sq, fallback, "
+    "observer, p0x, p0y, p1x, p1y, origin, sensor, matched_element, matched_object, observed, before, after "
+    "FROM decisions ";
+
+world::DecisionRecord read_decision(const Statement& s) {
+  world::DecisionRecord d;
+  d.seq = s.column_int(0);
+  d.observation_seq = s.column_int(1);
+  d.index = s.column_int(2);
+  d.action = s.column_text(3);
+  d.rule = s.column_text(4);
+  d.explanation = s.column_text(5);
+  d.element = s.column_optional_text(6);
+  d.object = s.column_optional_text(7);
+  d.mahalanobis_sq = s.column_optional_double(8);
+  d.fallback = s.column_int(9) != 0;
+  d.observer = s.column_text(10);
+  d.p0 = {s.column_double(11), s.column_double(12)};
+  d.p1 = {s.column_double(13), s.column_double(14)};
+  d.origin = s.column_text(15);
+  d.sensor = s.column_text(16);
+  d.matched_element = s.column_optional_text(17);
+  d.matched_object = s.column_optional_text(18);
+  const auto observed = s.column_doubles(19);
+  if (observed.size() == 6) {
+    d.rho_m = observed[0];
+    d.phi_rad = observed[1];
+    d.observed_cov << observed[2], observed[3], observed[4], observed[5];
+  } else {  // a v1 row: the line through the stored endpoints
+    const Eigen::Vector2d dir = (d.p1 - d.p0).normalized();
+    const Eigen::Vector2d normal(-dir.y(), dir.x());
+    d.rho_m = normal.dot(d.p0);
+    d.phi_rad = std::atan2(normal.y(), normal.x());
+  }
+  d.before = s.column_doubles(20);
+  d.after = s.column_doubles(21);
+  return d;
+}
+
+}  // namespace
+
 std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std::size_t limit,
                                                     const std::optional<std::string>& element) {
   std::lock_guard lock(reader_mutex_);
-  Statement s(reader_,
-              "SELECT seq, observation_seq, idx, action, rule, explanation, element, object, mahalanobis_sq, fallback, "
-              "observer, p0x, p0y, p1x, p1y FROM decisions WHERE seq > ?1 AND (?2 IS NULL OR element = ?2) "
-              "ORDER BY seq LIMIT ?3");
+  Statement s(reader_, std::string(kDecisionColumns) +
+                           "WHERE seq > ?1 AND (?2 IS NULL OR element = ?2 OR matched_element = ?2) ORDER BY seq LIMIT ?3");
   s.bind(1, since_seq).bind(2, element).bind(3, static_cast<std::int64_t>(limit));
   std::vector<world::DecisionRecord> result;
-  while (s.step()) {
-    world::DecisionRecord d;
-    d.seq = s.column_int(0);
-    d.observation_seq = s.column_int(1);
-    d.index = s.column_int(2);
-    d.action = s.column_text(3);
-    d.rule = s.column_text(4);
-    d.explanation = s.column_text(5);
-    d.element = s.column_optional_text(6);
-    d.object = s.column_optional_text(7);
-    d.mahalanobis_sq = s.column_optional_double(8);
-    d.fallback = s.column_int(9) != 0;
-    d.observer = s.column_text(10);
-    d.p0 = {s.column_double(11), s.column_double(12)};
-    d.p1 = {s.column_double(13), s.column_double(14)};
-    result.push_back(std::move(d));
-  }
+  while (s.step()) result.push_back(read_decision(s));
+  return result;
+}
+
+std::vector<world::DecisionRecord> Store::latest_decisions(std::size_t count) {
+  std::lock_guard lock(reader_mutex_);
+  Statement s(reader_, std::string(kDecisionColumns) + "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1");
+  s.bind(1, static_cast<std::int64_t>(count));
+  std::vector<world::DecisionRecord> result;
+  while (s.step()) result.push_back(read_decision(s));
+  std::reverse(result.begin(), result.end());
   return result;
 }
 

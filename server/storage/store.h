@@ -26,7 +26,7 @@ class Store {
   /// Opens or creates the file and migrates it. @throw StorageError (also for a file newer than this build).
   explicit Store(const StoreOptions& options);
 
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
   int schema_version();
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
@@ -41,6 +41,8 @@ class Store {
   /// Decisions with seq > since_seq in order, at most `limit`; only those about `element` when given.
   std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
                                                const std::optional<std::string>& element = std::nullopt);
+  /// The `count` newest decisions about posted segments (not prunes), oldest first.
+  std::vector<world::DecisionRecord> latest_decisions(std::size_t count);
 
  private:
   void migrate();

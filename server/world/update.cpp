@@ -37,6 +37,8 @@ rules::DecisionQuery make_query(const WorldState& state, const Observation& obse
                                 const std::optional<fusion::MatchResult>& match, const Candidates& candidates) {
   rules::DecisionQuery q;
   q.source = observation.observer;
+  q.origin = observation.source;
+  q.sensor = observation.sensor;
   q.rho_m = seen.line.rho_m;
   q.phi_rad = seen.line.phi_rad;
   q.length_m = seen.length_m();
@@ -54,6 +56,17 @@ rules::DecisionQuery make_query(const WorldState& state, const Observation& obse
   return q;
 }
 
+std::vector<double> line_numbers(const fusion::LineFeature& line) {
+  return {line.rho_m, line.phi_rad, line.cov(0, 0), line.cov(0, 1), line.cov(1, 0), line.cov(1, 1)};
+}
+
+std::vector<double> pose_numbers(const fusion::RigidObject& body) {
+  std::vector<double> v{body.pose().x_m, body.pose().y_m, body.pose().theta_rad};
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) v.push_back(body.pose_cov()(r, c));
+  return v;
+}
+
 void make_fallback(DecisionRecord& record, const std::string& why) {
   record.explanation = "fallback (" + why + "); rules said " + record.action + " by " + record.rule;
   record.action = "add";
@@ -65,7 +78,7 @@ void make_fallback(DecisionRecord& record, const std::string& why) {
 
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,
                                const WorldOptions& options, const Decide& decide) {
-  UpdateResult result{current, {}, {}, {}};
+  UpdateResult result{current, {}, {}, {}, {}};
   WorldState& state = result.state;
   state.version = current.version + 1;
   state.last_observation_seq = observation_seq;
@@ -88,18 +101,25 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     record.fallback = decision.fallback;
     record.element = query.element_id;
     record.object = query.object_id;
+    record.matched_element = query.element_id;
+    record.matched_object = query.object_id;
     if (match) record.mahalanobis_sq = match->mahalanobis_sq;
     record.observer = observation.observer;
+    record.origin = observation.source;
+    record.sensor = observation.sensor;
     record.p0 = seen.p0();
     record.p1 = seen.p1();
+    record.rho_m = seen.line.rho_m;
+    record.phi_rad = seen.line.phi_rad;
+    record.observed_cov = seen.line.cov;
 
     const CandidateRef* ref = match ? &candidates.refs[match->index] : nullptr;
-    if (record.action == "merge" && !(ref && !ref->object)) {
-      make_fallback(record, ref ? "merge needs an observed element, not a CAD edge" : "merge needs a match");
+    if (record.action == "merge" && !ref) {
+      make_fallback(record, "merge needs a match");
     } else if (record.action == "rigid_adjust" && !(ref && ref->object)) {
       make_fallback(record, "rigid_adjust needs a matched CAD object");
     } else if (record.action != "delete" && record.action != "merge" && record.action != "rigid_adjust" &&
-               record.action != "add") {
+               record.action != "add" && record.action != "ignore") {
       make_fallback(record, "action '" + record.action + "' is not known to the server");
     }
 
@@ -113,22 +133,47 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
         auto& element = state.elements.at(ref->element);
         ++element.support;
         element.updated_version = state.version;
+        element.updated_at_unix_s = observation.received_at_unix_s;
         result.changed_elements.insert(ref->element);
       }
-    } else if (record.action == "merge") {
+    } else if (record.action == "merge" && !ref->object) {
       auto& element = state.elements.at(ref->element);
+      record.before = line_numbers(element.segment.line);
       element.segment = fusion::fuse(element.segment, seen);
+      record.after = line_numbers(element.segment.line);
       ++element.support;
       element.updated_version = state.version;
+      element.updated_at_unix_s = observation.received_at_unix_s;
       result.changed_elements.insert(ref->element);
+    } else if (record.action == "merge") {
+      // Merged into a CAD edge (e.g. a door that moves): the drawing stays as drawn; the observed state
+      // becomes an element that starts from the fusion of the drawn edge and the observation.
+      const auto& object = state.objects[*ref->object];
+      const auto drawn = apriori_edge(object, ref->edge, options);
+      record.before = line_numbers(drawn.line);
+      Element element;
+      element.number = state.next_element_number++;
+      element.segment = fusion::fuse(drawn, seen);
+      element.support = 2;
+      element.source = observation.source;
+      element.observer = observation.observer;
+      element.created_version = element.updated_version = state.version;
+      element.updated_at_unix_s = observation.received_at_unix_s;
+      record.after = line_numbers(element.segment.line);
+      record.element = element.id();
+      result.changed_elements.insert(element.number);
+      state.elements.emplace(element.number, std::move(element));
     } else if (record.action == "rigid_adjust") {
       auto& object = state.objects[*ref->object];
       try {
+        record.before = pose_numbers(object.body);
         object.body = object.body.updated(ref->edge, seen.line, apriori_edge_noise(object, ref->edge, options));
+        record.after = pose_numbers(object.body);
         ++object.adjustments;
         object.updated_version = state.version;
         result.changed_objects.insert(*ref->object);
       } catch (const std::invalid_argument& e) {
+        record.before.clear();
         make_fallback(record, std::string("rigid update failed: ") + e.what());
       }
     }
@@ -140,6 +185,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       element.observer = observation.observer;
       element.created_version = state.version;
       element.updated_version = state.version;
+      element.updated_at_unix_s = observation.received_at_unix_s;
       record.element = element.id();
       record.object.reset();
       result.changed_elements.insert(element.number);
@@ -150,8 +196,55 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
   return result;
 }
 
+void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& orders, std::int64_t observation_seq,
+                 const std::string& observer) {
+  WorldState& state = result.state;
+  for (const auto& order : orders) {
+    const auto number = WorldState::element_number(order.element_id);
+    if (!number) continue;
+    const auto it = state.elements.find(*number);
+    if (it == state.elements.end()) continue;
+    DecisionRecord record;
+    record.seq = ++state.last_decision_seq;
+    record.observation_seq = observation_seq;
+    record.index = -1;  // not about a segment of the request
+    record.action = "prune";
+    record.rule = order.rule;
+    record.explanation = order.explanation;
+    record.element = order.element_id;
+    record.observer = observer;
+    record.origin = it->second.source;
+    record.p0 = it->second.segment.p0();
+    record.p1 = it->second.segment.p1();
+    record.rho_m = it->second.segment.line.rho_m;
+    record.phi_rad = it->second.segment.line.phi_rad;
+    record.observed_cov = it->second.segment.line.cov;
+    record.before = line_numbers(it->second.segment.line);
+    state.elements.erase(it);
+    result.changed_elements.erase(*number);
+    result.removed_elements.insert(*number);
+    result.decisions.push_back(std::move(record));
+  }
+}
+
+rules::DecisionQuery DecisionRecord::query() const {
+  rules::DecisionQuery q;
+  q.source = observer;
+  q.rho_m = rho_m;
+  q.phi_rad = phi_rad;
+  q.length_m = (p1 - p0).norm();
+  q.origin = origin;
+  q.sensor = sensor;
+  if (matched_element) {
+    q.element_id = matched_element;
+    q.object_id = matched_object;
+    q.mahalanobis_sq = mahalanobis_sq.value_or(0.0);
+  }
+  return q;
+}
+
 UpdateResult apply_floor_plan(const WorldState& current, const apriori::FloorPlan& plan, const WorldOptions& options) {
-  UpdateResult result{current, {}, {}, {}};
+  UpdateResult result{current, {}, {}, {}, {}};
   WorldState& state = result.state;
   state.version = current.version + 1;
   state.plan_name = plan.name;

@@ -20,7 +20,9 @@ struct ObservedSegment {
 struct Observation {
   std::string observer;           // e.g. robot-1
   std::string source = "client";  // client | scan | grid
+  std::string sensor = "unknown"; // laser | sonar | ... (what observation_sensor/1 tells the rules)
   double stamp_s = 0.0;
+  double received_at_unix_s = 0.0;  // server wall clock
   std::vector<ObservedSegment> segments;
 };
 
@@ -35,10 +37,23 @@ struct DecisionRecord {
   std::optional<std::string> element;  // element or edge id the decision is about
   std::optional<std::string> object;   // CAD object, when one is involved
   std::optional<double> mahalanobis_sq;
+  /// What the matcher found (element/edge id and its CAD object), kept apart from `element`, which names
+  /// the element the action produced (e.g. the new element of an add).
+  std::optional<std::string> matched_element, matched_object;
   bool fallback = false;
   std::string observer;
+  std::string origin = "client";  // client | scan | grid
+  std::string sensor = "unknown";
   Eigen::Vector2d p0 = Eigen::Vector2d::Zero();  // the observed segment [m]
   Eigen::Vector2d p1 = Eigen::Vector2d::Zero();
+  double rho_m = 0, phi_rad = 0;                  // the observed line and its covariance
+  Eigen::Matrix2d observed_cov = Eigen::Matrix2d::Zero();
+  /// What the action changed, for explanations: merge → the element's [ρ, φ, C(2×2 row-major)];
+  /// rigid_adjust → the object's [x, y, θ, C(3×3 row-major)]; empty otherwise.
+  std::vector<double> before, after;
+
+  /// The question the rules were asked (to re-ask it, e.g. in a dry run).
+  rules::DecisionQuery query() const;
 };
 
 /// The new state and everything that changed, so the store writes only those rows.
@@ -46,18 +61,25 @@ struct UpdateResult {
   WorldState state;
   std::vector<DecisionRecord> decisions;
   std::set<std::int64_t> changed_elements;  // element numbers inserted or updated
+  std::set<std::int64_t> removed_elements;  // element numbers removed (pruned)
   std::set<std::size_t> changed_objects;    // indices into state.objects
 };
 
 using Decide = std::function<rules::Decision(const rules::DecisionQuery&)>;
 
 /// Matches each segment in order against the current map (a-priori edges and elements), asks `decide`,
-/// and applies the action: delete (count a confirmation), merge (Kalman fusion into an element),
-/// rigid_adjust (EKF on the object's pose), add (new element). An action the server cannot apply to the
-/// match (merge into a CAD edge, rigid_adjust without an object, an unknown action) becomes the documented
-/// fallback: add, with fallback = true. `current` is not changed.
+/// and applies the action: delete (count a confirmation), merge (Kalman fusion into an element; into a CAD
+/// edge: a new element starting from the fusion of the edge and the observation, the drawing unchanged),
+/// rigid_adjust (EKF on the object's pose), add (new element), ignore (nothing changes). An action the
+/// server cannot apply to the match (merge or rigid_adjust without a match, rigid_adjust on an element,
+/// an unknown action) becomes the documented fallback: add, with fallback = true. `current` is not changed.
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,
                                const WorldOptions& options, const Decide& decide);
+
+/// Removes the elements the rules' prune/3 named (unknown ids are skipped), each with a "prune" decision
+/// record of the same observation, in `result` (so the store commits them together).
+void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& orders, std::int64_t observation_seq,
+                 const std::string& observer);
 
 /// Replaces the floor plan; observed elements stay. @throw std::invalid_argument on geometry fusion rejects.
 UpdateResult apply_floor_plan(const WorldState& current, const apriori::FloorPlan& plan, const WorldOptions& options);

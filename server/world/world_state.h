@@ -51,6 +51,7 @@ struct Element {
   std::string observer;      // who sent it first, e.g. robot-1
   std::int64_t created_version = 0;
   std::int64_t updated_version = 0;
+  double updated_at_unix_s = 0;  // wall-clock time of the last change (rules prune by age)
 
   std::string id() const { return "e" + std::to_string(number); }
 };

@@ -50,7 +50,7 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
                                                        loaded.state.objects[1].body.edges());
     store.commit_floor_plan(loaded, plan());
     auto update = add_element(loaded.state, 1);
-    store.commit_observation(update, world::Observation{"robot-1", "client", 3.25, {}}, R"({"segments": []})");
+    store.commit_observation(update, world::Observation{"robot-1", "client", "unknown", 3.25, 0.0, {}}, R"({"segments": []})");
     saved = update.state;
   }
   Store store({path, true});
@@ -83,10 +83,10 @@ TEST(StoreTest, FailedCommitLeavesNothingBehind) {
   testing::TempDir dir;
   Store store({(dir.path() / "a.db").string(), true});
   auto update = add_element(world::WorldState{}, 1);
-  store.commit_observation(update, world::Observation{"r", "client", 0, {}}, "{}");
+  store.commit_observation(update, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
   // The same observation sequence again violates the journal's primary key: the transaction rolls back.
   auto again = add_element(update.state, 1);
-  EXPECT_THROW(store.commit_observation(again, world::Observation{"r", "client", 0, {}}, "{}"), StorageError);
+  EXPECT_THROW(store.commit_observation(again, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}"), StorageError);
   const auto state = store.load(world::WorldOptions{});
   EXPECT_EQ(state.elements.size(), 1u);
   EXPECT_EQ(state.version, update.state.version);

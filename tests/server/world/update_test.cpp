@@ -1,5 +1,6 @@
 #include "server/world/update.h"
 
+#include <Eigen/LU>
 #include <gtest/gtest.h>
 
 namespace wm::world {
@@ -71,7 +72,7 @@ TEST(UpdateTest, LaterSegmentsOfARequestSeeTheEarlierOnes) {
 TEST(UpdateTest, ActionsThatDoNotFitTheMatchFallBackToAdd) {
   WorldOptions options;
   const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
-  for (const std::string action : {"merge", "frobnicate"}) {
+  for (const std::string action : {"frobnicate"}) {
     FixedRules rules{action, {}};
     const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
     ASSERT_EQ(result.decisions.size(), 1u);
@@ -85,6 +86,85 @@ TEST(UpdateTest, ActionsThatDoNotFitTheMatchFallBackToAdd) {
   FixedRules rigid{"rigid_adjust", {}};
   const auto unmatched = apply_observation(start, observe({{{30, 30}, {31, 31}}}, options), 1, options, std::ref(rigid));
   EXPECT_TRUE(unmatched.decisions[0].fallback);
+  FixedRules merge{"merge", {}};
+  const auto nothing = apply_observation(start, observe({{{30, 30}, {31, 31}}}, options), 1, options, std::ref(merge));
+  EXPECT_TRUE(nothing.decisions[0].fallback) << "merge without a match";
+}
+
+TEST(UpdateTest, MergeIntoACadEdgeStartsAnElementFromTheDrawingAndKeepsTheDrawing) {
+  WorldOptions options;
+  const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
+  FixedRules merge{"merge", {}};
+  const auto obs = observe({{{4, 10.01}, {9, 10.0}}}, options);
+  const auto result = apply_observation(start, obs, 1, options, std::ref(merge));
+  ASSERT_EQ(result.decisions.size(), 1u);
+  const auto& d = result.decisions[0];
+  EXPECT_EQ(d.action, "merge");
+  EXPECT_FALSE(d.fallback);
+  EXPECT_EQ(d.element, "e1");
+  EXPECT_EQ(d.matched_element, "wall-n/0");
+  ASSERT_EQ(result.state.elements.size(), 1u);
+  const auto& element = result.state.elements.at(1);
+  EXPECT_EQ(element.support, 2);
+  // Fused with the drawn edge: more certain than the observation alone, and the union of both extents.
+  EXPECT_LT(element.segment.line.cov.determinant(), obs.segments[0].segment.line.cov.determinant());
+  EXPECT_NEAR(element.segment.length_m(), 20.0, 1e-4);
+  EXPECT_EQ(result.state.objects[0].body.pose().x_m, start.objects[0].body.pose().x_m);
+  ASSERT_EQ(d.before.size(), 6u);
+  ASSERT_EQ(d.after.size(), 6u);
+  EXPECT_LT(d.after[2], d.before[2] + obs.segments[0].segment.line.cov(0, 0));
+}
+
+TEST(UpdateTest, IgnoreChangesNothing) {
+  WorldOptions options;
+  const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
+  FixedRules ignore{"ignore", {}};
+  const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}, {{30, 30}, {31, 31}}}, options), 1,
+                                        options, std::ref(ignore));
+  EXPECT_EQ(result.decisions[0].action, "ignore");
+  EXPECT_FALSE(result.decisions[1].fallback);
+  EXPECT_TRUE(result.state.elements.empty());
+  EXPECT_EQ(result.state.objects[0].confirmations, 0);
+  EXPECT_TRUE(result.changed_objects.empty());
+}
+
+TEST(UpdateTest, PruneRemovesNamedElementsWithADecisionEach) {
+  WorldOptions options;
+  FixedRules add{"add", {}};
+  auto result = apply_observation(WorldState{}, observe({{{0, 0}, {2, 0}}, {{0, 5}, {2, 5}}}, options), 1, options,
+                                  std::ref(add));
+  ASSERT_EQ(result.state.elements.size(), 2u);
+  apply_prune(result, {{"e2", "unconfirmed_pruned", "seen once"}, {"e99", "x", "unknown ids are skipped"}}, 1, "robot");
+  EXPECT_EQ(result.state.elements.size(), 1u);
+  EXPECT_TRUE(result.state.elements.count(1));
+  EXPECT_EQ(result.removed_elements, std::set<std::int64_t>{2});
+  EXPECT_EQ(result.changed_elements, std::set<std::int64_t>{1});
+  ASSERT_EQ(result.decisions.size(), 3u);
+  EXPECT_EQ(result.decisions[2].action, "prune");
+  EXPECT_EQ(result.decisions[2].rule, "unconfirmed_pruned");
+  EXPECT_EQ(result.decisions[2].element, "e2");
+  EXPECT_EQ(result.decisions[2].seq, 3);
+  EXPECT_EQ(result.decisions[2].index, -1);
+}
+
+TEST(UpdateTest, RecordedQueryAsksTheOriginalQuestionAgain) {
+  WorldOptions options;
+  const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
+  FixedRules add{"add", {}};
+  auto obs = observe({{{4, 10.01}, {9, 10.0}}}, options);
+  obs.sensor = "laser";
+  obs.source = "scan";
+  const auto result = apply_observation(start, obs, 1, options, std::ref(add));
+  const auto again = result.decisions[0].query();
+  EXPECT_EQ(again.element_id, add.asked[0].element_id);
+  EXPECT_EQ(again.object_id, add.asked[0].object_id);
+  EXPECT_DOUBLE_EQ(again.mahalanobis_sq, add.asked[0].mahalanobis_sq);
+  EXPECT_NEAR(again.rho_m, add.asked[0].rho_m, 1e-12);
+  EXPECT_NEAR(again.phi_rad, add.asked[0].phi_rad, 1e-12);
+  EXPECT_NEAR(again.length_m, add.asked[0].length_m, 1e-9);
+  EXPECT_EQ(again.sensor, "laser");
+  EXPECT_EQ(again.origin, "scan");
+  EXPECT_EQ(result.decisions[0].element, "e1") << "the produced element is kept apart from the match";
 }
 
 TEST(UpdateTest, CollinearWallsAcrossADoorwayStayApart) {
