@@ -17,7 +17,6 @@ inline constexpr const char* kSupportModule = R"wm_pl(
 :- use_module(library(time), [call_with_time_limit/2]).
 :- use_module(library(sha), [sha_hash/3, hash_atom/2]).
 :- use_module(library(lists), [member/2, append/3]).
-:- use_module(library(pairs), [pairs_keys_values/3]).
 :- use_module(library(apply), [foldl/4, maplist/2, maplist/3]).
 :- use_module(library(prolog_codewalk), [prolog_walk_code/1]).
 :- use_module(library(error), [must_be/2]).
@@ -303,8 +302,7 @@ run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
     ->  message_text(E, Msg0),
         format(string(Msg), "refused by the sandbox: ~w", [Msg0]),
         Result = unsafe(Msg)
-    ;   pairs_keys_values(Bindings, Names0, Vars),
-        maplist(atom_string, Names0, Names),
+    ;   maplist(binding_name_var, Bindings, Names, Vars),
         Max1 is MaxSolutions + 1,
         %  snapshot/1 discards any database change a called rule might still make.
         catch(call_with_time_limit(TimeLimit,
@@ -328,6 +326,8 @@ run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
             Result = ok(Names, Rows, Truncated)
         )
     ).
+
+binding_name_var(Name = Var, NameString, Var) :- atom_string(Name, NameString).
 
 %   Database writes the sandbox lets through (it accepts assertz/1 on the calling module).
 forbidden_subgoal(Goal, Goal) :-
