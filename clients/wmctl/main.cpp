@@ -1,5 +1,7 @@
 // wmctl: the command-line client of wmd, over the HTTP/JSON API only.
+#include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
@@ -29,6 +31,11 @@ const char* kUsage =
     "  primitives post FILE           post line primitives (JSON, as POST /api/v1/primitives), print decisions\n"
     "  map                            objects and observed elements\n"
     "  decisions [--since SEQ] [--limit N] [--element ID]   the decision log\n"
+    "  explain ID                     history of an element or object: observations, rules, numbers\n"
+    "  rules                          loaded rule files, checksums, last reload error\n"
+    "  rules reload                   reload the rules directory now (atomic; needs the token if set)\n"
+    "  rules dry-run FILE [--last N]  re-decide the last N decisions with FILE in place of its namesake\n"
+    "  query GOAL [--max N]           read-only Prolog query against the knowledge base\n"
     "options:\n"
     "  --server URL   default http://127.0.0.1:8080 (or $WMCTL_SERVER)\n"
     "  --json         print the server's JSON as it came (for scripts)\n";
@@ -94,6 +101,85 @@ void print_map(const json& m) {
   for (const auto& e : m["elements"])
     std::cout << "  element " << std::left << std::setw(8) << e["id"].get<std::string>() << point(e["p0"]) << " -> "
               << point(e["p1"]) << "  support " << e["support"] << ", source " << e["source"].get<std::string>() << "\n";
+}
+
+std::int64_t parse_count(const std::string& text) {
+  try {
+    std::size_t used = 0;
+    const auto n = std::stoll(text, &used);
+    if (used == text.size() && n > 0) return n;
+  } catch (const std::exception&) {
+  }
+  throw UsageError("expected a positive count, got '" + text + "'");
+}
+
+// Element ids are "e<n>"; everything else is taken as a CAD object id.
+std::string history_target(const std::string& id) {
+  const bool element = id.size() > 1 && id[0] == 'e' && id.find_first_not_of("0123456789", 1) == std::string::npos;
+  return std::string(element ? "/api/v1/elements/" : "/api/v1/objects/") + id + "/history";
+}
+
+std::string numbers(const json& state) {
+  std::ostringstream out;
+  out << std::setprecision(4);
+  if (state.contains("rho")) {
+    out << "rho " << state["rho"].get<double>() << " m, phi " << state["phi"].get<double>() << " rad, sigma_rho "
+        << std::sqrt(state["cov"][0][0].get<double>()) << " m, sigma_phi " << std::sqrt(state["cov"][1][1].get<double>())
+        << " rad";
+  } else if (state.contains("pose")) {
+    out << "pose (" << state["pose"]["x"].get<double>() << ", " << state["pose"]["y"].get<double>() << ", "
+        << state["pose"]["theta"].get<double>() << "), sigma_xy " << std::sqrt(state["pose_cov"][0][0].get<double>())
+        << " m";
+  }
+  return out.str();
+}
+
+void print_history(const json& r) {
+  std::cout << r["id"].get<std::string>() << (r["exists"].get<bool>() ? "" : " (no longer in the map)") << ": "
+            << r["decisions"].size() << " decisions\n";
+  for (const auto& d : r["decisions"]) {
+    print_decision(d);
+    std::cout << "      observation " << d["observation"] << " by " << d["source"].get<std::string>() << " ("
+              << d["origin"].get<std::string>() << ", sensor " << d["sensor"].get<std::string>() << ")";
+    if (!d["mahalanobis_sq"].is_null()) std::cout << ", d2 " << d["mahalanobis_sq"].get<double>();
+    std::cout << "\n";
+    if (d.contains("before")) std::cout << "      before: " << numbers(d["before"]) << "\n";
+    if (d.contains("after")) std::cout << "      after:  " << numbers(d["after"]) << "\n";
+  }
+}
+
+void print_rules(const json& r) {
+  std::cout << "generation " << r["generation"] << "\n";
+  for (const auto& f : r["files"])
+    std::cout << "  " << f["path"].get<std::string>() << "  sha256 " << f["checksum"].get<std::string>().substr(0, 12) << "\n";
+  if (!r["last_error"].get<std::string>().empty()) std::cout << "last error:\n" << r["last_error"].get<std::string>() << "\n";
+}
+
+void print_dry_run(const json& r) {
+  std::cout << r["redecided"] << " decisions re-decided with " << r["file"].get<std::string>() << ": " << r["changed"]
+            << " would change\n";
+  for (const auto& c : r["changes"]) {
+    const auto& old = c["recorded"];
+    const auto& now = c["candidate"];
+    std::cout << "  #" << old["seq"] << " " << old["action"].get<std::string>() << " by " << old["rule"].get<std::string>()
+              << "  ->  " << now["action"].get<std::string>() << " by " << now["rule"].get<std::string>() << "\n      "
+              << now["explanation"].get<std::string>() << "\n";
+  }
+}
+
+void print_query(const json& r) {
+  if (r["solutions"].empty()) std::cout << "false.\n";
+  for (const auto& solution : r["solutions"]) {
+    if (solution.empty()) {
+      std::cout << "true.\n";
+      continue;
+    }
+    std::string line;
+    for (const auto& [name, value] : solution.items())
+      line += (line.empty() ? "" : ", ") + name + " = " + (value.is_string() ? value.get<std::string>() : value.dump());
+    std::cout << line << "\n";
+  }
+  if (r["truncated"].get<bool>()) std::cout << "(more solutions; raise --max)\n";
 }
 
 int run(const std::vector<std::string>& args) {
@@ -163,6 +249,35 @@ int run(const std::vector<std::string>& args) {
       for (const auto& d : r["decisions"]) print_decision(d);
       std::cout << r["decisions"].size() << " decisions\n";
     });
+  }
+  if (command == "explain" && words.size() == 2) {
+    return emit(parse_answer(client.request("GET", history_target(words[1]))), print_history);
+  }
+  if (command == "rules" && words.size() == 1) {
+    return emit(parse_answer(client.request("GET", "/api/v1/rules")), print_rules);
+  }
+  if (command == "rules" && words.size() == 2 && words[1] == "reload") {
+    return emit(parse_answer(client.request("POST", "/api/v1/rules/reload", "{}", "application/json", token)), [](const json& r) {
+      std::cout << "rules reloaded (generation " << r["generation"] << ")\n";
+      print_rules(r);
+    });
+  }
+  if (command == "rules" && (words.size() == 3 || words.size() == 5) && words[1] == "dry-run") {
+    json body = {{"file", std::filesystem::path(words[2]).filename().string()}, {"text", read_file(words[2])}};
+    if (words.size() == 5) {
+      if (words[3] != "--last") throw UsageError("rules dry-run FILE [--last N]");
+      body["last"] = parse_count(words[4]);
+    }
+    return emit(parse_answer(client.request("POST", "/api/v1/rules/dry-run", body.dump(), "application/json", token)),
+                print_dry_run);
+  }
+  if (command == "query" && (words.size() == 2 || words.size() == 4)) {
+    json body = {{"goal", words[1]}};
+    if (words.size() == 4) {
+      if (words[2] != "--max") throw UsageError("query GOAL [--max N]");
+      body["max_solutions"] = parse_count(words[3]);
+    }
+    return emit(parse_answer(client.request("POST", "/api/v1/query", body.dump())), print_query);
   }
   throw UsageError("unknown command '" + command + "'");
 }

@@ -31,8 +31,9 @@ class ServerFixture : public ::testing::Test {
   void SetUp() override { start(); }
 
   void start() {
-    server_ = std::make_unique<WmdProcess>(std::vector<std::string>{
-        "--db", (dir_.path() / "wm.db").string(), "--port", "0", "--rules", WM_RULES_DIR});
+    std::vector<std::string> args{"--db", (dir_.path() / "wm.db").string(), "--port", "0", "--rules", rules_dir_};
+    args.insert(args.end(), extra_args_.begin(), extra_args_.end());
+    server_ = std::make_unique<WmdProcess>(args);
     client_ = std::make_unique<client::HttpClient>(server_->url());
   }
   void restart() {
@@ -56,6 +57,8 @@ class ServerFixture : public ::testing::Test {
   }
 
   TempDir dir_;
+  std::string rules_dir_ = WM_RULES_DIR;
+  std::vector<std::string> extra_args_;
   std::unique_ptr<WmdProcess> server_;
   std::unique_ptr<client::HttpClient> client_;
 };
