@@ -532,7 +532,10 @@ RulesStatus Engine::reload() {
         hashes = std::move(lines);
       } else {
         std::string message;
-        for (const auto& line : lines) message += (message.empty() ? "" : "\n") + line;
+        for (const auto& line : lines) {
+          if (!message.empty()) message += '\n';
+          message += line;
+        }
         throw RuleError(message.empty() ? "reload: the rules were rejected" : message);
       }
     }
@@ -833,7 +836,10 @@ std::vector<Decision> Engine::dry_run(const RuleText& candidate, const std::vect
   if (!PL_get_arg(1, result, list)) throw RuleError("dry_run: malformed answer " + written(result));
   if (!PL_is_functor(result, d.f_ok)) {
     std::string message;
-    while (PL_get_list(list, head, list)) message += (message.empty() ? "" : "\n") + text_of(head).value_or(written(head));
+    while (PL_get_list(list, head, list)) {
+      if (!message.empty()) message += '\n';
+      message += text_of(head).value_or(written(head));
+    }
     throw RuleError(message.empty() ? "dry_run: the candidate rules were rejected" : message);
   }
   std::vector<Decision> decisions;
