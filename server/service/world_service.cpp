@@ -115,7 +115,10 @@ WorldService::PrimitivesOutcome WorldService::post_primitives(world::Observation
     const bool moved = std::any_of(update.decisions.begin(), update.decisions.end(),
                                    [](const auto& d) { return d.action == "rigid_adjust"; });
     std::vector<rules::DecisionFacts> logged;
-    for (const auto& d : update.decisions) logged.push_back(decision_facts(d, observation.received_at_unix_s));
+    for (const auto& d : update.decisions) {
+      logged.push_back(decision_facts(d, observation.received_at_unix_s));
+      if (d.fallback) std::cerr << "wmd: decision " << d.seq << " fell back to add: " << d.explanation << "\n";
+    }
     PrimitivesOutcome outcome{seq, update.state.version, update.decisions};
     publish(std::move(update.state));
     engine_.add_decisions(logged, options_.decision_facts_kept);
