@@ -1,0 +1,182 @@
+#include "fusion/lines/scan_lines.h"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+
+#include "fusion/kalman/line_map.h"
+#include "fusion/lines/line_fit.h"
+
+namespace wm::fusion {
+namespace {
+
+struct Piece {
+  std::size_t first;  // index of the first point
+  std::size_t last;   // index one past the last point
+};
+
+// σ of point i perpendicular to the direction `normal` [m].
+double normal_sigma(const Eigen::Matrix2d& q, const Eigen::Vector2d& normal) { return std::sqrt(normal.dot(q * normal)); }
+
+// Splits [first, last) while some point lies farther than the threshold from the piece's least-squares line,
+// at the interior point farthest from the chord between the end points (the corner, for an L). Testing
+// against the fitted line rather than the chord keeps long noisy walls whole: the chord is off by the
+// noise of its two end points.
+void split(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs, Piece piece,
+           const ScanLineOptions& options, std::vector<Piece>& out) {
+  const std::size_t n = piece.last - piece.first;
+  if (n < 3) {
+    out.push_back(piece);
+    return;
+  }
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (std::size_t i = piece.first; i < piece.last; ++i) mean += points[i];
+  mean /= static_cast<double>(n);
+  Eigen::Matrix2d scatter = Eigen::Matrix2d::Zero();
+  for (std::size_t i = piece.first; i < piece.last; ++i) scatter += (points[i] - mean) * (points[i] - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
+  const Eigen::Vector2d normal = eigen.eigenvectors().col(0);  // the direction of least spread
+  bool straight = true;
+  for (std::size_t i = piece.first; i < piece.last && straight; ++i) {
+    // 4σ: with a few hundred points per wall, 3σ would cut a straight wall at random.
+    straight = std::abs(normal.dot(points[i] - mean)) <= std::max(options.split_distance_m, 4.0 * normal_sigma(covs[i], normal));
+  }
+  if (straight) {
+    out.push_back(piece);
+    return;
+  }
+  const Eigen::Vector2d a = points[piece.first];
+  const Eigen::Vector2d chord = points[piece.last - 1] - a;
+  const double length = chord.norm();
+  std::size_t corner = piece.first + n / 2;
+  if (length > 1e-9) {
+    const Eigen::Vector2d chord_normal(-chord.y() / length, chord.x() / length);
+    double farthest = -1.0;
+    for (std::size_t i = piece.first + 1; i + 1 < piece.last; ++i) {
+      const double d = std::abs(chord_normal.dot(points[i] - a));
+      if (d > farthest) {
+        farthest = d;
+        corner = i;
+      }
+    }
+  }
+  // The corner point belongs to both sides.
+  split(points, covs, {piece.first, corner + 1}, options, out);
+  split(points, covs, {corner, piece.last}, options, out);
+}
+
+struct LocalSegment {
+  Piece piece;
+  LineSegment segment;  // sensor frame
+};
+
+std::optional<LocalSegment> fit_piece(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
+                                      Piece piece, const ScanLineOptions& options) {
+  const std::size_t n = piece.last - piece.first;
+  if (n < options.min_points || n < 2) return std::nullopt;
+  const std::span<const Eigen::Vector2d> p(points.data() + piece.first, n);
+  const std::span<const Eigen::Matrix2d> q(covs.data() + piece.first, n);
+  LineFeature line;
+  try {
+    line = fit_line(p, q);
+  } catch (const std::invalid_argument&) {
+    return std::nullopt;  // degenerate (coincident points): not a line
+  }
+  LineSegment segment{line, line.coordinate_along(p.front()), line.coordinate_along(p.back())};
+  if (segment.t0_m > segment.t1_m) std::swap(segment.t0_m, segment.t1_m);
+  if (segment.length_m() < options.min_length_m) return std::nullopt;
+  return LocalSegment{piece, segment};
+}
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("extract_scan_lines: " + what);
+}
+
+}  // namespace
+
+std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& readings, const Pose2D& sensor_pose,
+                                            const Eigen::Matrix3d& pose_cov, const ScanLineOptions& options) {
+  require(options.min_points >= 2, "min_points must be >= 2");
+  require(std::isfinite(options.min_length_m) && options.min_length_m >= 0, "min_length_m must be finite and >= 0");
+  require(std::isfinite(options.max_gap_m) && options.max_gap_m > 0, "max_gap_m must be finite and > 0");
+  require(std::isfinite(options.split_distance_m) && options.split_distance_m > 0, "split_distance_m must be > 0");
+  require(std::isfinite(options.merge_chi2) && options.merge_chi2 >= 0, "merge_chi2 must be finite and >= 0");
+  require(options.sigma_range_m > 0 && std::isfinite(options.sigma_range_m), "sigma_range_m must be > 0");
+  require(options.sigma_range_relative >= 0 && options.sigma_bearing_rad >= 0, "noise terms must be >= 0");
+  require(std::isfinite(sensor_pose.x_m) && std::isfinite(sensor_pose.y_m) && std::isfinite(sensor_pose.theta_rad),
+          "sensor pose is not finite");
+  require(pose_cov.allFinite(), "pose_cov is not finite");
+
+  // Points and their covariance in the sensor frame: Q = J diag(σr², σθ²) Jᵀ, J = ∂(x, y)/∂(r, θ).
+  std::vector<Eigen::Vector2d> points;
+  std::vector<Eigen::Matrix2d> covs;
+  points.reserve(readings.size());
+  covs.reserve(readings.size());
+  for (const auto& r : readings) {
+    require(std::isfinite(r.range_m) && r.range_m > 0 && std::isfinite(r.bearing_rad), "a reading is not finite and > 0");
+    const double c = std::cos(r.bearing_rad), s = std::sin(r.bearing_rad);
+    const double sigma_r = options.sigma_range_m + options.sigma_range_relative * r.range_m;
+    // The bearing noise must not vanish entirely: a zero-variance direction makes Q singular.
+    const double sigma_b = std::max(options.sigma_bearing_rad, 1e-6);
+    Eigen::Matrix2d j;
+    j << c, -r.range_m * s, s, r.range_m * c;
+    const Eigen::Vector2d variances(sigma_r * sigma_r, sigma_b * sigma_b);
+    points.emplace_back(r.range_m * c, r.range_m * s);
+    covs.push_back(j * variances.asDiagonal() * j.transpose());
+  }
+
+  // Runs of points without gaps, then split.
+  std::vector<Piece> pieces;
+  std::size_t run_start = 0;
+  for (std::size_t i = 1; i <= points.size(); ++i) {
+    if (i == points.size() || (points[i] - points[i - 1]).norm() > options.max_gap_m) {
+      if (i > run_start) split(points, covs, {run_start, i}, options, pieces);
+      run_start = i;
+    }
+  }
+
+  std::vector<LocalSegment> segments;
+  for (const auto& piece : pieces)
+    if (auto fitted = fit_piece(points, covs, piece, options)) segments.push_back(*fitted);
+
+  // Merge neighbours in scan order whose lines agree and that touch; refit over the union.
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (std::size_t k = 0; k + 1 < segments.size(); ++k) {
+      const auto& a = segments[k];
+      const auto& b = segments[k + 1];
+      const double gap = (points[b.piece.first] - points[a.piece.last - 1]).norm();
+      if (gap > options.max_gap_m) continue;
+      if (mahalanobis_squared(a.segment.line, b.segment.line) > options.merge_chi2) continue;
+      const Piece joined{a.piece.first, std::max(a.piece.last, b.piece.last)};
+      auto refit = fit_piece(points, covs, joined, options);
+      if (!refit) continue;
+      segments[k] = *refit;
+      segments.erase(segments.begin() + static_cast<std::ptrdiff_t>(k + 1));
+      merged = true;
+      break;
+    }
+  }
+
+  // Into the world frame: the line with covariance propagation, the extent from the transformed endpoints.
+  std::vector<LineSegment> world;
+  world.reserve(segments.size());
+  for (const auto& local : segments) {
+    LineSegment w;
+    w.line = transform_line(local.segment.line, sensor_pose, pose_cov);
+    const Eigen::Vector2d e0 = sensor_pose.transform_point(local.segment.p0());
+    const Eigen::Vector2d e1 = sensor_pose.transform_point(local.segment.p1());
+    w.t0_m = w.line.coordinate_along(e0);
+    w.t1_m = w.line.coordinate_along(e1);
+    if (w.t0_m > w.t1_m) std::swap(w.t0_m, w.t1_m);
+    world.push_back(w);
+  }
+  return world;
+}
+
+}  // namespace wm::fusion

@@ -1,0 +1,40 @@
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "fusion/geometry/line.h"
+#include "fusion/geometry/pose2d.h"
+
+namespace wm::fusion {
+
+/// Settings of the scan line extractor (split-and-merge, FUSION.md §2 for the fit).
+struct ScanLineOptions {
+  std::size_t min_points = 6;        // fewer points: no segment
+  double min_length_m = 0.3;         // shorter: no segment
+  double max_gap_m = 0.25;           // consecutive points farther apart start a new segment
+  double split_distance_m = 0.03;    // split where a point is farther than max(this, 3σ) from the chord
+  double merge_chi2 = 5.991;         // χ², 2 dof (95 %): adjacent segments whose lines agree are merged
+  double sigma_range_m = 0.01;       // range noise per reading, plus sigma_range_relative · range
+  double sigma_range_relative = 0.0;
+  double sigma_bearing_rad = 0.0005; // bearing noise per beam (angular jitter of the scanner)
+};
+
+/// One range reading: its range [m] and bearing in the sensor frame [rad].
+struct RangeReading {
+  double range_m;
+  double bearing_rad;
+};
+
+/// Extracts line segments from one ordered scan (readings in beam order; invalid ones already removed).
+/// Points are split at gaps and recursively at the farthest point from the chord (iterative end-point
+/// fit), fitted by weighted total least squares with per-point covariance from range and bearing noise,
+/// and adjacent segments whose lines pass a χ² test are merged and refitted. The segments are returned
+/// in the world frame: `sensor_pose` places the sensor, `pose_cov` (3×3 over x, y, θ) is propagated into
+/// each line's covariance. @throw std::invalid_argument for non-finite readings or pose, or bad options.
+std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& readings, const Pose2D& sensor_pose,
+                                            const Eigen::Matrix3d& pose_cov, const ScanLineOptions& options);
+
+}  // namespace wm::fusion

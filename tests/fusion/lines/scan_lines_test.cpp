@@ -1,0 +1,199 @@
+#include "fusion/lines/scan_lines.h"
+#include "fusion/kalman/line_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <numbers>
+#include <optional>
+#include <random>
+#include <vector>
+
+#include <Eigen/LU>
+#include <gtest/gtest.h>
+
+namespace wm::fusion {
+namespace {
+
+struct Wall {
+  Eigen::Vector2d a, b;
+};
+
+// A room 8 m × 6 m with two boxes in it.
+std::vector<Wall> room() {
+  std::vector<Wall> walls = {{{0, 0}, {8, 0}}, {{8, 0}, {8, 6}}, {{8, 6}, {0, 6}}, {{0, 6}, {0, 0}}};
+  auto box = [&](Eigen::Vector2d lo, Eigen::Vector2d hi) {
+    walls.push_back({{lo.x(), lo.y()}, {hi.x(), lo.y()}});
+    walls.push_back({{hi.x(), lo.y()}, {hi.x(), hi.y()}});
+    walls.push_back({{hi.x(), hi.y()}, {lo.x(), hi.y()}});
+    walls.push_back({{lo.x(), hi.y()}, {lo.x(), lo.y()}});
+  };
+  box({5.0, 1.5}, {6.2, 2.3});
+  box({1.0, 4.0}, {1.8, 4.9});
+  return walls;
+}
+
+// Distance along the ray from p in direction d to the nearest wall (nullopt: none).
+std::optional<double> cast(const std::vector<Wall>& walls, const Eigen::Vector2d& p, const Eigen::Vector2d& d) {
+  std::optional<double> best;
+  for (const auto& w : walls) {
+    const Eigen::Vector2d e = w.b - w.a;
+    const double denom = d.x() * e.y() - d.y() * e.x();
+    if (std::abs(denom) < 1e-12) continue;
+    const Eigen::Vector2d ap = w.a - p;
+    const double t = (ap.x() * e.y() - ap.y() * e.x()) / denom;
+    const double u = (ap.x() * d.y() - ap.y() * d.x()) / denom;
+    if (t > 1e-9 && u >= 0 && u <= 1 && (!best || t < *best)) best = t;
+  }
+  return best;
+}
+
+constexpr int kBeams = 1440;  // a full circle at 0.25°
+
+// A full-circle scan with Gaussian range and bearing noise, as the extractor's model assumes.
+std::vector<RangeReading> scan(const std::vector<Wall>& walls, const Pose2D& pose, const ScanLineOptions& o, std::mt19937& rng) {
+  std::normal_distribution<double> range_noise(0.0, o.sigma_range_m), bearing_noise(0.0, o.sigma_bearing_rad);
+  std::vector<RangeReading> readings;
+  for (int i = 0; i < kBeams; ++i) {
+    const double bearing = -std::numbers::pi + i * 2 * std::numbers::pi / kBeams;
+    const double actual = pose.theta_rad + bearing + bearing_noise(rng);
+    const auto r = cast(walls, {pose.x_m, pose.y_m}, {std::cos(actual), std::sin(actual)});
+    if (r) readings.push_back({*r + range_noise(rng), bearing});
+  }
+  return readings;
+}
+
+LineFeature line_of(const Wall& w) {
+  return LineSegment::from_points(w.a, w.b, Eigen::Matrix2d::Identity()).line;
+}
+
+double angle_diff(double a, double b) { return std::remainder(a - b, 2 * std::numbers::pi); }
+
+// |Δρ| and |Δφ| between two lines, over both representations ((ρ, φ) ≡ (−ρ, φ + π)).
+std::pair<double, double> line_error(const LineFeature& a, const LineFeature& b) {
+  const std::pair<double, double> same{std::abs(a.rho_m - b.rho_m), std::abs(angle_diff(a.phi_rad, b.phi_rad))};
+  const std::pair<double, double> flipped{std::abs(a.rho_m + b.rho_m), std::abs(angle_diff(a.phi_rad + std::numbers::pi, b.phi_rad))};
+  return same.first + same.second <= flipped.first + flipped.second ? same : flipped;
+}
+
+// Both endpoints of `s` within `tolerance` of wall w (its line and extent).
+bool lies_on(const LineSegment& s, const Wall& w, double tolerance) {
+  const Eigen::Vector2d e = (w.b - w.a).normalized();
+  for (const Eigen::Vector2d& p : {s.p0(), s.p1()}) {
+    const double t = (p - w.a).dot(e);
+    if (t < -tolerance || t > (w.b - w.a).norm() + tolerance) return false;
+    if (std::abs((p - w.a).x() * e.y() - (p - w.a).y() * e.x()) > tolerance) return false;
+  }
+  return true;
+}
+
+TEST(ScanLinesTest, FindsEveryVisibleWallAndNothingElse) {
+  const auto walls = room();
+  ScanLineOptions options;
+  options.sigma_range_m = 0.005;  // a good indoor scanner
+  std::mt19937 rng(42);
+  for (const Pose2D pose : {Pose2D{3.0, 3.0, 0.2}, Pose2D{6.5, 4.5, -2.0}, Pose2D{2.0, 1.5, 1.0}}) {
+    const auto readings = scan(walls, pose, options, rng);
+    const auto segments = extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options);
+    // The visible length of each wall: the noise-free readings that hit it.
+    std::vector<double> visible(walls.size(), 0.0);
+    std::vector<std::vector<Eigen::Vector2d>> hits(walls.size());
+    for (int i = 0; i < kBeams; ++i) {
+      const double a = pose.theta_rad - std::numbers::pi + i * 2 * std::numbers::pi / kBeams;
+      const Eigen::Vector2d d(std::cos(a), std::sin(a));
+      const auto r = cast(walls, {pose.x_m, pose.y_m}, d);
+      if (!r) continue;
+      const Eigen::Vector2d p = Eigen::Vector2d(pose.x_m, pose.y_m) + *r * d;
+      for (std::size_t k = 0; k < walls.size(); ++k)
+        if (std::abs(line_of(walls[k]).signed_distance(p)) < 1e-6) hits[k].push_back(p);
+    }
+    for (std::size_t k = 0; k < walls.size(); ++k) {
+      if (hits[k].size() < 2) continue;
+      double extent = 0;
+      for (const auto& p : hits[k]) extent = std::max(extent, (p - hits[k].front()).norm());
+      if (extent <= 0.5 || hits[k].size() < 12) continue;
+      const LineFeature truth = line_of(walls[k]);
+      bool found = false;
+      for (const auto& s : segments) {
+        const auto [d_rho, d_phi] = line_error(s.line, truth);
+        if (d_rho < 0.02 && d_phi < 0.5 * std::numbers::pi / 180) found = true;
+      }
+      EXPECT_TRUE(found) << "wall " << k << " (" << extent << " m visible) from pose " << pose.x_m << "," << pose.y_m;
+    }
+    for (const auto& s : segments) {
+      if (s.length_m() <= 0.3) continue;
+      bool on_a_wall = false;
+      for (const auto& w : walls) on_a_wall = on_a_wall || lies_on(s, w, 0.05);
+      EXPECT_TRUE(on_a_wall) << "spurious segment " << s.p0().transpose() << " -> " << s.p1().transpose();
+    }
+  }
+}
+
+TEST(ScanLinesTest, CovarianceIsConsistentOverManyNoisyScans) {
+  // Normalised estimation error squared of the far wall x = 8 over N scans: its mean must lie in the
+  // two-sided 95 % band of χ²(2N)/N.
+  const std::vector<Wall> walls = {{{8, -4}, {8, 4}}};
+  ScanLineOptions options;
+  options.sigma_range_m = 0.02;
+  options.sigma_bearing_rad = 0.002;
+  const Pose2D pose{3.0, 0.5, 0.3};
+  const LineFeature truth = line_of(walls[0]);
+  std::mt19937 rng(7);
+  constexpr int kTrials = 300;
+  double nees_sum = 0;
+  int used = 0;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    const auto segments = extract_scan_lines(scan(walls, pose, options, rng), pose, Eigen::Matrix3d::Zero(), options);
+    // Occasionally (≈ 5 %, the merge test's level) a wall stays in two pieces; each is an estimate of it.
+    ASSERT_FALSE(segments.empty()) << "trial " << trial;
+    const auto longest = std::max_element(segments.begin(), segments.end(),
+                                          [](const auto& a, const auto& b) { return a.length_m() < b.length_m(); });
+    const auto& line = longest->line;
+    const Eigen::Vector2d error(line.rho_m - truth.rho_m, angle_diff(line.phi_rad, truth.phi_rad));
+    nees_sum += error.dot(line.cov.inverse() * error);
+    ++used;
+  }
+  const double mean = nees_sum / used;
+  // χ²(600) quantiles 2.5 % / 97.5 %: 533.1 and 670.7.
+  EXPECT_GT(mean, 533.1 / kTrials);
+  EXPECT_LT(mean, 670.7 / kTrials);
+}
+
+TEST(ScanLinesTest, PoseUncertaintyWidensTheWorldLine) {
+  const auto walls = room();
+  ScanLineOptions options;
+  std::mt19937 rng(3);
+  const Pose2D pose{3.0, 3.0, 0.2};
+  const auto readings = scan(walls, pose, options, rng);
+  const auto exact = extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options);
+  const Eigen::Matrix3d pose_cov = Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal();
+  const auto uncertain = extract_scan_lines(readings, pose, pose_cov, options);
+  ASSERT_EQ(exact.size(), uncertain.size());
+  for (std::size_t i = 0; i < exact.size(); ++i) {
+    EXPECT_NEAR(exact[i].line.rho_m, uncertain[i].line.rho_m, 1e-12);
+    EXPECT_GT(uncertain[i].line.cov(1, 1), exact[i].line.cov(1, 1) + 0.0009);
+  }
+}
+
+TEST(ScanLinesTest, GapsSplitCollinearWallsAndShortPiecesAreDropped) {
+  // Two collinear walls with a 1 m doorway, and a 0.2 m stub.
+  const std::vector<Wall> walls = {{{-3, 2}, {-0.5, 2}}, {{0.5, 2}, {3, 2}}, {{2, -1}, {2.2, -1}}};
+  ScanLineOptions options;
+  std::mt19937 rng(5);
+  const auto segments = extract_scan_lines(scan(walls, {0, 0, 0}, options, rng), {0, 0, 0}, Eigen::Matrix3d::Zero(), options);
+  ASSERT_EQ(segments.size(), 2u);
+  for (const auto& s : segments) EXPECT_NEAR(s.line.rho_m, 2.0, 0.01);
+  EXPECT_GT(std::min(segments[0].length_m(), segments[1].length_m()), 2.0);
+}
+
+TEST(ScanLinesTest, BadInputIsRefused) {
+  ScanLineOptions options;
+  EXPECT_THROW(extract_scan_lines({{std::nan(""), 0.0}}, {0, 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
+  EXPECT_THROW(extract_scan_lines({}, {std::nan(""), 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
+  options.min_points = 1;
+  EXPECT_THROW(extract_scan_lines({}, {0, 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
+  EXPECT_TRUE(extract_scan_lines({}, {0, 0, 0}, Eigen::Matrix3d::Zero(), ScanLineOptions{}).empty());
+}
+
+}  // namespace
+}  // namespace wm::fusion
