@@ -54,7 +54,8 @@ int main(int argc, char** argv) {
   try {
     storage::Store store(cfg.store);
     rules::Engine engine(cfg.rules);
-    service::WorldService world(cfg.service, store, engine);
+    events::EventHub events;
+    service::WorldService world(cfg.service, store, engine, &events);
     if (cfg.floor_plan_file) {
       auto plan = apriori::parse_floor_plan_json(read_file(*cfg.floor_plan_file), cfg.api.plan_limits);
       std::cout << "wmd: loaded floor plan '" << plan.name << "' (" << plan.objects.size() << " objects) from "
@@ -62,7 +63,8 @@ int main(int argc, char** argv) {
       world.load_floor_plan(std::move(plan));
     }
     api::Services services{cfg.api, world};
-    http::HttpServer server(cfg.http, [&services](const api::Request& r) { return api::handle_request(r, services); });
+    http::HttpServer server(
+        cfg.http, [&services](const api::Request& r) { return api::handle_request(r, services); }, &events);
     std::thread signal_waiter([&server, signals] {
       int signal = 0;
       sigwait(&signals, &signal);

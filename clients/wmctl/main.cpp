@@ -36,6 +36,9 @@ const char* kUsage =
     "  rules reload                   reload the rules directory now (atomic; needs the token if set)\n"
     "  rules dry-run FILE [--last N]  re-decide the last N decisions with FILE in place of its namesake\n"
     "  query GOAL [--max N]           read-only Prolog query against the knowledge base\n"
+    "  grid --out FILE.pgm [--layer L] [--bbox x0,y0,x1,y1]\n"
+    "                                 save a grid layer (bayes, ds_belief, ds_plausibility, ds_conflict) as\n"
+    "                                 PGM; with the bayes layer also FILE.yaml for ROS map_server\n"
     "options:\n"
     "  --server URL   default http://127.0.0.1:8080 (or $WMCTL_SERVER)\n"
     "  --json         print the server's JSON as it came (for scripts)\n";
@@ -54,6 +57,11 @@ std::string read_file(const std::string& path) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+void write_file(const std::string& path, const std::string& data) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out || !(out << data)) throw UsageError("cannot write '" + path + "'");
 }
 
 json parse_answer(const wm::client::HttpResult& r) {
@@ -278,6 +286,34 @@ int run(const std::vector<std::string>& args) {
       body["max_solutions"] = parse_count(words[3]);
     }
     return emit(parse_answer(client.request("POST", "/api/v1/query", body.dump())), print_query);
+  }
+  if (command == "grid") {
+    std::string out, layer = "bayes", bbox;
+    for (std::size_t i = 1; i < words.size(); i += 2) {
+      if (i + 1 >= words.size()) throw UsageError("grid --out FILE.pgm [--layer L] [--bbox x0,y0,x1,y1]");
+      if (words[i] == "--out") out = words[i + 1];
+      else if (words[i] == "--layer") layer = words[i + 1];
+      else if (words[i] == "--bbox") bbox = words[i + 1];
+      else throw UsageError("grid takes --out, --layer, --bbox");
+    }
+    if (out.empty()) throw UsageError("grid needs --out FILE.pgm");
+    const std::string query = "?layer=" + layer + (bbox.empty() ? "" : "&bbox=" + bbox);
+    const auto image = client.request("GET", "/api/v1/grid" + query + "&format=pgm");
+    if (image.status != 200) parse_answer(image);
+    write_file(out, image.body);
+    std::cout << "wrote " << out << " (" << image.body.size() << " bytes)\n";
+    if (layer == "bayes") {
+      // map_server reads the image path relative to the YAML file.
+      const auto yaml = client.request("GET", "/api/v1/grid/map.yaml" + (bbox.empty() ? std::string() : "?bbox=" + bbox));
+      if (yaml.status != 200) parse_answer(yaml);
+      std::string text = yaml.body;
+      const auto at = text.find("image: map.pgm");
+      if (at != std::string::npos) text.replace(at, 14, "image: " + std::filesystem::path(out).filename().string());
+      const auto yaml_path = std::filesystem::path(out).replace_extension(".yaml").string();
+      write_file(yaml_path, text);
+      std::cout << "wrote " << yaml_path << "\n";
+    }
+    return kExitOk;
   }
   throw UsageError("unknown command '" + command + "'");
 }

@@ -1,6 +1,9 @@
 #include "server/api/router.h"
 
 #include <algorithm>
+#include <optional>
+#include <sstream>
+#include <cmath>
 
 #include <charconv>
 #include <map>
@@ -187,6 +190,130 @@ Response post_query(const Request& req, Services& s) {
   }
 }
 
+Response post_scan(const Request& req, Services& s) {
+  require_token(req, s);
+  require_json_body(req);
+  auto scan = json_codec::parse_scan(req.body(), s.options.scan_limits);
+  const auto outcome = s.world.post_scan(std::move(scan), req.body());
+  json answer = {{"seq", outcome.seq}, {"grid_revision", outcome.grid_revision}, {"lines", nullptr}};
+  if (outcome.lines) {
+    json decisions = json::array();
+    for (const auto& d : outcome.lines->decisions) decisions.push_back(json_codec::decision_json(d));
+    answer["lines"] = {{"observation", outcome.lines->seq}, {"version", outcome.lines->version}, {"decisions", decisions}};
+  }
+  return json_response(req, answer);
+}
+
+using Layer = fusion::OccupancyGrid::Layer;
+
+Layer grid_layer(const Target& t) {
+  const auto it = t.query.find("layer");
+  if (it == t.query.end() || it->second == "bayes") return Layer::bayes_probability;
+  if (it->second == "ds_belief") return Layer::ds_belief;
+  if (it->second == "ds_plausibility") return Layer::ds_plausibility;
+  if (it->second == "ds_conflict") return Layer::ds_conflict;
+  throw bad_request("layer", "expected bayes, ds_belief, ds_plausibility or ds_conflict");
+}
+
+// The cells to export: the bbox given (x0,y0,x1,y1 in metres, snapped outwards to cells) or everything
+// observed so far. nullopt when the grid is empty and no bbox was given.
+std::optional<fusion::GridGeometry> grid_region(const Target& t, Services& s, std::int64_t max_cells) {
+  const double resolution = s.world.read_grid([](const fusion::OccupancyGrid& g) { return g.resolution_m(); });
+  std::optional<fusion::GridGeometry> region;
+  if (auto it = t.query.find("bbox"); it != t.query.end()) {
+    double v[4];
+    std::size_t start = 0;
+    for (int i = 0; i < 4; ++i) {
+      const auto comma = it->second.find(',', start);
+      if ((i < 3) != (comma != std::string::npos)) throw bad_request("bbox", "expected x0,y0,x1,y1 in metres");
+      const std::string part = it->second.substr(start, i < 3 ? comma - start : std::string::npos);
+      char* end = nullptr;
+      v[i] = std::strtod(part.c_str(), &end);
+      if (part.empty() || *end != '\0' || !std::isfinite(v[i]) || std::abs(v[i]) > 1e6)
+        throw bad_request("bbox", "expected four finite numbers x0,y0,x1,y1");
+      start = comma + 1;
+    }
+    if (v[2] <= v[0] || v[3] <= v[1]) throw bad_request("bbox", "x1 must exceed x0 and y1 must exceed y0");
+    const auto x0 = static_cast<std::int64_t>(std::floor(v[0] / resolution));
+    const auto y0 = static_cast<std::int64_t>(std::floor(v[1] / resolution));
+    const auto x1 = static_cast<std::int64_t>(std::ceil(v[2] / resolution));
+    const auto y1 = static_cast<std::int64_t>(std::ceil(v[3] / resolution));
+    if ((x1 - x0) * (y1 - y0) > max_cells)
+      throw bad_request("bbox", "more than " + std::to_string(max_cells) + " cells; ask for a smaller box");
+    region = fusion::GridGeometry({static_cast<double>(x0) * resolution, static_cast<double>(y0) * resolution}, resolution,
+                                  x1 - x0, y1 - y0);
+  } else {
+    region = s.world.read_grid([](const fusion::OccupancyGrid& g) { return g.bounds(); });
+    if (region && region->width() * region->height() > max_cells)
+      throw bad_request("bbox", "the grid has more than " + std::to_string(max_cells) + " cells; give a bbox");
+  }
+  return region;
+}
+
+// ROS map_server convention: a pixel's occupancy is (255 - value) / 255 with negate 0; unknown is 205
+// (between free_thresh 0.196 and occupied_thresh 0.65, so it reads as unknown).
+std::string pgm_image(const std::vector<float>& values, std::int64_t width, std::int64_t height) {
+  std::string out = "P5\n# worldmodel occupancy grid\n" + std::to_string(width) + " " + std::to_string(height) + "\n255\n";
+  const auto header = out.size();
+  out.resize(header + static_cast<std::size_t>(width * height));
+  for (std::int64_t row = 0; row < height; ++row) {
+    // PGM rows run from the top (largest y); the grid's from the bottom.
+    const float* src = values.data() + (height - 1 - row) * width;
+    char* dst = out.data() + header + row * width;
+    for (std::int64_t x = 0; x < width; ++x) {
+      const float p = src[x];
+      dst[x] = static_cast<char>(std::isnan(p) ? 205 : static_cast<int>(std::lround(255.0 * (1.0 - std::clamp(p, 0.0f, 1.0f)))));
+    }
+  }
+  return out;
+}
+
+Response raw_response(const Request& req, std::string body, const char* content_type) {
+  Response res{http::status::ok, req.version()};
+  res.set(http::field::content_type, content_type);
+  res.keep_alive(req.keep_alive());
+  res.body() = std::move(body);
+  res.prepare_payload();
+  return res;
+}
+
+Response get_grid(const Request& req, const Target& t, Services& s) {
+  const auto layer = grid_layer(t);
+  std::string format = "json";
+  if (auto it = t.query.find("format"); it != t.query.end()) format = it->second;
+  if (format != "json" && format != "pgm") throw bad_request("format", "expected json or pgm");
+  const auto region = grid_region(t, s, format == "json" ? 4'000'000 : 64'000'000);
+  if (!region) throw ApiError(404, "empty_grid", "no scan has reached the grid yet; POST /api/v1/scans first");
+  const auto values = s.world.read_grid([&](const fusion::OccupancyGrid& g) { return g.export_layer(layer, *region); });
+  if (format == "pgm") return raw_response(req, pgm_image(values, region->width(), region->height()), "image/x-portable-graymap");
+  json data = json::array();
+  for (const float v : values) data.push_back(std::isnan(v) ? json(nullptr) : json(std::round(v * 1e4) / 1e4));
+  return json_response(req, {{"layer", t.query.count("layer") ? t.query.at("layer") : "bayes"},
+                             {"resolution", region->resolution_m()},
+                             {"origin", json::array({region->origin_m().x(), region->origin_m().y()})},
+                             {"width", region->width()},
+                             {"height", region->height()},
+                             {"revision", s.world.grid_revision()},
+                             {"order", "row-major from the lower-left cell; null = unknown"},
+                             {"data", std::move(data)}});
+}
+
+// The map_server pair: the YAML names map.pgm beside it; both describe the same region.
+Response get_map_yaml(const Request& req, const Target& t, Services& s) {
+  const auto region = grid_region(t, s, 64'000'000);
+  if (!region) throw ApiError(404, "empty_grid", "no scan has reached the grid yet");
+  std::ostringstream yaml;
+  yaml.precision(10);
+  yaml << "image: map.pgm\n"
+       << "mode: trinary\n"
+       << "resolution: " << region->resolution_m() << "\n"
+       << "origin: [" << region->origin_m().x() << ", " << region->origin_m().y() << ", 0.0]\n"
+       << "negate: 0\n"
+       << "occupied_thresh: 0.65\n"
+       << "free_thresh: 0.196\n";
+  return raw_response(req, yaml.str(), "application/yaml");
+}
+
 Response get_history(const Request& req, Services& s, const std::string& id, bool exists) {
   const auto rows = s.world.store().decisions(0, 10000, id);
   if (rows.empty() && !exists) throw ApiError(404, "not_found", "no element or object '" + id + "' and no decision about it");
@@ -282,6 +409,25 @@ Response route(const Request& req, Services& s) {
     if (method != http::verb::post) method_not_allowed("POST");
     return post_rules_dry_run(req, s);
   }
+  if (path == "/api/v1/scans") {
+    if (method != http::verb::post) method_not_allowed("POST");
+    return post_scan(req, s);
+  }
+  if (path == "/api/v1/grid") {
+    if (method != http::verb::get) method_not_allowed("GET");
+    return get_grid(req, t, s);
+  }
+  if (path == "/api/v1/grid/map.yaml") {
+    if (method != http::verb::get) method_not_allowed("GET");
+    return get_map_yaml(req, t, s);
+  }
+  if (path == "/api/v1/grid/map.pgm") {
+    if (method != http::verb::get) method_not_allowed("GET");
+    Target pgm = t;
+    pgm.query["format"] = "pgm";
+    pgm.query["layer"] = "bayes";
+    return get_grid(req, pgm, s);
+  }
   if (path == "/api/v1/query") {
     if (method != http::verb::post) method_not_allowed("POST");
     return post_query(req, s);
@@ -330,7 +476,9 @@ Response route(const Request& req, Services& s) {
                                               "GET /api/v1/elements[/{id}]", "GET|PUT /api/v1/floorplan",
                                               "POST /api/v1/primitives", "GET /api/v1/decisions?since=SEQ&limit=N",
                                               "GET /api/v1/rules", "POST /api/v1/rules/reload",
-                                              "POST /api/v1/rules/dry-run", "POST /api/v1/query",
+                                              "POST /api/v1/rules/dry-run", "POST /api/v1/query", "POST /api/v1/scans",
+                                              "GET /api/v1/grid?layer=L&bbox=x0,y0,x1,y1&format=json|pgm",
+                                              "GET /api/v1/grid/map.yaml", "GET /api/v1/grid/map.pgm",
                                               "GET /api/v1/elements/{id}/history", "GET /api/v1/objects/{id}/history"}}});
   }
   throw ApiError(404, "not_found", "no resource at '" + path + "'");

@@ -17,6 +17,7 @@ struct ApiOptions {
   /// When non-empty, requests that change state need "Authorization: Bearer <token>".
   std::string token;
   json_codec::PrimitiveLimits primitive_limits;
+  json_codec::ScanLimits scan_limits;
   apriori::FloorPlanLimits plan_limits;
   std::size_t max_decisions_per_page = 10000;
 };

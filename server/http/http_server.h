@@ -6,6 +6,7 @@
 #include <string>
 
 #include "server/api/router.h"
+#include "server/events/event_hub.h"
 
 namespace wm::http {
 
@@ -23,8 +24,9 @@ struct HttpOptions {
 class HttpServer {
  public:
   using Handler = std::function<api::Response(const api::Request&)>;
-  /// Binds and listens. @throw boost::system::system_error when the address cannot be bound.
-  HttpServer(const HttpOptions& options, Handler handler);
+  /// Binds and listens. WebSocket upgrades of GET /api/v1/events subscribe to `events` (when given).
+  /// @throw boost::system::system_error when the address cannot be bound.
+  HttpServer(const HttpOptions& options, Handler handler, events::EventHub* events = nullptr);
   ~HttpServer();
   unsigned short port() const;
   /// Serves until stop(); runs the I/O threads (the caller's thread is one of them).

@@ -1,6 +1,8 @@
 #include "server/json/codec.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <regex>
 
 #include "server/api/api_error.h"
@@ -117,6 +119,130 @@ world::Observation parse_primitives(std::string_view body, const world::WorldOpt
     }
   }
   return observation;
+}
+
+namespace {
+
+json parse_document(std::string_view body) {
+  try {
+    return json::parse(body.begin(), body.end());
+  } catch (const json::parse_error& e) {
+    throw api::bad_request("", std::string("malformed JSON: ") + e.what());
+  } catch (const json::out_of_range& e) {
+    throw api::bad_request("", std::string("number out of range (must be finite): ") + e.what());
+  }
+}
+
+std::vector<double> number_list(const json& doc, const std::string& key, std::size_t max_items, bool allow_null) {
+  const auto it = doc.find(key);
+  if (it == doc.end()) throw api::bad_request(key, "missing field");
+  if (!it->is_array()) throw api::bad_request(key, "expected an array of numbers");
+  if (it->empty()) throw api::bad_request(key, "must not be empty");
+  if (it->size() > max_items) throw api::bad_request(key, "more than " + std::to_string(max_items) + " values");
+  std::vector<double> values;
+  values.reserve(it->size());
+  for (std::size_t i = 0; i < it->size(); ++i) {
+    const json& v = (*it)[i];
+    if (allow_null && v.is_null()) {
+      values.push_back(std::numeric_limits<double>::quiet_NaN());  // no reading: ignored per beam
+    } else {
+      values.push_back(finite_number(v, item(key, i), 1e9));
+    }
+  }
+  return values;
+}
+
+double required_number(const json& doc, const std::string& key, double limit) {
+  const auto it = doc.find(key);
+  if (it == doc.end()) throw api::bad_request(key, "missing field");
+  return finite_number(*it, key, limit);
+}
+
+}  // namespace
+
+ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
+  const json doc = parse_document(body);
+  if (!doc.is_object()) throw api::bad_request("", "expected a scan object");
+  const auto sensor_it = doc.find("sensor");
+  if (sensor_it == doc.end()) throw api::bad_request("sensor", "missing field (\"laser\" or \"sonar\")");
+  if (!sensor_it->is_string() || (*sensor_it != "laser" && *sensor_it != "sonar"))
+    throw api::bad_request("sensor", "expected \"laser\" or \"sonar\"");
+  const bool laser = *sensor_it == "laser";
+  static const std::vector<std::string> kLaserKeys = {"sensor", "source", "stamp", "pose", "angle_min", "angle_increment",
+                                                      "ranges", "range_min", "range_max", "sigma_range", "pose_cov"};
+  static const std::vector<std::string> kSonarKeys = {"sensor", "source", "stamp", "pose", "angles", "ranges",
+                                                      "beam_width", "range_min", "range_max", "sigma_range", "pose_cov"};
+  const auto& known = laser ? kLaserKeys : kSonarKeys;
+  for (const auto& [key, value] : doc.items())
+    if (std::find(known.begin(), known.end(), key) == known.end())
+      throw api::bad_request(key, std::string("unknown field for a ") + (laser ? "laser" : "sonar") + " scan");
+
+  ScanRequest request;
+  if (auto it = doc.find("source"); it != doc.end()) {
+    if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
+      throw api::bad_request("source", "expected a non-empty string of at most 128 characters");
+    request.observer = it->get<std::string>();
+  }
+  if (auto it = doc.find("stamp"); it != doc.end()) request.stamp_s = finite_number(*it, "stamp", 1e12);
+  const auto pose_it = doc.find("pose");
+  if (pose_it == doc.end()) throw api::bad_request("pose", "missing field (the sensor pose in the world)");
+  if (!pose_it->is_object()) throw api::bad_request("pose", "expected {\"x\", \"y\", \"theta\"}");
+  for (const auto& [key, value] : pose_it->items())
+    if (key != "x" && key != "y" && key != "theta") throw api::bad_request("pose." + key, "unknown field");
+  const fusion::Pose2D pose{required_number(*pose_it, "x", limits.max_abs_coordinate_m),
+                            required_number(*pose_it, "y", limits.max_abs_coordinate_m),
+                            required_number(*pose_it, "theta", 1e3)};
+  if (auto it = doc.find("pose_cov"); it != doc.end()) {
+    if (!it->is_array() || it->size() != 3) throw api::bad_request("pose_cov", "expected a 3x3 matrix over x, y, theta");
+    for (int r = 0; r < 3; ++r) {
+      if (!(*it)[r].is_array() || (*it)[r].size() != 3) throw api::bad_request(item("pose_cov", r), "expected 3 numbers");
+      for (int c = 0; c < 3; ++c) request.pose_cov(r, c) = finite_number((*it)[r][c], item(item("pose_cov", r), c), 1e6);
+    }
+    if (!request.pose_cov.isApprox(request.pose_cov.transpose(), 1e-12) || request.pose_cov.diagonal().minCoeff() < 0)
+      throw api::bad_request("pose_cov", "not a symmetric covariance");
+  }
+  const double range_min = doc.contains("range_min") ? finite_number(doc["range_min"], "range_min", limits.max_range_m) : 0.0;
+  const double range_max = required_number(doc, "range_max", limits.max_range_m);
+  if (range_min < 0) throw api::bad_request("range_min", "must be >= 0");
+  if (range_max <= range_min) throw api::bad_request("range_max", "must be greater than range_min");
+  auto ranges = number_list(doc, "ranges", limits.max_beams, true);
+
+  if (laser) {
+    fusion::LaserScan scan;
+    scan.sensor_pose = pose;
+    scan.angle_min_rad = required_number(doc, "angle_min", 10.0);
+    scan.angle_increment_rad = required_number(doc, "angle_increment", 1.0);
+    if (scan.angle_increment_rad == 0.0) throw api::bad_request("angle_increment", "must not be 0");
+    scan.ranges_m = std::move(ranges);
+    scan.range_min_m = range_min;
+    scan.range_max_m = range_max;
+    if (doc.contains("sigma_range")) scan.sigma_range_m = finite_number(doc["sigma_range"], "sigma_range", 10.0);
+    if (scan.sigma_range_m <= 0) throw api::bad_request("sigma_range", "must be > 0");
+    request.scan = std::move(scan);
+  } else {
+    fusion::SonarScan scan;
+    scan.sensor_pose = pose;
+    scan.angles_rad = number_list(doc, "angles", limits.max_beams, false);
+    if (scan.angles_rad.size() != ranges.size())
+      throw api::bad_request("angles", "needs one angle per range (" + std::to_string(ranges.size()) + ")");
+    for (std::size_t i = 0; i < scan.angles_rad.size(); ++i)
+      if (std::abs(scan.angles_rad[i]) > 10.0) throw api::bad_request(item("angles", i), "absurd angle [rad]");
+    scan.ranges_m = std::move(ranges);
+    scan.range_min_m = range_min;
+    scan.range_max_m = range_max;
+    if (doc.contains("beam_width")) scan.beam_width_rad = finite_number(doc["beam_width"], "beam_width", 3.2);
+    if (scan.beam_width_rad <= 0) throw api::bad_request("beam_width", "must be > 0 [rad]");
+    if (doc.contains("sigma_range")) scan.sigma_range_m = finite_number(doc["sigma_range"], "sigma_range", 10.0);
+    if (scan.sigma_range_m <= 0) throw api::bad_request("sigma_range", "must be > 0");
+    request.scan = std::move(scan);
+  }
+  // The grid's own checks (sizes, finiteness) as a 400 rather than an internal error.
+  try {
+    std::visit([](const auto& scan) { fusion::validate(scan); }, request.scan);
+  } catch (const std::invalid_argument& e) {
+    throw api::bad_request("", std::string("invalid scan: ") + e.what());
+  }
+  return request;
 }
 
 json object_json(const world::ObjectState& object, const world::WorldOptions& options) {

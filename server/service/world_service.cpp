@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <iostream>
+#include <variant>
 
 namespace wm::service {
 namespace {
@@ -28,9 +30,28 @@ rules::DecisionFacts decision_facts(const world::DecisionRecord& d, double at) {
 
 }  // namespace
 
-WorldService::WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine)
-    : options_(options), store_(store), engine_(engine) {
+WorldService::WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine,
+                           events::EventHub* events)
+    : options_(options), store_(store), engine_(engine), events_(events) {
   snapshot_ = std::make_shared<const world::WorldState>(store_.load(options_.world));
+  // The grid as last flushed, then every scan journaled after that flush.
+  auto grid_options = options_.grid;
+  const auto stored = store_.load_grid();
+  if (stored) {
+    grid_options.resolution_m = stored->resolution_m;
+    grid_options.tile_size_cells = stored->tile_size_cells;
+  }
+  grid_ = std::make_unique<fusion::OccupancyGrid>(grid_options);
+  if (stored) {
+    for (const auto& [index, data] : stored->tiles) grid_->set_tile(index, data);
+    flushed_scan_seq_ = last_scan_seq_ = stored->through_scan_seq;
+  }
+  const auto replay = store_.scans_after(flushed_scan_seq_);
+  for (const auto& record : replay) {
+    insert_scan(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}));
+    last_scan_seq_ = record.seq;
+  }
+  // Replayed tiles stay dirty: the next flush (or the one at shutdown) writes them.
   writer_ = std::make_unique<PrologWorker>(engine_, options_.max_queued_requests, "world model's write");
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
   // The knowledge base mirrors the committed map; fill it before the first request is taken.
@@ -48,8 +69,113 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
 
 WorldService::~WorldService() {
   watcher_.reset();
+  try {
+    writer_->run([this] {
+      flush_grid(true);
+      return 0;
+    });
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: final grid flush failed (the journal still has every scan): " << e.what() << "\n";
+  }
   reader_.reset();
   writer_.reset();
+}
+
+void WorldService::emit(const nlohmann::json& event) {
+  if (!events_) return;
+  try {
+    events_->publish(event.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: event not published: " << e.what() << "\n";
+  }
+}
+
+void WorldService::insert_scan(const json_codec::ScanRequest& scan) {
+  std::unique_lock lock(grid_mutex_);
+  std::visit([this](const auto& s) { grid_->insert(s); }, scan.scan);
+  ++grid_revision_;
+}
+
+void WorldService::flush_grid(bool force) {
+  const auto now = std::chrono::steady_clock::now();
+  if (!force && now - last_flush_ < options_.grid_flush_interval) return;
+  if (last_scan_seq_ == flushed_scan_seq_ && !force) return;
+  storage::Store::StoredGrid changed;
+  changed.through_scan_seq = last_scan_seq_;
+  std::vector<fusion::TileIndex> tiles;
+  {
+    std::unique_lock lock(grid_mutex_);  // take_dirty_tiles changes the grid's bookkeeping
+    changed.resolution_m = grid_->resolution_m();
+    changed.tile_size_cells = grid_->tile_size_cells();
+    tiles = grid_->take_dirty_tiles();
+    if (flush_all_tiles_) tiles = grid_->tiles();
+    for (const auto& index : tiles)
+      if (auto data = grid_->tile(index)) changed.tiles.emplace_back(index, std::move(*data));
+  }
+  if (changed.tiles.empty() && last_scan_seq_ == flushed_scan_seq_) return;
+  try {
+    store_.flush_grid(changed);
+  } catch (...) {
+    flush_all_tiles_ = true;  // the dirty list is gone: the next flush writes every tile
+    throw;
+  }
+  flush_all_tiles_ = false;
+  flushed_scan_seq_ = last_scan_seq_;
+  last_flush_ = now;
+}
+
+WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json) {
+  return writer_->run([this, scan = std::move(scan), payload = std::move(payload_json)] {
+    const auto seq = store_.append_scan(scan.observer, scan.sensor(), scan.stamp_s, payload);
+    insert_scan(scan);
+    last_scan_seq_ = seq;
+    flush_grid(false);
+    ScanOutcome outcome{seq, grid_revision_.load(), std::nullopt};
+    if (events_ && events_->subscriber_count() > 0) {
+      // Where the robot is and what it saw (at most 360 points), and the region of the grid that changed.
+      const auto& pose = std::visit([](const auto& s) -> const fusion::Pose2D& { return s.sensor_pose; }, scan.scan);
+      const auto& ranges = std::visit([](const auto& s) -> const std::vector<double>& { return s.ranges_m; }, scan.scan);
+      const double range_max = std::visit([](const auto& s) { return s.range_max_m; }, scan.scan);
+      nlohmann::json points = nlohmann::json::array();
+      const std::size_t step = std::max<std::size_t>(1, ranges.size() / 360);
+      for (std::size_t i = 0; i < ranges.size(); i += step) {
+        const double r = ranges[i];
+        if (!std::isfinite(r) || r <= 0 || r >= range_max) continue;
+        double bearing = 0;
+        if (const auto* l = std::get_if<fusion::LaserScan>(&scan.scan)) bearing = l->angle_min_rad + static_cast<double>(i) * l->angle_increment_rad;
+        else bearing = std::get<fusion::SonarScan>(scan.scan).angles_rad[i];
+        const auto p = pose.transform_point({r * std::cos(bearing), r * std::sin(bearing)});
+        points.push_back({std::round(p.x() * 1000) / 1000, std::round(p.y() * 1000) / 1000});
+      }
+      emit({{"type", "scan"}, {"scan_seq", seq}, {"observer", scan.observer}, {"sensor", scan.sensor()},
+            {"pose", {{"x", pose.x_m}, {"y", pose.y_m}, {"theta", pose.theta_rad}}}, {"grid_revision", outcome.grid_revision},
+            {"bbox", {pose.x_m - range_max, pose.y_m - range_max, pose.x_m + range_max, pose.y_m + range_max}},
+            {"points", points}});
+    }
+    const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
+    if (options_.extract_scan_lines && laser) {
+      std::vector<fusion::RangeReading> readings;
+      for (std::size_t i = 0; i < laser->ranges_m.size(); ++i) {
+        const double r = laser->ranges_m[i];
+        // No return (>= range_max) and invalid readings carry no surface.
+        if (std::isfinite(r) && r >= laser->range_min_m && r < laser->range_max_m && r > 0)
+          readings.push_back({r, laser->angle_min_rad + static_cast<double>(i) * laser->angle_increment_rad});
+      }
+      auto line_options = options_.scan_lines;
+      line_options.sigma_range_m = laser->sigma_range_m;
+      const auto segments = fusion::extract_scan_lines(readings, laser->sensor_pose, scan.pose_cov, line_options);
+      if (!segments.empty()) {
+        world::Observation observation;
+        observation.observer = scan.observer;
+        observation.source = "scan";
+        observation.sensor = "laser";
+        observation.stamp_s = scan.stamp_s;
+        for (const auto& segment : segments) observation.segments.push_back({segment});
+        outcome.lines = apply_on_writer(std::move(observation), "{\"scan\": " + std::to_string(seq) + "}");
+      }
+    }
+    return outcome;
+  });
 }
 
 std::shared_ptr<const world::WorldState> WorldService::snapshot() const {
@@ -90,42 +216,57 @@ void WorldService::sync_all_facts(const world::WorldState& state) {
 
 WorldService::PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json) {
   return writer_->run([this, observation = std::move(observation), payload = std::move(payload_json)]() mutable {
-    const auto current = snapshot();
-    const std::int64_t seq = current->last_observation_seq + 1;
-    observation.received_at_unix_s = now_unix_s();
-    auto update = world::apply_observation(*current, observation, seq, options_.world,
-                                           [this](const rules::DecisionQuery& q) { return engine_.decide(q); });
-    try {
-      // The rules' prune/3 sees the map as this update leaves it.
-      std::vector<rules::ElementFacts> upserts;
-      for (auto number : update.changed_elements) upserts.push_back(element_facts(update.state.elements.at(number)));
-      engine_.update_elements(upserts, {});
-      const auto orders = engine_.prune_orders(options_.max_prune_per_update);
-      if (!orders.empty()) {
-        world::apply_prune(update, orders, seq, observation.observer);
-        std::vector<std::string> removed;
-        for (auto number : update.removed_elements) removed.push_back("e" + std::to_string(number));
-        engine_.update_elements({}, removed);
-      }
-      store_.commit_observation(update, observation, payload);
-    } catch (...) {
-      sync_all_facts(*current);  // nothing was applied: the facts go back to the committed map
-      throw;
-    }
-    const bool moved = std::any_of(update.decisions.begin(), update.decisions.end(),
-                                   [](const auto& d) { return d.action == "rigid_adjust"; });
-    std::vector<rules::DecisionFacts> logged;
-    for (const auto& d : update.decisions) {
-      logged.push_back(decision_facts(d, observation.received_at_unix_s));
-      if (d.fallback) std::cerr << "wmd: decision " << d.seq << " fell back to add: " << d.explanation << "\n";
-    }
-    PrimitivesOutcome outcome{seq, update.state.version, update.decisions};
-    publish(std::move(update.state));
-    engine_.add_decisions(logged, options_.decision_facts_kept);
-    // Edge facts are in the world frame: a moved object must be seen where it is now by the next rule call.
-    if (moved) engine_.set_floor_plan(object_facts(*snapshot()));
-    return outcome;
+    return apply_on_writer(std::move(observation), payload);
   });
+}
+
+WorldService::PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, const std::string& payload) {
+  const auto current = snapshot();
+  const std::int64_t seq = current->last_observation_seq + 1;
+  observation.received_at_unix_s = now_unix_s();
+  auto update = world::apply_observation(*current, observation, seq, options_.world,
+                                         [this](const rules::DecisionQuery& q) { return engine_.decide(q); });
+  try {
+    // The rules' prune/3 sees the map as this update leaves it.
+    std::vector<rules::ElementFacts> upserts;
+    for (auto number : update.changed_elements) upserts.push_back(element_facts(update.state.elements.at(number)));
+    engine_.update_elements(upserts, {});
+    const auto orders = engine_.prune_orders(options_.max_prune_per_update);
+    if (!orders.empty()) {
+      world::apply_prune(update, orders, seq, observation.observer);
+      std::vector<std::string> removed;
+      for (auto number : update.removed_elements) removed.push_back("e" + std::to_string(number));
+      engine_.update_elements({}, removed);
+    }
+    store_.commit_observation(update, observation, payload);
+  } catch (...) {
+    sync_all_facts(*current);  // nothing was applied: the facts go back to the committed map
+    throw;
+  }
+  const bool moved = std::any_of(update.decisions.begin(), update.decisions.end(),
+                                 [](const auto& d) { return d.action == "rigid_adjust"; });
+  std::vector<rules::DecisionFacts> logged;
+  for (const auto& d : update.decisions) {
+    logged.push_back(decision_facts(d, observation.received_at_unix_s));
+    if (d.fallback) std::cerr << "wmd: decision " << d.seq << " fell back to add: " << d.explanation << "\n";
+  }
+  PrimitivesOutcome outcome{seq, update.state.version, update.decisions};
+  if (events_ && events_->subscriber_count() > 0) {
+    nlohmann::json decisions = nlohmann::json::array(), elements = nlohmann::json::array(),
+                   removed = nlohmann::json::array(), objects = nlohmann::json::array();
+    for (const auto& d : update.decisions) decisions.push_back(json_codec::decision_json(d));
+    for (auto number : update.changed_elements) elements.push_back(json_codec::element_json(update.state.elements.at(number)));
+    for (auto number : update.removed_elements) removed.push_back("e" + std::to_string(number));
+    for (auto index : update.changed_objects)
+      objects.push_back(json_codec::object_json(update.state.objects.at(index), options_.world));
+    emit({{"type", "update"}, {"observation", seq}, {"version", update.state.version}, {"origin", observation.source},
+          {"decisions", decisions}, {"elements", elements}, {"removed", removed}, {"objects", objects}});
+  }
+  publish(std::move(update.state));
+  engine_.add_decisions(logged, options_.decision_facts_kept);
+  // Edge facts are in the world frame: a moved object must be seen where it is now by the next rule call.
+  if (moved) engine_.set_floor_plan(object_facts(*snapshot()));
+  return outcome;
 }
 
 std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
@@ -137,6 +278,7 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
     const auto version = update.state.version;
     publish(std::move(update.state));
     engine_.set_floor_plan(new_facts);
+    emit({{"type", "floorplan"}, {"version", version}, {"name", plan.name}, {"objects", plan.objects.size()}});
     return version;
   });
 }
@@ -144,7 +286,16 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
 rules::RulesStatus WorldService::rules_status() { return engine_.status(); }
 
 rules::RulesStatus WorldService::reload_rules() {
-  return writer_->run([this] { return engine_.reload(); });
+  return writer_->run([this] {
+    try {
+      auto status = engine_.reload();
+      emit({{"type", "rules"}, {"status", json_codec::rules_status_json(status)}});
+      return status;
+    } catch (const rules::RuleError&) {
+      emit({{"type", "rules"}, {"status", json_codec::rules_status_json(engine_.status())}});
+      throw;
+    }
+  });
 }
 
 void WorldService::on_rules_changed() {

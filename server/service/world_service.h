@@ -1,10 +1,17 @@
 #pragma once
 
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
 
+#include "fusion/grid/occupancy_grid.h"
+#include "fusion/lines/scan_lines.h"
+#include "server/events/event_hub.h"
+#include "server/json/codec.h"
 #include "rules/engine.h"
 #include "server/service/prolog_worker.h"
 #include "server/service/rules_watcher.h"
@@ -22,6 +29,15 @@ struct ServiceOptions {
   std::size_t decision_facts_kept = 10000;
   /// At most this many elements pruned per update.
   std::size_t max_prune_per_update = 1000;
+  /// Occupancy grids (both models); the resolution of a stored grid wins over this one.
+  fusion::GridOptions grid;
+  /// Changed grid tiles are written at most this often (every scan is journaled at once; scans after the
+  /// last flush are replayed at start).
+  std::chrono::milliseconds grid_flush_interval{1000};
+  /// Laser scans also go through the scan line extractor; its segments are decided like posted primitives
+  /// (origin "scan", sensor "laser").
+  bool extract_scan_lines = true;
+  fusion::ScanLineOptions scan_lines;
 };
 
 /// One re-decided observation of a dry run whose decision differs.
@@ -43,7 +59,9 @@ struct DryRunOutcome {
 class WorldService {
  public:
   /// Starts the writer with the state loaded from `store`. @throw storage::StorageError, rules::RuleError.
-  WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine);
+  /// `events` (optional) receives what changed after every commit, for live clients.
+  WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine,
+               events::EventHub* events = nullptr);
   ~WorldService();
   WorldService(const WorldService&) = delete;
   WorldService& operator=(const WorldService&) = delete;
@@ -67,6 +85,21 @@ class WorldService {
   /// Reloads the rule files atomically. @throw rules::RuleError ("file:line: message" lines); the previous
   /// rules stay active then.
   rules::RulesStatus reload_rules();
+  struct ScanOutcome {
+    std::int64_t seq = 0;          // journal sequence of the scan
+    std::int64_t grid_revision = 0;  // scans inserted into the grid so far (this one included)
+    std::optional<PrimitivesOutcome> lines;  // the decisions on the lines extracted from it, if any
+  };
+  /// Journals the scan and inserts it into both grids. @throw Busy, storage::StorageError.
+  ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json);
+  /// Runs `read(grid)` under a shared lock: concurrent readers, never during an insert.
+  template <typename F>
+  auto read_grid(F&& read) const {
+    std::shared_lock lock(grid_mutex_);
+    return read(*grid_);
+  }
+  std::int64_t grid_revision() const { return grid_revision_.load(); }
+
   /// Read-only knowledge-base query. @throw rules::QueryError, Busy.
   rules::QueryResult query(const std::string& goal, std::size_t max_solutions);
   /// Re-decides the last `count` logged segment decisions with `candidate` in place of the file of its
@@ -80,13 +113,26 @@ class WorldService {
   std::vector<rules::ObjectFacts> object_facts(const world::WorldState& state) const;
   void sync_all_facts(const world::WorldState& state);
   void on_rules_changed();
+  void insert_scan(const json_codec::ScanRequest& scan);
+  PrimitivesOutcome apply_on_writer(world::Observation observation, const std::string& payload);
+  void flush_grid(bool force);
+  void emit(const nlohmann::json& event);
 
   const ServiceOptions options_;
   storage::Store& store_;
   rules::Engine& engine_;
+  events::EventHub* events_;
 
   mutable std::mutex snapshot_mutex_;
   std::shared_ptr<const world::WorldState> snapshot_;
+
+  mutable std::shared_mutex grid_mutex_;
+  std::unique_ptr<fusion::OccupancyGrid> grid_;  // changed on the writer thread only
+  std::atomic<std::int64_t> grid_revision_{0};
+  std::int64_t last_scan_seq_ = 0;
+  std::int64_t flushed_scan_seq_ = 0;
+  bool flush_all_tiles_ = false;
+  std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();
 
   // Declared last: destroyed first, so their threads stop before the members they use go away.
   std::unique_ptr<PrologWorker> writer_;

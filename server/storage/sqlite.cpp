@@ -99,6 +99,14 @@ std::optional<double> Statement::column_optional_double(int column) const {
   if (sqlite3_column_type(stmt_, column) == SQLITE_NULL) return std::nullopt;
   return column_double(column);
 }
+std::int64_t Connection::last_insert_rowid() const { return sqlite3_last_insert_rowid(db_); }
+
+const void* Statement::column_blob(int column) const { return sqlite3_column_blob(stmt_, column); }
+
+std::size_t Statement::column_bytes(int column) const {
+  return static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column));
+}
+
 std::vector<double> Statement::column_doubles(int column) const {
   const auto bytes = static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column));
   std::vector<double> values(bytes / sizeof(double));

@@ -30,6 +30,8 @@ class Connection {
   /// Runs one or more statements without results. @throw StorageError.
   void exec(std::string_view sql);
   sqlite3* handle() const { return db_; }
+  /// Rowid of the last INSERT on this connection.
+  std::int64_t last_insert_rowid() const;
 
  private:
   sqlite3* db_ = nullptr;
@@ -64,6 +66,8 @@ class Statement {
   std::optional<std::string> column_optional_text(int column) const;
   std::optional<double> column_optional_double(int column) const;
   std::vector<double> column_doubles(int column) const;  // a BLOB of native doubles
+  const void* column_blob(int column) const;             // valid until the next step
+  std::size_t column_bytes(int column) const;
 
  private:
   void check(int rc, const char* what) const;

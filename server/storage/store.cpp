@@ -41,6 +41,16 @@ ALTER TABLE decisions ADD COLUMN before BLOB;
 ALTER TABLE decisions ADD COLUMN after BLOB;
 CREATE INDEX decisions_by_matched_element ON decisions(matched_element);
 )sql",
+    // v3: occupancy grids. Scans are journaled one by one; tiles are flushed in batches with the last scan
+    // they include, and scans after it are replayed at start.
+    R"sql(
+CREATE TABLE scans(seq INTEGER PRIMARY KEY, observer TEXT NOT NULL, sensor TEXT NOT NULL, stamp REAL NOT NULL,
+                   received_at REAL NOT NULL, payload TEXT NOT NULL);
+CREATE TABLE grid_tiles(tx INTEGER NOT NULL, ty INTEGER NOT NULL, log_odds BLOB NOT NULL, m_occupied BLOB NOT NULL,
+                        m_empty BLOB NOT NULL, conflict BLOB NOT NULL, PRIMARY KEY (tx, ty));
+CREATE TABLE grid_meta(id INTEGER PRIMARY KEY CHECK (id = 1), resolution REAL NOT NULL, tile_size INTEGER NOT NULL,
+                       through_scan_seq INTEGER NOT NULL);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);
@@ -312,6 +322,90 @@ std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std:
   std::vector<world::DecisionRecord> result;
   while (s.step()) result.push_back(read_decision(s));
   return result;
+}
+
+std::int64_t Store::append_scan(const std::string& observer, std::string_view sensor, double stamp, std::string_view payload) {
+  Transaction tx(writer_);
+  Statement s(writer_, "INSERT INTO scans(observer, sensor, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5)");
+  s.bind(1, std::string_view(observer)).bind(2, sensor).bind(3, stamp).bind(4, now_unix_s()).bind(5, payload).run();
+  const auto seq = writer_.last_insert_rowid();
+  tx.commit();
+  return seq;
+}
+
+std::int64_t Store::last_scan_seq() {
+  Statement s(writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans");
+  s.step();
+  return s.column_int(0);
+}
+
+std::vector<Store::ScanRecord> Store::scans_after(std::int64_t after) {
+  Statement s(writer_, "SELECT seq, payload FROM scans WHERE seq > ?1 ORDER BY seq");
+  s.bind(1, after);
+  std::vector<ScanRecord> result;
+  while (s.step()) result.push_back({s.column_int(0), s.column_text(1)});
+  return result;
+}
+
+namespace {
+
+std::vector<float> read_floats(const Statement& s, int column, std::size_t expected) {
+  const auto* data = static_cast<const float*>(s.column_blob(column));
+  const auto bytes = s.column_bytes(column);
+  if (bytes != expected * sizeof(float)) throw StorageError("corrupt grid tile in database");
+  return std::vector<float>(data, data + expected);
+}
+
+void bind_floats(Statement& s, int index, const std::vector<float>& values) {
+  s.bind_blob(index, values.data(), sizeof(float) * values.size());
+}
+
+}  // namespace
+
+std::optional<Store::StoredGrid> Store::load_grid() {
+  StoredGrid grid;
+  {
+    Statement s(writer_, "SELECT resolution, tile_size, through_scan_seq FROM grid_meta WHERE id = 1");
+    if (!s.step()) return std::nullopt;
+    grid.resolution_m = s.column_double(0);
+    grid.tile_size_cells = s.column_int(1);
+    grid.through_scan_seq = s.column_int(2);
+  }
+  const auto cells = static_cast<std::size_t>(grid.tile_size_cells * grid.tile_size_cells);
+  Statement s(writer_, "SELECT tx, ty, log_odds, m_occupied, m_empty, conflict FROM grid_tiles ORDER BY tx, ty");
+  while (s.step()) {
+    fusion::OccupancyGrid::TileData data;
+    data.log_odds = read_floats(s, 2, cells);
+    data.m_occupied = read_floats(s, 3, cells);
+    data.m_empty = read_floats(s, 4, cells);
+    data.conflict = read_floats(s, 5, cells);
+    grid.tiles.emplace_back(fusion::TileIndex{s.column_int(0), s.column_int(1)}, std::move(data));
+  }
+  return grid;
+}
+
+void Store::flush_grid(const StoredGrid& changed) {
+  Transaction tx(writer_);
+  {
+    Statement s(writer_,
+                "INSERT INTO grid_meta(id, resolution, tile_size, through_scan_seq) VALUES (1, ?1, ?2, ?3) "
+                "ON CONFLICT(id) DO UPDATE SET resolution = excluded.resolution, tile_size = excluded.tile_size, "
+                "through_scan_seq = excluded.through_scan_seq");
+    s.bind(1, changed.resolution_m).bind(2, changed.tile_size_cells).bind(3, changed.through_scan_seq).run();
+  }
+  Statement s(writer_,
+              "INSERT INTO grid_tiles(tx, ty, log_odds, m_occupied, m_empty, conflict) VALUES (?1, ?2, ?3, ?4, ?5, ?6) "
+              "ON CONFLICT(tx, ty) DO UPDATE SET log_odds = excluded.log_odds, m_occupied = excluded.m_occupied, "
+              "m_empty = excluded.m_empty, conflict = excluded.conflict");
+  for (const auto& [index, data] : changed.tiles) {
+    s.bind(1, index.x).bind(2, index.y);
+    bind_floats(s, 3, data.log_odds);
+    bind_floats(s, 4, data.m_occupied);
+    bind_floats(s, 5, data.m_empty);
+    bind_floats(s, 6, data.conflict);
+    s.run();
+  }
+  tx.commit();
 }
 
 std::vector<world::DecisionRecord> Store::latest_decisions(std::size_t count) {

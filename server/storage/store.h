@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "server/storage/sqlite.h"
+#include "fusion/grid/occupancy_grid.h"
 #include "server/world/update.h"
 
 namespace wm::storage {
@@ -26,7 +27,7 @@ class Store {
   /// Opens or creates the file and migrates it. @throw StorageError (also for a file newer than this build).
   explicit Store(const StoreOptions& options);
 
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
   int schema_version();
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
@@ -41,6 +42,28 @@ class Store {
   /// Decisions with seq > since_seq in order, at most `limit`; only those about `element` when given.
   std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
                                                const std::optional<std::string>& element = std::nullopt);
+  /// Journals a scan (its request body) durably; returns its sequence number.
+  std::int64_t append_scan(const std::string& observer, std::string_view sensor, double stamp, std::string_view payload);
+  std::int64_t last_scan_seq();
+  struct ScanRecord {
+    std::int64_t seq = 0;
+    std::string payload;
+  };
+  /// Journaled scans with seq > after, in order (replayed at start past the last grid flush).
+  std::vector<ScanRecord> scans_after(std::int64_t after);
+
+  /// The grid as last flushed: tiles and the last scan they include.
+  struct StoredGrid {
+    double resolution_m = 0;
+    std::int64_t tile_size_cells = 0;
+    std::int64_t through_scan_seq = 0;
+    std::vector<std::pair<fusion::TileIndex, fusion::OccupancyGrid::TileData>> tiles;
+  };
+  /// nullopt when no grid was ever flushed.
+  std::optional<StoredGrid> load_grid();
+  /// Writes changed tiles and the scan sequence they include, in one transaction.
+  void flush_grid(const StoredGrid& changed);
+
   /// The `count` newest decisions about posted segments (not prunes), oldest first.
   std::vector<world::DecisionRecord> latest_decisions(std::size_t count);
 

@@ -1,0 +1,167 @@
+#pragma once
+
+#include <array>
+#include <compare>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "fusion/grid/grid_geometry.h"
+#include "fusion/grid/scan.h"
+#include "fusion/grid/sensor_model.h"
+
+namespace wm::fusion {
+
+/// Index of a square tile of tile_size_cells² cells: tile (x, y) holds cells [x·T, (x+1)·T) × [y·T, (y+1)·T).
+struct TileIndex {
+  std::int64_t x = 0;
+  std::int64_t y = 0;
+  auto operator<=>(const TileIndex&) const = default;
+};
+
+struct GridOptions {
+  double resolution_m = 0.05;        // cell size [m], [0.001, 100]
+  std::int64_t tile_size_cells = 64;  // tile side [cells], a power of two in [4, 1024]
+  double log_odds_min = -2.0;         // Bayes clamping (OctoMap: p 0.1192), < 0
+  double log_odds_max = 3.5;          // Bayes clamping (OctoMap: p 0.971), > 0
+  SensorModelOptions sensor;
+  /// Which models insert() updates; a disabled one keeps its layers unknown. Both by default; one alone is for
+  /// measuring each model's cost (bench/grid_bench) or for a server that serves only one. At least one.
+  bool update_bayes = true;
+  bool update_ds = true;
+};
+
+/// Bayes (Elfes) log-odds grid AND Dempster–Shafer evidential grid over the same cells, updated together by
+/// insert() with the inverse sensor models of sensor_model.h. The world origin is the lower-left corner of cell
+/// (0, 0); cells may have negative indices and storage grows in every direction in tiles created on first touch
+/// (nothing is ever copied to grow). Unknown cells: log-odds 0, m(Θ) = 1.
+///
+/// Per scan, every cell is updated at most once per model (a scan stamp per cell, like Cartographer's update
+/// marker, collects what the scan's beams say about it first):
+///  - Bayes: the strongest increment wins, so a hit beats a miss from another beam of the same scan; then
+///    l ← clamp(l + increment, log_odds_min, log_odds_max).
+///  - DS: the beams' masses for the cell are combined with Dempster's rule, then the result is combined into the
+///    map cell with Dempster's rule; that combination's conflict K feeds the conflict layer.
+/// Invariant: the touched tiles span at most GridGeometry::kMaxSizeCells cells per side, so bounds() is valid.
+/// Not thread-safe for writers; const members may run concurrently with each other.
+class OccupancyGrid {
+ public:
+  /// @throw std::invalid_argument for options outside the ranges documented in GridOptions / SensorModelOptions.
+  explicit OccupancyGrid(const GridOptions& options);
+  ~OccupancyGrid();
+  OccupancyGrid(const OccupancyGrid& other);  // deep copy (e.g. for read-only snapshots)
+  OccupancyGrid& operator=(const OccupancyGrid& other);
+  OccupancyGrid(OccupancyGrid&&) noexcept;
+  OccupancyGrid& operator=(OccupancyGrid&&) noexcept;
+
+  /// Adds one laser scan (whole or not at all).
+  /// @throw std::invalid_argument when validate(scan) fails, the sensor is more than 10'000 km from the origin,
+  ///        or the scan would grow the grid beyond GridGeometry::kMaxSizeCells cells per side.
+  void insert(const LaserScan& scan);
+  /// Adds one sonar ring; same rules and exceptions as the laser overload.
+  void insert(const SonarScan& scan);
+
+  double resolution_m() const { return options_.resolution_m; }
+  const GridOptions& options() const { return options_; }
+  /// Smallest geometry covering every touched tile (nullopt when empty).
+  std::optional<GridGeometry> bounds() const;
+
+  /// Bayes log-odds of cell c; 0 for unknown cells.
+  double log_odds(CellIndex c) const;
+  /// Bayes occupancy probability 1 − 1/(1 + exp(l)); 0.5 for unknown cells.
+  double probability(CellIndex c) const;
+
+  /// Masses on the frame {O, E}; unknown is m(Θ) = 1 − occupied − empty.
+  struct Masses {
+    double occupied;
+    double empty;
+    double unknown;
+  };
+  /// DS masses of cell c; unknown = 1 for untouched cells.
+  Masses masses(CellIndex c) const;
+  /// Bel(O) = m(O).
+  double belief(CellIndex c) const;
+  /// Pl(O) = 1 − m(E).
+  double plausibility(CellIndex c) const;
+  /// The conflict layer: the largest K of the scan-into-map Dempster combinations this cell has seen (max over
+  /// scans, so one strong disagreement, e.g. a person walking through mapped free space, stays visible);
+  /// 1 when a combination was in total conflict; 0 for unknown cells.
+  double conflict(CellIndex c) const;
+
+  /// Tiles changed by insert() since the last call (then cleared), sorted. set_tile() does not mark tiles.
+  std::vector<TileIndex> take_dirty_tiles();
+
+  /// One tile's cells, row-major from its lower-left cell (tile_size² each). float storage: DS masses and
+  /// log-odds need no more, and it halves the memory traffic of the update.
+  struct TileData {
+    std::vector<float> log_odds;
+    std::vector<float> m_occupied;
+    std::vector<float> m_empty;
+    std::vector<float> conflict;
+  };
+  /// Raw access for persistence; nullopt when the tile was never touched.
+  std::optional<TileData> tile(TileIndex t) const;
+  /// Restores a tile (exactly; log-odds outside the clamping range are clamped).
+  /// @throw std::invalid_argument when a layer's size is not tile_size², a value is not finite, a mass or the
+  ///        conflict is outside [0, 1], m_occupied + m_empty > 1 (beyond float rounding), or the tile would grow
+  ///        the grid beyond kMaxSizeCells per side.
+  void set_tile(TileIndex t, TileData data);
+  /// Every touched tile, sorted.
+  std::vector<TileIndex> tiles() const;
+  std::int64_t tile_size_cells() const { return options_.tile_size_cells; }
+
+  enum class Layer { bayes_probability, ds_belief, ds_plausibility, ds_conflict };
+  /// Largest region export_layer() produces [cells].
+  static constexpr std::int64_t kMaxExportCells = std::int64_t{1} << 26;
+  /// Dense export of a layer over a region, row-major from the region's lower-left cell; each region cell takes
+  /// the value of the grid cell containing its centre (exact when the region is aligned with the grid).
+  /// Unknown cells (Bayes: log-odds 0; DS: m(Θ) = 1) are NaN.
+  /// @throw std::invalid_argument when the region has more than kMaxExportCells cells.
+  std::vector<float> export_layer(Layer layer, const GridGeometry& region) const;
+
+ private:
+  struct Tile;
+  struct Touched {
+    Tile* tile;
+    std::uint32_t index;
+  };
+  struct CacheEntry {
+    std::int64_t x = 0;
+    std::int64_t y = 0;
+    Tile* tile = nullptr;
+  };
+
+  template <typename ScanT, typename MakeBeam>
+  void insert_scan(const ScanT& scan, std::size_t beams, const MakeBeam& make_beam);
+  void walk(const Beam& beam);
+  void finish_scan();
+  void check_growth(std::int64_t tx0, std::int64_t ty0, std::int64_t tx1, std::int64_t ty1) const;
+  Tile* tile_for_write(std::int64_t tx, std::int64_t ty);
+  const Tile* find_tile(std::int64_t tx, std::int64_t ty) const;
+  /// The tile holding c and c's index in it, or nullptr.
+  std::pair<const Tile*, std::size_t> locate(CellIndex c) const;
+
+  GridOptions options_;
+  int shift_ = 6;
+  std::int64_t mask_ = 63;
+  std::map<TileIndex, std::unique_ptr<Tile>> tiles_;
+  std::optional<std::array<std::int64_t, 4>> tile_bounds_;  // min x, min y, max x, max y
+  std::array<CacheEntry, 64> cache_{};  // direct-mapped: slot (x & 7) | (y & 7) << 3
+  std::uint32_t stamp_ = 0;
+  std::vector<Touched> touched_;
+  std::vector<TileIndex> dirty_;
+};
+
+/// Dempster's rule on the frame {O, E} (FUSION.md §1): K = a_O·b_E + a_E·b_O,
+/// m(O) = (a_O·b_O + a_O·b_Θ + a_Θ·b_O)/(1 − K), m(E) likewise, m(Θ) = a_Θ·b_Θ/(1 − K).
+/// Total conflict (K = 1, within 1e-12) returns nullopt masses (the caller keeps the old cell and records K = 1).
+struct DempsterResult {
+  std::optional<OccupancyGrid::Masses> masses;
+  double conflict;
+};
+/// @throw std::invalid_argument when a mass is not finite, outside [0, 1], or a triple does not sum to 1 (±1e-6).
+DempsterResult dempster_combine(const OccupancyGrid::Masses& a, const OccupancyGrid::Masses& b);
+
+}  // namespace wm::fusion

@@ -1,0 +1,66 @@
+#include "server/events/event_hub.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace wm::events {
+
+std::vector<std::string> EventHub::Subscriber::take() {
+  std::lock_guard lock(mutex_);
+  std::vector<std::string> events(std::make_move_iterator(queue_.begin()), std::make_move_iterator(queue_.end()));
+  queue_.clear();
+  overflowed_ = false;
+  return events;
+}
+
+void EventHub::Subscriber::push(const std::string& event) {
+  {
+    std::lock_guard lock(mutex_);
+    if (overflowed_) {
+      dropped_.fetch_add(1);
+      return;  // already told to resync: nothing else matters until it has read that
+    }
+    if (queue_.size() >= capacity_) {
+      dropped_.fetch_add(queue_.size() + 1);
+      queue_.clear();
+      queue_.push_back(R"({"type":"resync","reason":"this client fell behind; re-read the map from the REST API"})");
+      overflowed_ = true;
+    } else {
+      queue_.push_back(event);
+    }
+  }
+  wake_();
+}
+
+std::shared_ptr<EventHub::Subscriber> EventHub::subscribe(std::function<void()> wake) {
+  auto subscriber = std::shared_ptr<Subscriber>(new Subscriber(capacity_, std::move(wake)));
+  std::lock_guard lock(mutex_);
+  subscribers_.push_back(subscriber);
+  return subscriber;
+}
+
+void EventHub::unsubscribe(const std::shared_ptr<Subscriber>& subscriber) {
+  std::lock_guard lock(mutex_);
+  subscribers_.erase(std::remove(subscribers_.begin(), subscribers_.end(), subscriber), subscribers_.end());
+}
+
+void EventHub::publish(const std::string& event_json) {
+  if (event_json.size() < 2 || event_json.front() != '{' || event_json.back() != '}')
+    throw std::invalid_argument("EventHub::publish: expected a JSON object text");
+  std::vector<std::shared_ptr<Subscriber>> targets;
+  std::uint64_t seq = 0;
+  {
+    std::lock_guard lock(mutex_);
+    seq = ++seq_;  // under the lock: every subscriber sees the events in seq order
+    targets = subscribers_;
+    const std::string stamped = "{\"seq\":" + std::to_string(seq) + (event_json.size() > 2 ? "," : "") + event_json.substr(1);
+    for (const auto& s : targets) s->push(stamped);
+  }
+}
+
+std::size_t EventHub::subscriber_count() const {
+  std::lock_guard lock(mutex_);
+  return subscribers_.size();
+}
+
+}  // namespace wm::events

@@ -1,0 +1,58 @@
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace wm::events {
+
+/// Fan-out of events (JSON texts) to live subscribers, e.g. the web viewer's WebSockets.
+/// publish() never blocks on a subscriber: each has a bounded queue, and one that falls behind loses its
+/// queue and gets a single {"type":"resync"} event instead, after which it re-reads the REST API. So a
+/// slow page can never slow ingest.
+class EventHub {
+ public:
+  class Subscriber {
+   public:
+    /// Everything queued since the last call, oldest first.
+    std::vector<std::string> take();
+    /// Events dropped for this subscriber so far (each overflow replaces the queue by one resync).
+    std::uint64_t dropped() const { return dropped_.load(); }
+
+   private:
+    friend class EventHub;
+    Subscriber(std::size_t capacity, std::function<void()> wake) : capacity_(capacity), wake_(std::move(wake)) {}
+    void push(const std::string& event);
+
+    const std::size_t capacity_;
+    const std::function<void()> wake_;
+    std::mutex mutex_;
+    std::deque<std::string> queue_;
+    bool overflowed_ = false;
+    std::atomic<std::uint64_t> dropped_{0};
+  };
+
+  explicit EventHub(std::size_t queue_capacity = 1024) : capacity_(queue_capacity) {}
+
+  /// `wake` is called (on the publishing thread, must not block) when events were queued.
+  std::shared_ptr<Subscriber> subscribe(std::function<void()> wake);
+  void unsubscribe(const std::shared_ptr<Subscriber>& subscriber);
+  /// Stamps the event with the hub's next sequence number ("seq", so pages can see gaps) and queues it for
+  /// every subscriber. `event_json` must be a JSON object text without "seq"; it is spliced in.
+  void publish(const std::string& event_json);
+  std::size_t subscriber_count() const;
+  std::uint64_t last_seq() const { return seq_.load(); }
+
+ private:
+  const std::size_t capacity_;
+  mutable std::mutex mutex_;
+  std::vector<std::shared_ptr<Subscriber>> subscribers_;
+  std::atomic<std::uint64_t> seq_{0};
+};
+
+}  // namespace wm::events
