@@ -193,8 +193,7 @@ void OccupancyGrid::walk(const Beam& beam) {
   const internal::PreparedBeam b = internal::prepare(beam, options_.resolution_m);
   const bool bayes = options_.update_bayes;
   const bool ds = options_.update_ds;
-  const float miss_log_odds = static_cast<float>(b.log_odds_miss);
-  const internal::CellMasses free_masses = internal::ds_masses(b, 0.0, 0.0);
+  const double miss_log_odds = b.log_odds_miss;
   // The current tile along the beam: consecutive cells almost always share it.
   std::int64_t cur_x = std::numeric_limits<std::int64_t>::min();
   std::int64_t cur_y = 0;
@@ -221,18 +220,25 @@ void OccupancyGrid::walk(const Beam& beam) {
       d = std::sqrt(d2);
       g = internal::range_factor(b, cls, x, y, d);
     }
+    const double w = internal::angular_weight(b, x, y, d2);
     const bool first = tile->stamp[idx] != stamp_;
     if (first) {
       tile->stamp[idx] = stamp_;
       touched_.push_back({tile, idx});
     }
     if (bayes) {
-      const float l =
-          cls == internal::CellClass::hit ? static_cast<float>(internal::bayes_hit_log_odds(b, g)) : miss_log_odds;
-      tile->scan_log_odds[idx] = first ? l : std::max(tile->scan_log_odds[idx], l);
+      const auto l = static_cast<float>(
+          w * (cls == internal::CellClass::hit ? internal::bayes_hit_log_odds(b, g) : miss_log_odds));
+      if (first) {
+        tile->scan_log_odds[idx] = l;
+      } else {
+        // The strongest hit if any beam hit the cell, else the strongest miss.
+        const float old = tile->scan_log_odds[idx];
+        tile->scan_log_odds[idx] = (old > 0.f || l > 0.f) ? std::max(old, l) : std::min(old, l);
+      }
     }
     if (ds) {
-      const internal::CellMasses m = g > 0.0 ? internal::ds_masses(b, g, d) : free_masses;
+      const internal::CellMasses m = internal::ds_masses(b, g, d, w);
       if (first) {
         tile->scan_o[idx] = static_cast<float>(m.occupied);
         tile->scan_e[idx] = static_cast<float>(m.empty);

@@ -40,7 +40,8 @@ struct GridOptions {
 ///
 /// Per scan, every cell is updated at most once per model (a scan stamp per cell, like Cartographer's update
 /// marker, collects what the scan's beams say about it first):
-///  - Bayes: the strongest increment wins, so a hit beats a miss from another beam of the same scan; then
+///  - Bayes: the strongest hit wins if any beam hit the cell (a hit beats a miss from another beam of the same
+///    scan), else the strongest miss; then
 ///    l ← clamp(l + increment, log_odds_min, log_odds_max).
 ///  - DS: the beams' masses for the cell are combined with Dempster's rule, then the result is combined into the
 ///    map cell with Dempster's rule; that combination's conflict K feeds the conflict layer.

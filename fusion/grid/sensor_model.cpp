@@ -54,6 +54,7 @@ std::optional<Beam> laser_beam(const LaserScan& scan, std::size_t i, const Senso
   beam->origin_m = {scan.sensor_pose.x_m, scan.sensor_pose.y_m};
   beam->angle_rad = scan.sensor_pose.theta_rad + scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
   beam->half_width_rad = 0.5 * options.laser_beam_width_rad;
+  beam->angular_sigma_rad = 0.25 * options.laser_beam_width_rad;  // the aperture is ±2σ_a
   beam->sigma_m = scan.sigma_range_m;
   beam->p_hit = options.p_hit;
   beam->p_miss = options.p_miss;
@@ -84,8 +85,9 @@ std::vector<BeamCell> beam_cells(const Beam& beam, double resolution_m) {
     throw std::invalid_argument("beam_cells: resolution_m must be in (0, 100]");
   }
   if (!beam.origin_m.allFinite() || !std::isfinite(beam.angle_rad) || !std::isfinite(beam.range_m) ||
-      !std::isfinite(beam.sigma_m) || beam.range_m < 0.0 || beam.sigma_m < 0.0) {
-    throw std::invalid_argument("beam_cells: beam must be finite, with range_m and sigma_m >= 0");
+      !std::isfinite(beam.sigma_m) || !std::isfinite(beam.angular_sigma_rad) || beam.range_m < 0.0 ||
+      beam.sigma_m < 0.0 || beam.angular_sigma_rad < 0.0) {
+    throw std::invalid_argument("beam_cells: beam must be finite, with range_m, sigma_m, angular_sigma_rad >= 0");
   }
   if (!(beam.half_width_rad >= 0.0 && beam.half_width_rad < 0.5 * kMaxBeamWidthRad)) {
     throw std::invalid_argument("beam_cells: half_width_rad must be in [0, pi/4)");
@@ -98,12 +100,13 @@ std::vector<BeamCell> beam_cells(const Beam& beam, double resolution_m) {
                         if (cls == internal::CellClass::skip) return;
                         const double d = std::sqrt(d2);
                         const double g = internal::range_factor(b, cls, x, y, d);
-                        const internal::CellMasses m = internal::ds_masses(b, g, d);
+                        const double w = internal::angular_weight(b, x, y, d2);
+                        const internal::CellMasses m = internal::ds_masses(b, g, d, w);
                         BeamCell cell;
                         cell.cell = {x, y};
                         cell.hit = cls == internal::CellClass::hit;
                         cell.distance_m = d * resolution_m;
-                        cell.bayes_log_odds = cell.hit ? internal::bayes_hit_log_odds(b, g) : b.log_odds_miss;
+                        cell.bayes_log_odds = w * (cell.hit ? internal::bayes_hit_log_odds(b, g) : b.log_odds_miss);
                         cell.m_occupied = m.occupied;
                         cell.m_empty = m.empty;
                         cells.push_back(cell);

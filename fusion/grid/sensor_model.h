@@ -27,9 +27,15 @@ namespace wm::fusion {
 /// The occupancy in range is the paper's Gaussian P_o = f(r, σ): g(d) = exp(−(d − r)²/(2σ_e²)) with
 /// σ_e² = σ² + (cell/2)² (the range noise widened by half a cell, so the Gaussian is not sampled between cell
 /// centres), g = 1 at the return cell.
-///  - Bayes (Elfes): log-odds increment logit(p) with p = 0.5 + (p_hit − 0.5)·g for hits, p = p_miss for free.
-///  - Dempster–Shafer, eq. (1): m(O) = P_o = occupied_mass·g, m(E) = k·(1 − m(O)) in front of the reading
-///    (d <= r, or no return) and 0 behind it, m(Θ) = 1 − m(O) − m(E).
+/// In angle, the sonar is uniform over its cone (Moravec–Elfes). The laser has a Gaussian beam profile whose ±2σ_a
+/// is its aperture: a cell's evidence is weighted by w = exp(−δ²/(2σ_a²)), δ the angle between the axis and the
+/// cell centre less the cell's own angular half-size (so cells the axis runs through, and the return cell, get
+/// w = 1). Without it, an obliquely seen wall gets occupied cells up to r·tan(incidence)·aperture/2 in front of
+/// it from the arc's far side, and freed cells behind it from the cone's near side — each 2° beam overlapping its
+/// neighbours at 1° spacing — which the Bayes "hit wins" rule keeps and Dempster's rule turns into conflict.
+///  - Bayes (Elfes): log-odds increment w·logit(p), p = 0.5 + (p_hit − 0.5)·g for hits, p = p_miss for free.
+///  - Dempster–Shafer, eq. (1) discounted by w: P_o = occupied_mass·g, m(O) = w·P_o, m(E) = w·k·(1 − P_o) in front
+///    of the reading (d <= r, or no return) and 0 behind it, m(Θ) = 1 − m(O) − m(E).
 struct SensorModelOptions {
   double laser_beam_width_rad = 2.0 * std::numbers::pi / 180.0;  // laser aperture, 2° (paper) [rad], [0, π/2)
   double p_hit = 0.7;   // Bayes, laser: occupied evidence at the return (OctoMap default), (0.5, 1)
@@ -54,6 +60,7 @@ struct Beam {
   Eigen::Vector2d origin_m = Eigen::Vector2d::Zero();  // sensor position, world [m]
   double angle_rad = 0.0;       // direction of the cone's axis, world [rad]
   double half_width_rad = 0.0;  // half the aperture [rad], [0, π/4)
+  double angular_sigma_rad = 0.0;  // σ of a Gaussian beam profile in angle [rad]; 0: uniform over the cone
   double range_m = 0.0;         // the reading when has_return, else the distance cleared [m]
   bool has_return = false;      // false: free space up to range_m, no hit
   double sigma_m = 0.0;         // range standard deviation of this reading [m]
@@ -76,7 +83,7 @@ struct BeamCell {
   CellIndex cell;            // in a grid whose cell (0, 0) has its lower-left corner at the world origin
   bool hit = false;          // in the return band (or the return cell) rather than free space
   double distance_m = 0.0;   // sensor to cell centre [m]
-  double bayes_log_odds = 0.0;  // Bayes increment logit(p)
+  double bayes_log_odds = 0.0;  // Bayes increment w·logit(p)
   double m_occupied = 0.0;      // DS masses of eq. (1); m(Θ) = 1 − m_occupied − m_empty
   double m_empty = 0.0;
 };

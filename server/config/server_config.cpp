@@ -1,6 +1,7 @@
 #include "server/config/server_config.h"
 
 #include <charconv>
+#include <chrono>
 #include <cmath>
 
 namespace wm::config {
@@ -30,6 +31,7 @@ std::string usage() {
          "  --gate-chi2 X          χ² gate (2 dof) for matching segments (default 5.991, 95 %)\n"
          "  --max-gap M            largest gap [m] between collinear extents still matched (default 0.10)\n"
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
+         "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at once)\n"
          "  --no-scan-lines        laser scans update the grids only, without the scan line extractor\n"
          "  --no-watch-rules       do not reload the rules when their files change (POST /api/v1/rules/reload still does)\n"
          "  --rule-inferences N    inference limit per decision and query (default 200000)\n"
@@ -70,6 +72,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     else if (flag == "--max-gap") c.service.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
     else if (flag == "--rule-inferences") c.rules.inference_limit = parse_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
     else if (flag == "--rule-time-limit") c.rules.time_limit_s = parse_number<double>(flag, value, 0.001, 60.0);
+    else if (flag == "--grid-flush-ms")
+      c.service.grid_flush_interval = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 0, 86'400'000));
     else if (flag == "--grid-resolution") c.service.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");

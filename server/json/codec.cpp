@@ -152,10 +152,11 @@ std::vector<double> number_list(const json& doc, const std::string& key, std::si
   return values;
 }
 
-double required_number(const json& doc, const std::string& key, double limit) {
+double required_number(const json& doc, const std::string& key, double limit, const std::string& parent = "") {
+  const auto path = parent.empty() ? key : parent + "." + key;
   const auto it = doc.find(key);
-  if (it == doc.end()) throw api::bad_request(key, "missing field");
-  return finite_number(*it, key, limit);
+  if (it == doc.end()) throw api::bad_request(path, "missing field");
+  return finite_number(*it, path, limit);
 }
 
 }  // namespace
@@ -189,9 +190,9 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
   if (!pose_it->is_object()) throw api::bad_request("pose", "expected {\"x\", \"y\", \"theta\"}");
   for (const auto& [key, value] : pose_it->items())
     if (key != "x" && key != "y" && key != "theta") throw api::bad_request("pose." + key, "unknown field");
-  const fusion::Pose2D pose{required_number(*pose_it, "x", limits.max_abs_coordinate_m),
-                            required_number(*pose_it, "y", limits.max_abs_coordinate_m),
-                            required_number(*pose_it, "theta", 1e3)};
+  const fusion::Pose2D pose{required_number(*pose_it, "x", limits.max_abs_coordinate_m, "pose"),
+                            required_number(*pose_it, "y", limits.max_abs_coordinate_m, "pose"),
+                            required_number(*pose_it, "theta", 1e3, "pose")};
   if (auto it = doc.find("pose_cov"); it != doc.end()) {
     if (!it->is_array() || it->size() != 3) throw api::bad_request("pose_cov", "expected a 3x3 matrix over x, y, theta");
     for (int r = 0; r < 3; ++r) {

@@ -65,9 +65,14 @@ class WmdProcess {
   const std::string& output() const { return output_; }
 
   /// SIGTERM and wait; returns the exit status (or -1 when not running).
-  int stop() {
+  int stop() { return stop_with(SIGTERM); }
+  /// SIGKILL: a crash, no clean shutdown.
+  void crash() { stop_with(SIGKILL); }
+
+ private:
+  int stop_with(int signal) {
     if (pid_ <= 0) return -1;
-    ::kill(pid_, SIGTERM);
+    ::kill(pid_, signal);
     int status = 0;
     ::waitpid(pid_, &status, 0);
     pid_ = -1;
@@ -77,7 +82,6 @@ class WmdProcess {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
 
- private:
   bool read_some(int timeout_ms) {
     pollfd p{stdout_fd_, POLLIN, 0};
     if (::poll(&p, 1, timeout_ms) <= 0) return false;

@@ -81,6 +81,8 @@ struct PreparedBeam {
   double inv_two_sigma_e2 = 0;  // 1 / (2σ_e²) [1/cells²]
   double gaussian_reach = 0;    // beyond 4σ_e in front of the return g is taken as 0 [cells]
   double tail_limit2 = -1;      // d² <= this: in front of the Gaussian's reach, g = 0 without a sqrt [cells²]
+  double ux = 1, uy = 0;        // axis direction
+  double inv_two_sigma_a2 = 0;  // 1 / (2σ_a²) of the angular profile [1/rad²]; 0: uniform in angle
   double p_hit = 0, log_odds_miss = 0;
   double occupied_mass = 0, k = 0;
 };
@@ -116,6 +118,9 @@ inline PreparedBeam prepare(const Beam& beam, double resolution_m) {
   b.inv_two_sigma_e2 = 1.0 / (2.0 * sigma_e2);
   b.gaussian_reach = 4.0 * std::sqrt(sigma_e2);
   if (b.has_return && b.r > b.gaussian_reach) b.tail_limit2 = (b.r - b.gaussian_reach) * (b.r - b.gaussian_reach);
+  b.ux = std::cos(beam.angle_rad);
+  b.uy = std::sin(beam.angle_rad);
+  if (beam.angular_sigma_rad > 0.0) b.inv_two_sigma_a2 = 1.0 / (2.0 * beam.angular_sigma_rad * beam.angular_sigma_rad);
   b.p_hit = beam.p_hit;
   b.log_odds_miss = logit(beam.p_miss);
   b.occupied_mass = beam.occupied_mass;
@@ -133,7 +138,8 @@ inline CellClass classify(const PreparedBeam& b, std::int64_t cx, std::int64_t c
   return CellClass::skip;
 }
 
-/// The Gaussian range factor g (1 at the return cell, 0 without a return or far in front of it).
+/// The Gaussian range factor g of a cell at distance d [cells]: 1 at the return cell, 0 without a return or
+/// more than 4σ_e in front of it.
 inline double range_factor(const PreparedBeam& b, CellClass cls, std::int64_t cx, std::int64_t cy, double d) {
   if (!b.has_return) return 0.0;
   if (cls == CellClass::hit && cx == b.end_x && cy == b.end_y) return 1.0;
@@ -142,17 +148,30 @@ inline double range_factor(const PreparedBeam& b, CellClass cls, std::int64_t cx
   return std::exp(-e * e * b.inv_two_sigma_e2);
 }
 
+/// The angular weight w of a cell with squared centre distance d2 [cells²]: 1 for a uniform cone, for the return
+/// cell and for cells the axis runs through (lateral offset of the centre <= half a cell); otherwise the Gaussian
+/// beam profile exp(−δ²/(2σ_a²)) at δ = (lateral offset − half a cell)/d, small-angle.
+inline double angular_weight(const PreparedBeam& b, std::int64_t cx, std::int64_t cy, double d2) {
+  if (b.inv_two_sigma_a2 == 0.0) return 1.0;
+  const double dx = static_cast<double>(cx) + 0.5 - b.ox;
+  const double dy = static_cast<double>(cy) + 0.5 - b.oy;
+  const double lateral = std::abs(dx * b.uy - dy * b.ux) - 0.5;
+  if (lateral <= 0.0 || (b.has_return && cx == b.end_x && cy == b.end_y)) return 1.0;
+  return std::exp(-lateral * lateral / std::max(d2, 0.25) * b.inv_two_sigma_a2);
+}
+
 inline double bayes_hit_log_odds(const PreparedBeam& b, double g) { return logit(0.5 + (b.p_hit - 0.5) * g); }
 
 struct CellMasses {
   double occupied, empty;
 };
 
-/// Eq. (1): m(O) = peak·g, m(E) = k·(1 − m(O)) in front of the reading, 0 behind it.
-inline CellMasses ds_masses(const PreparedBeam& b, double g, double d) {
-  const double m_o = b.occupied_mass * g;
+/// Eq. (1), discounted by the angular weight w: m(O) = w·peak·g, m(E) = w·k·(1 − peak·g) in front of the
+/// reading, 0 behind it.
+inline CellMasses ds_masses(const PreparedBeam& b, double g, double d, double w) {
+  const double p_o = b.occupied_mass * g;
   const bool in_front = !b.has_return || d <= b.r;
-  return {m_o, in_front ? b.k * (1.0 - m_o) : 0.0};
+  return {w * p_o, in_front ? w * b.k * (1.0 - p_o) : 0.0};
 }
 
 }  // namespace wm::fusion::internal

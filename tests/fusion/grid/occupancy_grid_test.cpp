@@ -260,6 +260,8 @@ TEST(OccupancyGridTest, SyntheticRoomHasOccupiedWallsAndFreeInside) {
       if (!room.inside(q) || room.distance_to_walls(q) <= 1.5 * kRes) continue;
       ++inside;
       bayes_free += grid.probability({x, y}) < 0.5;
+      EXPECT_LT(grid.probability({x, y}), 0.5) << "cell " << x << "," << y << ", " << room.distance_to_walls(q)
+                                               << " m from a wall";
       const auto m = grid.masses({x, y});
       ds_free += m.empty > m.occupied && grid.plausibility({x, y}) < 0.5;
     }
@@ -306,7 +308,7 @@ TEST(OccupancyGridTest, GrowsIntoNewTilesAndLeavesTheFirstRegionUnchanged) {
   // The bounds now cover both places.
   const GridGeometry b = *grid.bounds();
   EXPECT_LE(b.origin_m().x(), -102.0);
-  EXPECT_LE(b.origin_m().y(), -52.0);
+  EXPECT_LE(b.origin_m().y(), -50.0);
   EXPECT_GE(b.origin_m().x() + b.resolution_m() * static_cast<double>(b.width()), 2.5);
   EXPECT_EQ(b.width() % grid.tile_size_cells(), 0);
 }

@@ -1,0 +1,326 @@
+// Scans through the running wmd: both grids, the map_server export, persistence, scan lines, live events.
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <optional>
+#include <sstream>
+#include <thread>
+
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
+
+#include "e2e_fixture.h"
+
+namespace wm::testing {
+namespace {
+
+struct Wall {
+  double ax, ay, bx, by;
+};
+
+// The room of these tests: 8 m × 6 m.
+const std::vector<Wall> kRoom = {{0, 0, 8, 0}, {8, 0, 8, 6}, {8, 6, 0, 6}, {0, 6, 0, 0}};
+
+std::optional<double> cast(double px, double py, double angle) {
+  std::optional<double> best;
+  const double dx = std::cos(angle), dy = std::sin(angle);
+  for (const auto& w : kRoom) {
+    const double ex = w.bx - w.ax, ey = w.by - w.ay;
+    const double den = dx * ey - dy * ex;
+    if (std::abs(den) < 1e-12) continue;
+    const double apx = w.ax - px, apy = w.ay - py;
+    const double t = (apx * ey - apy * ex) / den, u = (apx * dy - apy * dx) / den;
+    if (t > 1e-9 && u >= 0 && u <= 1 && (!best || t < *best)) best = t;
+  }
+  return best;
+}
+
+// A 360° laser scan at 0.5° from (x, y), exact ranges.
+json room_scan(double x, double y, double theta) {
+  json ranges = json::array();
+  for (int i = 0; i < 720; ++i) ranges.push_back(*cast(x, y, theta - std::numbers::pi + i * std::numbers::pi / 360));
+  return {{"sensor", "laser"}, {"source", "robot-1"}, {"pose", {{"x", x}, {"y", y}, {"theta", theta}}},
+          {"angle_min", -std::numbers::pi}, {"angle_increment", std::numbers::pi / 360}, {"ranges", ranges},
+          {"range_min", 0.05}, {"range_max", 20.0}, {"sigma_range", 0.01}};
+}
+
+struct Pgm {
+  int width = 0, height = 0;
+  std::string pixels;
+};
+
+Pgm parse_pgm(const std::string& data) {
+  std::istringstream in(data);
+  std::string magic;
+  in >> magic;
+  EXPECT_EQ(magic, "P5");
+  auto next_number = [&] {
+    in >> std::ws;
+    while (in.peek() == '#') {
+      std::string comment;
+      std::getline(in, comment);
+      in >> std::ws;
+    }
+    int v = 0;
+    in >> v;
+    return v;
+  };
+  Pgm pgm;
+  pgm.width = next_number();
+  pgm.height = next_number();
+  EXPECT_EQ(next_number(), 255);
+  in.get();  // the single whitespace before the raster
+  pgm.pixels.assign(std::istreambuf_iterator<char>(in), {});
+  EXPECT_EQ(pgm.pixels.size(), static_cast<std::size_t>(pgm.width * pgm.height));
+  return pgm;
+}
+
+// A map_server reading of the YAML keys this test needs.
+std::map<std::string, std::string> parse_yaml(const std::string& text) {
+  std::map<std::string, std::string> keys;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    const auto colon = line.find(':');
+    if (colon != std::string::npos) keys[line.substr(0, colon)] = line.substr(line.find_first_not_of(' ', colon + 1));
+  }
+  return keys;
+}
+
+class GridTest : public ServerFixture {
+ protected:
+  void SetUp() override {
+    extra_args_ = {"--grid-flush-ms", "3600000"};  // only journal + replay keep scans across a crash
+    ServerFixture::SetUp();
+  }
+  json post_scan(const json& scan, int status = 200) { return send_json("POST", "/api/v1/scans", scan, status); }
+  std::string get_raw(const std::string& target) {
+    const auto r = call("GET", target);
+    EXPECT_EQ(r.status, 200) << r.body.substr(0, 300);
+    return r.body;
+  }
+};
+
+TEST_F(GridTest, ScansOfARoomGiveWallsOccupiedAndTheInsideFree) {
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{3, 3}, {5, 2}, {2, 4.5}, {6.5, 4}, {4, 1.5}})
+    post_scan(room_scan(x, y, 0.3));
+  const auto grid = get_json("/api/v1/grid?layer=bayes&bbox=-0.5,-0.5,8.5,6.5");
+  const double res = grid["resolution"];
+  const double ox = grid["origin"][0], oy = grid["origin"][1];
+  const int width = grid["width"], height = grid["height"];
+  ASSERT_EQ(grid["data"].size(), static_cast<std::size_t>(width * height));
+  auto value = [&](double x, double y) -> std::optional<double> {
+    const int cx = static_cast<int>(std::floor((x - ox) / res)), cy = static_cast<int>(std::floor((y - oy) / res));
+    const auto& v = grid["data"][cy * width + cx];
+    return v.is_null() ? std::nullopt : std::optional<double>(v.get<double>());
+  };
+  // Within one cell of each wall point an occupied cell; the room's inside free.
+  int walls_ok = 0, wall_points = 0;
+  for (double t = 0.5; t < 7.5; t += 0.25) {
+    for (const auto& [x, y] : std::vector<std::pair<double, double>>{{t, 0.0}, {t, 6.0}}) {
+      ++wall_points;
+      bool occupied = false;
+      for (double dx = -res; dx <= res; dx += res)
+        for (double dy = -res; dy <= res; dy += res) occupied = occupied || value(x + dx, y + dy).value_or(0) > 0.65;
+      walls_ok += occupied;
+    }
+  }
+  EXPECT_EQ(walls_ok, wall_points);
+  int free_ok = 0, inside = 0;
+  for (double x = 1.0; x < 7.0; x += 0.5)
+    for (double y = 1.0; y < 5.0; y += 0.5) {
+      ++inside;
+      free_ok += value(x, y).value_or(1.0) < 0.196;
+    }
+  EXPECT_EQ(free_ok, inside);
+  EXPECT_FALSE(value(-0.4, -0.4).has_value()) << "outside the room nothing was seen";
+
+  // The Dempster–Shafer layers agree on the walls and keep their own meaning.
+  // (A column of three cells across the wall y = 6 at x = 3.)
+  const auto belief = get_json("/api/v1/grid?layer=ds_belief&bbox=2.95,5.95,3.0,6.1");
+  const auto plausibility = get_json("/api/v1/grid?layer=ds_plausibility&bbox=2.95,5.95,3.0,6.1");
+  ASSERT_EQ(belief["data"].size(), 3u);
+  double best = 0;
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (belief["data"][i].is_null()) continue;
+    best = std::max(best, belief["data"][i].get<double>());
+    EXPECT_GE(plausibility["data"][i].get<double>(), belief["data"][i].get<double>());
+  }
+  EXPECT_GT(best, 0.5);
+  EXPECT_EQ(call("GET", "/api/v1/grid?layer=nope").status, 400);
+  EXPECT_EQ(call("GET", "/api/v1/grid?bbox=1,2,3").status, 400);
+}
+
+TEST_F(GridTest, TheMapServerPairDescribesTheSameRaster) {
+  post_scan(room_scan(3, 3, 0.0));
+  post_scan(room_scan(5, 3, 1.0));
+  const auto yaml = parse_yaml(get_raw("/api/v1/grid/map.yaml"));
+  EXPECT_EQ(yaml.at("image"), "map.pgm");
+  EXPECT_EQ(yaml.at("negate"), "0");
+  EXPECT_EQ(std::stod(yaml.at("occupied_thresh")), 0.65);
+  EXPECT_EQ(std::stod(yaml.at("free_thresh")), 0.196);
+  const double res = std::stod(yaml.at("resolution"));
+  double ox = 0, oy = 0;
+  ASSERT_EQ(std::sscanf(yaml.at("origin").c_str(), "[%lf, %lf", &ox, &oy), 2);
+  const auto pgm = parse_pgm(get_raw("/api/v1/grid/map.pgm"));
+  // map_server: occupancy = (255 - pixel) / 255; rows from the top. The wall y = 6 at x = 3 is occupied,
+  // the room centre free, far outside unknown.
+  auto occupancy = [&](double x, double y) {
+    const int col = static_cast<int>(std::floor((x - ox) / res));
+    const int row = pgm.height - 1 - static_cast<int>(std::floor((y - oy) / res));
+    return (255.0 - static_cast<unsigned char>(pgm.pixels[static_cast<std::size_t>(row * pgm.width + col)])) / 255.0;
+  };
+  EXPECT_GT(std::max({occupancy(3.0, 6.0), occupancy(3.0, 5.99), occupancy(3.0, 6.04)}), 0.65);
+  EXPECT_LT(occupancy(4.0, 3.0), 0.196 + 0.25) << "one or two misses: free or nearly";
+  const double unknown = occupancy(ox + 0.01, oy + 0.01);
+  EXPECT_GT(unknown, 0.196);
+  EXPECT_LT(unknown, 0.65);
+}
+
+TEST_F(GridTest, TheGridSurvivesACrashAndARestartExactly) {
+  post_scan(room_scan(3, 3, 0.0));
+  post_scan(room_scan(5, 2, 0.5));
+  const auto before = get_raw("/api/v1/grid?layer=ds_conflict&bbox=-1,-1,9,7");
+  const auto bayes_before = get_raw("/api/v1/grid/map.pgm");
+  server_->crash();  // no flush: the tiles come back from the journal
+  start();
+  EXPECT_EQ(json::parse(get_raw("/api/v1/grid?layer=ds_conflict&bbox=-1,-1,9,7"))["data"], json::parse(before)["data"]);
+  EXPECT_EQ(get_raw("/api/v1/grid/map.pgm"), bayes_before);
+  restart();  // a clean stop flushes the tiles; the journal is not needed then
+  EXPECT_EQ(get_raw("/api/v1/grid/map.pgm"), bayes_before);
+}
+
+TEST_F(GridTest, LaserScansAlsoFeedTheVectorMapThroughTheRules) {
+  const auto answer = post_scan(room_scan(3, 3, 0.0));
+  ASSERT_FALSE(answer["lines"].is_null());
+  const auto& decisions = answer["lines"]["decisions"];
+  // Four walls; the one behind the robot is cut where the 360° scan wraps, and its second half is merged
+  // into the first by the rules within the same request.
+  ASSERT_GE(decisions.size(), 4u) << decisions.dump();
+  int adds = 0;
+  for (const auto& d : decisions) {
+    EXPECT_EQ(d["origin"], "scan");
+    EXPECT_EQ(d["sensor"], "laser");
+    adds += d["action"] == "add";
+  }
+  EXPECT_EQ(adds, 4);
+  const auto second = post_scan(room_scan(4, 2.5, 0.7));
+  for (const auto& d : second["lines"]["decisions"]) EXPECT_EQ(d["action"], "merge") << d.dump();
+  const auto map = get_json("/api/v1/map");
+  EXPECT_EQ(map["elements"].size(), 4u);
+  for (const auto& e : map["elements"]) EXPECT_EQ(e["source"], "scan");
+}
+
+TEST_F(GridTest, BadScansAreRefusedAndChangeNothing) {
+  post_scan(room_scan(3, 3, 0.0));
+  const auto before = get_raw("/api/v1/grid/map.pgm");
+  auto scan = room_scan(3, 3, 0.0);
+  std::vector<std::pair<std::string, json>> bad;
+  auto with = [&](const std::string& key, const json& value) {
+    auto s = scan;
+    s[key] = value;
+    return s;
+  };
+  bad.push_back({"range_max", with("range_max", -1)});
+  bad.push_back({"sensor", with("sensor", "radar")});
+  bad.push_back({"pose", with("pose", json{{"x", 1}, {"y", 2}})});
+  bad.push_back({"ranges", with("ranges", json::array())});
+  bad.push_back({"ranges[2]", with("ranges", json::array({1.0, 2.0, "x"}))});
+  bad.push_back({"angle_increment", with("angle_increment", 0)});
+  bad.push_back({"colour", with("colour", "red")});
+  auto sonar = scan;
+  sonar["sensor"] = "sonar";
+  bad.push_back({"unknown field for a sonar scan", sonar});  // a sonar ring has angles, not angle_min
+  for (const auto& [field, body] : bad) {
+    const auto r = send_json("POST", "/api/v1/scans", body, 400);
+    EXPECT_NE(r["detail"].get<std::string>().find(field), std::string::npos) << field << ": " << r.dump();
+  }
+  EXPECT_EQ(get_raw("/api/v1/grid/map.pgm"), before);
+  // Invalid beams are ignored one by one, not the scan: null (no reading) and a negative range.
+  auto partial = room_scan(3, 3, 0.0);
+  partial["ranges"][10] = nullptr;
+  partial["ranges"][11] = -1.0;
+  EXPECT_EQ(send_json("POST", "/api/v1/scans", partial)["grid_revision"], 2);
+}
+
+TEST_F(GridTest, ASonarConeMarksItsArcAndFreesInside) {
+  json sonar = {{"sensor", "sonar"}, {"source", "robot-2"}, {"pose", {{"x", 4}, {"y", 3}, {"theta", 0}}},
+                {"angles", {0.0}}, {"ranges", {2.0}}, {"beam_width", 0.4363}, {"range_max", 5.0}, {"sigma_range", 0.02}};
+  for (int i = 0; i < 5; ++i) post_scan(sonar);
+  // The arc at 2 m, ±12.5°, is occupied; the cone at 1 m is free.
+  const auto arc = get_json("/api/v1/grid?bbox=5.95,2.95,6.05,3.05");
+  EXPECT_GT(arc["data"][0].get<double>(), 0.65);
+  const auto side = get_json("/api/v1/grid?bbox=5.93,3.35,5.97,3.39");  // ~10.5° off axis, on the arc
+  EXPECT_GT(side["data"][0].get<double>(), 0.5);
+  const auto inside = get_json("/api/v1/grid?bbox=5.0,2.95,5.05,3.0");
+  EXPECT_LT(inside["data"][0].get<double>(), 0.5);
+  EXPECT_TRUE(get_json("/api/v1/grid?bbox=5.0,4.4,5.05,4.45")["data"][0].is_null()) << "outside the cone";
+}
+
+// --- live events over the WebSocket ------------------------------------------------------------------
+
+namespace net = boost::asio;
+namespace beast = boost::beast;
+namespace websocket = boost::beast::websocket;
+
+class EventClient {
+ public:
+  explicit EventClient(int port) : ws_(ioc_) {
+    net::ip::tcp::resolver resolver(ioc_);
+    net::connect(ws_.next_layer(), resolver.resolve("127.0.0.1", std::to_string(port)));
+    ws_.handshake("127.0.0.1", "/api/v1/events");
+  }
+  json next() {
+    beast::flat_buffer buffer;
+    ws_.read(buffer);
+    return json::parse(beast::buffers_to_string(buffer.data()));
+  }
+
+ private:
+  net::io_context ioc_;
+  websocket::stream<net::ip::tcp::socket> ws_;
+};
+
+TEST_F(GridTest, EventsArriveInOrderAndASlowClientDoesNotBlockIngest) {
+  send_json("PUT", "/api/v1/floorplan", lab_plan());
+  EventClient client(server_->port());
+  EXPECT_EQ(client.next()["type"], "hello");
+  EventClient stalled(server_->port());  // connects and never reads again
+
+  send_json("POST", "/api/v1/primitives", json::parse(R"({"segments": [{"p0": [3, 10.004], "p1": [7, 9.998]},
+                                                                          {"p0": [10, 3], "p1": [13, 3]}]})"));
+  const auto update = client.next();
+  EXPECT_EQ(update["type"], "update");
+  ASSERT_EQ(update["decisions"].size(), 2u);
+  EXPECT_EQ(update["decisions"][0]["rule"], "solid_confirmed");
+  EXPECT_EQ(update["decisions"][1]["action"], "add");
+  EXPECT_EQ(update["elements"][0]["id"], "e1");
+  EXPECT_EQ(update["objects"][0]["id"], "wall-n");
+
+  post_scan(room_scan(3, 3, 0.0));
+  std::uint64_t last_seq = update["seq"];
+  bool saw_scan = false;
+  for (int i = 0; i < 3 && !saw_scan; ++i) {
+    const auto e = client.next();
+    EXPECT_GT(e["seq"].get<std::uint64_t>(), last_seq);
+    last_seq = e["seq"];
+    if (e["type"] == "scan") {
+      saw_scan = true;
+      EXPECT_EQ(e["observer"], "robot-1");
+      EXPECT_GT(e["points"].size(), 300u);
+    }
+  }
+  EXPECT_TRUE(saw_scan);
+
+  // Far more events than the per-client queue holds, while `stalled` reads nothing: every request is
+  // still answered promptly.
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 60; ++i) post_scan(room_scan(3 + 0.01 * i, 3, 0.0));
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_LT(seconds, 60.0);
+  EXPECT_EQ(get_json("/api/v1/health")["status"], "ok");
+}
+
+}  // namespace
+}  // namespace wm::testing
