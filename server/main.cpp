@@ -15,6 +15,9 @@
 #include "server/service/world_service.h"
 #include "server/storage/store.h"
 
+#ifndef WM_DEFAULT_WEB_DIR
+#define WM_DEFAULT_WEB_DIR "clients/web"
+#endif
 #ifndef WM_DEFAULT_RULES_DIR
 #define WM_DEFAULT_RULES_DIR "rules/prolog"
 #endif
@@ -42,7 +45,8 @@ int main(int argc, char** argv) {
 
   config::ServerConfig cfg;
   try {
-    cfg = config::parse_command_line(std::vector<std::string>(argv + 1, argv + argc), WM_DEFAULT_RULES_DIR);
+    cfg = config::parse_command_line(std::vector<std::string>(argv + 1, argv + argc), WM_DEFAULT_RULES_DIR,
+                                     WM_DEFAULT_WEB_DIR);
   } catch (const config::ConfigError& e) {
     std::cerr << "wmd: " << e.what() << "\n" << config::usage();
     return 2;

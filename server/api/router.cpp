@@ -1,6 +1,8 @@
 #include "server/api/router.h"
 
 #include <algorithm>
+#include <fstream>
+#include <filesystem>
 #include <optional>
 #include <sstream>
 #include <cmath>
@@ -314,6 +316,28 @@ Response get_map_yaml(const Request& req, const Target& t, Services& s) {
   return raw_response(req, yaml.str(), "application/yaml");
 }
 
+// A file of the web viewer. Paths are checked against the directory: no "..", no hidden files, no escape.
+Response get_static(const Request& req, const Services& s, const std::string& relative) {
+  if (s.options.web_dir.empty()) throw ApiError(404, "not_found", "this server has no web viewer (--web DIR)");
+  if (relative.empty() || relative.find("..") != std::string::npos || relative.front() == '/' ||
+      relative.find("/.") != std::string::npos || relative.front() == '.')
+    throw ApiError(404, "not_found", "no file '" + relative + "'");
+  const std::filesystem::path path = std::filesystem::path(s.options.web_dir) / relative;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw ApiError(404, "not_found", "no file '" + relative + "'");
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream content;
+  content << in.rdbuf();
+  static const std::map<std::string, std::string> kTypes = {
+      {".html", "text/html; charset=utf-8"}, {".js", "text/javascript; charset=utf-8"}, {".mjs", "text/javascript; charset=utf-8"},
+      {".css", "text/css; charset=utf-8"},   {".svg", "image/svg+xml"},                   {".png", "image/png"},
+      {".json", "application/json"},         {".ico", "image/x-icon"}};
+  const auto type = kTypes.find(path.extension().string());
+  auto res = raw_response(req, content.str(), type == kTypes.end() ? "application/octet-stream" : type->second.c_str());
+  res.set(http::field::cache_control, "no-cache");
+  return res;
+}
+
 Response get_history(const Request& req, Services& s, const std::string& id, bool exists) {
   const auto rows = s.world.store().decisions(0, 10000, id);
   if (rows.empty() && !exists) throw ApiError(404, "not_found", "no element or object '" + id + "' and no decision about it");
@@ -469,7 +493,15 @@ Response route(const Request& req, Services& s) {
     if (!element) throw ApiError(404, "not_found", "no element '" + id + "' in the map");
     return json_response(req, json_codec::element_json(*element));
   }
-  if (path == "/" && method == http::verb::get) {
+  if (path.rfind("/web/", 0) == 0) {
+    if (method != http::verb::get) method_not_allowed("GET");
+    return get_static(req, s, path.substr(5));
+  }
+  std::error_code no_index;
+  if (path == "/" && method == http::verb::get && !s.options.web_dir.empty() &&
+      std::filesystem::is_regular_file(std::filesystem::path(s.options.web_dir) / "index.html", no_index))
+    return get_static(req, s, "index.html");
+  if ((path == "/" || path == "/api/v1") && method == http::verb::get) {
     return json_response(req, {{"service", "worldmodel"},
                                {"api", "/api/v1"},
                                {"endpoints", {"GET /api/v1/health", "GET /api/v1/map", "GET /api/v1/objects[/{id}]",

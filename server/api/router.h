@@ -20,6 +20,8 @@ struct ApiOptions {
   json_codec::ScanLimits scan_limits;
   apriori::FloorPlanLimits plan_limits;
   std::size_t max_decisions_per_page = 10000;
+  /// The web viewer's static files (index.html at "/", the rest under "/web/"); empty: not served.
+  std::string web_dir;
 };
 
 /// What the handlers work on; built by main and passed down.

@@ -33,6 +33,7 @@ std::string usage() {
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
          "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at once)\n"
          "  --no-scan-lines        laser scans update the grids only, without the scan line extractor\n"
+         "  --web DIR              the web viewer's files (default: the shipped clients/web; '' disables)\n"
          "  --no-watch-rules       do not reload the rules when their files change (POST /api/v1/rules/reload still does)\n"
          "  --rule-inferences N    inference limit per decision and query (default 200000)\n"
          "  --rule-time-limit S    time limit per decision and query [s] (default 1)\n"
@@ -40,8 +41,10 @@ std::string usage() {
          "  --help                 this text\n";
 }
 
-ServerConfig parse_command_line(const std::vector<std::string>& args, const std::filesystem::path& default_rules_dir) {
+ServerConfig parse_command_line(const std::vector<std::string>& args, const std::filesystem::path& default_rules_dir,
+                                const std::filesystem::path& default_web_dir) {
   ServerConfig c;
+  c.api.web_dir = default_web_dir.string();
   c.rules.rules_dir = default_rules_dir;
   bool watch_rules = true;
   for (std::size_t i = 0; i < args.size(); ++i) {
@@ -65,6 +68,7 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     else if (flag == "--bind") c.http.bind_address = value;
     else if (flag == "--rules") c.rules.rules_dir = value;
     else if (flag == "--floorplan") c.floor_plan_file = value;
+    else if (flag == "--web") c.api.web_dir = value;
     else if (flag == "--token") c.api.token = value;
     else if (flag == "--max-body-bytes") c.http.max_body_bytes = parse_number<std::size_t>(flag, value, 1024, std::size_t{1} << 31);
     else if (flag == "--threads") c.http.threads = parse_number<int>(flag, value, 1, 64);

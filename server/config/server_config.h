@@ -32,7 +32,8 @@ struct ServerConfig {
 };
 
 /// Parses wmd's arguments. Unknown flags, missing values and out-of-range numbers throw ConfigError.
-ServerConfig parse_command_line(const std::vector<std::string>& args, const std::filesystem::path& default_rules_dir);
+ServerConfig parse_command_line(const std::vector<std::string>& args, const std::filesystem::path& default_rules_dir,
+                                const std::filesystem::path& default_web_dir = {});
 
 std::string usage();
 
