@@ -1,4 +1,6 @@
 // wmctl: the command-line client of wmd, over the HTTP/JSON API only.
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -26,10 +28,12 @@ const char* kUsage =
     "usage: wmctl [--server URL] [--token TOKEN] [--json] COMMAND\n"
     "commands:\n"
     "  health                         server status, counts and loaded rules\n"
-    "  floorplan load FILE            load a JSON floor plan (replaces the current one)\n"
+    "  floorplan load FILE [--mapping M.json] [--units U] [--level L]\n"
+    "                                 load a floor plan: JSON, AMRL vector map, DXF, Open-RMF building.yaml\n"
     "  floorplan show                 print the loaded floor plan\n"
     "  primitives post FILE           post line primitives (JSON, as POST /api/v1/primitives), print decisions\n"
-    "  map                            objects and observed elements\n"
+    "  map [--format dxf|geojson --out FILE]   objects and observed elements (or export them)\n"
+    "  report                         as-built report: what was confirmed, moved, never observed\n"
     "  decisions [--since SEQ] [--limit N] [--element ID]   the decision log\n"
     "  explain ID                     history of an element or object: observations, rules, numbers\n"
     "  rules                          loaded rule files, checksums, last reload error\n"
@@ -226,11 +230,47 @@ int run(const std::vector<std::string>& args) {
         std::cout << "last rules error: " << h["rules"]["last_error"].get<std::string>() << "\n";
     });
   }
-  if (command == "floorplan" && words.size() == 3 && words[1] == "load") {
-    return emit(parse_answer(client.request("PUT", "/api/v1/floorplan", read_file(words[2]), "application/json", token)),
+  if (command == "floorplan" && words.size() >= 3 && words[1] == "load") {
+    // DXF and RMF files go in an import envelope with the options; JSON (plan or AMRL map) goes as it is.
+    std::string mapping_file, units, level;
+    for (std::size_t i = 3; i < words.size(); i += 2) {
+      if (i + 1 >= words.size()) throw UsageError("floorplan load FILE [--mapping FILE.json] [--units m|cm|mm|in|ft] [--level NAME]");
+      if (words[i] == "--mapping") mapping_file = words[i + 1];
+      else if (words[i] == "--units") units = words[i + 1];
+      else if (words[i] == "--level") level = words[i + 1];
+      else throw UsageError("floorplan load takes --mapping, --units, --level");
+    }
+    const std::string file = words[2];
+    auto extension = std::filesystem::path(file).extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+    std::string body = read_file(file);
+    if (extension == ".dxf" || extension == ".yaml" || extension == ".yml") {
+      // Ordered: the mapping's rules apply in file order.
+      nlohmann::ordered_json spec = {{"format", extension == ".dxf" ? "dxf" : "rmf"}, {"data", body},
+                                     {"name", std::filesystem::path(file).stem().string()}};
+      if (!mapping_file.empty()) {
+        const auto mapping = nlohmann::ordered_json::parse(read_file(mapping_file), nullptr, false);
+        if (mapping.is_discarded()) throw UsageError("'" + mapping_file + "' is not JSON");
+        spec["mapping"] = mapping;
+      }
+      if (!units.empty()) spec["units"] = units;
+      if (!level.empty()) spec["level"] = level;
+      body = nlohmann::ordered_json{{"import", spec}}.dump(-1, ' ', false, json::error_handler_t::replace);
+    } else if (!mapping_file.empty() || !units.empty() || !level.empty()) {
+      throw UsageError("--mapping, --units and --level apply to .dxf and RMF .yaml files");
+    }
+    return emit(parse_answer(client.request("PUT", "/api/v1/floorplan", body, "application/json", token)),
                 [](const json& r) {
                   std::cout << "loaded floor plan '" << r["name"].get<std::string>() << "': " << r["objects"] << " objects, "
                             << r["edges"] << " edges (map version " << r["version"] << ")\n";
+                  if (r.contains("report")) {
+                    const auto& report = r["report"];
+                    for (const auto& [type, count] : report["entity_counts"].items())
+                      std::cout << "  " << type << ": " << count << "\n";
+                    for (const auto& layer : report["unknown_layers"])
+                      std::cout << "  unknown layer (skipped): " << layer.get<std::string>() << "\n";
+                    for (const auto& warning : report["warnings"]) std::cout << "  warning: " << warning.get<std::string>() << "\n";
+                  }
                 });
   }
   if (command == "floorplan" && words.size() == 2 && words[1] == "show") {
@@ -246,6 +286,26 @@ int run(const std::vector<std::string>& args) {
                 });
   }
   if (command == "map" && words.size() == 1) return emit(parse_answer(client.request("GET", "/api/v1/map")), print_map);
+  if (command == "map" && words.size() == 5 && words[1] == "--format" && words[3] == "--out") {
+    const auto r = client.request("GET", "/api/v1/map?format=" + words[2]);
+    if (r.status != 200) parse_answer(r);
+    write_file(words[4], r.body);
+    std::cout << "wrote " << words[4] << " (" << r.body.size() << " bytes)\n";
+    return kExitOk;
+  }
+  if (command == "report" && words.size() == 1) {
+    return emit(parse_answer(client.request("GET", "/api/v1/report/as-built")), [](const json& r) {
+      const auto& s = r["summary"];
+      std::cout << "plan '" << r["plan"].get<std::string>() << "': " << s["objects"] << " objects, " << s["confirmed"]
+                << " confirmed, " << s["moved"] << " moved, " << s["never_observed"] << " never observed; "
+                << s["not_in_plan"] << " observed elements not in the plan\n";
+      for (const auto& o : r["objects"]) {
+        if (o["status"] != "moved") continue;
+        std::cout << "  moved: " << o["id"].get<std::string>() << " by " << o["moved_by"]["distance"].get<double>()
+                  << " m, " << o["moved_by"]["dtheta"].get<double>() << " rad\n";
+      }
+    });
+  }
   if (command == "decisions") {
     std::string query;
     for (std::size_t i = 1; i < words.size(); i += 2) {

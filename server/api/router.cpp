@@ -1,5 +1,11 @@
 #include "server/api/router.h"
 
+#include "apriori/export/dxf_writer.h"
+#include "apriori/export/geojson_writer.h"
+#include "apriori/import/amrl_import.h"
+#include "apriori/import/dxf_import.h"
+#include "apriori/import/rmf_import.h"
+
 #include <algorithm>
 #include <fstream>
 #include <filesystem>
@@ -346,18 +352,155 @@ Response get_history(const Request& req, Services& s, const std::string& id, boo
   return json_response(req, {{"id", id}, {"exists", exists}, {"decisions", std::move(list)}});
 }
 
+// Units names for ?units= and "units" of an import envelope.
+double units_to_metres(const std::string& units, const std::string& path) {
+  if (units == "m") return 1.0;
+  if (units == "cm") return 0.01;
+  if (units == "mm") return 0.001;
+  if (units == "in") return 0.0254;
+  if (units == "ft") return 0.3048;
+  throw bad_request(path, "expected m, cm, mm, in or ft");
+}
+
+// An import of a CAD or robotics file: DXF (with a layer mapping), Open-RMF building.yaml or an AMRL vector map.
+apriori::ImportResult import_plan(const std::string& format, std::string_view data, const nlohmann::ordered_json& options,
+                                  Services& s) {
+  if (format == "dxf") {
+    apriori::DxfImportOptions o;
+    o.limits = s.options.plan_limits;
+    if (options.contains("units")) o.units_to_m = units_to_metres(options["units"].get<std::string>(), "import.units");
+    if (options.contains("name")) o.name = options["name"].get<std::string>();
+    const auto mapping = options.contains("mapping") ? apriori::parse_layer_mapping_json(options["mapping"].dump())
+                                                     : s.options.layer_mapping;
+    return apriori::import_dxf(data, mapping, o);
+  }
+  if (format == "rmf") {
+    apriori::RmfImportOptions o;
+    o.limits = s.options.plan_limits;
+    if (options.contains("level")) o.level = options["level"].get<std::string>();
+    if (options.contains("name")) o.name = options["name"].get<std::string>();
+    return apriori::import_rmf_building(data, o);
+  }
+  if (format == "amrl") {
+    apriori::AmrlImportOptions o;
+    o.limits = s.options.plan_limits;
+    if (options.contains("name")) o.name = options["name"].get<std::string>();
+    return apriori::import_amrl_vectormap(data, o);
+  }
+  throw bad_request("import.format", "expected dxf, rmf or amrl");
+}
+
 Response put_floor_plan(const Request& req, Services& s) {
   require_token(req, s);
-  if (has_content_type(req, "image/vnd.dxf"))
-    throw ApiError(415, "unsupported_media_type", "DXF floor plans are not supported yet; send the JSON floor plan");
-  require_json_body(req);
-  auto plan = apriori::parse_floor_plan_json(req.body(), s.options.plan_limits);
+  if (req.body().empty()) throw bad_request("", "empty body");
+  std::optional<apriori::ImportResult> imported;
+  const auto raw_target = req.target();
+  const Target t = parse_target(std::string_view(raw_target.data(), raw_target.size()));
+  nlohmann::ordered_json query_options = nlohmann::ordered_json::object();
+  for (const auto& key : {"units", "level", "name"})
+    if (auto it = t.query.find(key); it != t.query.end()) query_options[key] = it->second;
+  if (has_content_type(req, "image/vnd.dxf") || has_content_type(req, "application/dxf")) {
+    imported = import_plan("dxf", req.body(), query_options, s);
+  } else if (has_content_type(req, "application/yaml") || has_content_type(req, "application/x-yaml")) {
+    imported = import_plan("rmf", req.body(), query_options, s);
+  } else {
+    require_json_body(req);
+    // Ordered: a layer mapping's rules apply in file order (first match wins).
+    const auto doc = nlohmann::ordered_json::parse(req.body(), nullptr, false);
+    if (doc.is_object() && doc.contains("import")) {
+      // {"import": {"format": "dxf", "data": "<the file's text>", "mapping": {...}, "units": "mm", ...}}
+      const auto& spec = doc["import"];
+      if (!spec.is_object()) throw bad_request("import", "expected an object");
+      for (const auto& [key, value] : spec.items())
+        if (key != "format" && key != "data" && key != "mapping" && key != "units" && key != "level" && key != "name")
+          throw bad_request("import." + key, "unknown field");
+      if (!spec.contains("format") || !spec["format"].is_string()) throw bad_request("import.format", "expected dxf, rmf or amrl");
+      if (!spec.contains("data") || !spec["data"].is_string()) throw bad_request("import.data", "expected the file's text");
+      for (const auto& key : {"units", "level", "name"})
+        if (spec.contains(key) && !spec[key].is_string()) throw bad_request(std::string("import.") + key, "expected a string");
+      if (spec.contains("mapping") && !spec["mapping"].is_object()) throw bad_request("import.mapping", "expected a layer mapping object");
+      imported = import_plan(spec["format"].get<std::string>(), spec["data"].get<std::string>(), spec, s);
+    } else if (doc.is_array()) {
+      imported = import_plan("amrl", req.body(), query_options, s);  // an AMRL vector map is a bare array of lines
+    }
+  }
+  auto plan = imported ? std::move(imported->plan) : apriori::parse_floor_plan_json(req.body(), s.options.plan_limits);
   std::size_t edges = 0;
   for (const auto& o : plan.objects) edges += o.edges().size();
   const auto objects = plan.objects.size();
   const auto name = plan.name;
   const auto version = s.world.load_floor_plan(std::move(plan));
-  return json_response(req, {{"name", name}, {"objects", objects}, {"edges", edges}, {"version", version}});
+  json answer = {{"name", name}, {"objects", objects}, {"edges", edges}, {"version", version}};
+  if (imported) answer["report"] = json::parse(apriori::to_json_text(imported->report));
+  return json_response(req, answer);
+}
+
+// The observed map in CAD/GIS form: one layer per state.
+std::vector<apriori::LayerLines> map_layers(const world::WorldState& state, const world::WorldOptions& options) {
+  apriori::LayerLines plan{"plan_unobserved", {}, {}, 8}, confirmed{"confirmed", {}, {}, 3}, adjusted{"adjusted", {}, {}, 1},
+      merged{"merged", {}, {}, 5}, added{"new", {}, {}, 6};
+  for (const auto& object : state.objects) {
+    auto& layer = object.adjustments > 0 ? adjusted : object.confirmations > 0 ? confirmed : plan;
+    for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
+      const auto edge = world::apriori_edge(object, k, options);
+      layer.polylines.push_back({edge.p0(), edge.p1()});
+      layer.ids.push_back(world::edge_id(object.plan->id, k));
+    }
+  }
+  for (const auto& [number, element] : state.elements) {
+    auto& layer = element.support > 1 ? merged : added;
+    layer.polylines.push_back({element.segment.p0(), element.segment.p1()});
+    layer.ids.push_back(element.id());
+  }
+  std::vector<apriori::LayerLines> layers;
+  for (auto* l : {&plan, &confirmed, &adjusted, &merged, &added})
+    if (!l->polylines.empty()) layers.push_back(std::move(*l));
+  return layers;
+}
+
+// Where the building differs from its drawing: per CAD object confirmed / moved / never observed.
+json as_built_report(const world::WorldState& state) {
+  json objects = json::array();
+  std::size_t confirmed = 0, moved = 0, unobserved = 0;
+  for (const auto& object : state.objects) {
+    const auto& drawn = object.plan->pose;
+    const auto& now = object.body.pose();
+    const double dx = now.x_m - drawn.x_m, dy = now.y_m - drawn.y_m;
+    const double dtheta = std::remainder(now.theta_rad - drawn.theta_rad, 2 * M_PI);
+    std::string status = "never_observed";
+    if (object.adjustments > 0) {
+      status = "moved";
+      ++moved;
+    } else if (object.confirmations > 0) {
+      status = "confirmed";
+      ++confirmed;
+    } else {
+      ++unobserved;
+    }
+    json entry = {{"id", object.plan->id},
+                  {"kind", object.plan->kind},
+                  {"attributes", object.plan->attributes},
+                  {"status", status},
+                  {"confirmations", object.confirmations},
+                  {"adjustments", object.adjustments}};
+    if (object.adjustments > 0) {
+      entry["moved_by"] = {{"dx", dx}, {"dy", dy}, {"dtheta", dtheta}, {"distance", std::hypot(dx, dy)},
+                           {"sigma_xy", std::sqrt(std::max(object.body.pose_cov()(0, 0), object.body.pose_cov()(1, 1)))}};
+    }
+    objects.push_back(std::move(entry));
+  }
+  json extra = json::array();
+  for (const auto& [number, element] : state.elements) {
+    extra.push_back({{"id", element.id()}, {"p0", json::array({element.segment.p0().x(), element.segment.p0().y()})},
+                     {"p1", json::array({element.segment.p1().x(), element.segment.p1().y()})},
+                     {"length", element.segment.length_m()}, {"support", element.support}, {"source", element.source}});
+  }
+  return {{"plan", state.plan_name},
+          {"version", state.version},
+          {"summary", {{"objects", state.objects.size()}, {"confirmed", confirmed}, {"moved", moved},
+                       {"never_observed", unobserved}, {"not_in_plan", state.elements.size()}}},
+          {"objects", objects},
+          {"not_in_plan", extra}};
 }
 
 Response get_floor_plan(const Request& req, Services& s) {
@@ -403,9 +546,13 @@ Response route(const Request& req, Services& s) {
   }
   if (path == "/api/v1/map") {
     if (method != http::verb::get) method_not_allowed("GET");
-    if (auto it = t.query.find("format"); it != t.query.end() && it->second != "json")
-      throw bad_request("format", "only format=json is supported");
     const auto snap = s.world.snapshot();
+    if (auto it = t.query.find("format"); it != t.query.end() && it->second != "json") {
+      if (it->second == "dxf") return raw_response(req, apriori::write_dxf(map_layers(*snap, s.world.options().world)), "image/vnd.dxf");
+      if (it->second == "geojson")
+        return raw_response(req, apriori::write_geojson(map_layers(*snap, s.world.options().world)), "application/geo+json");
+      throw bad_request("format", "expected json, dxf or geojson");
+    }
     return json_response(req, json_codec::map_json(*snap, s.world.options().world));
   }
   if (path == "/api/v1/floorplan") {
@@ -432,6 +579,10 @@ Response route(const Request& req, Services& s) {
   if (path == "/api/v1/rules/dry-run") {
     if (method != http::verb::post) method_not_allowed("POST");
     return post_rules_dry_run(req, s);
+  }
+  if (path == "/api/v1/report/as-built") {
+    if (method != http::verb::get) method_not_allowed("GET");
+    return json_response(req, as_built_report(*s.world.snapshot()));
   }
   if (path == "/api/v1/scans") {
     if (method != http::verb::post) method_not_allowed("POST");
@@ -511,6 +662,7 @@ Response route(const Request& req, Services& s) {
                                               "POST /api/v1/rules/dry-run", "POST /api/v1/query", "POST /api/v1/scans",
                                               "GET /api/v1/grid?layer=L&bbox=x0,y0,x1,y1&format=json|pgm",
                                               "GET /api/v1/grid/map.yaml", "GET /api/v1/grid/map.pgm",
+                                              "GET /api/v1/map?format=json|dxf|geojson", "GET /api/v1/report/as-built",
                                               "GET /api/v1/elements/{id}/history", "GET /api/v1/objects/{id}/history"}}});
   }
   throw ApiError(404, "not_found", "no resource at '" + path + "'");

@@ -5,6 +5,7 @@
 #include <boost/beast/http.hpp>
 
 #include "apriori/floor_plan.h"
+#include "apriori/import/layer_mapping.h"
 #include "server/json/codec.h"
 #include "server/service/world_service.h"
 
@@ -20,6 +21,8 @@ struct ApiOptions {
   json_codec::ScanLimits scan_limits;
   apriori::FloorPlanLimits plan_limits;
   std::size_t max_decisions_per_page = 10000;
+  /// Layer/block → kind and attributes for DXF uploads without their own mapping (--layer-mapping FILE).
+  apriori::LayerMapping layer_mapping = apriori::default_layer_mapping();
   /// The web viewer's static files (index.html at "/", the rest under "/web/"); empty: not served.
   std::string web_dir;
 };

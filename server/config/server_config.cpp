@@ -3,6 +3,8 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <fstream>
+#include <sstream>
 
 namespace wm::config {
 namespace {
@@ -33,6 +35,7 @@ std::string usage() {
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
          "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at once)\n"
          "  --no-scan-lines        laser scans update the grids only, without the scan line extractor\n"
+         "  --layer-mapping FILE   DXF layer/block mapping (JSON) for uploads that bring none (default: built in)\n"
          "  --web DIR              the web viewer's files (default: the shipped clients/web; '' disables)\n"
          "  --no-watch-rules       do not reload the rules when their files change (POST /api/v1/rules/reload still does)\n"
          "  --rule-inferences N    inference limit per decision and query (default 200000)\n"
@@ -69,6 +72,17 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     else if (flag == "--rules") c.rules.rules_dir = value;
     else if (flag == "--floorplan") c.floor_plan_file = value;
     else if (flag == "--web") c.api.web_dir = value;
+    else if (flag == "--layer-mapping") {
+      std::ifstream in(value);
+      if (!in) throw ConfigError("--layer-mapping: cannot read '" + value + "'");
+      std::ostringstream text;
+      text << in.rdbuf();
+      try {
+        c.api.layer_mapping = apriori::parse_layer_mapping_json(text.str());
+      } catch (const std::exception& e) {
+        throw ConfigError("--layer-mapping: " + std::string(e.what()));
+      }
+    }
     else if (flag == "--token") c.api.token = value;
     else if (flag == "--max-body-bytes") c.http.max_body_bytes = parse_number<std::size_t>(flag, value, 1024, std::size_t{1} << 31);
     else if (flag == "--threads") c.http.threads = parse_number<int>(flag, value, 1, 64);
