@@ -6,8 +6,17 @@ packages=(
   libeigen3-dev libboost-dev libboost-system-dev nlohmann-json3-dev libsqlite3-dev sqlite3
   swi-prolog-core swi-prolog-core-packages
   libgtest-dev libgmock-dev googletest libbenchmark-dev
-  zlib1g-dev curl python3 python3-ezdxf
+  zlib1g-dev libyaml-cpp-dev curl python3 python3-ezdxf
 )
+# Extra packages for a purpose: `scripts/setup.sh bench` (benchmarks' baselines), `scripts/setup.sh web`
+# (the browser test: Debian's Chromium and Node.js for playwright-core).
+for extra in "$@"; do
+  case "$extra" in
+    bench) packages+=(liboctomap-dev libopencv-dev libopencv-contrib-dev) ;;
+    web) packages+=(chromium nodejs npm) ;;
+    *) echo "setup: unknown extra '$extra' (bench, web)" >&2; exit 2 ;;
+  esac
+done
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -374,6 +374,14 @@ class Parser {
         e.shape = Circle{center, radius};
       }
       result = std::move(e);
+    } else if (type == "ELLIPSE") {
+      e.extrusion = extrusion_of(r, e);
+      Ellipse el{required_point(r, 10, e, "center"), required_point(r, 11, e, "major axis"),
+                 required(r, 40, e, "axis ratio"), r.number(41, 0.0), r.number(42, 2.0 * 3.14159265358979323846)};
+      if (!(el.major_axis.norm() > 0.0)) throw FloorPlanError(e.describe(), "zero major axis");
+      if (!(el.ratio > 0.0)) throw FloorPlanError(e.describe(), "axis ratio must be > 0");
+      e.shape = el;
+      result = std::move(e);
     } else if (type == "LWPOLYLINE") {
       e.extrusion = extrusion_of(r, e);
       e.shape = parse_lwpolyline(r, e);
@@ -406,9 +414,8 @@ class Parser {
       fill_common(v, ve);
       p.vertices.push_back({{required(v, 10, ve, "vertex x"), required(v, 20, ve, "vertex y")}, v.number(42, 0.0)});
     }
-    if (!next_is("SEQEND"))
-      throw FloorPlanError(e.describe(), "POLYLINE not terminated by SEQEND" +
-                                             (at_end() ? std::string(" (truncated file)") : std::string()));
+    if (at_end()) truncated(section, section_line);
+    if (!next_is("SEQEND")) throw FloorPlanError(e.describe(), "POLYLINE not terminated by SEQEND");
     next_record(section, section_line);
     if (mesh) return std::nullopt;  // polyface and polygon meshes are surfaces, not plan lines
     e.shape = std::move(p);

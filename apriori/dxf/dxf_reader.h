@@ -38,6 +38,17 @@ struct Circle {
   double radius = 0.0;
 };
 
+/// ELLIPSE: in WCS (unlike ARC), `major_axis` from the centre to the end of the major axis, minor axis =
+/// ratio · (extrusion × major_axis); the curve runs counter-clockwise about the extrusion from start to end
+/// parameter [rad] (0 and 2π for a whole ellipse) [drawing units]. Invariant: major_axis ≠ 0, ratio > 0.
+struct Ellipse {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  Eigen::Vector3d major_axis = Eigen::Vector3d::UnitX();
+  double ratio = 1.0;
+  double start_param = 0.0;
+  double end_param = 0.0;
+};
+
 /// A polyline vertex; `bulge` = tan(θ/4) of the arc from this vertex to the next (θ > 0 counter-clockwise in OCS,
 /// 0 for a straight segment).
 struct PolylineVertex {
@@ -72,12 +83,12 @@ struct Insert {
 /// of the DXF Reference gives the OCS → WCS rotation (the identity for (0, 0, 1); a mirror x → −x for (0, 0, −1),
 /// which real drawings use for mirrored arcs).
 struct Entity {
-  std::string type;       // "LINE", "ARC", "CIRCLE", "LWPOLYLINE", "POLYLINE", "INSERT"
+  std::string type;       // "LINE", "ARC", "CIRCLE", "ELLIPSE", "LWPOLYLINE", "POLYLINE", "INSERT"
   std::string layer = "0";
   std::string handle;     // group 5; empty when the file has none (R12 without handles)
   std::size_t line = 0;   // 1-based line of the entity's "0" group code in the file
   Eigen::Vector3d extrusion = Eigen::Vector3d::UnitZ();  // unit length
-  std::variant<Line, Arc, Circle, Polyline, Insert> shape;
+  std::variant<Line, Arc, Circle, Ellipse, Polyline, Insert> shape;
 
   /// "entity LINE handle 2F", or "entity LINE at line 1234" when the entity has no handle: the path of errors.
   std::string describe() const;

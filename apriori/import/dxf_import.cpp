@@ -72,11 +72,14 @@ class Tessellator {
                   world(to_world, line->end.x(), line->end.y(), line->end.z())};
       out.push_back(std::move(s));
     } else if (const auto* arc = std::get_if<dxf::Arc>(&e.shape)) {
+      // Equal angles are a degenerate arc (as ezdxf reads them), different angles that agree modulo 360° a whole
+      // circle.
       double span = std::fmod(arc->end_angle_deg - arc->start_angle_deg, 360.0);
       if (span <= 0.0) span += 360.0;
+      if (arc->end_angle_deg == arc->start_angle_deg) span = 0.0;
       const double a0 = arc->start_angle_deg * kPi / 180.0;
       const double sweep = span * kPi / 180.0;
-      const std::size_t n = segments(arc->radius, sweep, tol);
+      const std::size_t n = span == 0.0 ? 0 : segments(arc->radius, sweep, tol);
       WorldShape s;
       for (std::size_t i = 0; i <= n; ++i) {
         const double a = i == n ? (arc->start_angle_deg + span) * kPi / 180.0 : a0 + sweep * static_cast<double>(i) / static_cast<double>(n);
@@ -92,6 +95,23 @@ class Tessellator {
         const double a = 2.0 * kPi * static_cast<double>(i) / static_cast<double>(n);
         s.points.push_back(world(ocs_to_world, circle->center.x() + circle->radius * std::cos(a),
                                  circle->center.y() + circle->radius * std::sin(a), circle->center.z()));
+      }
+      out.push_back(std::move(s));
+    } else if (const auto* el = std::get_if<dxf::Ellipse>(&e.shape)) {
+      // In WCS: no OCS, but the extrusion orients the minor axis (and so the direction of travel).
+      const Eigen::Vector3d minor = el->ratio * e.extrusion.cross(el->major_axis);
+      double span = std::fmod(el->end_param - el->start_param, 2.0 * kPi);
+      if (span <= 1e-12) span += 2.0 * kPi;
+      const bool whole = std::abs(span - 2.0 * kPi) <= 1e-12;
+      const double major_stretch = plane_stretch(to_world);
+      const double el_tol = major_stretch > 0.0 ? tolerance_m / major_stretch : std::numeric_limits<double>::infinity();
+      const std::size_t n = segments(el->major_axis.norm(), span, el_tol);
+      WorldShape s;
+      s.closed = whole;
+      for (std::size_t i = 0; i < (whole ? n : n + 1); ++i) {
+        const double t = i == n ? el->start_param + span : el->start_param + span * static_cast<double>(i) / static_cast<double>(n);
+        const Eigen::Vector3d p = el->center + std::cos(t) * el->major_axis + std::sin(t) * minor;
+        s.points.push_back(world(to_world, p.x(), p.y(), p.z()));
       }
       out.push_back(std::move(s));
     } else if (const auto* poly = std::get_if<dxf::Polyline>(&e.shape)) {
@@ -517,8 +537,11 @@ ImportResult import_dxf(std::string_view text, const LayerMapping& mapping, cons
   report.units_to_m = units;
   report.entity_counts = doc.entity_counts;
   for (const auto& [type, count] : doc.skipped_entities) report.skipped[type] += count;
-  for (const auto& [key, block] : doc.blocks)
+  for (const auto& [key, block] : doc.blocks) {
+    // The layout blocks hold paper-space content (viewports...), not parts of the plan.
+    if (key.rfind("*MODEL_SPACE", 0) == 0 || key.rfind("*PAPER_SPACE", 0) == 0) continue;
     for (const auto& [type, count] : block.skipped_entities) report.skipped[type + " (in block definitions)"] += count;
+  }
   if (doc.paper_space_entities > 0) report.skipped["paper space"] = doc.paper_space_entities;
 
   result.plan = DxfImporter(doc, mapping, options, units, report).run();

@@ -33,8 +33,9 @@ struct DxfImportOptions {
 
 /// Converts an ASCII DXF drawing into a floor plan.
 ///
-/// Model-space LINE, ARC, CIRCLE, LWPOLYLINE, POLYLINE (2D and 3D; meshes are skipped) and INSERT are read;
-/// arcs become chords (options.arc_tolerance_m); every other entity type is skipped and counted in the report.
+/// Model-space LINE, ARC, CIRCLE, ELLIPSE, LWPOLYLINE, POLYLINE (2D and 3D; meshes are skipped) and INSERT are
+/// read; curves become chords (options.arc_tolerance_m); every other entity type (TEXT, HATCH, SPLINE, DIMENSION,
+/// ...) is skipped and counted in the report.
 /// Coordinates are converted to metres ($INSUNITS, or options.units_to_m), and entities with an extrusion
 /// direction other than +z are mapped through their object coordinate system, then projected on the plan.
 ///  - An INSERT whose block name matches a `blocks` rule becomes one object of that kind, posed at the insertion

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 #include <yaml-cpp/yaml.h>
@@ -28,11 +29,12 @@ double number(const YAML::Node& node, const std::string& path) {
   return v;
 }
 
-/// traffic-editor parameters are written [type_code, value].
-YAML::Node param(const YAML::Node& params, const char* key) {
-  if (!params || !params.IsMap()) return YAML::Node();
+/// traffic-editor parameters are written [type_code, value]; nullopt when `key` is absent or not of that form.
+/// (A default-constructed YAML::Node is a defined null node, so "absent" needs the optional.)
+std::optional<YAML::Node> param(const YAML::Node& params, const char* key) {
+  if (!params || !params.IsMap()) return std::nullopt;
   const YAML::Node p = params[key];
-  if (!p || !p.IsSequence() || p.size() != 2) return YAML::Node();
+  if (!p || !p.IsSequence() || p.size() != 2) return std::nullopt;
   return p[1];
 }
 
@@ -154,9 +156,9 @@ class RmfImporter {
       const auto mpath = index(path, i);
       if (!m.IsSequence() || m.size() < 3) throw FloorPlanError(mpath, "expected [v0, v1, {distance: [3, d]}]");
       const double pixels = (vertex(m[0], index(mpath, 0)).raw - vertex(m[1], index(mpath, 1)).raw).norm();
-      const YAML::Node d = param(m[2], "distance");
+      const auto d = param(m[2], "distance");
       if (!d) throw FloorPlanError(mpath, "missing distance");
-      const double metres = number(d, mpath + ".distance");
+      const double metres = number(*d, mpath + ".distance");
       if (!(pixels > 0.0) || !(metres > 0.0))
         throw FloorPlanError(mpath, "a measurement needs two distinct vertices and a distance > 0");
       sum += metres / pixels;
@@ -186,7 +188,7 @@ class RmfImporter {
       auto attributes = options_.wall_attributes;
       // traffic-editor draws glass partitions as translucent walls (alpha < 1).
       if (w.size() > 2)
-        if (const auto alpha = param(w[2], "alpha"); alpha && number(alpha, wpath + ".alpha") < 1.0 &&
+        if (const auto alpha = param(w[2], "alpha"); alpha && number(*alpha, wpath + ".alpha") < 1.0 &&
                                                      std::find(attributes.begin(), attributes.end(), "glass") ==
                                                          attributes.end())
           attributes.push_back("glass");
@@ -211,8 +213,8 @@ class RmfImporter {
       s.points = {world(vertex(d[0], index(dpath, 0)).raw), world(vertex(d[1], index(dpath, 1)).raw)};
       std::string id = "door-" + std::to_string(i);
       if (d.size() > 2)
-        if (const auto name = param(d[2], "name"); name && name.IsScalar() && !name.Scalar().empty())
-          id = "door-" + name.Scalar();
+        if (const auto name = param(d[2], "name"); name && name->IsScalar() && !name->Scalar().empty())
+          id = "door-" + name->Scalar();
       if (builder_.add(id, "door", options_.door_attributes, {s}, std::nullopt, dpath)) {
         ++l.objects;
       } else {

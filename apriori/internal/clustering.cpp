@@ -141,7 +141,7 @@ std::vector<std::size_t> cluster_items(const std::vector<Polylines>& items, doub
   if (merge_enclosed && groups > 1) {
     std::vector<std::size_t> by_area(groups);
     std::iota(by_area.begin(), by_area.end(), std::size_t{0});
-    std::sort(by_area.begin(), by_area.end(),
+    std::stable_sort(by_area.begin(), by_area.end(),
               [&](std::size_t a, std::size_t b) { return group_box[a].area() < group_box[b].area(); });
     for (std::size_t a = 0; a < groups; ++a) {
       const double area_a = group_box[a].area();

@@ -6,7 +6,8 @@ with wm::apriori::import_dxf and compares (1e-9 relative).
 Usage: make_ezdxf_plans.py OUTDIR
 
 For every case OUTDIR gets <case>.dxf and <case>.expected.json:
-  {"dxf": file, "mapping": file, "units_to_m": override or null, "insunits": n, "version": "AC1009",
+  {"dxf": file, "mapping": file, "units_to_m": override or null, "metres_per_unit": f, "insunits": n,
+   "version": "AC1009",
    "entity_counts": {type: n}, "skipped": {type: n}, "unknown_layers": [...], "block_objects": n,
    "objects": {id: {"kind", "attributes", "pose": {"x","y","theta"} or null, "paths": [[primitive, ...], ...]}}}
 A path is one polyline of the object, as ezdxf's primitives in world coordinates [m]:
@@ -32,7 +33,7 @@ except ImportError as e:  # pragma: no cover
     print(f"make_ezdxf_plans.py: python3-ezdxf is required ({e})", file=sys.stderr)
     sys.exit(1)
 
-SUPPORTED = {"LINE", "ARC", "CIRCLE", "LWPOLYLINE", "POLYLINE", "INSERT"}
+SUPPORTED = {"LINE", "ARC", "CIRCLE", "ELLIPSE", "LWPOLYLINE", "POLYLINE", "INSERT"}
 
 MAPPING = {
     "layers": {
@@ -94,10 +95,24 @@ def primitives(e, f):
                   "minor": xy(e.minor_axis, f), "start": xy(e.start_point, f), "end": xy(e.end_point, f),
                   "sweep": span}]]
     if t in ("LWPOLYLINE", "POLYLINE"):
+        # ezdxf explodes a polyline into LINE and ARC entities; an ARC always runs counter-clockwise, so a
+        # clockwise bulge comes out reversed: orient every primitive along the polyline.
         path = []
         for ve in e.virtual_entities():
             for p in primitives(ve, f):
                 path.extend(p)
+        if t == "LWPOLYLINE":
+            at = xy(next(iter(e.vertices_in_wcs())), f)
+        elif e.is_3d_polyline:
+            at = xy(e.vertices[0].dxf.location, f)
+        else:
+            at = xy(e.ocs().to_wcs(e.vertices[0].dxf.location.replace(z=e.dxf.elevation.z)), f)
+        for prim in path:
+            if math.dist(prim["start"], at) > math.dist(prim["end"], at):
+                prim["start"], prim["end"] = prim["end"], prim["start"]
+                if "sweep" in prim:
+                    prim["sweep"] = -prim["sweep"]
+            at = prim["end"]
         return [path]
     raise ValueError(f"unexpected entity {t}")
 
@@ -210,6 +225,7 @@ def write_case(outdir, name, doc, units_to_m=None, clusters=None, dxf_only=False
         "dxf": name + ".dxf",
         "mapping": "mapping.json",
         "units_to_m": units_to_m,
+        "metres_per_unit": f,
         "insunits": insunits,
         "version": doc.dxfversion,
         "entity_counts": c,
@@ -276,6 +292,11 @@ def geometry_doc(version, insunits=6):
                             (10, 16, 0, 0, -3.0)], format="xyseb", close=True, dxfattribs={"layer": "POLYS"})
         msp.add_lwpolyline([(1, 1, 0, 0, 0.3), (2, 1, 0, 0, 0), (2, 2, 0, 0, 0)], format="xyseb",
                            dxfattribs={"layer": "POLYS", "extrusion": (0, 0, -1), "elevation": 0.5})
+        msp.add_ellipse((30, -5), major_axis=(2, 1), ratio=0.4, start_param=0.3, end_param=4.0,
+                        dxfattribs={"layer": "ARCS"})
+        msp.add_ellipse((35, -5), major_axis=(0, 1.5), ratio=0.5, start_param=5.5, end_param=1.0,
+                        dxfattribs={"layer": "ARCS", "extrusion": (0, 0, -1)})
+        msp.add_ellipse((40, -5), major_axis=(1, 0), ratio=0.25, dxfattribs={"layer": "CIRCLES"})  # whole
     # Mapped block: rotated and scaled, mirrored, OCS -z, non-uniform (its arcs become ellipses), MINSERT grid.
     msp.add_blockref("TABLE_A", (12, 3), dxfattribs={"layer": "BLOCKS", "rotation": 30, "xscale": 1.5,
                                                        "yscale": 1.5, "zscale": 1.5})
