@@ -26,6 +26,12 @@ class RatioReporter : public benchmark::ConsoleReporter {
     ConsoleReporter::ReportRuns(runs);
   }
 
+  /// items/s of a benchmark of this run, 0 when it did not run.
+  double rate(const std::string& name) const {
+    const auto it = rates_.find(name);
+    return it == rates_.end() ? 0.0 : it->second;
+  }
+
   void Finalize() override {
     ConsoleReporter::Finalize();
     for (const auto& [title, baseline] : baselines_) {

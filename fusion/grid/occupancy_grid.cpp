@@ -12,19 +12,30 @@
 
 namespace wm::fusion {
 
-/// Structure of arrays: the Bayes update touches only stamp, scan_log_odds and log_odds, the DS update only
-/// stamp, scan_o/scan_e and m_o/m_e/conflict, so each model streams through just its own bytes.
+/// Array of structures per model: one visit touches one cell record of each enabled model (one cache line), and a
+/// cell's record carries what the at-most-once-per-scan rule needs, so a scan is applied in a single pass with no
+/// list of touched cells and no second sweep.
+struct OccupancyGrid::BayesCell {
+  std::uint32_t stamp = 0;  // == the grid's stamp_: this scan already updated the cell
+  float log_odds = 0.f;
+  float before = 0.f;     // log-odds before this scan
+  float increment = 0.f;  // the scan's strongest hit, else its strongest miss
+};
+
+struct OccupancyGrid::DsCell {
+  std::uint32_t stamp = 0;
+  float o = 0.f, e = 0.f, k = 0.f;                       // the map: m(O), m(E), conflict layer
+  float before_o = 0.f, before_e = 0.f, before_k = 0.f;  // the map before this scan
+  float scan_o = 0.f, scan_e = 0.f;                      // this scan's beams, combined so far
+};
+
 struct OccupancyGrid::Tile {
-  Tile(TileIndex i, std::size_t n)
-      : index(i), log_odds(n, 0.f), m_o(n, 0.f), m_e(n, 0.f), conflict(n, 0.f), stamp(n, 0u), scan_log_odds(n),
-        scan_o(n), scan_e(n) {}
+  Tile(TileIndex i, std::size_t n) : index(i), bayes(n), ds(n) {}
 
   TileIndex index;
-  std::vector<float> log_odds;
-  std::vector<float> m_o, m_e, conflict;
-  std::vector<std::uint32_t> stamp;  // == the grid's stamp_: this scan already wrote scan_* for the cell
-  std::vector<float> scan_log_odds;  // the scan's strongest Bayes increment so far
-  std::vector<float> scan_o, scan_e;  // the scan's beams combined so far (Dempster)
+  std::vector<BayesCell> bayes;
+  std::vector<DsCell> ds;
+  std::uint32_t stamp = 0;  // last scan that touched the tile
   bool dirty = false;
 };
 
@@ -62,6 +73,7 @@ OccupancyGrid::OccupancyGrid(const GridOptions& options) : options_(options) {
   require(std::isfinite(options_.log_odds_min) && options_.log_odds_min < 0.0, "log_odds_min must be finite and < 0");
   require(std::isfinite(options_.log_odds_max) && options_.log_odds_max > 0.0, "log_odds_max must be finite and > 0");
   require(options_.update_bayes || options_.update_ds, "at least one of update_bayes, update_ds must be set");
+  require(options_.ds_unknown_min >= 0.0 && options_.ds_unknown_min < 1.0, "ds_unknown_min must be in [0, 1)");
   validate(options_.sensor);
   shift_ = std::countr_zero(static_cast<std::uint64_t>(t));
   mask_ = t - 1;
@@ -93,7 +105,6 @@ OccupancyGrid& OccupancyGrid::operator=(OccupancyGrid&& other) noexcept {
     cache_ = std::exchange(other.cache_, {});
     stamp_ = other.stamp_;
     dirty_ = std::move(other.dirty_);
-    touched_.clear();
     other.tiles_.clear();
     other.dirty_.clear();
   }
@@ -146,14 +157,24 @@ void OccupancyGrid::insert_scan(const ScanT& scan, std::size_t beams, const Make
 
   if (++stamp_ == 0) {
     // 2^32 scans later: forget the old stamps rather than mistake one for the current scan.
-    for (auto& [index, tile] : tiles_) std::fill(tile->stamp.begin(), tile->stamp.end(), 0u);
+    for (auto& [index, tile] : tiles_) {
+      tile->stamp = 0;
+      for (BayesCell& c : tile->bayes) c.stamp = 0;
+      for (DsCell& c : tile->ds) c.stamp = 0;
+    }
     stamp_ = 1;
   }
-  touched_.clear();
+  double cos_half = 1.0, sin_half = 0.0, half = -1.0;
   for (std::size_t i = 0; i < beams; ++i) {
-    if (const std::optional<Beam> beam = make_beam(i)) walk(*beam);
+    const std::optional<Beam> beam = make_beam(i);
+    if (!beam) continue;
+    if (beam->half_width_rad != half) {  // the same for every beam of a scan
+      half = beam->half_width_rad;
+      cos_half = std::cos(half);
+      sin_half = std::sin(half);
+    }
+    walk(internal::prepare(*beam, options_.resolution_m, cos_half, sin_half));
   }
-  finish_scan();
 }
 
 void OccupancyGrid::check_growth(std::int64_t tx0, std::int64_t ty0, std::int64_t tx1, std::int64_t ty1) const {
@@ -189,99 +210,103 @@ OccupancyGrid::Tile* OccupancyGrid::tile_for_write(std::int64_t tx, std::int64_t
   return slot.tile;
 }
 
-void OccupancyGrid::walk(const Beam& beam) {
-  const internal::PreparedBeam b = internal::prepare(beam, options_.resolution_m);
+void OccupancyGrid::walk(const internal::PreparedBeam& b) {
   const bool bayes = options_.update_bayes;
   const bool ds = options_.update_ds;
-  const double miss_log_odds = b.log_odds_miss;
+  const auto lo = static_cast<float>(options_.log_odds_min);
+  const auto hi = static_cast<float>(options_.log_odds_max);
+  const double known_max = 1.0 - options_.ds_unknown_min;
   // The current tile along the beam: consecutive cells almost always share it.
   std::int64_t cur_x = std::numeric_limits<std::int64_t>::min();
   std::int64_t cur_y = 0;
   Tile* tile = nullptr;
 
-  internal::walk_cone(b.ox, b.oy, b.angle_rad, b.half_width_rad, b.walk_limit,
-                      [&](std::int64_t x, std::int64_t y, double d2) {
-    const internal::CellClass cls = internal::classify(b, x, y, d2);
-    if (cls == internal::CellClass::skip) return;
+  internal::for_each_beam_cell(b, [&](std::int64_t x, std::int64_t y, double d2, internal::CellClass cls) {
     const std::int64_t tx = x >> shift_;
     const std::int64_t ty = y >> shift_;
     if (tx != cur_x || ty != cur_y || tile == nullptr) {
       tile = tile_for_write(tx, ty);
       cur_x = tx;
       cur_y = ty;
-    }
-    const auto idx = static_cast<std::uint32_t>(((y & mask_) << shift_) | (x & mask_));
-
-    // The Gaussian factor, only where it can be non-zero (hits, and free cells just in front of the return).
-    double g = 0.0;
-    double d = 0.0;
-    const bool near_return = cls == internal::CellClass::hit || d2 > b.tail_limit2;
-    if (near_return && b.has_return) {
-      d = std::sqrt(d2);
-      g = internal::range_factor(b, cls, x, y, d);
-    }
-    const double w = internal::angular_weight(b, x, y, d2);
-    const bool first = tile->stamp[idx] != stamp_;
-    if (first) {
-      tile->stamp[idx] = stamp_;
-      touched_.push_back({tile, idx});
-    }
-    if (bayes) {
-      const auto l = static_cast<float>(
-          w * (cls == internal::CellClass::hit ? internal::bayes_hit_log_odds(b, g) : miss_log_odds));
-      if (first) {
-        tile->scan_log_odds[idx] = l;
-      } else {
-        // The strongest hit if any beam hit the cell, else the strongest miss.
-        const float old = tile->scan_log_odds[idx];
-        tile->scan_log_odds[idx] = (old > 0.f || l > 0.f) ? std::max(old, l) : std::min(old, l);
-      }
-    }
-    if (ds) {
-      const internal::CellMasses m = internal::ds_masses(b, g, d, w);
-      if (first) {
-        tile->scan_o[idx] = static_cast<float>(m.occupied);
-        tile->scan_e[idx] = static_cast<float>(m.empty);
-      } else {
-        double o = tile->scan_o[idx];
-        double e = tile->scan_e[idx];
-        double k = 0.0;
-        // Beam masses are never certain (validated options), so a total conflict here is only float rounding:
-        // keep what the scan had.
-        if (combine(o, e, k, m.occupied, m.empty)) {
-          tile->scan_o[idx] = static_cast<float>(o);
-          tile->scan_e[idx] = static_cast<float>(e);
+      if (tile->stamp != stamp_) {
+        tile->stamp = stamp_;
+        if (!tile->dirty) {
+          tile->dirty = true;
+          dirty_.push_back(tile->index);
         }
       }
     }
-  });
-}
+    const auto idx = static_cast<std::size_t>(((y & mask_) << shift_) | (x & mask_));
+    const bool hit = cls == internal::CellClass::hit;
 
-void OccupancyGrid::finish_scan() {
-  const float lo = static_cast<float>(options_.log_odds_min);
-  const float hi = static_cast<float>(options_.log_odds_max);
-  for (const Touched& t : touched_) {
-    Tile& tile = *t.tile;
-    const std::uint32_t i = t.index;
-    if (options_.update_bayes) tile.log_odds[i] = std::clamp(tile.log_odds[i] + tile.scan_log_odds[i], lo, hi);
-    if (options_.update_ds) {
-      double o = tile.m_o[i];
-      double e = tile.m_e[i];
-      double k = 0.0;
-      if (combine(o, e, k, tile.scan_o[i], tile.scan_e[i])) {
-        tile.m_o[i] = static_cast<float>(o);
-        tile.m_e[i] = static_cast<float>(e);
+    // Range factor and angular weight only where they can differ from (0, 1): hits, and free cells just in front
+    // of the return (the Gaussian's tail). Free space of a laser lies on its axis line: weight 1.
+    double g = 0.0;
+    double d = 0.0;
+    double w = 1.0;
+    if (b.has_return && (hit || d2 > b.tail_limit2)) {
+      d = std::sqrt(d2);
+      g = internal::range_factor(b, cls, x, y, d);
+      if (hit || !b.free_on_axis_only) w = internal::angular_weight(b, x, y, d2);
+    } else if (!b.free_on_axis_only && b.inv_two_sigma_a2 > 0.0) {
+      w = internal::angular_weight(b, x, y, d2);
+    }
+
+    if (bayes) {
+      BayesCell& c = tile->bayes[idx];
+      const auto v = static_cast<float>(w * (hit ? internal::bayes_hit_log_odds(b, g) : b.log_odds_miss));
+      if (c.stamp != stamp_) {
+        c.stamp = stamp_;
+        c.before = c.log_odds;
+        c.increment = v;
+        c.log_odds = std::clamp(c.before + v, lo, hi);
+      } else if ((v > 0.f || c.increment > 0.f) ? v > c.increment : v < c.increment) {
+        // The strongest hit if any beam hit the cell, else the strongest miss.
+        c.increment = v;
+        c.log_odds = std::clamp(c.before + v, lo, hi);
+      }
+    }
+    if (ds) {
+      DsCell& c = tile->ds[idx];
+      const internal::CellMasses m = hit || g > 0.0 ? internal::ds_masses(b, g, d, w)
+                                                    : internal::CellMasses{0.0, w * b.k};
+      double so = m.occupied;
+      double se = m.empty;
+      if (c.stamp != stamp_) {
+        c.stamp = stamp_;
+        c.before_o = c.o;
+        c.before_e = c.e;
+        c.before_k = c.k;
+      } else {
+        so = c.scan_o;
+        se = c.scan_e;
+        double k = 0.0;
+        // Beam masses are never certain (validated options), so a total conflict between beams is only float
+        // rounding: keep what the scan had.
+        combine(so, se, k, m.occupied, m.empty);
+      }
+      c.scan_o = static_cast<float>(so);
+      c.scan_e = static_cast<float>(se);
+      // The scan so far, combined into the map as it was before the scan.
+      double o = c.before_o;
+      double e = c.before_e;
+      double k = 1.0;
+      if (combine(o, e, k, so, se)) {
+        if (o + e > known_max) {
+          const double scale = known_max / (o + e);
+          o *= scale;
+          e *= scale;
+        }
+        c.o = static_cast<float>(o);
+        c.e = static_cast<float>(e);
       } else {
         k = 1.0;
+        c.o = c.before_o;
+        c.e = c.before_e;
       }
-      tile.conflict[i] = std::max(tile.conflict[i], static_cast<float>(k));
+      c.k = std::max(c.before_k, static_cast<float>(k));
     }
-    if (!tile.dirty) {
-      tile.dirty = true;
-      dirty_.push_back(tile.index);
-    }
-  }
-  touched_.clear();
+  });
 }
 
 std::optional<GridGeometry> OccupancyGrid::bounds() const {
@@ -305,7 +330,7 @@ std::pair<const OccupancyGrid::Tile*, std::size_t> OccupancyGrid::locate(CellInd
 
 double OccupancyGrid::log_odds(CellIndex c) const {
   const auto [tile, i] = locate(c);
-  return tile == nullptr ? 0.0 : tile->log_odds[i];
+  return tile == nullptr ? 0.0 : tile->bayes[i].log_odds;
 }
 
 double OccupancyGrid::probability(CellIndex c) const { return 1.0 - 1.0 / (1.0 + std::exp(log_odds(c))); }
@@ -313,8 +338,8 @@ double OccupancyGrid::probability(CellIndex c) const { return 1.0 - 1.0 / (1.0 +
 OccupancyGrid::Masses OccupancyGrid::masses(CellIndex c) const {
   const auto [tile, i] = locate(c);
   if (tile == nullptr) return {0.0, 0.0, 1.0};
-  const double o = tile->m_o[i];
-  const double e = tile->m_e[i];
+  const double o = tile->ds[i].o;
+  const double e = tile->ds[i].e;
   return {o, e, std::max(0.0, 1.0 - o - e)};
 }
 
@@ -324,7 +349,7 @@ double OccupancyGrid::plausibility(CellIndex c) const { return 1.0 - masses(c).e
 
 double OccupancyGrid::conflict(CellIndex c) const {
   const auto [tile, i] = locate(c);
-  return tile == nullptr ? 0.0 : tile->conflict[i];
+  return tile == nullptr ? 0.0 : tile->ds[i].k;
 }
 
 std::vector<TileIndex> OccupancyGrid::take_dirty_tiles() {
@@ -338,7 +363,15 @@ std::vector<TileIndex> OccupancyGrid::take_dirty_tiles() {
 std::optional<OccupancyGrid::TileData> OccupancyGrid::tile(TileIndex t) const {
   const Tile* tile = find_tile(t.x, t.y);
   if (tile == nullptr) return std::nullopt;
-  return TileData{tile->log_odds, tile->m_o, tile->m_e, tile->conflict};
+  const std::size_t n = tile->bayes.size();
+  TileData data{std::vector<float>(n), std::vector<float>(n), std::vector<float>(n), std::vector<float>(n)};
+  for (std::size_t i = 0; i < n; ++i) {
+    data.log_odds[i] = tile->bayes[i].log_odds;
+    data.m_occupied[i] = tile->ds[i].o;
+    data.m_empty[i] = tile->ds[i].e;
+    data.conflict[i] = tile->ds[i].k;
+  }
+  return data;
 }
 
 void OccupancyGrid::set_tile(TileIndex t, TileData data) {
@@ -367,11 +400,12 @@ void OccupancyGrid::set_tile(TileIndex t, TileData data) {
   Tile* tile = tile_for_write(t.x, t.y);
   const float lo = static_cast<float>(options_.log_odds_min);
   const float hi = static_cast<float>(options_.log_odds_max);
-  for (float& l : data.log_odds) l = std::clamp(l, lo, hi);
-  tile->log_odds = std::move(data.log_odds);
-  tile->m_o = std::move(data.m_occupied);
-  tile->m_e = std::move(data.m_empty);
-  tile->conflict = std::move(data.conflict);
+  for (std::size_t i = 0; i < n; ++i) {
+    tile->bayes[i].log_odds = std::clamp(data.log_odds[i], lo, hi);
+    tile->ds[i].o = data.m_occupied[i];
+    tile->ds[i].e = data.m_empty[i];
+    tile->ds[i].k = data.conflict[i];
+  }
 }
 
 std::vector<TileIndex> OccupancyGrid::tiles() const {
@@ -412,13 +446,13 @@ std::vector<float> OccupancyGrid::export_layer(Layer layer, const GridGeometry& 
       }
       if (tile == nullptr) continue;
       const auto i = static_cast<std::size_t>(((c.y & mask_) << shift_) | (c.x & mask_));
-      const float o = tile->m_o[i];
-      const float e = tile->m_e[i];
+      const float o = tile->ds[i].o;
+      const float e = tile->ds[i].e;
       const bool ds_unknown = o == 0.f && e == 0.f;
       float v = std::numeric_limits<float>::quiet_NaN();
       switch (layer) {
         case Layer::bayes_probability:
-          if (tile->log_odds[i] != 0.f) v = 1.f - 1.f / (1.f + std::exp(tile->log_odds[i]));
+          if (tile->bayes[i].log_odds != 0.f) v = 1.f - 1.f / (1.f + std::exp(tile->bayes[i].log_odds));
           break;
         case Layer::ds_belief:
           if (!ds_unknown) v = o;
@@ -427,7 +461,7 @@ std::vector<float> OccupancyGrid::export_layer(Layer layer, const GridGeometry& 
           if (!ds_unknown) v = 1.f - e;
           break;
         case Layer::ds_conflict:
-          if (!ds_unknown) v = tile->conflict[i];
+          if (!ds_unknown) v = tile->ds[i].k;
           break;
       }
       out[row * w + col] = v;

@@ -13,6 +13,9 @@
 #include "fusion/grid/sensor_model.h"
 
 namespace wm::fusion {
+namespace internal {
+struct PreparedBeam;
+}  // namespace internal
 
 /// Index of a square tile of tile_size_cells² cells: tile (x, y) holds cells [x·T, (x+1)·T) × [y·T, (y+1)·T).
 struct TileIndex {
@@ -26,6 +29,11 @@ struct GridOptions {
   std::int64_t tile_size_cells = 64;  // tile side [cells], a power of two in [4, 1024]
   double log_odds_min = -2.0;         // Bayes clamping (OctoMap: p 0.1192), < 0
   double log_odds_max = 3.5;          // Bayes clamping (OctoMap: p 0.971), > 0
+  /// DS counterpart of the clamping, [0, 1): after each combination into the map, a cell whose m(Θ) fell below this
+  /// is discounted back to it (m(O), m(E) scaled by (1 − this)/(m(O) + m(E))). Without it Dempster's rule makes a
+  /// cell seen free a few dozen times (m(E) → 1) deaf to every later hit — a door that closes, or a wall cell a
+  /// grazing ray once crossed. 0 disables it.
+  double ds_unknown_min = 0.05;
   SensorModelOptions sensor;
   /// Which models insert() updates; a disabled one keeps its layers unknown. Both by default; one alone is for
   /// measuring each model's cost (bench/grid_bench) or for a server that serves only one. At least one.
@@ -38,13 +46,16 @@ struct GridOptions {
 /// (0, 0); cells may have negative indices and storage grows in every direction in tiles created on first touch
 /// (nothing is ever copied to grow). Unknown cells: log-odds 0, m(Θ) = 1.
 ///
-/// Per scan, every cell is updated at most once per model (a scan stamp per cell, like Cartographer's update
-/// marker, collects what the scan's beams say about it first):
+/// Per scan, every cell is updated at most once per model. A scan stamp per cell (Cartographer's update marker)
+/// tells the first beam of the scan to reach the cell from the later ones; the cell keeps its value from before the
+/// scan and the scan's evidence so far, so a later beam re-derives the update instead of adding to it:
 ///  - Bayes: the strongest hit wins if any beam hit the cell (a hit beats a miss from another beam of the same
-///    scan), else the strongest miss; then
-///    l ← clamp(l + increment, log_odds_min, log_odds_max).
-///  - DS: the beams' masses for the cell are combined with Dempster's rule, then the result is combined into the
-///    map cell with Dempster's rule; that combination's conflict K feeds the conflict layer.
+///    scan), else the strongest miss; l = clamp(l_before + increment, log_odds_min, log_odds_max).
+///  - DS: the beams' masses for the cell are combined with Dempster's rule, the result is combined into the map
+///    cell as it was before the scan with Dempster's rule (and discounted to m(Θ) >= ds_unknown_min); that
+///    combination's conflict K feeds the conflict layer.
+/// Cost: one pass over the beams' cells, no per-beam allocation, tiles found through a small direct-mapped cache
+/// (a std::map lookup only when a beam enters a tile not seen lately).
 /// Invariant: the touched tiles span at most GridGeometry::kMaxSizeCells cells per side, so bounds() is valid.
 /// Not thread-safe for writers; const members may run concurrently with each other.
 class OccupancyGrid {
@@ -123,11 +134,9 @@ class OccupancyGrid {
   std::vector<float> export_layer(Layer layer, const GridGeometry& region) const;
 
  private:
+  struct BayesCell;
+  struct DsCell;
   struct Tile;
-  struct Touched {
-    Tile* tile;
-    std::uint32_t index;
-  };
   struct CacheEntry {
     std::int64_t x = 0;
     std::int64_t y = 0;
@@ -136,8 +145,7 @@ class OccupancyGrid {
 
   template <typename ScanT, typename MakeBeam>
   void insert_scan(const ScanT& scan, std::size_t beams, const MakeBeam& make_beam);
-  void walk(const Beam& beam);
-  void finish_scan();
+  void walk(const internal::PreparedBeam& beam);
   void check_growth(std::int64_t tx0, std::int64_t ty0, std::int64_t tx1, std::int64_t ty1) const;
   Tile* tile_for_write(std::int64_t tx, std::int64_t ty);
   const Tile* find_tile(std::int64_t tx, std::int64_t ty) const;
@@ -151,7 +159,6 @@ class OccupancyGrid {
   std::optional<std::array<std::int64_t, 4>> tile_bounds_;  // min x, min y, max x, max y
   std::array<CacheEntry, 64> cache_{};  // direct-mapped: slot (x & 7) | (y & 7) << 3
   std::uint32_t stamp_ = 0;
-  std::vector<Touched> touched_;
   std::vector<TileIndex> dirty_;
 };
 

@@ -55,6 +55,7 @@ std::optional<Beam> laser_beam(const LaserScan& scan, std::size_t i, const Senso
   beam->angle_rad = scan.sensor_pose.theta_rad + scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
   beam->half_width_rad = 0.5 * options.laser_beam_width_rad;
   beam->angular_sigma_rad = 0.25 * options.laser_beam_width_rad;  // the aperture is ±2σ_a
+  beam->free_on_axis_only = true;
   beam->sigma_m = scan.sigma_range_m;
   beam->p_hit = options.p_hit;
   beam->p_miss = options.p_miss;
@@ -94,10 +95,8 @@ std::vector<BeamCell> beam_cells(const Beam& beam, double resolution_m) {
   }
   const internal::PreparedBeam b = internal::prepare(beam, resolution_m);
   std::vector<BeamCell> cells;
-  internal::walk_cone(b.ox, b.oy, b.angle_rad, b.half_width_rad, b.walk_limit,
-                      [&](std::int64_t x, std::int64_t y, double d2) {
-                        const internal::CellClass cls = internal::classify(b, x, y, d2);
-                        if (cls == internal::CellClass::skip) return;
+  internal::for_each_beam_cell(b,
+                      [&](std::int64_t x, std::int64_t y, double d2, internal::CellClass cls) {
                         const double d = std::sqrt(d2);
                         const double g = internal::range_factor(b, cls, x, y, d);
                         const double w = internal::angular_weight(b, x, y, d2);

@@ -16,23 +16,24 @@ namespace wm::fusion {
 /// the Dempster–Shafer update. Every field is used; validate() checks them all once.
 ///
 /// Geometry of a beam: a cone (wedge) with its apex at the sensor, aperture laser_beam_width_rad (laser) or the
-/// scan's beam_width_rad (sonar), uniform in angle. A cell belongs to the beam when its square meets the wedge
-/// and its centre is within the walked distance; so a zero-width beam covers every cell its axis passes through
-/// (a supercover line), and a wide one every cell of the cone, near the apex too. Along the beam, with d the
-/// distance from the sensor to the cell centre, r the reading, σ the reading's standard deviation and
-/// h = max(σ, cell/2) the half-thickness of the return:
-///  - free:  d < r − h (all cells up to the clearing distance when there is no return);
+/// scan's beam_width_rad (sonar). A cell belongs to the cone when its square meets the wedge and its centre is
+/// within the walked distance, so a wide cone covers every cell it touches, near the apex too; a zero-width beam
+/// covers the DDA line of its axis (one cell per column, 8-connected). Along the beam, with d the distance from
+/// the sensor to the cell centre, r the reading, σ the reading's standard deviation and h = max(σ, cell/2) the
+/// half-thickness of the return:
+///  - free:  d < r − h (up to the clearing distance when there is no return);
 ///  - hit:   |d − r| <= h, and always the cell containing the return point (so quantisation never loses a
 ///           return); cells behind r + h are not touched.
+/// Sonar: free and hit over the whole cone, uniform in angle (Moravec–Elfes). Laser: the return over the whole
+/// cone, weighted by a Gaussian beam profile whose ±2σ_a is the aperture (weight w = exp(−δ²/(2σ_a²)), δ the angle
+/// between the axis and the cell centre less the cell's own angular half-size, so cells the axis runs through and
+/// the return cell get w = 1); free space only on the axis line. Why: with 2° beams at 1° or 0.5° spacing, a free
+/// cone reaches past an obliquely seen wall on its near side by up to r·tan(incidence)·aperture/2 and erodes it;
+/// on the Intel log (5 cm) that cut the share of returns within one cell of an occupied cell from 0.955 (thin
+/// rays) to 0.895, while hits over the cone with free space on the axis give 0.970.
 /// The occupancy in range is the paper's Gaussian P_o = f(r, σ): g(d) = exp(−(d − r)²/(2σ_e²)) with
 /// σ_e² = σ² + (cell/2)² (the range noise widened by half a cell, so the Gaussian is not sampled between cell
 /// centres), g = 1 at the return cell.
-/// In angle, the sonar is uniform over its cone (Moravec–Elfes). The laser has a Gaussian beam profile whose ±2σ_a
-/// is its aperture: a cell's evidence is weighted by w = exp(−δ²/(2σ_a²)), δ the angle between the axis and the
-/// cell centre less the cell's own angular half-size (so cells the axis runs through, and the return cell, get
-/// w = 1). Without it, an obliquely seen wall gets occupied cells up to r·tan(incidence)·aperture/2 in front of
-/// it from the arc's far side, and freed cells behind it from the cone's near side — each 2° beam overlapping its
-/// neighbours at 1° spacing — which the Bayes "hit wins" rule keeps and Dempster's rule turns into conflict.
 ///  - Bayes (Elfes): log-odds increment w·logit(p), p = 0.5 + (p_hit − 0.5)·g for hits, p = p_miss for free.
 ///  - Dempster–Shafer, eq. (1) discounted by w: P_o = occupied_mass·g, m(O) = w·P_o, m(E) = w·k·(1 − P_o) in front
 ///    of the reading (d <= r, or no return) and 0 behind it, m(Θ) = 1 − m(O) − m(E).
@@ -61,6 +62,7 @@ struct Beam {
   double angle_rad = 0.0;       // direction of the cone's axis, world [rad]
   double half_width_rad = 0.0;  // half the aperture [rad], [0, π/4)
   double angular_sigma_rad = 0.0;  // σ of a Gaussian beam profile in angle [rad]; 0: uniform over the cone
+  bool free_on_axis_only = false;  // free space only on the axis line; the cone only marks the return
   double range_m = 0.0;         // the reading when has_return, else the distance cleared [m]
   bool has_return = false;      // false: free space up to range_m, no hit
   double sigma_m = 0.0;         // range standard deviation of this reading [m]

@@ -56,6 +56,7 @@ TEST(OccupancyGridTest, RejectsInvalidOptions) {
   EXPECT_THROW(OccupancyGrid(bad([](auto& o) { o.log_odds_max = std::numeric_limits<double>::infinity(); })),
                std::invalid_argument);
   EXPECT_THROW(OccupancyGrid(bad([](auto& o) { o.sensor.p_hit = 0.3; })), std::invalid_argument);
+  EXPECT_THROW(OccupancyGrid(bad([](auto& o) { o.ds_unknown_min = 1.0; })), std::invalid_argument);
   EXPECT_THROW(OccupancyGrid(bad([](auto& o) {
                  o.update_bayes = false;
                  o.update_ds = false;
@@ -88,9 +89,11 @@ TEST(OccupancyGridTest, OneBeamUpdatesFreeCellsAndTheHit) {
   EXPECT_DOUBLE_EQ(grid.log_odds({21, 0}), 0.0);
   EXPECT_DOUBLE_EQ(grid.log_odds({5, 1}), 0.0);
   expect_masses(grid.masses({3, 0}), 0.0, 0.9);
-  expect_masses(grid.masses({20, 0}), 0.9, 0.09);
-  EXPECT_NEAR(grid.belief({20, 0}), 0.9, 1e-6);
-  EXPECT_NEAR(grid.plausibility({20, 0}), 0.91, 1e-6);
+  // The hit's (0.9, 0.09, 0.01) is discounted to m(Θ) = ds_unknown_min = 0.05.
+  const double s = 0.95 / 0.99;
+  expect_masses(grid.masses({20, 0}), 0.9 * s, 0.09 * s);
+  EXPECT_NEAR(grid.belief({20, 0}), 0.9 * s, 1e-6);
+  EXPECT_NEAR(grid.plausibility({20, 0}), 1.0 - 0.09 * s, 1e-6);
   EXPECT_NEAR(grid.plausibility({3, 0}), 0.1, 1e-6);
 }
 
@@ -108,8 +111,10 @@ TEST(OccupancyGridTest, BadReadingsAreSkippedPerBeamNotPerScan) {
 
 TEST(OccupancyGridTest, HitWinsOverMissInSameScan) {
   // Two beams along +x: one returns in cell 10, the other passes through it to cell 20.
+  GridOptions o = thin_options();
+  o.ds_unknown_min = 0.0;  // plain Dempster, to compare with dempster_combine
   for (const std::vector<double>& ranges : {std::vector<double>{0.51, 1.01}, std::vector<double>{1.01, 0.51}}) {
-    OccupancyGrid grid(thin_options());
+    OccupancyGrid grid(o);
     grid.insert(scan_at({0.025, 0.025, 0.0}, ranges));
     EXPECT_NEAR(grid.log_odds({10, 0}), logit(0.7), 1e-6);  // the hit only, not hit + miss
     EXPECT_NEAR(grid.log_odds({5, 0}), logit(0.4), 1e-6);   // freed once although two beams crossed it
@@ -131,7 +136,8 @@ TEST(OccupancyGridTest, RepeatedScansAccumulateAndClamp) {
   grid.insert(s);
   EXPECT_NEAR(grid.log_odds({20, 0}), 2 * logit(0.7), 1e-5);
   EXPECT_NEAR(grid.log_odds({3, 0}), 2 * logit(0.4), 1e-5);
-  expect_masses(grid.masses({3, 0}), 0.0, 0.99);  // (0, .9, .1) ⊕ (0, .9, .1)
+  // (0, .9, .1) ⊕ (0, .9, .1) = (0, .99, .01), discounted to m(Θ) = ds_unknown_min = 0.05.
+  expect_masses(grid.masses({3, 0}), 0.0, 0.95);
   for (int i = 0; i < 20; ++i) grid.insert(s);
   EXPECT_FLOAT_EQ(static_cast<float>(grid.log_odds({20, 0})), 3.5f);
   EXPECT_FLOAT_EQ(static_cast<float>(grid.log_odds({3, 0})), -2.0f);
@@ -141,7 +147,9 @@ TEST(OccupancyGridTest, RepeatedScansAccumulateAndClamp) {
 }
 
 TEST(OccupancyGridTest, ConflictLayerKeepsTheLargestConflict) {
-  OccupancyGrid grid(thin_options());
+  GridOptions o = thin_options();
+  o.ds_unknown_min = 0.0;  // plain Dempster, to check against the hand computation
+  OccupancyGrid grid(o);
   grid.insert(scan_at({0.025, 0.025, 0.0}, {2.01}));  // cell 20 free: (0, 0.9)
   expect_masses(grid.masses({20, 0}), 0.0, 0.9);
   grid.insert(scan_at({0.025, 0.025, 0.0}, {1.01}));  // now hit: (0.9, 0.09)
@@ -151,6 +159,27 @@ TEST(OccupancyGridTest, ConflictLayerKeepsTheLargestConflict) {
   grid.insert(scan_at({0.025, 0.025, 0.0}, {2.01}));  // a smaller conflict does not lower the layer
   EXPECT_NEAR(grid.conflict({20, 0}), 0.81, 1e-6);
   EXPECT_DOUBLE_EQ(grid.conflict({3, 0}), 0.0);
+}
+
+TEST(OccupancyGridTest, DsCellsStayRevisableAfterLongFreeEvidence) {
+  const LaserScan through = scan_at({0.025, 0.025, 0.0}, {2.01});  // cell 20 free
+  const LaserScan onto = scan_at({0.025, 0.025, 0.0}, {1.01});     // cell 20 hit
+  GridOptions plain = thin_options();
+  plain.ds_unknown_min = 0.0;
+  OccupancyGrid discounted(thin_options()), stubborn(plain);
+  for (int i = 0; i < 30; ++i) {
+    discounted.insert(through);
+    stubborn.insert(through);
+  }
+  expect_masses(discounted.masses({20, 0}), 0.0, 0.95);
+  for (int i = 0; i < 3; ++i) {
+    discounted.insert(onto);
+    stubborn.insert(onto);
+  }
+  EXPECT_GT(discounted.belief({20, 0}), 0.5);  // the wall that appeared is seen
+  EXPECT_LT(stubborn.belief({20, 0}), 0.01);   // plain Dempster: m(E) ≈ 1 outvotes any number of hits
+  // The discount keeps m(Θ) at the floor, never below.
+  EXPECT_NEAR(discounted.masses({20, 0}).unknown, 0.05, 1e-6);
 }
 
 TEST(DempsterTest, CombinesAWorkedExample) {
@@ -406,7 +435,7 @@ TEST(OccupancyGridTest, ExportLayerIsRowMajorFromTheLowerLeftWithNanForUnknown) 
   const auto belief = grid.export_layer(OccupancyGrid::Layer::ds_belief, region);
   const auto plaus = grid.export_layer(OccupancyGrid::Layer::ds_plausibility, region);
   const auto conflict = grid.export_layer(OccupancyGrid::Layer::ds_conflict, region);
-  EXPECT_NEAR(belief[4 * 3 + 1], 0.9, 1e-6);
+  EXPECT_NEAR(belief[4 * 3 + 1], 0.9 * 0.95 / 0.99, 1e-6);  // discounted to m(Θ) = 0.05
   EXPECT_NEAR(plaus[1 * 3 + 1], 0.1, 1e-6);
   EXPECT_FLOAT_EQ(conflict[1 * 3 + 1], 0.f);
   EXPECT_TRUE(std::isnan(conflict[0]));

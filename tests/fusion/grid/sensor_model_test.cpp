@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <random>
 #include <set>
 #include <stdexcept>
 #include <utility>
@@ -157,16 +158,43 @@ TEST(SensorModelTest, LaserBeamAnglesFollowPoseAndIncrement) {
   EXPECT_EQ(b->origin_m, Eigen::Vector2d(1.0, 2.0));
 }
 
-// From a cell corner, a 2° beam along +x starts between rows −1 and 0 and covers both.
-TEST(SensorModelTest, WideBeamFromACellCornerCoversBothRows) {
+// From a cell corner, a 2° laser beam along +x: free space on its axis line (row 0), the return across the cone
+// (both rows it starts between).
+TEST(SensorModelTest, WideLaserBeamFreesItsAxisAndMarksTheReturnAcrossTheCone) {
   const auto cells = cells_of(one_beam({0.0, 0.0, 0.0}, 1.01), SensorModelOptions{});
   std::set<std::pair<std::int64_t, std::int64_t>> expected_free;
-  for (std::int64_t x = 0; x < 20; ++x) {
-    expected_free.insert({x, -1});
-    expected_free.insert({x, 0});
-  }
+  for (std::int64_t x = 0; x < 20; ++x) expected_free.insert({x, 0});
   EXPECT_EQ(keys(cells, false), expected_free);
   EXPECT_EQ(keys(cells, true), (std::set<std::pair<std::int64_t, std::int64_t>>{{20, -1}, {20, 0}}));
+  // The return cell: g = 1. Its neighbour across the axis (centre half a cell off it: angular weight 1) has the
+  // Gaussian in range, d = √(20.5² + 0.5²) cells against r = 20.2, σ_e² = 0.29 cells².
+  const double d = std::sqrt(20.5 * 20.5 + 0.25);
+  for (const BeamCell& c : cells) {
+    if (!c.hit) continue;
+    EXPECT_NEAR(c.m_occupied, 0.9 * (c.cell.y == 0 ? 1.0 : std::exp(-(d - 20.2) * (d - 20.2) / (2 * 0.29))), 1e-9);
+  }
+}
+
+// Far out, the laser's return arc spans the cone but fades with the beam profile: full on the axis, about
+// exp(−2) = 0.135 at the cone's edge.
+TEST(SensorModelTest, WideLaserReturnFadesTowardsTheConeEdge) {
+  const auto cells = cells_of(one_beam({0.025, 0.025, 0.0}, 5.01), SensorModelOptions{});
+  double edge_weight = 1.0;
+  std::size_t hits = 0;
+  for (const BeamCell& c : cells) {
+    if (!c.hit) {
+      EXPECT_EQ(c.cell.y, 0) << "free space only on the axis";
+      continue;
+    }
+    ++hits;
+    if (c.cell.y == 0) {
+      EXPECT_NEAR(c.bayes_log_odds, logit(0.5 + 0.2 * c.m_occupied / 0.9), 1e-6);  // on the axis: weight 1
+    }
+    if (std::abs(c.cell.y) == 1) edge_weight = std::min(edge_weight, c.m_occupied / 0.9);
+    EXPECT_LE(std::abs(c.cell.y), 2);  // ±1° at 5 m is ±0.087 m: rows −2 … 1 around the axis row
+  }
+  EXPECT_GE(hits, 4u);
+  EXPECT_LT(edge_weight, 0.8);
 }
 
 // Angular span of a cell square as seen from p (p outside the square), relative to `axis` [rad].
@@ -182,13 +210,23 @@ std::pair<double, double> angular_span(double x0, double y0, double res, Eigen::
   return {lo, hi};
 }
 
-// The cone, checked by brute force against every cell around it: cells whose centres lie inside the cone are
-// covered, and every covered cell meets the cone.
-TEST(SensorModelTest, WideBeamCoversExactlyTheCellsOfItsCone) {
+// A uniform cone (a sonar of 10°), checked by brute force against every cell around it: cells whose centres lie
+// inside the cone are covered, and every covered cell meets the cone.
+TEST(SensorModelTest, WideConeCoversExactlyTheCellsOfItsCone) {
+  constexpr double kHalf = 5.0 * kDeg;
   for (const double axis : {0.0, 0.3, 0.7854, 1.2, 2.0, 3.0, -2.5, -0.9}) {
     const Eigen::Vector2d p(0.013, -0.031);
     const double reading = 4.0;
-    const auto cells = cells_of(one_beam({p.x(), p.y(), axis}, reading), SensorModelOptions{});
+    SonarScan s;
+    s.sensor_pose = {p.x(), p.y(), axis};
+    s.angles_rad = {0.0};
+    s.ranges_m = {reading};
+    s.beam_width_rad = 2 * kHalf;
+    s.range_max_m = 6.0;
+    s.sigma_range_m = 0.0;
+    SensorModelOptions o;
+    o.sonar_sigma_per_range = 0.0;  // h = half a cell
+    const auto cells = beam_cells(*sonar_beam(s, 0, o), kRes);
     std::set<std::pair<std::int64_t, std::int64_t>> covered;
     for (const BeamCell& c : cells) {
       EXPECT_TRUE(covered.insert({c.cell.x, c.cell.y}).second) << "cell visited twice";
@@ -197,9 +235,9 @@ TEST(SensorModelTest, WideBeamCoversExactlyTheCellsOfItsCone) {
       const bool contains_sensor = p.x() >= x0 && p.x() < x0 + kRes && p.y() >= y0 && p.y() < y0 + kRes;
       if (contains_sensor) continue;
       const auto [lo, hi] = angular_span(x0, y0, kRes, p, axis);
-      EXPECT_TRUE(lo <= 1.0 * kDeg + 1e-9 && hi >= -1.0 * kDeg - 1e-9)
+      EXPECT_TRUE(lo <= kHalf + 1e-9 && hi >= -kHalf - 1e-9)
           << "axis " << axis << ": cell " << c.cell.x << "," << c.cell.y << " is outside the cone";
-      EXPECT_LE(c.distance_m, reading + 0.5 * kRes + 0.0354);
+      EXPECT_LE(c.distance_m, reading + 0.0354 + 1e-9);
     }
     const double free_limit = reading - 0.5 * kRes;  // h = max(σ, cell/2) = cell/2
     for (std::int64_t x = -100; x <= 100; ++x) {
@@ -207,13 +245,52 @@ TEST(SensorModelTest, WideBeamCoversExactlyTheCellsOfItsCone) {
         const Eigen::Vector2d c((static_cast<double>(x) + 0.5) * kRes, (static_cast<double>(y) + 0.5) * kRes);
         const double d = (c - p).norm();
         const double off = std::remainder(std::atan2(c.y() - p.y(), c.x() - p.x()) - axis, 2 * std::numbers::pi);
-        if (d < free_limit && std::abs(off) < 1.0 * kDeg) {
+        if (d < free_limit && std::abs(off) < kHalf) {
           EXPECT_TRUE(covered.count({x, y})) << "axis " << axis << ": cell " << x << "," << y << " missed";
         }
       }
     }
-    // At 4 m the 2° cone is 14 cm wide: the return arc spans several cells, not one.
-    EXPECT_GE(keys(cells, true).size(), 3u) << "axis " << axis;
+    // At 4 m the 10° cone is 0.7 m wide: the return arc spans about 14 cells.
+    EXPECT_GE(keys(cells, true).size(), 12u) << "axis " << axis;
+  }
+}
+
+// Thin beams in many directions: a connected line of cells from the sensor's cell, each once, ending in a hit on
+// the cell that holds the return point.
+TEST(SensorModelTest, ThinBeamsAreConnectedLinesEndingInTheReturnCell) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> pos(-1.0, 1.0), angle(-std::numbers::pi, std::numbers::pi), range(0.05, 6.0);
+  for (int n = 0; n < 500; ++n) {
+    const Pose2D pose{pos(rng), pos(rng), angle(rng)};
+    const double r = range(rng);
+    const auto cells = cells_of(one_beam(pose, r), thin());
+    ASSERT_FALSE(cells.empty());
+    const CellIndex start{static_cast<std::int64_t>(std::floor(pose.x_m / kRes)),
+                          static_cast<std::int64_t>(std::floor(pose.y_m / kRes))};
+    EXPECT_EQ(cells.front().cell, start);
+    const CellIndex end{static_cast<std::int64_t>(std::floor((pose.x_m + r * std::cos(pose.theta_rad)) / kRes)),
+                        static_cast<std::int64_t>(std::floor((pose.y_m + r * std::sin(pose.theta_rad)) / kRes))};
+    bool end_hit = false;
+    std::set<std::pair<std::int64_t, std::int64_t>> seen;
+    for (const BeamCell& c : cells) {
+      EXPECT_TRUE(seen.insert({c.cell.x, c.cell.y}).second);
+      end_hit = end_hit || (c.hit && c.cell == end);
+      EXPECT_LE(c.distance_m, r + 0.0354 + 1e-9);
+    }
+    // 8-connected: a flood fill from the sensor's cell reaches every cell.
+    std::set<std::pair<std::int64_t, std::int64_t>> reached{{start.x, start.y}};
+    std::vector<std::pair<std::int64_t, std::int64_t>> todo{{start.x, start.y}};
+    while (!todo.empty()) {
+      const auto [x, y] = todo.back();
+      todo.pop_back();
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        for (std::int64_t dy = -1; dy <= 1; ++dy) {
+          if (seen.count({x + dx, y + dy}) && reached.insert({x + dx, y + dy}).second) todo.push_back({x + dx, y + dy});
+        }
+      }
+    }
+    EXPECT_EQ(reached.size(), seen.size()) << "pose " << pose.x_m << "," << pose.y_m << "," << pose.theta_rad;
+    EXPECT_TRUE(end_hit) << "pose " << pose.x_m << "," << pose.y_m << "," << pose.theta_rad << " r " << r;
   }
 }
 

@@ -1,0 +1,186 @@
+// Laser scans per second into the occupancy grids (fusion/grid) from a real log, side by side in one run with
+// OctoMap inserting the same scans as point clouds and with a raw walk over the same beams' cells (the
+// memory-touch limit). Run: build/bin/grid_bench (after cmake -DWM_BUILD_BENCH=ON); another CARMEN log with
+// WM_GRID_BENCH_LOG=path. Each iteration builds a fresh map from all scans of the log (loaded once, before timing).
+#include <benchmark/benchmark.h>
+#include <octomap/octomap.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bench/support/ratio_reporter.h"
+#include "clients/logs/carmen_log_reader.h"
+#include "fusion/grid/internal/beam_walk.h"
+#include "fusion/grid/occupancy_grid.h"
+
+namespace {
+
+using wm::fusion::GridOptions;
+using wm::fusion::LaserScan;
+
+constexpr double kResolutionM = 0.05;
+
+const std::vector<LaserScan>& scans() {
+  static const std::vector<LaserScan> all = [] {
+    const char* env = std::getenv("WM_GRID_BENCH_LOG");
+    const std::string path = env != nullptr ? env : WM_SHARED_DATA_DIR "/carmen/intel-corrected.log.gz";
+    wm::logs::CarmenLogReader reader(path);
+    std::vector<LaserScan> out;
+    while (auto s = reader.next()) out.push_back(std::move(s->scan));
+    std::printf("%s: %zu scans\n", path.c_str(), out.size());
+    return out;
+  }();
+  return all;
+}
+
+GridOptions options(double beam_width_deg, bool bayes, bool ds) {
+  GridOptions o;
+  o.resolution_m = kResolutionM;
+  o.sensor.laser_beam_width_rad = beam_width_deg * std::numbers::pi / 180.0;
+  o.update_bayes = bayes;
+  o.update_ds = ds;
+  return o;
+}
+
+// Cell visits of one pass over the log (the same for the raw walk and the grids).
+std::size_t cells_per_pass(const GridOptions& o) {
+  std::size_t cells = 0;
+  for (const LaserScan& s : scans()) {
+    for (std::size_t i = 0; i < s.ranges_m.size(); ++i) {
+      if (const auto beam = wm::fusion::laser_beam(s, i, o.sensor)) {
+        cells += wm::fusion::beam_cells(*beam, o.resolution_m).size();
+      }
+    }
+  }
+  return cells;
+}
+
+void set_counters(benchmark::State& state, std::size_t cells) {
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * scans().size()));
+  state.counters["cells/s"] = benchmark::Counter(static_cast<double>(cells) * static_cast<double>(state.iterations()),
+                                                 benchmark::Counter::kIsRate);
+}
+
+void bm_grid(benchmark::State& state, GridOptions o) {
+  const std::size_t cells = cells_per_pass(o);
+  for (auto _ : state) {
+    wm::fusion::OccupancyGrid grid(o);
+    for (const LaserScan& s : scans()) grid.insert(s);
+    benchmark::DoNotOptimize(grid.log_odds({0, 0}));
+  }
+  set_counters(state, cells);
+}
+
+// The raw baseline: the same walk over the same cells (same beams, same cone, same classification), each visit
+// only adding a constant to a float in one dense array covering the whole log — no tiles, no scan stamps, no
+// per-scan bookkeeping, no sensor model. What touching those cells costs at least.
+void bm_raw_walk(benchmark::State& state, GridOptions o) {
+  const std::size_t cells = cells_per_pass(o);
+  // Dense bounds: every sensor position ± the walked distance.
+  double x0 = std::numeric_limits<double>::max(), y0 = x0, x1 = -x0, y1 = -x0;
+  for (const LaserScan& s : scans()) {
+    x0 = std::min(x0, s.sensor_pose.x_m);
+    y0 = std::min(y0, s.sensor_pose.y_m);
+    x1 = std::max(x1, s.sensor_pose.x_m);
+    y1 = std::max(y1, s.sensor_pose.y_m);
+  }
+  const double margin = o.sensor.max_usable_range_m + 1.0;
+  const auto cx0 = static_cast<std::int64_t>(std::floor((x0 - margin) / kResolutionM));
+  const auto cy0 = static_cast<std::int64_t>(std::floor((y0 - margin) / kResolutionM));
+  const auto width = static_cast<std::int64_t>(std::ceil((x1 + margin) / kResolutionM)) - cx0;
+  const auto height = static_cast<std::int64_t>(std::ceil((y1 + margin) / kResolutionM)) - cy0;
+  for (auto _ : state) {
+    std::vector<float> grid(static_cast<std::size_t>(width * height), 0.f);
+    for (const LaserScan& s : scans()) {
+      for (std::size_t i = 0; i < s.ranges_m.size(); ++i) {
+        const auto beam = wm::fusion::laser_beam(s, i, o.sensor);
+        if (!beam) continue;
+        const auto b = wm::fusion::internal::prepare(*beam, kResolutionM);
+        wm::fusion::internal::for_each_beam_cell(
+            b, [&](std::int64_t x, std::int64_t y, double, wm::fusion::internal::CellClass cls) {
+              grid[static_cast<std::size_t>((y - cy0) * width + (x - cx0))] +=
+                  cls == wm::fusion::internal::CellClass::hit ? 0.85f : -0.4f;
+            });
+      }
+    }
+    benchmark::DoNotOptimize(grid.data());
+  }
+  set_counters(state, cells);
+}
+
+// OctoMap 1.9 at the same resolution: each scan as a point cloud in the z = 0 plane, inserted from the sensor
+// origin with maxrange = the grids' usable range (beyond it: free up to maxrange, no hit — the grids' rule).
+// "No return" readings become far points, so they clear up to maxrange as in the grids.
+void bm_octomap(benchmark::State& state) {
+  const GridOptions o = options(0.0, true, false);
+  std::vector<std::pair<octomap::point3d, octomap::Pointcloud>> clouds;
+  for (const LaserScan& s : scans()) {
+    octomap::Pointcloud cloud;
+    for (std::size_t i = 0; i < s.ranges_m.size(); ++i) {
+      const double r = s.ranges_m[i];
+      if (!(r >= s.range_min_m)) continue;  // NaN, negative, too short: ignored as in the grids
+      const double reach = r >= s.range_max_m ? 2.0 * o.sensor.max_usable_range_m : r;
+      const double a = s.sensor_pose.theta_rad + s.angle_min_rad + static_cast<double>(i) * s.angle_increment_rad;
+      cloud.push_back(static_cast<float>(s.sensor_pose.x_m + reach * std::cos(a)),
+                      static_cast<float>(s.sensor_pose.y_m + reach * std::sin(a)), 0.f);
+    }
+    clouds.emplace_back(
+        octomap::point3d(static_cast<float>(s.sensor_pose.x_m), static_cast<float>(s.sensor_pose.y_m), 0.f),
+        std::move(cloud));
+  }
+  for (auto _ : state) {
+    octomap::OcTree tree(kResolutionM);
+    for (const auto& [origin, cloud] : clouds) tree.insertPointCloud(cloud, origin, o.sensor.max_usable_range_m);
+    benchmark::DoNotOptimize(tree.size());
+  }
+  set_counters(state, 0);
+  state.counters.erase("cells/s");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  scans();  // load before timing
+  for (const double width : {2.0, 0.0}) {
+    const std::string w = width > 0.0 ? "/2deg" : "/thin";
+    benchmark::RegisterBenchmark(("raw_walk" + w).c_str(), bm_raw_walk, options(width, true, false))
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("bayes" + w).c_str(), bm_grid, options(width, true, false))
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("ds" + w).c_str(), bm_grid, options(width, false, true))
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("bayes+ds" + w).c_str(), bm_grid, options(width, true, true))
+        ->Unit(benchmark::kMillisecond);
+  }
+  benchmark::RegisterBenchmark("octomap", bm_octomap)->Unit(benchmark::kMillisecond);
+
+  wm::bench::RatioReporter reporter({{"vs OctoMap", "octomap"}, {"vs raw walk (2deg)", "raw_walk/2deg"},
+                                     {"vs Bayes (2deg)", "bayes/2deg"}});
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  benchmark::Shutdown();
+
+  // The issue's targets, measured in this run.
+  const auto ratio = [&](const char* a, const char* b) {
+    const double rb = reporter.rate(b);
+    return rb > 0.0 ? reporter.rate(a) / rb : 0.0;
+  };
+  std::printf("\nTargets (issue 3), scans/s ratios of this run:\n");
+  for (const char* w : {"/2deg", "/thin"}) {
+    const std::string bayes = std::string("bayes") + w, raw = std::string("raw_walk") + w, ds = std::string("ds") + w;
+    std::printf("  %-6s Bayes / OctoMap  = %7.2f  (target >= 30)\n", w + 1, ratio(bayes.c_str(), "octomap"));
+    std::printf("  %-6s Bayes / raw walk = %7.2f  (target >= 0.5, i.e. within 2x)\n", w + 1,
+                ratio(bayes.c_str(), raw.c_str()));
+    std::printf("  %-6s DS / Bayes       = %7.2f  (target >= 0.5, i.e. within 2x)\n", w + 1,
+                ratio(ds.c_str(), bayes.c_str()));
+  }
+  return 0;
+}
