@@ -1,23 +1,37 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds wmd and wmctl, and starts the server on http://127.0.0.1:8080 with a
-# demo floor plan: the real walls of UT Austin's GDC floor 1 (AMRL vector map, BSD) plus two tables.
+# demo floor plan (the real walls of UT Austin's GDC floor 1, AMRL vector map, BSD, plus two tables) and a
+# real laser log replaying live beside it (the Intel Research Lab, CARMEN, placed 100 m east: there is no
+# public log of the GDC building). Open the URL it prints: the web viewer follows the map as it grows.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build build -j"$(nproc)" --target wmd wmctl
 port=${WM_PORT:-8080}
+url="http://127.0.0.1:$port"
 db=build/demo.db
 rm -f "$db" "$db-wal" "$db-shm"
 python3 clients/demo/make_demo_plan.py clients/demo/data/GDC1.vectormap.json > build/demo-plan.json
+log=tests/data/carmen/intel-corrected-excerpt.log.gz
+[ -f ../shared/data/carmen/intel-corrected.log.gz ] && log=../shared/data/carmen/intel-corrected.log.gz
+
+build/bin/wmd --db "$db" --port "$port" --floorplan build/demo-plan.json --sync normal &
+wmd_pid=$!
+trap 'kill $wmd_pid 2>/dev/null; wait $wmd_pid 2>/dev/null' EXIT INT TERM
+for _ in $(seq 100); do curl -sf "$url/api/v1/health" >/dev/null && break; sleep 0.1; done
+build/bin/wmctl --server "$url" primitives post clients/demo/primitives.json >/dev/null
 cat <<TXT
 
-worldmodel demo — open or try, while it runs (Ctrl-C stops it):
-  curl http://127.0.0.1:$port/api/v1/health
-  build/bin/wmctl primitives post clients/demo/primitives.json     # one decision of each kind
-  build/bin/wmctl map
-  build/bin/wmctl decisions
-  curl http://127.0.0.1:$port/api/v1/map
+worldmodel demo — open $url/ in a browser (the live viewer). While it runs (Ctrl-C stops it):
+  build/bin/wmctl decisions                      # the decision log, one rule and explanation each
+  build/bin/wmctl explain table-1                # the history of the table the demo moved
+  build/bin/wmctl query "attribute(O, not_deformable)"
+  build/bin/wmctl grid --out /tmp/map.pgm        # the occupancy grid as a ROS map_server pair
+  curl $url/api/v1/map
 
+replaying $log at 25 scans/s ...
 TXT
-exec build/bin/wmd --db "$db" --port "$port" --floorplan build/demo-plan.json
+build/bin/wmctl --server "$url" replay "$log" --rate 25 --offset 100,0 --source intel-lab || true
+echo "replay finished; the server keeps running (Ctrl-C stops it)"
+wait $wmd_pid

@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <thread>
 #include <cmath>
 #include <cstdlib>
 #include <unistd.h>
@@ -44,7 +45,8 @@ const char* kUsage =
     "  rules reload                   reload the rules directory now (atomic; needs the token if set)\n"
     "  rules dry-run FILE [--last N]  re-decide the last N decisions with FILE in place of its namesake\n"
     "  query GOAL [--max N]           read-only Prolog query against the knowledge base\n"
-    "  replay LOG [--limit N] [--every K] [--source NAME] [--range-max M] [--pose-sigma XY,THETA]\n"
+    "  replay LOG [--limit N] [--every K] [--rate HZ] [--offset DX,DY] [--source NAME] [--range-max M]\n"
+    "             [--pose-sigma XY,THETA]\n"
     "                                 post the laser scans of a CARMEN log (FLASER / ROBOTLASER1, plain or .gz)\n"
     "                                 in line order, with a progress bar and a summary\n"
     "  grid --out FILE.pgm [--layer L] [--bbox x0,y0,x1,y1]\n"
@@ -224,6 +226,7 @@ int replay(const wm::client::HttpClient& client, const std::string& token, const
            bool raw_json) {
   std::size_t limit = 0, every = 1;
   double sigma_xy = 0.03, sigma_theta = 0.0087;  // 3 cm, 0.5°
+  double rate_hz = 0, offset_x = 0, offset_y = 0;
   std::string source = std::filesystem::path(words[1]).stem().string();
   wm::logs::CarmenReaderOptions options;
   for (std::size_t i = 2; i < words.size(); i += 2) {
@@ -231,7 +234,15 @@ int replay(const wm::client::HttpClient& client, const std::string& token, const
     if (words[i] == "--limit") limit = static_cast<std::size_t>(parse_count(words[i + 1]));
     else if (words[i] == "--every") every = static_cast<std::size_t>(parse_count(words[i + 1]));
     else if (words[i] == "--source") source = words[i + 1];
-    else if (words[i] == "--pose-sigma") {
+    else if (words[i] == "--rate") {
+      char* end = nullptr;
+      rate_hz = std::strtod(words[i + 1].c_str(), &end);
+      if (*end != '\0' || !(rate_hz > 0)) throw UsageError("--rate: expected scans per second > 0");
+    } else if (words[i] == "--offset") {
+      if (std::sscanf(words[i + 1].c_str(), "%lf,%lf", &offset_x, &offset_y) != 2 || !std::isfinite(offset_x) ||
+          !std::isfinite(offset_y))
+        throw UsageError("--offset: expected DX,DY in metres");
+    } else if (words[i] == "--pose-sigma") {
       if (std::sscanf(words[i + 1].c_str(), "%lf,%lf", &sigma_xy, &sigma_theta) != 2 || !(sigma_xy >= 0) || !(sigma_theta >= 0))
         throw UsageError("--pose-sigma: expected SIGMA_XY,SIGMA_THETA in metres and radians, e.g. 0.03,0.0087");
     } else if (words[i] == "--range-max") {
@@ -239,7 +250,7 @@ int replay(const wm::client::HttpClient& client, const std::string& token, const
       options.flaser_range_max_m = std::strtod(words[i + 1].c_str(), &end);
       if (*end != '\0' || !(options.flaser_range_max_m > 0)) throw UsageError("--range-max: expected metres > 0");
     } else {
-      throw UsageError("replay takes --limit, --every, --source, --range-max, --pose-sigma");
+      throw UsageError("replay takes --limit, --every, --rate, --offset, --source, --range-max, --pose-sigma");
     }
   }
   wm::logs::CarmenLogReader reader(words[1], options);
@@ -249,6 +260,9 @@ int replay(const wm::client::HttpClient& client, const std::string& token, const
   const bool progress_bar = !raw_json && ::isatty(STDERR_FILENO);
   while (auto scan = reader.next()) {
     if (read++ % every != 0) continue;
+    scan->scan.sensor_pose.x_m += offset_x;  // e.g. to place a log beside a floor plan it does not belong to
+    scan->scan.sensor_pose.y_m += offset_y;
+    if (rate_hz > 0) std::this_thread::sleep_until(start + std::chrono::duration<double>(static_cast<double>(posted) / rate_hz));
     parse_answer(client.request("POST", "/api/v1/scans", scan_json(scan->scan, source, scan->timestamp_s, sigma_xy, sigma_theta).dump(),
                                 "application/json", token));
     ++posted;
