@@ -13,7 +13,7 @@ packages=(
 for extra in "$@"; do
   case "$extra" in
     bench) packages+=(liboctomap-dev libopencv-dev libopencv-contrib-dev) ;;
-    web) packages+=(chromium nodejs npm) ;;
+    web) packages+=(chromium nodejs) ;;  # npm comes with nodejs (Debian or NodeSource)
     *) echo "setup: unknown extra '$extra' (bench, web)" >&2; exit 2 ;;
   esac
 done

@@ -3,7 +3,7 @@
 # every test (GoogleTest suites, plunit rule tests, end-to-end tests against the real wmd) through ctest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh web
 jobs=$(nproc)
 
 echo "== fusion alone (Eigen only)"

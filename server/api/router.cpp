@@ -260,8 +260,15 @@ std::optional<fusion::GridGeometry> grid_region(const Target& t, Services& s, st
 
 // ROS map_server convention: a pixel's occupancy is (255 - value) / 255 with negate 0; unknown is 205
 // (between free_thresh 0.196 and occupied_thresh 0.65, so it reads as unknown).
-std::string pgm_image(const std::vector<float>& values, std::int64_t width, std::int64_t height) {
-  std::string out = "P5\n# worldmodel occupancy grid\n" + std::to_string(width) + " " + std::to_string(height) + "\n255\n";
+std::string pgm_image(const std::vector<float>& values, const fusion::GridGeometry& region) {
+  const auto width = region.width(), height = region.height();
+  // The comment says where the raster lies, so one request is enough (map_server takes it from the YAML).
+  std::ostringstream head;
+  head.precision(10);
+  head << "P5\n# worldmodel occupancy grid; origin " << region.origin_m().x() << " " << region.origin_m().y()
+         << " resolution " << region.resolution_m() << "\n"
+         << width << " " << height << "\n255\n";
+  std::string out = head.str();
   const auto header = out.size();
   out.resize(header + static_cast<std::size_t>(width * height));
   for (std::int64_t row = 0; row < height; ++row) {
@@ -293,7 +300,7 @@ Response get_grid(const Request& req, const Target& t, Services& s) {
   const auto region = grid_region(t, s, format == "json" ? 4'000'000 : 64'000'000);
   if (!region) throw ApiError(404, "empty_grid", "no scan has reached the grid yet; POST /api/v1/scans first");
   const auto values = s.world.read_grid([&](const fusion::OccupancyGrid& g) { return g.export_layer(layer, *region); });
-  if (format == "pgm") return raw_response(req, pgm_image(values, region->width(), region->height()), "image/x-portable-graymap");
+  if (format == "pgm") return raw_response(req, pgm_image(values, *region), "image/x-portable-graymap");
   json data = json::array();
   for (const float v : values) data.push_back(std::isnan(v) ? json(nullptr) : json(std::round(v * 1e4) / 1e4));
   return json_response(req, {{"layer", t.query.count("layer") ? t.query.at("layer") : "bayes"},
@@ -344,8 +351,9 @@ Response get_static(const Request& req, const Services& s, const std::string& re
   return res;
 }
 
-Response get_history(const Request& req, Services& s, const std::string& id, bool exists) {
-  const auto rows = s.world.store().decisions(0, 10000, id);
+Response get_history(const Request& req, Services& s, const std::string& id, bool exists, bool is_object) {
+  // An object's history includes the decisions about each of its edges ("table-1/2").
+  const auto rows = is_object ? s.world.store().object_decisions(id, 10000) : s.world.store().decisions(0, 10000, id);
   if (rows.empty() && !exists) throw ApiError(404, "not_found", "no element or object '" + id + "' and no decision about it");
   json list = json::array();
   for (const auto& d : rows) list.push_back(json_codec::decision_json(d));
@@ -592,6 +600,18 @@ Response route(const Request& req, Services& s) {
     if (method != http::verb::get) method_not_allowed("GET");
     return get_grid(req, t, s);
   }
+  if (path == "/api/v1/grid/extract") {
+    if (method != http::verb::post) method_not_allowed("POST");
+    require_token(req, s);
+    const auto outcome = s.world.extract_grid_lines();
+    json answer = {{"segments", 0}, {"observation", nullptr}, {"decisions", json::array()}};
+    if (outcome) {
+      answer["segments"] = outcome->decisions.size();
+      answer["observation"] = outcome->seq;
+      for (const auto& d : outcome->decisions) answer["decisions"].push_back(json_codec::decision_json(d));
+    }
+    return json_response(req, answer);
+  }
   if (path == "/api/v1/grid/map.yaml") {
     if (method != http::verb::get) method_not_allowed("GET");
     return get_map_yaml(req, t, s);
@@ -626,7 +646,7 @@ Response route(const Request& req, Services& s) {
     const auto id = path.substr(prefix_size, path.size() - prefix_size - history_suffix.size());
     const auto snap = s.world.snapshot();
     const bool exists = is_object ? snap->find_object(id) != nullptr : snap->find_element(id) != nullptr;
-    return get_history(req, s, id, exists);
+    return get_history(req, s, id, exists, is_object);
   }
   if (path.rfind(objects_prefix, 0) == 0) {
     if (method != http::verb::get) method_not_allowed("GET");

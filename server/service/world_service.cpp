@@ -137,6 +137,27 @@ WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, 
       const auto& ranges = std::visit([](const auto& s) -> const std::vector<double>& { return s.ranges_m; }, scan.scan);
       const double range_max = std::visit([](const auto& s) { return s.range_max_m; }, scan.scan);
       nlohmann::json points = nlohmann::json::array();
+      // The grid changed around the pose and along every beam, up to its return or the grid's usable range.
+      const double reach = std::min(range_max, options_.grid.sensor.max_usable_range_m);
+      double box[4] = {pose.x_m, pose.y_m, pose.x_m, pose.y_m};
+      for (std::size_t i = 0; i < ranges.size(); ++i) {
+        const double r = ranges[i];
+        if (!std::isfinite(r) || r <= 0) continue;
+        double bearing = 0;
+        if (const auto* l = std::get_if<fusion::LaserScan>(&scan.scan)) bearing = l->angle_min_rad + static_cast<double>(i) * l->angle_increment_rad;
+        else bearing = std::get<fusion::SonarScan>(scan.scan).angles_rad[i];
+        const auto p = pose.transform_point({std::min(r, reach) * std::cos(bearing), std::min(r, reach) * std::sin(bearing)});
+        box[0] = std::min(box[0], p.x());
+        box[1] = std::min(box[1], p.y());
+        box[2] = std::max(box[2], p.x());
+        box[3] = std::max(box[3], p.y());
+      }
+      // Wide beams (a sonar cone, the laser's 2°) reach beyond their axis: pad by the cone's half width at reach.
+      const double half_width = std::holds_alternative<fusion::SonarScan>(scan.scan)
+                                    ? std::get<fusion::SonarScan>(scan.scan).beam_width_rad / 2
+                                    : options_.grid.sensor.laser_beam_width_rad / 2;
+      const double pad = 2 * grid_->resolution_m() + reach * std::sin(std::min(half_width, 1.5));
+      const nlohmann::json changed_box = {box[0] - pad, box[1] - pad, box[2] + pad, box[3] + pad};
       const std::size_t step = std::max<std::size_t>(1, ranges.size() / 360);
       for (std::size_t i = 0; i < ranges.size(); i += step) {
         const double r = ranges[i];
@@ -149,7 +170,7 @@ WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, 
       }
       emit({{"type", "scan"}, {"scan_seq", seq}, {"observer", scan.observer}, {"sensor", scan.sensor()},
             {"pose", {{"x", pose.x_m}, {"y", pose.y_m}, {"theta", pose.theta_rad}}}, {"grid_revision", outcome.grid_revision},
-            {"bbox", {pose.x_m - range_max, pose.y_m - range_max, pose.x_m + range_max, pose.y_m + range_max}},
+            {"bbox", changed_box},
             {"points", points}});
     }
     const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
@@ -174,8 +195,32 @@ WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, 
         outcome.lines = apply_on_writer(std::move(observation), "{\"scan\": " + std::to_string(seq) + "}");
       }
     }
+    if (options_.grid_extract_every > 0 && outcome.grid_revision % static_cast<std::int64_t>(options_.grid_extract_every) == 0)
+      extract_grid_lines_on_writer();
     return outcome;
   });
+}
+
+std::optional<WorldService::PrimitivesOutcome> WorldService::extract_grid_lines() {
+  return writer_->run([this] { return extract_grid_lines_on_writer(); });
+}
+
+std::optional<WorldService::PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
+  std::optional<fusion::ProbabilityRaster> raster;
+  {
+    std::shared_lock lock(grid_mutex_);
+    raster = fusion::probability_raster(*grid_);
+  }
+  if (!raster) return std::nullopt;
+  const auto segments = fusion::extract_grid_lines(*raster, options_.grid_lines);
+  if (segments.empty()) return std::nullopt;
+  world::Observation observation;
+  observation.observer = "grid-extractor";
+  observation.source = "grid";
+  observation.sensor = "grid";
+  for (const auto& segment : segments) observation.segments.push_back({segment});
+  return apply_on_writer(std::move(observation),
+                         "{\"grid_revision\": " + std::to_string(grid_revision_.load()) + "}");
 }
 
 std::shared_ptr<const world::WorldState> WorldService::snapshot() const {

@@ -9,6 +9,7 @@
 #include <shared_mutex>
 
 #include "fusion/grid/occupancy_grid.h"
+#include "fusion/grid_lines/grid_line_extractor.h"
 #include "fusion/lines/scan_lines.h"
 #include "server/events/event_hub.h"
 #include "server/json/codec.h"
@@ -38,6 +39,9 @@ struct ServiceOptions {
   /// (origin "scan", sensor "laser").
   bool extract_scan_lines = true;
   fusion::ScanLineOptions scan_lines;
+  /// Run the grid line extractor (thinning + Hough) every this many scans (0: only on request), and its settings.
+  std::size_t grid_extract_every = 0;
+  fusion::GridLineOptions grid_lines;
 };
 
 /// One re-decided observation of a dry run whose decision differs.
@@ -100,6 +104,10 @@ class WorldService {
   }
   std::int64_t grid_revision() const { return grid_revision_.load(); }
 
+  /// Converts the Bayes grid into line segments (threshold, thinning, Hough, fits with eq. 3 covariance) and
+  /// decides them like posted primitives (origin "grid"). nullopt when the grid is empty or yields no line.
+  std::optional<PrimitivesOutcome> extract_grid_lines();
+
   /// Read-only knowledge-base query. @throw rules::QueryError, Busy.
   rules::QueryResult query(const std::string& goal, std::size_t max_solutions);
   /// Re-decides the last `count` logged segment decisions with `candidate` in place of the file of its
@@ -115,6 +123,7 @@ class WorldService {
   void on_rules_changed();
   void insert_scan(const json_codec::ScanRequest& scan);
   PrimitivesOutcome apply_on_writer(world::Observation observation, const std::string& payload);
+  std::optional<PrimitivesOutcome> extract_grid_lines_on_writer();
   void flush_grid(bool force);
   void emit(const nlohmann::json& event);
 

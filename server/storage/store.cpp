@@ -408,6 +408,15 @@ void Store::flush_grid(const StoredGrid& changed) {
   tx.commit();
 }
 
+std::vector<world::DecisionRecord> Store::object_decisions(const std::string& object_id, std::size_t limit) {
+  std::lock_guard lock(reader_mutex_);
+  Statement s(reader_, std::string(kDecisionColumns) + "WHERE object = ?1 OR matched_object = ?1 ORDER BY seq LIMIT ?2");
+  s.bind(1, std::string_view(object_id)).bind(2, static_cast<std::int64_t>(limit));
+  std::vector<world::DecisionRecord> result;
+  while (s.step()) result.push_back(read_decision(s));
+  return result;
+}
+
 std::vector<world::DecisionRecord> Store::latest_decisions(std::size_t count) {
   std::lock_guard lock(reader_mutex_);
   Statement s(reader_, std::string(kDecisionColumns) + "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1");

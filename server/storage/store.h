@@ -64,6 +64,9 @@ class Store {
   /// Writes changed tiles and the scan sequence they include, in one transaction.
   void flush_grid(const StoredGrid& changed);
 
+  /// Decisions about a CAD object (about the object or any of its edges), in order, at most `limit`.
+  std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t limit);
+
   /// The `count` newest decisions about posted segments (not prunes), oldest first.
   std::vector<world::DecisionRecord> latest_decisions(std::size_t count);
 

@@ -1,0 +1,180 @@
+// The server's REST API and live-event WebSocket, as the viewer uses them. No state beyond the connection.
+
+/** An answer of the server with a non-2xx status: `status`, the server's error `code` and `detail`. */
+export class ApiError extends Error {
+  constructor(path, status, code, detail) {
+    super(`${path}: ${status} ${code}${detail ? ` (${detail})` : ''}`);
+    this.status = status;
+    this.code = code;
+    this.detail = detail;
+  }
+}
+
+/**
+ * The API origin: `?api=http://host:port` when given (for serving the page from elsewhere during
+ * development; the server must then allow it), else the page's own origin. Only http(s) URLs are accepted.
+ */
+export function apiBaseFromLocation(location) {
+  const given = new URLSearchParams(location.search).get('api');
+  if (given) {
+    try {
+      const url = new URL(given);
+      if (url.protocol === 'http:' || url.protocol === 'https:') return url.origin;
+    } catch {
+      // fall through to the page's origin
+    }
+  }
+  return location.origin;
+}
+
+/** ws(s)://host/api/v1/events for an http(s) API origin. */
+export function eventsUrl(base) {
+  const url = new URL('/api/v1/events', base);
+  url.protocol = url.protocol === 'https:' ? 'wss:' : 'ws:';
+  return url.href;
+}
+
+export class Api {
+  constructor(base) {
+    this.base = base;
+  }
+
+  url(path) {
+    return new URL(path, this.base).href;
+  }
+
+  async fetchOk(path) {
+    const res = await fetch(this.url(path), { cache: 'no-store' });
+    if (!res.ok) {
+      let code = 'http_error', detail = '';
+      try {
+        const body = await res.json();
+        code = body.error || code;
+        detail = body.detail || '';
+      } catch {
+        // not JSON: keep the status alone
+      }
+      throw new ApiError(path, res.status, code, detail);
+    }
+    return res;
+  }
+
+  async json(path) {
+    return (await this.fetchOk(path)).json();
+  }
+
+  async text(path) {
+    return (await this.fetchOk(path)).text();
+  }
+
+  async bytes(path) {
+    return new Uint8Array(await (await this.fetchOk(path)).arrayBuffer());
+  }
+
+  health() { return this.json('/api/v1/health'); }
+  map() { return this.json('/api/v1/map'); }
+  history(kind, id) {
+    return this.json(`/api/v1/${kind === 'object' ? 'objects' : 'elements'}/${encodeURIComponent(id)}/history`);
+  }
+
+  /**
+   * An object's history together with its edges' (at most 32): a decision names the edge it matched
+   * (`element` "table-1/0") and the object, and a server that files it under the edge only would otherwise show
+   * an object without history. Merged by seq, in order.
+   */
+  async objectHistory(id, edgeIds = []) {
+    const parts = await Promise.all([
+      this.history('object', id),
+      ...edgeIds.slice(0, 32).map((edge) =>
+        this.json(`/api/v1/decisions?since=0&limit=10000&element=${encodeURIComponent(edge)}`).catch(() => null)),
+    ]);
+    const bySeq = new Map();
+    for (const part of parts) for (const d of part?.decisions || []) bySeq.set(d.seq, d);
+    return { ...parts[0], decisions: [...bySeq.values()].sort((a, b) => a.seq - b.seq) };
+  }
+}
+
+/**
+ * The live-event WebSocket with reconnection (0.5 s doubling to 5 s). Tracks `seq`: the first numbered
+ * message sets the baseline, an event numbered above last + 1 means events were missed and calls
+ * `onGap(reason)`, as does every reconnect and every {"type": "resync"}; the caller then re-reads the REST API.
+ * Callbacks: onEvent(event), onState('connecting'|'open'|'closed'), onGap(reason).
+ */
+export class EventStream {
+  constructor(url, { onEvent, onState, onGap }) {
+    this.url = url;
+    this.onEvent = onEvent;
+    this.onState = onState;
+    this.onGap = onGap;
+    this.socket = null;
+    this.lastSeq = null;
+    this.retryMs = 500;
+    this.stopped = false;
+    this.timer = null;
+  }
+
+  start() {
+    this.stopped = false;
+    this.connect();
+  }
+
+  stop() {
+    this.stopped = true;
+    clearTimeout(this.timer);
+    if (this.socket) this.socket.close();
+  }
+
+  connect() {
+    this.onState('connecting');
+    let socket;
+    try {
+      socket = new WebSocket(this.url);
+    } catch {
+      this.scheduleReconnect();
+      return;
+    }
+    this.socket = socket;
+    this.lastSeq = null;
+    socket.onopen = () => {
+      this.retryMs = 500;
+      this.onState('open');
+      this.onGap('connected');  // whatever happened while we were away: re-read everything
+    };
+    socket.onmessage = (message) => {
+      let event;
+      try {
+        event = JSON.parse(message.data);
+      } catch {
+        return;  // not ours
+      }
+      if (!event || typeof event !== 'object') return;
+      this.track(event);
+      this.onEvent(event);
+    };
+    socket.onclose = () => {
+      if (this.socket === socket) this.socket = null;
+      this.onState('closed');
+      if (!this.stopped) this.scheduleReconnect();
+    };
+    socket.onerror = () => {
+      // onclose follows and reconnects
+    };
+  }
+
+  track(event) {
+    if (event.type === 'resync') {
+      this.onGap(event.reason || 'resync');
+    }
+    if (!Number.isFinite(event.seq)) return;
+    if (this.lastSeq !== null && event.seq > this.lastSeq + 1 && event.type !== 'resync') {
+      this.onGap(`missed events ${this.lastSeq + 1}..${event.seq - 1}`);
+    }
+    if (this.lastSeq === null || event.seq > this.lastSeq) this.lastSeq = event.seq;
+  }
+
+  scheduleReconnect() {
+    clearTimeout(this.timer);
+    this.timer = setTimeout(() => this.connect(), this.retryMs);
+    this.retryMs = Math.min(5000, this.retryMs * 2);
+  }
+}

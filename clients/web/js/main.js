@@ -1,0 +1,301 @@
+// The viewer's wiring. Data flow:
+//   REST sync (map + health, grid layers) on load, on every (re)connect, on a missed event and on "resync";
+//   WebSocket events afterwards: "update" → model upserts + highlights + feed, "scan" → robot pose/points and
+//   a dirty grid region (re-fetched by bbox, throttled), "floorplan" → map reload, "rules" → status.
+// Events that arrive while a sync is running are buffered and applied after it (updates at or below the synced
+// map version are skipped, the rest are idempotent upserts).
+
+import { Api, apiBaseFromLocation, EventStream, eventsUrl } from './api.js';
+import { RateMeter } from './geometry.js';
+import { GridLayers } from './grid_layers.js';
+import { MapView } from './map_view.js';
+import { objectOfEdge, WorldModel } from './model.js';
+import {
+  DecisionFeed, renderDetails, renderHistory, renderLegend, StatusPanel, fmt,
+} from './panels.js';
+
+const $ = (id) => document.getElementById(id);
+
+const api = new Api(apiBaseFromLocation(window.location));
+const model = new WorldModel();
+const status = new StatusPanel();
+const rates = { events: new RateMeter(), scans: new RateMeter(), decisions: new RateMeter() };
+
+const state = {
+  syncing: false,
+  syncAgain: false,
+  syncAgainGrid: false,
+  buffered: [],
+  syncs: 0,
+  ready: false,
+  connection: 'connecting',
+  lastEventSeq: null,
+  lastDecision: null,
+  decisionsSeen: 0,
+  selection: null,
+  historyToken: 0,
+  historyTimer: null,
+  lastError: null,
+};
+
+const grid = new GridLayers(api, {
+  onChange: () => {
+    view.autoFit();
+    view.requestDraw();
+    status.setGrid(grid.active, grid.summary(), grid.resolution);
+  },
+  onError: (message) => {
+    const box = $('grid-error');
+    box.hidden = !message;
+    box.textContent = message || '';
+  },
+  createCanvas: (width, height) => {
+    const c = document.createElement('canvas');
+    c.width = width;
+    c.height = height;
+    return c;
+  },
+});
+
+const view = new MapView($('map-canvas'), model, grid, {
+  onPick: (target) => select(target),
+  onView: () => updateReadout(),
+});
+
+const feed = new DecisionFeed((d) => select(targetOfDecision(d)));
+
+// ---- sync ------------------------------------------------------------------------------------------------
+
+/**
+ * Re-reads the map and health (and, unless `withGrid` is false, every grid layer). Events arriving meanwhile
+ * are buffered and applied afterwards, so none is lost and none is overwritten by an older snapshot.
+ */
+async function resync(reason, { withGrid = true } = {}) {
+  if (state.syncing) {
+    state.syncAgain = true;
+    state.syncAgainGrid ||= withGrid;
+    return;
+  }
+  state.syncing = true;
+  state.buffered = [];
+  if (withGrid) grid.resyncAll();
+  try {
+    const [map, health] = await Promise.all([api.map(), api.health()]);
+    model.loadMap(map);
+    status.setHealth(health);
+    state.syncs++;
+    state.lastSyncReason = reason;
+  } catch (error) {
+    status.setHealth(null, error.message);
+    state.lastError = error.message;
+    setTimeout(() => resync('retry'), 2000);
+  } finally {
+    state.syncing = false;
+  }
+  const buffered = state.buffered;
+  state.buffered = [];
+  for (const event of buffered) handle(event);
+  state.ready = state.syncs > 0;
+  document.documentElement.dataset.viewerReady = state.ready ? '1' : '0';
+  afterModelChange();
+  view.autoFit();
+  if (state.selection) select(state.selection);
+  if (state.syncAgain) {
+    const again = { withGrid: state.syncAgainGrid };
+    state.syncAgain = false;
+    state.syncAgainGrid = false;
+    resync('requested during a sync', again);
+  }
+}
+
+// ---- events ----------------------------------------------------------------------------------------------
+
+function onEvent(event) {
+  if (Number.isFinite(event.seq)) state.lastEventSeq = event.seq;
+  const now = performance.now();
+  if (event.type === 'update' || event.type === 'scan') rates.events.add(now);
+  if (event.type === 'scan') rates.scans.add(now);
+  if (event.type === 'update' && Array.isArray(event.decisions)) rates.decisions.add(now, event.decisions.length);
+  if (state.syncing && (event.type === 'update' || event.type === 'scan' || event.type === 'floorplan')) {
+    state.buffered.push(event);
+    return;
+  }
+  handle(event);
+}
+
+function handle(event) {
+  const now = performance.now();
+  switch (event.type) {
+    case 'update': {
+      const applied = model.applyUpdate(event, now);
+      if (!applied) return;
+      for (const d of applied.decisions) {
+        view.highlightDecision(d, now);
+        feed.push(d);
+        state.lastDecision = { seq: d.seq, action: d.action, rule: d.rule, element: d.element, object: d.object };
+        state.decisionsSeen++;
+        status.noteDecision(d.seq);
+      }
+      if (state.selection && touchesSelection(applied)) refreshHistorySoon();
+      afterModelChange();
+      break;
+    }
+    case 'scan':
+      model.applyScan(event, now);
+      grid.markDirty(event.bbox, event.grid_revision);
+      view.requestDraw();
+      if (state.selection?.kind === 'robot') renderDetails(state.selection, model);
+      break;
+    case 'floorplan':
+      resync('new floor plan', { withGrid: false });
+      break;
+    case 'rules':
+      if (event.status) status.setRules(event.status);
+      break;
+    default:
+      break;  // hello, resync (handled by the stream's onGap), or something newer than this page
+  }
+}
+
+function touchesSelection(applied) {
+  const id = state.selection.id;
+  const ids = (d) => [d.element, d.object, d.matched?.element, d.matched?.object, objectOfEdge(d.element)];
+  return applied.decisions.some((d) => ids(d).includes(id)) || applied.removed.includes(id);
+}
+
+function afterModelChange() {
+  status.setCounts(model);
+  view.requestDraw();
+  if (state.selection && state.selection.kind !== 'robot') renderDetails(state.selection, model);
+}
+
+// ---- selection -------------------------------------------------------------------------------------------
+
+function targetOfDecision(d) {
+  if (d.element && model.elements.has(d.element)) return { kind: 'element', id: d.element };
+  const object = d.object || objectOfEdge(d.element) || d.matched?.object;
+  if (object) return { kind: 'object', id: object, edge: objectOfEdge(d.element) ? d.element : undefined };
+  return d.element ? { kind: 'element', id: d.element } : null;
+}
+
+function select(target) {
+  state.selection = target;
+  view.selection = target;
+  view.requestDraw();
+  renderDetails(target, model);
+  loadHistory();
+}
+
+async function loadHistory() {
+  const target = state.selection;
+  const token = ++state.historyToken;
+  if (!target || target.kind === 'robot') {
+    renderHistory(target, null, null);
+    return;
+  }
+  renderHistory(target, null, null);
+  try {
+    const history = target.kind === 'object'
+      ? await api.objectHistory(target.id, (model.objects.get(target.id)?.edges || []).map((e) => e.id))
+      : await api.history(target.kind, target.id);
+    if (token === state.historyToken) renderHistory(target, history, null);
+  } catch (error) {
+    if (token === state.historyToken) renderHistory(target, null, error.message);
+  }
+}
+
+function refreshHistorySoon() {
+  clearTimeout(state.historyTimer);
+  state.historyTimer = setTimeout(loadHistory, 250);
+}
+
+// ---- status ----------------------------------------------------------------------------------------------
+
+async function pollHealth() {
+  try {
+    status.setHealth(await api.health());
+  } catch (error) {
+    status.setHealth(null, error.message);
+  }
+}
+
+function updateReadout() {
+  const c = view.cursor;
+  const scaleM = niceLength(120 / view.view.scale);
+  $('map-readout').textContent = `${c ? `x ${fmt(c[0], 2)} y ${fmt(c[1], 2)} m · ` : ''}${fmt(view.view.scale, 1)} px/m · ▬ ${scaleM} m`;
+}
+
+function niceLength(m) {
+  const p = 10 ** Math.floor(Math.log10(m));
+  for (const f of [1, 2, 5, 10]) if (f * p >= m) return +(f * p).toPrecision(2);
+  return m;
+}
+
+function tick() {
+  const now = performance.now();
+  status.setRate(rates.events.rate(now), rates.scans.rate(now), rates.decisions.rate(now));
+  status.setSeq(state.lastEventSeq, state.syncs);
+  status.setGrid(grid.active, grid.summary(), grid.resolution);
+}
+
+// ---- controls --------------------------------------------------------------------------------------------
+
+$('layer-select').addEventListener('change', (e) => {
+  grid.setActive(e.target.value);
+  tick();
+});
+for (const [id, key] of [['toggle-grid', 'grid'], ['toggle-objects', 'objects'], ['toggle-elements', 'elements'],
+  ['toggle-band', 'band'], ['toggle-robots', 'robots']]) {
+  const box = $(id);
+  view.show[key] = box.checked;
+  box.addEventListener('change', () => {
+    view.show[key] = box.checked;
+    view.requestDraw();
+  });
+}
+$('fit-button').addEventListener('click', () => view.fit());
+
+// ---- test hook -------------------------------------------------------------------------------------------
+
+/** Read-only numbers for tests and curious people: what was drawn, and where things are on screen. */
+const hook = {
+  get ready() { return state.ready; },
+  get connection() { return state.connection; },
+  get syncs() { return state.syncs; },
+  get lastEventSeq() { return state.lastEventSeq; },
+  get lastDecision() { return state.lastDecision ? { ...state.lastDecision } : null; },
+  get decisionsSeen() { return state.decisionsSeen; },
+  get mapVersion() { return model.version; },
+  /** Counts of what the last frame drew (objects, edges, elements, bands, robots, scanPoints, grid). */
+  get drawn() { return { ...view.drawn }; },
+  /** Counts in the viewer's model (what the next frame will draw). */
+  get counts() {
+    return { objects: model.objects.size, edges: model.edgeCount(), elements: model.elements.size, robots: model.robots.size };
+  },
+  get grid() { return { active: grid.active, resolution: grid.resolution, layers: grid.summary() }; },
+  get highlights() { return [...view.highlights.values()].map(({ kind, id, action, seq }) => ({ kind, id, action, seq })); },
+  get recentHighlights() { return view.recentHighlights.map((h) => ({ ...h })); },
+  get selection() { return state.selection ? { ...state.selection } : null; },
+  get view() { return { ...view.view }; },
+  get apiBase() { return api.base; },
+  /** Page coordinates {x, y} of world point (x, y) [m]: where a click lands on it. */
+  toClient(x, y) { return view.toClient(x, y); },
+};
+Object.defineProperty(window, 'worldmodelViewer', { value: Object.freeze(hook), writable: false, configurable: false });
+
+// ---- start -----------------------------------------------------------------------------------------------
+
+renderLegend();
+updateReadout();
+const stream = new EventStream(eventsUrl(api.base), {
+  onEvent,
+  onState: (s) => {
+    state.connection = s;
+    status.setConnection(s);
+  },
+  onGap: (reason) => resync(reason),
+});
+stream.start();
+resync('page load');
+setInterval(tick, 1000);
+setInterval(pollHealth, 5000);
