@@ -1,0 +1,186 @@
+#include "fusion/grid_lines/grid_line_extractor.h"
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "fusion/lines/line_fit.h"
+#include "tests/fusion/grid_lines/synthetic_raster.h"
+
+namespace wm::fusion {
+namespace {
+
+using testing::TrueWall;
+
+constexpr double kDeg = std::numbers::pi / 180;
+
+std::string describe(const LineSegment& s) {
+  return "rho " + std::to_string(s.line.rho_m) + " phi " + std::to_string(s.line.phi_rad / kDeg) + "deg from (" +
+         std::to_string(s.p0().x()) + ", " + std::to_string(s.p0().y()) + ") to (" + std::to_string(s.p1().x()) +
+         ", " + std::to_string(s.p1().y()) + ")";
+}
+
+// The acceptance test on one synthetic room: every wall longer than 0.5 m found within 2 cm and 0.5°,
+// no spurious segment longer than 0.3 m, and no wall found twice over the same stretch.
+void check_room(const testing::SyntheticMap& map, const std::vector<LineSegment>& segments) {
+  const testing::Tolerance strict;  // 2 cm, 0.5°, half the wall's length covered
+  for (const TrueWall& w : map.walls) {
+    if (w.length_m() <= 0.5) continue;
+    bool found = false;
+    double covered = 0.0;
+    for (const LineSegment& s : segments) {
+      found = found || testing::segment_matches(w, s, strict);
+      if (testing::line_matches(w, s.line, {0.05, 3 * kDeg, 0})) covered += testing::overlap_m(w, s.p0(), s.p1());
+    }
+    EXPECT_TRUE(found) << "wall (" << w.a.transpose() << ") - (" << w.b.transpose() << "), " << w.thickness_m
+                       << " m thick";
+    EXPECT_LT(covered, 1.1 * w.length_m() + 0.1) << "wall (" << w.a.transpose() << ") - (" << w.b.transpose()
+                                                 << ") covered more than once";
+  }
+  const testing::Tolerance loose{0.05, 3 * kDeg, 0.0};
+  for (const LineSegment& s : segments) {
+    if (s.length_m() <= 0.3) continue;
+    bool on_wall = false;
+    for (const TrueWall& w : map.walls) {
+      // On a true wall: same line, and (nearly) all of the segment lies within the wall's extent.
+      on_wall = on_wall || (testing::line_matches(w, s.line, loose) &&
+                            testing::overlap_m(w, s.p0(), s.p1()) >= s.length_m() - 0.1);
+    }
+    EXPECT_TRUE(on_wall) << "spurious segment " << describe(s);
+  }
+}
+
+TEST(GridLineExtractorTest, FindsEveryWallOfRoomsWithBoxesAndNothingElse) {
+  const double angles_deg[] = {0.0, 17.0, 33.0, 45.0, 62.0, 90.0, 121.0, 158.0};
+  std::uint32_t seed = 1;
+  for (const double angle : angles_deg) {
+    SCOPED_TRACE("room turned by " + std::to_string(angle) + " deg, seed " + std::to_string(seed));
+    const testing::SyntheticMap map = testing::room_with_boxes(seed++, angle * kDeg);
+    const std::vector<LineSegment> segments = extract_grid_lines(map.raster, GridLineOptions{});
+    check_room(map, segments);
+  }
+}
+
+TEST(GridLineExtractorTest, FindsTheWallsOfABuildingSplitAtTheDoors) {
+  const testing::SyntheticMap map = testing::building(3, 3, 2, 4.5);
+  const std::vector<LineSegment> segments = extract_grid_lines(map.raster, GridLineOptions{});
+  check_room(map, segments);
+}
+
+TEST(GridLineExtractorTest, SplitsAWallAtADoorwayAndKeepsTheExtents) {
+  const testing::NoiseOptions clean{0.9f, 0.9f, 0.0, 0.2f, 0.2f, 0};
+  testing::RasterPainter painter(GridGeometry({0, 0}, 0.05, 120, 40), 1);
+  painter.fill_polygon(testing::rectangle({0, 0}, 0, {0, 0}, {6, 2}), 0.2f, 0.2f);
+  const TrueWall left{{0.5, 1.0}, {2.5, 1.0}, 0.1};
+  const TrueWall right{{3.4, 1.0}, {5.5, 1.0}, 0.1};
+  painter.draw_wall(left, clean);
+  painter.draw_wall(right, clean);
+  const std::vector<LineSegment> segments = extract_grid_lines(painter.take(), GridLineOptions{});
+  ASSERT_EQ(segments.size(), 2u);
+  for (const TrueWall& w : {left, right}) {
+    bool found = false;
+    for (const LineSegment& s : segments) {
+      if (!testing::segment_matches(w, s, {0.005, 0.1 * kDeg, 0.9})) continue;
+      found = true;
+      // The drawing adds half the thickness at each end; the extent follows the occupied cells.
+      const double lo = std::min(s.p0().x(), s.p1().x()), hi = std::max(s.p0().x(), s.p1().x());
+      EXPECT_NEAR(lo, w.a.x() - 0.05, 0.051);
+      EXPECT_NEAR(hi, w.b.x() + 0.05, 0.051);
+    }
+    EXPECT_TRUE(found) << "wall at x " << w.a.x() << ".." << w.b.x();
+  }
+}
+
+// One straight wall, 2 cells thick, with every occupied cell at probability p.
+ProbabilityRaster uniform_wall(float p) {
+  const testing::NoiseOptions flat{p, p, 0.0, 0.1f, 0.1f, 0};
+  testing::RasterPainter painter(GridGeometry({0, 0}, 0.05, 100, 60), 1);
+  painter.fill_polygon(testing::rectangle({0, 0}, 0, {0, 0}, {5, 3}), 0.1f, 0.1f);
+  painter.draw_wall({{0.7, 0.9}, {4.1, 2.3}, 0.1}, flat);
+  return painter.take();
+}
+
+TEST(GridLineExtractorTest, CovarianceFollowsEquationThreeAndShrinksWithOccupancy) {
+  EXPECT_DOUBLE_EQ(grid_cell_sigma_m(0.05, 0.5), 0.1);
+  EXPECT_DOUBLE_EQ(grid_cell_sigma_m(0.05, 1.0), 0.05);
+  EXPECT_THROW(grid_cell_sigma_m(0.05, 0.0), std::invalid_argument);
+  EXPECT_THROW(grid_cell_sigma_m(0.0, 0.5), std::invalid_argument);
+
+  const std::vector<LineSegment> weak = extract_grid_lines(uniform_wall(0.7f), GridLineOptions{});
+  const std::vector<LineSegment> strong = extract_grid_lines(uniform_wall(0.95f), GridLineOptions{});
+  ASSERT_EQ(weak.size(), 1u);
+  ASSERT_EQ(strong.size(), 1u);
+  // Same cells, every σ scaled by 0.95/0.7: the same line, C_L scaled by (0.95/0.7)².
+  EXPECT_NEAR(weak[0].line.rho_m, strong[0].line.rho_m, 1e-9);
+  EXPECT_NEAR(weak[0].line.phi_rad, strong[0].line.phi_rad, 1e-9);
+  const double factor = std::pow(0.95 / 0.7, 2);
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 2; ++j) {
+      EXPECT_NEAR(weak[0].line.cov(i, j), factor * strong[0].line.cov(i, j), 1e-9 * std::abs(weak[0].line.cov(i, j)));
+    }
+  }
+  EXPECT_LT(strong[0].line.cov(0, 0), weak[0].line.cov(0, 0));
+  EXPECT_LT(strong[0].line.cov(1, 1), weak[0].line.cov(1, 1));
+}
+
+TEST(GridLineExtractorTest, CovarianceIsTheWeightedFitOverTheWallsCells) {
+  // Independent recomputation: fit_line over every occupied cell of a lone wall with σ = Δ/p (eq. 3).
+  testing::NoiseOptions noisy;
+  noisy.hole_fraction = 0.0;
+  testing::RasterPainter painter(GridGeometry({0, 0}, 0.05, 100, 60), 5);
+  painter.fill_polygon(testing::rectangle({0, 0}, 0, {0, 0}, {5, 3}), 0.1f, 0.1f);
+  painter.draw_wall({{0.7, 0.9}, {4.1, 2.3}, 0.15}, noisy);
+  const ProbabilityRaster raster = painter.take();
+  const std::vector<LineSegment> segments = extract_grid_lines(raster, GridLineOptions{});
+  ASSERT_EQ(segments.size(), 1u);
+  std::vector<Eigen::Vector2d> points;
+  std::vector<double> sigmas;
+  for (std::int64_t y = 0; y < 60; ++y) {
+    for (std::int64_t x = 0; x < 100; ++x) {
+      const float p = raster.p[static_cast<std::size_t>(y * 100 + x)];
+      if (!(p >= 0.65f)) continue;
+      points.push_back(raster.geometry.center_of({x, y}));
+      sigmas.push_back(0.05 / p);
+    }
+  }
+  const LineFeature expected = fit_line(points, sigmas);
+  EXPECT_NEAR(segments[0].line.rho_m, expected.rho_m, 1e-9);
+  EXPECT_NEAR(segments[0].line.phi_rad, expected.phi_rad, 1e-9);
+  EXPECT_TRUE(segments[0].line.cov.isApprox(expected.cov, 1e-9)) << segments[0].line.cov << "\n" << expected.cov;
+}
+
+TEST(GridLineExtractorTest, UnknownOrFreeRastersGiveNoSegments) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_TRUE(extract_grid_lines({GridGeometry({0, 0}, 0.05, 50, 40), std::vector<float>(2000, nan)}, {}).empty());
+  EXPECT_TRUE(extract_grid_lines({GridGeometry({0, 0}, 0.05, 50, 40), std::vector<float>(2000, 0.3f)}, {}).empty());
+  EXPECT_TRUE(extract_grid_lines({GridGeometry({0, 0}, 0.05, 1, 1), std::vector<float>(1, 0.9f)}, {}).empty());
+}
+
+TEST(GridLineExtractorTest, RejectsBadOptionsAndRasters) {
+  const ProbabilityRaster raster{GridGeometry({0, 0}, 0.05, 10, 10), std::vector<float>(100, 0.1f)};
+  GridLineOptions bad;
+  bad.p_occupied = 0.0f;
+  EXPECT_THROW(extract_grid_lines(raster, bad), std::invalid_argument);
+  bad = {};
+  bad.fit_band_cells = 1.0;  // below member_band_cells
+  EXPECT_THROW(extract_grid_lines(raster, bad), std::invalid_argument);
+  bad = {};
+  bad.max_gap_m = 0.0;
+  EXPECT_THROW(extract_grid_lines(raster, bad), std::invalid_argument);
+  bad = {};
+  bad.min_cells = 1;
+  EXPECT_THROW(extract_grid_lines(raster, bad), std::invalid_argument);
+  bad = {};
+  bad.hough.nms_rho_m = -1.0;
+  EXPECT_THROW(extract_grid_lines(raster, bad), std::invalid_argument);
+  const ProbabilityRaster short_raster{GridGeometry({0, 0}, 0.05, 10, 10), std::vector<float>(99, 0.1f)};
+  EXPECT_THROW(extract_grid_lines(short_raster, {}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace wm::fusion
