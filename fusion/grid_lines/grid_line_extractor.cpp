@@ -1,8 +1,6 @@
 #include "fusion/grid_lines/grid_line_extractor.h"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -245,10 +243,22 @@ class Extractor {
     constexpr double kLook = 2.0;
     const double first = start - kLook;  // centre of slice 0 (t_lo is a cell's coordinate: slices sit on cells)
     const auto slices = static_cast<std::size_t>(std::floor(stop + kLook - first + 0.5)) + 1;
+    // Cells are placed along the line by their row (or column, for a line nearer horizontal) rather than by their
+    // own t: a cut across a tilted line would otherwise take part of a row at each end, and that part tilts the
+    // next fit further the same way (the refinement then swings between two wrong lines).
+    const bool by_column = std::abs(line.sin_theta) >= std::abs(line.cos_theta);
+    const double half_w = 0.5 * static_cast<double>(width_);
+    const double half_h = 0.5 * static_cast<double>(height_);
+    auto row_t = [&](std::int64_t x, std::int64_t y) {
+      if (by_column) return (line.rho * line.cos_theta - (static_cast<double>(x) + 0.5 - half_w)) / line.sin_theta;
+      return ((static_cast<double>(y) + 0.5 - half_h) - line.rho * line.sin_theta) / line.cos_theta;
+    };
     std::vector<Cell> cells;
-    internal::for_each_cell_near_line(width_, height_, line, band, first - 0.5, stop + kLook + 0.5,
-                                      [&](std::int64_t x, std::int64_t y, double d, double t) {
+    internal::for_each_cell_near_line(width_, height_, line, band, first - 0.5 - band - 1.0, stop + kLook + 0.5 + band + 1.0,
+                                      [&](std::int64_t x, std::int64_t y, double d, double) {
                                         if (occupied_[cell_index(x, y)] == 0) return;
+                                        const double t = row_t(x, y);
+                                        if (t < first - 0.5 || t > stop + kLook + 0.5) return;
                                         const double k = std::clamp(std::floor(t - first + 0.5), 0.0,
                                                                     static_cast<double>(slices - 1));
                                         cells.push_back({x, y, d, t, static_cast<std::size_t>(k)});
@@ -293,10 +303,6 @@ class Extractor {
       sigmas.push_back(grid_cell_sigma_m(resolution_m_, raster_.p[cell_index(c.x, c.y)]));
     }
     if (points.size() < 2) return std::nullopt;
-    if (std::getenv("GL_DEBUG")) {
-      std::fprintf(stderr, "  fit line c %.3f s %.3f rho %.2f t [%.1f, %.1f] cells %zu clean %zu all %d typical [%.2f %.2f]\n", line.cos_theta, line.sin_theta, line.rho, t_lo, t_hi, cells.size(), clean, all ? 1 : 0, typical_lo, typical_hi);
-      for (const Cell& c : cells) { auto w = raster_.geometry.center_of({c.x, c.y}); std::fprintf(stderr, "    (%.3f,%.3f) p %.2f d %.2f slice %zu [%.2f %.2f] dirty %d\n", w.x(), w.y(), raster_.p[cell_index(c.x,c.y)], c.d, c.slice, lo[c.slice], hi[c.slice], dirty[c.slice]); }
-    }
     Fit result;
     try {
       result.line = fit_line(points, sigmas);

@@ -21,7 +21,7 @@ struct GridLineOptions {
   /// Occupied cells within this distance of a segment's line enter its fit [cells], [member_band_cells, 10]:
   /// the whole cross-section of a wall up to 2·fit_band thick, centred even where the skeleton is not (thinning
   /// leaves a 2-cell wall's skeleton on one of its rows).
-  double fit_band_cells = 2.0;
+  double fit_band_cells = 2.5;
   /// The fit cuts a segment's cells into 1-cell slices across it; a slice whose occupied cells reach more than
   /// this beyond the typical cross-section (the median extents over all slices) is left out of the fit, with its
   /// neighbours, when enough clean slices remain: a wall joining at a corner or a T, or a speck, would pull the

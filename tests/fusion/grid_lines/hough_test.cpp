@@ -42,22 +42,26 @@ TEST(HoughTest, FindsASingleLineWithinHalfABin) {
   const auto diff = testing::difference(wall.line(), LineFeature{peaks[0].rho_m, peaks[0].phi_rad, {}});
   EXPECT_LT(diff.phi_rad, 0.5 * kDeg + 1e-9);
   EXPECT_LT(diff.rho_m, kRes);  // half a ρ bin plus the cells' own staircase
-  EXPECT_GE(peaks[0].votes, 0.9 * (wall.b - wall.a).norm() / kRes);
-  // Nothing else in the image reaches the vote threshold as a distinct line.
-  for (std::size_t i = 1; i < peaks.size(); ++i) EXPECT_LT(peaks[i].votes, 0.2 * peaks[0].votes);
+  // A 1° bin over an 8.6 m line: the cells drift up to 1.3 cells across the bin's centre line at the ends, so about
+  // three quarters of them vote in the peak's ρ bin.
+  EXPECT_GE(peaks[0].votes, 0.7 * (wall.b - wall.a).norm() / kRes);
+  // Nothing else in the image comes near it (the neighbours outside the suppression window hold the staircase's
+  // leftovers).
+  for (std::size_t i = 1; i < peaks.size(); ++i) EXPECT_LT(peaks[i].votes, 0.3 * peaks[0].votes);
 }
 
 TEST(HoughTest, NonMaximumSuppressionCollapsesADoubledWall) {
-  // Both faces of a 10 cm wall, 2 cells apart: one line with the default window, two without suppression.
+  // Both faces of a 10 cm wall, 2 cells apart (on cell centres, so each face is one row): one line with the
+  // default window, two without suppression.
   Canvas canvas;
-  canvas.line({-2.0, 4.0}, {6.0, 4.0}, 0.9f);
-  canvas.line({-2.0, 4.1}, {6.0, 4.1}, 0.9f);
+  canvas.line({-2.0, 4.025}, {6.0, 4.025}, 0.9f);
+  canvas.line({-2.0, 4.125}, {6.0, 4.125}, 0.9f);
   const std::vector<HoughPeak> collapsed = hough_peaks(canvas.raster, canvas.image, HoughOptions{});
   std::size_t strong = 0;
   for (const HoughPeak& p : collapsed) strong += p.votes >= 0.5 * collapsed[0].votes ? 1 : 0;
   EXPECT_EQ(strong, 1u);
   EXPECT_NEAR(std::abs(std::sin(collapsed[0].phi_rad)), 1.0, 1e-9);
-  EXPECT_NEAR(collapsed[0].rho_m * std::sin(collapsed[0].phi_rad), 4.05, 0.051);
+  EXPECT_NEAR(collapsed[0].rho_m * std::sin(collapsed[0].phi_rad), 4.075, 0.051);
 
   HoughOptions no_nms;
   no_nms.nms_rho_m = 0.0;
