@@ -38,7 +38,13 @@ class RatioReporter : public benchmark::ConsoleReporter {
       const auto base = rates_.find(baseline);
       if (base == rates_.end() || base->second <= 0) continue;
       std::printf("\n%s (items/s relative to %s):\n", title.c_str(), baseline.c_str());
-      for (const auto& [name, rate] : rates_) std::printf("  %-40s %10.3fx\n", name.c_str(), rate / base->second);
+      // A baseline with an argument ("BM_X/400") is compared only with the benchmarks of the same argument.
+      const auto slash = baseline.find('/');
+      const std::string suffix = slash == std::string::npos ? "" : baseline.substr(slash);
+      for (const auto& [name, rate] : rates_) {
+        if (!suffix.empty() && (name.size() < suffix.size() || name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)) continue;
+        std::printf("  %-40s %10.3fx\n", name.c_str(), rate / base->second);
+      }
     }
   }
 

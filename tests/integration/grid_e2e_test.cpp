@@ -212,6 +212,79 @@ TEST_F(GridTest, LaserScansAlsoFeedTheVectorMapThroughTheRules) {
   for (const auto& e : map["elements"]) EXPECT_EQ(e["source"], "scan");
 }
 
+// Distance [m] from a wall's midpoint to a map element's line, and the angle between them [rad].
+std::pair<double, double> element_to_wall(const json& element, const Wall& w) {
+  const double rho = element["rho"], phi = element["phi"];
+  const double mx = 0.5 * (w.ax + w.bx), my = 0.5 * (w.ay + w.by);
+  const double offset = std::abs(mx * std::cos(phi) + my * std::sin(phi) - rho);
+  const double wall_normal = std::atan2(w.bx - w.ax, -(w.by - w.ay));
+  double dphi = std::remainder(phi - wall_normal, std::numbers::pi);
+  return {offset, std::abs(dphi)};
+}
+
+TEST_F(GridTest, GridLinesAreExtractedOnDemandAndDecidedLikeOtherPrimitives) {
+  // Nothing mapped yet: nothing to extract, and nothing changes.
+  const auto empty = send_json("POST", "/api/v1/grid/extract", json::object());
+  EXPECT_EQ(empty["segments"], 0);
+  EXPECT_TRUE(empty["observation"].is_null());
+
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{3, 3}, {5, 2}, {2, 4.5}, {6.5, 4}, {4, 1.5}})
+    post_scan(room_scan(x, y, 0.3));
+  const auto scanned = get_json("/api/v1/map");
+  ASSERT_EQ(scanned["elements"].size(), 4u) << scanned.dump();
+
+  const auto answer = send_json("POST", "/api/v1/grid/extract", json::object());
+  ASSERT_GE(answer["segments"].get<int>(), 4) << answer.dump();
+  ASSERT_FALSE(answer["observation"].is_null());
+  ASSERT_EQ(answer["decisions"].size(), answer["segments"].get<std::size_t>());
+  int merges = 0;
+  for (const auto& d : answer["decisions"]) {
+    EXPECT_EQ(d["origin"], "grid") << d.dump();
+    EXPECT_EQ(d["sensor"], "grid") << d.dump();
+    merges += d["action"] == "merge";
+  }
+  // The grid's walls are the walls the scans already mapped: each of the four is confirmed, none is added twice.
+  EXPECT_GE(merges, 4) << answer.dump();
+  const auto map = get_json("/api/v1/map");
+  ASSERT_EQ(map["elements"].size(), 4u) << map.dump();
+  for (const Wall& w : kRoom) {
+    bool found = false;
+    for (const auto& e : map["elements"]) {
+      const auto [offset, dphi] = element_to_wall(e, w);
+      found = found || (offset < 0.03 && dphi < 0.5 * std::numbers::pi / 180);
+    }
+    EXPECT_TRUE(found) << "wall (" << w.ax << ", " << w.ay << ") - (" << w.bx << ", " << w.by << ")\n" << map.dump();
+  }
+  // The log says where each decision came from.
+  const auto log = get_json("/api/v1/decisions?since=" + std::to_string(answer["observation"].get<long>() - 1));
+  std::size_t from_grid = 0;
+  for (const auto& d : log["decisions"]) from_grid += d["origin"] == "grid";
+  EXPECT_EQ(from_grid, answer["decisions"].size());
+}
+
+class GridEveryTest : public GridTest {
+ protected:
+  void SetUp() override {
+    extra_args_ = {"--grid-flush-ms", "3600000", "--grid-extract-every", "5"};
+    ServerFixture::SetUp();
+  }
+};
+
+TEST_F(GridEveryTest, TheExtractorRunsEveryNScans) {
+  auto grid_decisions = [&] {
+    std::size_t n = 0;
+    const json log = get_json("/api/v1/decisions");  // kept: a range-for over a temporary's member would dangle
+    for (const auto& d : log["decisions"]) n += d["origin"] == "grid";
+    return n;
+  };
+  const std::vector<std::pair<double, double>> poses = {{3, 3}, {5, 2}, {2, 4.5}, {6.5, 4}, {4, 1.5}};
+  for (std::size_t i = 0; i + 1 < poses.size(); ++i) post_scan(room_scan(poses[i].first, poses[i].second, 0.3));
+  EXPECT_EQ(grid_decisions(), 0u);
+  const auto fifth = post_scan(room_scan(poses.back().first, poses.back().second, 0.3));  // the fifth grid update
+  EXPECT_EQ(fifth["grid_revision"], 5);
+  EXPECT_GE(grid_decisions(), 4u);
+}
+
 TEST_F(GridTest, BadScansAreRefusedAndChangeNothing) {
   post_scan(room_scan(3, 3, 0.0));
   const auto before = get_raw("/api/v1/grid/map.pgm");

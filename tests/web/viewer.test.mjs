@@ -4,7 +4,8 @@
 // a click with its history, the layer switch. Saves a screenshot as the test's artefact.
 //
 // Environment: WM_WMD_PATH (default <repo>/build/bin/wmd), WM_ARTIFACT_DIR (default <repo>/build/web-test),
-// WM_CHROMIUM (default /usr/bin/chromium), WM_SCAN_COUNT (default 50).
+// WM_CHROMIUM (default /usr/bin/chromium), WM_SCAN_COUNT (default 50), WM_CARMEN_LOG (default: the Intel log of
+// ../shared/data/carmen, else the excerpt in tests/data/carmen).
 
 import assert from 'node:assert/strict';
 import fs from 'node:fs';
@@ -23,16 +24,21 @@ const repo = path.resolve(here, '..', '..');
 const wmdPath = process.env.WM_WMD_PATH || path.join(repo, 'build', 'bin', 'wmd');
 const artifactDir = process.env.WM_ARTIFACT_DIR || path.join(repo, 'build', 'web-test');
 const chromiumPath = process.env.WM_CHROMIUM || '/usr/bin/chromium';
-const logPath = path.resolve(repo, '..', 'shared', 'data', 'carmen', 'intel-corrected.log.gz');
-const scanCount = Number(process.env.WM_SCAN_COUNT || 50);
+// The whole Intel log beside the checkout when it is there, else the excerpt shipped in tests/data.
+const logPath = [process.env.WM_CARMEN_LOG,
+  path.resolve(repo, '..', 'shared', 'data', 'carmen', 'intel-corrected.log.gz'),
+  path.join(repo, 'tests', 'data', 'carmen', 'intel-corrected-excerpt.log.gz')]
+  .find((file) => file && fs.existsSync(file));
+// The excerpt holds 35 scans.
+const scanCount = Number(process.env.WM_SCAN_COUNT || (logPath && logPath.includes('excerpt') ? 30 : 50));
 
 const ctx = {};
 
 before(async () => {
-  for (const [file, what] of [[chromiumPath, 'Debian chromium (apt-get install -y chromium), or set WM_CHROMIUM'],
-    [logPath, 'the Intel lab log of ../shared/data/carmen']]) {
-    if (!fs.existsSync(file)) throw new Error(`missing ${file}: ${what}`);
+  if (!fs.existsSync(chromiumPath)) {
+    throw new Error(`missing ${chromiumPath}: Debian chromium (apt-get install -y chromium), or set WM_CHROMIUM`);
   }
+  if (!logPath) throw new Error('no Intel lab log: neither ../shared/data/carmen nor tests/data/carmen has one');
   ctx.dir = fs.mkdtempSync(path.join(os.tmpdir(), 'wm-web-test-'));
   ctx.wmd = await startWmd({ wmdPath, repo, dir: ctx.dir });
   const base = ctx.wmd.url;
