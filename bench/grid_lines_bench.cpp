@@ -6,8 +6,8 @@
 // thick, turned furniture 1–2 cells thick, occupancy noise, holes and speckles, so the truth is known exactly.
 // Agreement:
 //  - Hough lines (infinite; ours: hough_peaks with NMS, OpenCV: HoughLines, which has none): `recall` = fraction of
-//    true walls longer than 0.5 m with a line within one bin (1 cell across at the wall's midpoint, 1°); `lines` =
-//    how many lines came out (near-duplicates included).
+//    true walls longer than 0.5 m with a line within one bin (1 cell across at the wall's midpoint, 1°);
+//    `precision` = fraction of the lines within one bin of such a wall; `lines` = how many lines came out.
 //  - Segments (ours: extract_grid_lines, OpenCV: HoughLinesP): `recall` = fraction of walls found within the
 //    digitisation tolerance of the tests (2 cm and 0.5°, widened to half a cell across and half a cell over the
 //    wall's length), `spurious` = segments longer than 0.3 m on no wall.
@@ -70,13 +70,24 @@ double angle_to(const TrueWall& w, const LineFeature& l) {
   return wm::fusion::testing::difference(w.line(), l).phi_rad;
 }
 
+bool within_a_bin(const TrueWall& w, const LineFeature& l) {
+  return offset_at_wall(w, l) <= kResolution && angle_to(w, l) <= 1.0 * kDeg;
+}
+
+// Fraction of lines within one Hough bin of some wall longer than 0.5 m.
+double line_precision(const std::vector<TrueWall>& walls, const std::vector<LineFeature>& lines) {
+  std::size_t hit = 0;
+  for (const LineFeature& l : lines) {
+    hit += std::any_of(walls.begin(), walls.end(), [&](const TrueWall& w) { return within_a_bin(w, l); }) ? 1 : 0;
+  }
+  return lines.empty() ? 0.0 : static_cast<double>(hit) / static_cast<double>(lines.size());
+}
+
 // Fraction of walls with an infinite line within one Hough bin.
 double line_recall(const std::vector<TrueWall>& walls, const std::vector<LineFeature>& lines) {
   std::size_t hit = 0;
   for (const TrueWall& w : walls) {
-    hit += std::any_of(lines.begin(), lines.end(), [&](const LineFeature& l) {
-      return offset_at_wall(w, l) <= kResolution && angle_to(w, l) <= 1.0 * kDeg;
-    }) ? 1 : 0;
+    hit += std::any_of(lines.begin(), lines.end(), [&](const LineFeature& l) { return within_a_bin(w, l); }) ? 1 : 0;
   }
   return walls.empty() ? 0.0 : static_cast<double>(hit) / static_cast<double>(walls.size());
 }
@@ -206,6 +217,7 @@ void BM_OursThinningHough(benchmark::State& state) {
   }
   set_size(state, map);
   state.counters["recall"] = line_recall(long_walls(map), lines);
+  state.counters["precision"] = line_precision(long_walls(map), lines);
   state.counters["lines"] = static_cast<double>(lines.size());
 }
 
@@ -221,6 +233,7 @@ void BM_OpenCvThinningHough(benchmark::State& state) {
   }
   set_size(state, map);
   state.counters["recall"] = line_recall(long_walls(map), lines);
+  state.counters["precision"] = line_precision(long_walls(map), lines);
   state.counters["lines"] = static_cast<double>(lines.size());
 }
 

@@ -102,6 +102,7 @@ class Extractor {
     std::priority_queue<Candidate> queue;
     for (const HoughBin& b : internal::nms_peaks(acc_, min_votes, window)) queue.push({acc_.at(b), acc_.index(b), b});
     std::vector<std::uint8_t> retired(acc_.size(), 0);
+    internal::GreyVotes grey(acc_, raster_, options_.hough.grey_min_p);
 
     // Lazy greedy: votes only ever drop (claimed cells leave the accumulator), so a candidate whose current votes
     // still match its key is the strongest line left.
@@ -116,7 +117,7 @@ class Extractor {
         continue;
       }
       const HoughBin chosen = internal::resolve_ambiguity(acc_, top.bin, window, options_.hough.ambiguous_ratio,
-                                                          retired, raster_, options_.hough.grey_min_p)
+                                                          retired, grey)
                                   .bin;
       retired[acc_.index(chosen)] = 1;
       if (!take_line(acc_.line(chosen))) continue;

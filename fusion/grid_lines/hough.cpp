@@ -55,9 +55,10 @@ std::vector<HoughPeak> hough_peaks(const ProbabilityRaster& raster, std::span<co
 
   const internal::NmsWindow window = internal::nms_window(acc, raster.geometry.resolution_m(), options);
   std::vector<HoughPeak> peaks;
+  internal::GreyVotes grey(acc, raster, options.grey_min_p);
   for (const internal::HoughBin& b : internal::nms_peaks(acc, static_cast<float>(options.min_votes), window)) {
     const internal::ResolvedPeak resolved =
-        internal::resolve_ambiguity(acc, b, window, options.ambiguous_ratio, {}, raster, options.grey_min_p);
+        internal::resolve_ambiguity(acc, b, window, options.ambiguous_ratio, {}, grey);
     const LineFeature line = internal::world_line(acc.line(resolved.bin), raster.geometry);
     peaks.push_back({line.rho_m, line.phi_rad, acc.at(resolved.bin), resolved.ambiguous});
   }

@@ -151,22 +151,26 @@ std::vector<HoughBin> nms_peaks(const HoughAccumulator& acc, float min_votes, Nm
   return peaks;
 }
 
-double grey_votes(const HoughAccumulator& acc, const ProbabilityRaster& raster, float grey_min_p, HoughBin b) {
-  const std::int64_t width = raster.geometry.width();
-  double sum = 0.0;
-  // Every cell of the bin's strip lies within half a bin (plus rounding) of the bin's centre line.
-  for_each_cell_near_line(width, raster.geometry.height(), acc.line(b), 0.5 * acc.rho_step_cells() + 0.01,
-                          [&](std::int64_t x, std::int64_t y, double, double) {
-                            if (acc.rho_bin(b.t, x, y) != b.r) return;
-                            const float p = raster.p[static_cast<std::size_t>(y * width + x)];
-                            if (p >= grey_min_p) sum += p;
-                          });
-  return sum;
+double GreyVotes::at(HoughBin b) {
+  if (!votes_) {
+    votes_.emplace(raster_.geometry.width(), raster_.geometry.height(), shape_.rho_step_cells(), shape_.theta_step_rad());
+    const std::int64_t width = raster_.geometry.width();
+    std::vector<std::int32_t> xs, ys;
+    std::vector<float> weights;
+    for (std::size_t i = 0; i < raster_.p.size(); ++i) {
+      const float p = raster_.p[i];
+      if (!(p >= grey_min_p_)) continue;  // unknown (NaN) cells too
+      xs.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) % width));
+      ys.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) / width));
+      weights.push_back(p);
+    }
+    votes_->vote(xs, ys, weights);
+  }
+  return votes_->at(b);
 }
 
 ResolvedPeak resolve_ambiguity(const HoughAccumulator& acc, HoughBin peak, NmsWindow window, double ratio,
-                               std::span<const std::uint8_t> excluded, const ProbabilityRaster& raster,
-                               float grey_min_p) {
+                               std::span<const std::uint8_t> excluded, GreyVotes& grey) {
   const double bar = ratio * acc.at(peak);
   std::vector<HoughBin> candidates{peak};
   for_each_in_window(acc, peak, window, [&](HoughBin b) {
@@ -178,7 +182,7 @@ ResolvedPeak resolve_ambiguity(const HoughAccumulator& acc, HoughBin peak, NmsWi
   HoughBin best = peak;
   double best_grey = -1.0;
   for (const HoughBin& b : candidates) {
-    const double g = grey_votes(acc, raster, grey_min_p, b);
+    const double g = grey.at(b);
     if (g > best_grey) {
       best_grey = g;
       best = b;
