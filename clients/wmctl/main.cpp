@@ -52,6 +52,7 @@ const char* kUsage =
     "  grid --out FILE.pgm [--layer L] [--bbox x0,y0,x1,y1]\n"
     "                                 save a grid layer (bayes, ds_belief, ds_plausibility, ds_conflict) as\n"
     "                                 PGM; with the bayes layer also FILE.yaml for ROS map_server\n"
+    "  grid extract                   run the grid line extractor now; its lines are decided like primitives\n"
     "options:\n"
     "  --server URL   default http://127.0.0.1:8080 (or $WMCTL_SERVER)\n"
     "  --json         print the server's JSON as it came (for scripts)\n";
@@ -446,6 +447,17 @@ int run(const std::vector<std::string>& args) {
     return emit(parse_answer(client.request("POST", "/api/v1/query", body.dump())), print_query);
   }
   if (command == "replay" && words.size() >= 2) return replay(client, token, words, raw_json);
+  if (command == "grid" && words.size() == 2 && words[1] == "extract") {
+    return emit(parse_answer(client.request("POST", "/api/v1/grid/extract", "{}", "application/json", token)),
+                [](const json& r) {
+                  if (r["observation"].is_null()) {
+                    std::cout << "no lines in the grid\n";
+                    return;
+                  }
+                  std::cout << r["segments"] << " grid lines, observation " << r["observation"] << "\n";
+                  for (const auto& d : r["decisions"]) print_decision(d);
+                });
+  }
   if (command == "grid") {
     std::string out, layer = "bayes", bbox;
     for (std::size_t i = 1; i < words.size(); i += 2) {

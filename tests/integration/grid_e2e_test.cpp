@@ -262,6 +262,19 @@ TEST_F(GridTest, GridLinesAreExtractedOnDemandAndDecidedLikeOtherPrimitives) {
   EXPECT_EQ(from_grid, answer["decisions"].size());
 }
 
+TEST_F(GridTest, WmctlRunsTheExtractor) {
+  const auto wmctl = std::string(WM_WMCTL_PATH) + " --server " + server_->url();
+  auto r = run_command(wmctl + " grid extract");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("no lines in the grid"), std::string::npos) << r.output;
+  for (const auto& [x, y] : std::vector<std::pair<double, double>>{{3, 3}, {5, 2}, {2, 4.5}, {6.5, 4}, {4, 1.5}})
+    post_scan(room_scan(x, y, 0.3));
+  r = run_command(wmctl + " --json grid extract");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto answer = json::parse(r.output);
+  EXPECT_GE(answer["segments"].get<int>(), 4) << r.output;
+}
+
 class GridEveryTest : public GridTest {
  protected:
   void SetUp() override {
