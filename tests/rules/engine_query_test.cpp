@@ -12,21 +12,17 @@
 namespace wm::rules {
 namespace {
 
-using testing::copy_shipped_rules;
 using testing::demo_floor_plan;
 using testing::matched;
-using testing::options_for;
 using testing::read_text;
-using testing::TempDir;
 using testing::unmatched;
 using testing::write_text;
 
 std::filesystem::path examples_dir() { return std::filesystem::path(WM_RULES_PROLOG_DIR) / ".." / "examples"; }
 
-class KnowledgeBaseTest : public ::testing::Test {
+class KnowledgeBaseTest : public testing::ShippedRulesTest {
  protected:
-  KnowledgeBaseTest() : engine_((copy_shipped_rules(dir_), options_for(dir_))) {
-    engine_.set_floor_plan(demo_floor_plan());
+  KnowledgeBaseTest() {
     engine_.set_elements({{"e1", "scan", "robot-1", 1.0, 0.5, 2.0, 1, 100.0}, {"e2", "client", "robot-2", 3.0, 0.1, 0.7, 4, 200.0}});
   }
 
@@ -40,8 +36,6 @@ class KnowledgeBaseTest : public ::testing::Test {
     return result.solutions[0][static_cast<std::size_t>(at - result.variables.begin())];
   }
 
-  TempDir dir_;
-  Engine engine_;
 };
 
 TEST_F(KnowledgeBaseTest, QueriesSeeObjectsAttributesEdgesAndElements) {

@@ -11,8 +11,6 @@
 namespace wm::rules {
 namespace {
 
-using testing::copy_shipped_rules;
-using testing::demo_floor_plan;
 using testing::matched;
 using testing::options_for;
 using testing::read_text;
@@ -32,12 +30,8 @@ int line_of(const std::string& text, const std::string& part) {
 }
 
 // The shipped rules in a temp dir; tests edit the file there and reload.
-class EngineReloadTest : public ::testing::Test {
+class EngineReloadTest : public testing::ShippedRulesTest {
  protected:
-  EngineReloadTest() : engine_((copy_shipped_rules(dir_), options_for(dir_))) {
-    engine_.set_floor_plan(demo_floor_plan());
-  }
-
   std::filesystem::path rules_file() const { return dir_ / "world_model.pl"; }
 
   // Expects reload() to throw RuleError and returns its message.
@@ -57,8 +51,6 @@ class EngineReloadTest : public ::testing::Test {
     EXPECT_EQ(engine_.decide(unmatched()).rule, "unmatched_added");
   }
 
-  TempDir dir_;
-  Engine engine_;
 };
 
 TEST_F(EngineReloadTest, BrokenEditIsRejectedWithFileAndLineAndOldRulesStayActive) {

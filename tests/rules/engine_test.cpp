@@ -14,7 +14,6 @@ namespace wm::rules {
 namespace {
 
 using testing::copy_shipped_rules;
-using testing::demo_floor_plan;
 using testing::matched;
 using testing::options_for;
 using testing::TempDir;
@@ -22,15 +21,7 @@ using testing::unmatched;
 using testing::write_text;
 
 // The shipped rules with the demo floor plan.
-class WorldModelRulesTest : public ::testing::Test {
- protected:
-  WorldModelRulesTest() : engine_((copy_shipped_rules(dir_), options_for(dir_))) {
-    engine_.set_floor_plan(demo_floor_plan());
-  }
-
-  TempDir dir_;
-  Engine engine_;
-};
+using WorldModelRulesTest = testing::ShippedRulesTest;
 
 TEST_F(WorldModelRulesTest, MatchOnSolidObjectIsDeletedBySolidConfirmed) {
   const Decision decision = engine_.decide(matched("e7", "w1"));

@@ -13,25 +13,13 @@
 namespace wm::rules {
 namespace {
 
-using testing::copy_shipped_rules;
-using testing::demo_floor_plan;
 using testing::matched;
-using testing::options_for;
 using testing::read_text;
 using testing::replace_once;
-using testing::TempDir;
 using testing::unmatched;
 using testing::write_text;
 
-class EngineThreadsTest : public ::testing::Test {
- protected:
-  EngineThreadsTest() : engine_((copy_shipped_rules(dir_), options_for(dir_))) {
-    engine_.set_floor_plan(demo_floor_plan());
-  }
-
-  TempDir dir_;
-  Engine engine_;
-};
+using EngineThreadsTest = testing::ShippedRulesTest;
 
 TEST_F(EngineThreadsTest, DecisionFromAnAttachedSecondThreadWorks) {
   std::optional<Decision> decision;

@@ -12,6 +12,8 @@
 
 #include <unistd.h>
 
+#include <gtest/gtest.h>
+
 #include "rules/engine.h"
 
 namespace wm::rules::testing {
@@ -114,5 +116,16 @@ inline std::string rules_with_first_clause(const std::string& first_clause, cons
   return first_clause + "\n" + "decide(observation(_, _, _, _), _, add, custom, \"custom rules\").\n" +
          helpers + "\n";
 }
+
+/// An engine on a copy of the shipped rules (in dir_, for tests that edit them) with the demo floor plan.
+class ShippedRulesTest : public ::testing::Test {
+ protected:
+  ShippedRulesTest() : engine_((copy_shipped_rules(dir_), options_for(dir_))) {
+    engine_.set_floor_plan(demo_floor_plan());
+  }
+
+  TempDir dir_;  // declared before engine_: the copy is made first
+  Engine engine_;
+};
 
 }  // namespace wm::rules::testing
