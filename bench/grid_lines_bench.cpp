@@ -35,6 +35,7 @@ namespace {
 
 using wm::fusion::LineFeature;
 using wm::fusion::LineSegment;
+using wm::fusion::testing::offset_at_wall;
 using wm::fusion::testing::SyntheticMap;
 using wm::fusion::testing::TrueWall;
 
@@ -54,18 +55,7 @@ const SyntheticMap& building(int n) {
   return it->second;
 }
 
-std::vector<TrueWall> long_walls(const SyntheticMap& map) {
-  std::vector<TrueWall> out;
-  for (const TrueWall& w : map.walls) {
-    if (w.length_m() > 0.5) out.push_back(w);
-  }
-  return out;
-}
-
-double offset_at_wall(const TrueWall& w, const LineFeature& l) {
-  const Eigen::Vector2d mid = 0.5 * (w.a + w.b);
-  return std::abs(mid.x() * std::cos(l.phi_rad) + mid.y() * std::sin(l.phi_rad) - l.rho_m);
-}
+std::vector<TrueWall> long_walls(const SyntheticMap& map) { return wm::fusion::testing::longer_than(map.walls, 0.5); }
 
 double angle_to(const TrueWall& w, const LineFeature& l) {
   return wm::fusion::testing::difference(w.line(), l).phi_rad;
@@ -93,37 +83,14 @@ double line_recall(const std::vector<TrueWall>& walls, const std::vector<LineFea
   return walls.empty() ? 0.0 : static_cast<double>(hit) / static_cast<double>(walls.size());
 }
 
-struct SegmentAgreement {
-  double recall = 0.0;
-  std::size_t spurious = 0;
-};
-
-SegmentAgreement segment_agreement(const SyntheticMap& map, const std::vector<LineSegment>& segments) {
+// Agreement of segments with the walls longer than 0.5 m, as the tests measure it (found within the digitisation
+// tolerance; spurious segments).
+void report_segments(benchmark::State& state, const SyntheticMap& map, const std::vector<LineSegment>& segments) {
   const std::vector<TrueWall> walls = long_walls(map);
-  std::size_t hit = 0;
-  for (const TrueWall& w : walls) {
-    const double offset = std::max(0.02, 0.5 * kResolution + 0.005);
-    const double angle = std::max(0.5 * kDeg, std::atan2(0.5 * kResolution, w.length_m()));
-    hit += std::any_of(segments.begin(), segments.end(), [&](const LineSegment& s) {
-      return offset_at_wall(w, s.line) < offset && angle_to(w, s.line) < angle &&
-             wm::fusion::testing::overlap_m(w, s.p0(), s.p1()) >= 0.5 * w.length_m();
-    }) ? 1 : 0;
-  }
-  double thickest = 0.0;
-  for (const TrueWall& w : map.walls) thickest = std::max(thickest, w.thickness_m);
-  SegmentAgreement a;
-  a.recall = walls.empty() ? 0.0 : static_cast<double>(hit) / static_cast<double>(walls.size());
-  for (const LineSegment& s : segments) {
-    if (s.length_m() <= 0.3) continue;
-    double on_walls = 0.0;
-    for (const TrueWall& w : map.walls) {
-      if (angle_to(w, s.line) < 3 * kDeg && offset_at_wall(w, s.line) < 0.05) {
-        on_walls += wm::fusion::testing::overlap_m(w, s.p0(), s.p1());
-      }
-    }
-    if (on_walls < s.length_m() - (thickest + kResolution + 0.02)) ++a.spurious;
-  }
-  return a;
+  const std::size_t found = wm::fusion::testing::count_found(walls, segments, kResolution);
+  state.counters["recall"] = walls.empty() ? 0.0 : static_cast<double>(found) / static_cast<double>(walls.size());
+  state.counters["spurious"] = static_cast<double>(wm::fusion::testing::spurious_segments(map, segments).size());
+  state.counters["segments"] = static_cast<double>(segments.size());
 }
 
 // Our pre-processing, shared by both sides so that they thin the very same image.
@@ -254,10 +221,7 @@ void BM_OursExtractSegments(benchmark::State& state) {
     benchmark::DoNotOptimize(segments.data());
   }
   set_size(state, map);
-  const SegmentAgreement a = segment_agreement(map, segments);
-  state.counters["recall"] = a.recall;
-  state.counters["spurious"] = static_cast<double>(a.spurious);
-  state.counters["segments"] = static_cast<double>(segments.size());
+  report_segments(state, map, segments);
 }
 
 void BM_OpenCvThinningHoughP(benchmark::State& state) {
@@ -271,10 +235,7 @@ void BM_OpenCvThinningHoughP(benchmark::State& state) {
     benchmark::DoNotOptimize(segments.data());
   }
   set_size(state, map);
-  const SegmentAgreement a = segment_agreement(map, segments);
-  state.counters["recall"] = a.recall;
-  state.counters["spurious"] = static_cast<double>(a.spurious);
-  state.counters["segments"] = static_cast<double>(segments.size());
+  report_segments(state, map, segments);
 }
 
 #define WM_SIZES ->Arg(400)->Arg(2000)->Unit(benchmark::kMillisecond)

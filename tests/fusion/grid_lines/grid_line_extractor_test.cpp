@@ -16,6 +16,9 @@
 namespace wm::fusion {
 namespace {
 
+using testing::count_found;
+using testing::found_within;
+using testing::longer_than;
 using testing::TrueWall;
 
 constexpr double kDeg = std::numbers::pi / 180;
@@ -26,81 +29,21 @@ std::string describe(const LineSegment& s) {
          ", " + std::to_string(s.p1().y()) + ")";
 }
 
-// Distance [m] from the wall's midpoint to a line: Δρ measured where the wall is. The Hesse ρ about the map origin
-// would multiply every angle error by the wall's distance from that origin (5 m away, 0.5° alone is 4.4 cm).
-double offset_at_wall(const TrueWall& w, const LineFeature& l) {
-  const Eigen::Vector2d mid = 0.5 * (w.a + w.b);
-  return std::abs(mid.x() * std::cos(l.phi_rad) + mid.y() * std::sin(l.phi_rad) - l.rho_m);
-}
-
-// What the raster can tell about a wall: the 2 cm and 0.5°, widened to the digitisation limit where that is
-// coarser — a wall drawn one cell thick is only known to half a cell across, and the staircase of a straight run of
-// L/Δ cells to about half a cell over its length. At 2.5 cm cells this is the bound for every wall of 1.43 m
-// or longer (0.9° at the boxes' 0.8 m sides); at 5 cm it is 3 cm and, for a 0.8 m side, 1.8°.
-struct WallTolerance {
-  double offset_m;
-  double phi_rad;
-};
-WallTolerance digitisation_tolerance(const TrueWall& w, double resolution_m) {
-  return {std::max(0.02, 0.5 * resolution_m + 0.005), std::max(0.5 * kDeg, std::atan2(0.5 * resolution_m, w.length_m()))};
-}
-
-bool found_within(const TrueWall& w, const LineSegment& s, const WallTolerance& tol) {
-  return offset_at_wall(w, s.line) < tol.offset_m && testing::difference(w.line(), s.line).phi_rad < tol.phi_rad &&
-         testing::overlap_m(w, s.p0(), s.p1()) >= 0.5 * w.length_m();
-}
-
-// How many of `walls` (those longer than 0.5 m) some segment finds within the digitisation tolerance.
-std::size_t count_found(const std::vector<TrueWall>& walls, const std::vector<LineSegment>& segments,
-                        double resolution_m, std::vector<const TrueWall*>* missed = nullptr) {
-  std::size_t found = 0;
-  for (const TrueWall& w : walls) {
-    bool hit = false;
-    for (const LineSegment& s : segments) hit = hit || found_within(w, s, digitisation_tolerance(w, resolution_m));
-    if (hit) ++found;
-    else if (missed != nullptr) missed->push_back(&w);
-  }
-  return found;
-}
-
-std::vector<TrueWall> longer_than(const std::vector<TrueWall>& walls, double length_m) {
-  std::vector<TrueWall> out;
-  for (const TrueWall& w : walls) {
-    if (w.length_m() > length_m) out.push_back(w);
-  }
-  return out;
-}
-
-// No wall found twice over the same stretch (a failure), and the segments longer than 0.3 m that are spurious (their
-// descriptions returned): not on a true wall's line, or reaching beyond the walls along that line (collinear true walls
-// that meet, like an outer wall split where inner walls join it, count as one). A segment's end may pass the
-// centreline's end by half the thickness of the wall met there plus half a cell.
+// No wall found twice over the same stretch (a failure), and the descriptions of the spurious segments
+// (testing::spurious_segments).
 std::vector<std::string> duplicates_and_spurious(const testing::SyntheticMap& map,
                                                  const std::vector<LineSegment>& segments) {
-  const double res = map.raster.geometry.resolution_m();
-  double thickest = 0.0;
-  for (const TrueWall& w : map.walls) thickest = std::max(thickest, w.thickness_m);
-  auto on_line = [](const TrueWall& w, const LineFeature& l) {
-    return testing::difference(w.line(), l).phi_rad < 3 * kDeg && offset_at_wall(w, l) < 0.05;
-  };
   for (const TrueWall& w : map.walls) {
     if (w.length_m() <= 0.5) continue;
     double covered = 0.0;
     for (const LineSegment& s : segments) {
-      if (on_line(w, s.line)) covered += testing::overlap_m(w, s.p0(), s.p1());
+      if (testing::on_wall_line(w, s.line)) covered += testing::overlap_m(w, s.p0(), s.p1());
     }
     EXPECT_LT(covered, 1.1 * w.length_m() + 0.1) << "wall (" << w.a.transpose() << ") - (" << w.b.transpose()
                                                  << ") covered more than once";
   }
   std::vector<std::string> spurious;
-  for (const LineSegment& s : segments) {
-    if (s.length_m() <= 0.3) continue;
-    double on_walls = 0.0;
-    for (const TrueWall& w : map.walls) {
-      if (on_line(w, s.line)) on_walls += testing::overlap_m(w, s.p0(), s.p1());
-    }
-    if (on_walls < s.length_m() - (thickest + res + 0.02)) spurious.push_back(describe(s));
-  }
+  for (const LineSegment* s : testing::spurious_segments(map, segments)) spurious.push_back(describe(*s));
   return spurious;
 }
 
