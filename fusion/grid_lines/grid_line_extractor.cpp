@@ -246,19 +246,16 @@ class Extractor {
     const auto slices = static_cast<std::size_t>(std::floor(stop + kLook - first + 0.5)) + 1;
     // Cells are placed along the line by their row (or column, for a line nearer horizontal) rather than by their
     // own t: a cut across a tilted line would otherwise take part of a row at each end, and that part tilts the
-    // next fit further the same way (the refinement then swings between two wrong lines).
-    const bool by_column = std::abs(line.sin_theta) >= std::abs(line.cos_theta);
+    // next fit further the same way (the refinement then swings between two wrong lines). A row's t differs from a
+    // cell's own by at most its distance from the line, so the walk reaches a band (plus a cell) farther.
     const double half_w = 0.5 * static_cast<double>(width_);
     const double half_h = 0.5 * static_cast<double>(height_);
-    auto row_t = [&](std::int64_t x, std::int64_t y) {
-      if (by_column) return (line.rho * line.cos_theta - (static_cast<double>(x) + 0.5 - half_w)) / line.sin_theta;
-      return ((static_cast<double>(y) + 0.5 - half_h) - line.rho * line.sin_theta) / line.cos_theta;
-    };
     std::vector<Cell> cells;
     internal::for_each_cell_near_line(width_, height_, line, band, first - 0.5 - band - 1.0, stop + kLook + 0.5 + band + 1.0,
                                       [&](std::int64_t x, std::int64_t y, double d, double) {
                                         if (occupied_[cell_index(x, y)] == 0) return;
-                                        const double t = row_t(x, y);
+                                        const double t = line.along_by_row(static_cast<double>(x) + 0.5 - half_w,
+                                                                           static_cast<double>(y) + 0.5 - half_h);
                                         if (t < first - 0.5 || t > stop + kLook + 0.5) return;
                                         const double k = std::clamp(std::floor(t - first + 0.5), 0.0,
                                                                     static_cast<double>(slices - 1));

@@ -19,6 +19,13 @@ struct CellLine {
 
   double distance(double xc, double yc) const { return xc * cos_theta + yc * sin_theta - rho; }
   double along(double xc, double yc) const { return -xc * sin_theta + yc * cos_theta; }
+  /// t of the line's point on the same row as (xc, yc) — or the same column, for a line nearer horizontal — so that
+  /// every cell of one row (column) of a wall gets one t. Differs from along() by at most |distance| (the line is
+  /// within 45° of that axis).
+  double along_by_row(double xc, double yc) const {
+    if (std::abs(sin_theta) >= std::abs(cos_theta)) return (rho * cos_theta - xc) / sin_theta;
+    return (yc - rho * sin_theta) / cos_theta;
+  }
 };
 
 /// Calls f(x, y, d, t) for every cell (0 <= x < width, 0 <= y < height) whose centre lies within `half_width`
