@@ -89,13 +89,7 @@ class Extractor {
     std::vector<std::uint8_t> filled = occupied_;
     fill_small_holes(filled, width_, height_, options_.max_hole_cells);
     skeleton_ = zhang_suen_thinning(filled, width_, height_);
-    std::vector<std::int32_t> xs, ys;
-    for (std::size_t i = 0; i < skeleton_.size(); ++i) {
-      if (skeleton_[i] == 0) continue;
-      xs.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) % width_));
-      ys.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) / width_));
-    }
-    acc_.vote(xs, ys, {});
+    acc_.vote_cells(skeleton_.size(), [&](std::size_t i) { return skeleton_[i] != 0 ? 1.0f : 0.0f; });
 
     const internal::NmsWindow window = internal::nms_window(acc_, resolution_m_, options_.hough);
     const auto min_votes = static_cast<float>(options_.hough.min_votes);

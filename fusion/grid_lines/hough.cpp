@@ -43,15 +43,11 @@ std::vector<HoughPeak> hough_peaks(const ProbabilityRaster& raster, std::span<co
   }
   const std::int64_t width = raster.geometry.width();
   internal::HoughAccumulator acc(width, raster.geometry.height(), options.rho_step_cells, options.theta_step_rad);
-  std::vector<std::int32_t> xs, ys;
-  std::vector<float> weights;
-  for (std::size_t i = 0; i < image.size(); ++i) {
-    if (image[i] == 0) continue;
-    xs.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) % width));
-    ys.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) / width));
-    if (weighting == HoughWeighting::occupancy) weights.push_back(std::isnan(raster.p[i]) ? 0.0f : raster.p[i]);
-  }
-  acc.vote(xs, ys, weights);
+  acc.vote_cells(image.size(), [&](std::size_t i) {
+    if (image[i] == 0) return 0.0f;
+    if (weighting == HoughWeighting::binary) return 1.0f;
+    return std::isnan(raster.p[i]) ? 0.0f : raster.p[i];  // unknown cells vote nothing
+  });
 
   const internal::NmsWindow window = internal::nms_window(acc, raster.geometry.resolution_m(), options);
   std::vector<HoughPeak> peaks;

@@ -154,17 +154,8 @@ std::vector<HoughBin> nms_peaks(const HoughAccumulator& acc, float min_votes, Nm
 double GreyVotes::at(HoughBin b) {
   if (!votes_) {
     votes_.emplace(raster_.geometry.width(), raster_.geometry.height(), shape_.rho_step_cells(), shape_.theta_step_rad());
-    const std::int64_t width = raster_.geometry.width();
-    std::vector<std::int32_t> xs, ys;
-    std::vector<float> weights;
-    for (std::size_t i = 0; i < raster_.p.size(); ++i) {
-      const float p = raster_.p[i];
-      if (!(p >= grey_min_p_)) continue;  // unknown (NaN) cells too
-      xs.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) % width));
-      ys.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) / width));
-      weights.push_back(p);
-    }
-    votes_->vote(xs, ys, weights);
+    // Unknown (NaN) cells fail the comparison too.
+    votes_->vote_cells(raster_.p.size(), [&](std::size_t i) { return raster_.p[i] >= grey_min_p_ ? raster_.p[i] : 0.0f; });
   }
   return votes_->at(b);
 }

@@ -43,6 +43,21 @@ class HoughAccumulator {
 
   /// Every pixel (xs[i], ys[i]) votes once per angle, with weights[i] (all 1 when weights is empty).
   void vote(std::span<const std::int32_t> xs, std::span<const std::int32_t> ys, std::span<const float> weights);
+  /// Every cell i of the row-major raster (cells = width·height) votes weight_of(i); cells weighing 0 or less (or
+  /// NaN) are skipped.
+  template <typename F>
+  void vote_cells(std::size_t cells, F&& weight_of) {
+    std::vector<std::int32_t> xs, ys;
+    std::vector<float> weights;
+    for (std::size_t i = 0; i < cells; ++i) {
+      const float w = weight_of(i);
+      if (!(w > 0.0f)) continue;
+      xs.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) % width_));
+      ys.push_back(static_cast<std::int32_t>(static_cast<std::int64_t>(i) / width_));
+      weights.push_back(w);
+    }
+    vote(xs, ys, weights);
+  }
   /// One pixel votes `weight` at every angle; a negative weight takes earlier votes back.
   void add(std::int64_t x, std::int64_t y, float weight);
 
