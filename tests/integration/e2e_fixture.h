@@ -1,7 +1,9 @@
 #pragma once
 
 #include <cmath>
+#include <filesystem>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -13,6 +15,13 @@
 namespace wm::testing {
 
 using nlohmann::json;
+
+/// A file of the real data beside the checkout (../shared/data); throws when it is missing.
+inline std::filesystem::path shared(const std::string& relative) {
+  const auto path = std::filesystem::path(WM_SHARED_DATA) / relative;
+  if (!std::filesystem::exists(path)) throw std::runtime_error("missing real data file " + path.string());
+  return path;
+}
 
 /// The lab of the foundation issue: a solid wall, a rotated not_deformable table, free space elsewhere.
 inline json lab_plan() {

@@ -8,12 +8,6 @@
 namespace wm::testing {
 namespace {
 
-std::filesystem::path shared(const std::string& relative) {
-  const auto path = std::filesystem::path(WM_SHARED_DATA) / relative;
-  if (!std::filesystem::exists(path)) throw std::runtime_error("missing real data file " + path.string());
-  return path;
-}
-
 std::string slurp(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::ostringstream text;

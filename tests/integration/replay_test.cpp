@@ -13,12 +13,6 @@
 namespace wm::testing {
 namespace {
 
-std::filesystem::path shared(const std::string& relative) {
-  const auto path = std::filesystem::path(WM_SHARED_DATA) / relative;
-  if (!std::filesystem::exists(path)) throw std::runtime_error("missing real data file " + path.string());
-  return path;
-}
-
 // A map as map_server loads it: occupied / free / unknown per pixel from the PGM and the YAML's thresholds.
 struct LoadedMap {
   double resolution = 0, origin_x = 0, origin_y = 0, occupied_thresh = 0, free_thresh = 0;
