@@ -61,6 +61,17 @@ struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Calls handle(flag, value) for each "--flag value" pair of words[first..]; a flag without its value throws
+// UsageError(usage), one that handle() does not know (returns false) UsageError(unknown).
+template <typename F>
+void for_each_option(const std::vector<std::string>& words, std::size_t first, const std::string& usage,
+                     const std::string& unknown, F&& handle) {
+  for (std::size_t i = first; i < words.size(); i += 2) {
+    if (i + 1 >= words.size()) throw UsageError(usage);
+    if (!handle(words[i], words[i + 1])) throw UsageError(unknown);
+  }
+}
+
 struct ServerError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -230,30 +241,32 @@ int replay(const wm::client::HttpClient& client, const std::string& token, const
   double rate_hz = 0, offset_x = 0, offset_y = 0;
   std::string source = std::filesystem::path(words[1]).stem().string();
   wm::logs::CarmenReaderOptions options;
-  for (std::size_t i = 2; i < words.size(); i += 2) {
-    if (i + 1 >= words.size()) throw UsageError("replay LOG [--limit N] [--every K] [--source NAME] [--range-max M]");
-    if (words[i] == "--limit") limit = static_cast<std::size_t>(parse_count(words[i + 1]));
-    else if (words[i] == "--every") every = static_cast<std::size_t>(parse_count(words[i + 1]));
-    else if (words[i] == "--source") source = words[i + 1];
-    else if (words[i] == "--rate") {
+  for_each_option(words, 2, "replay LOG [--limit N] [--every K] [--source NAME] [--range-max M]",
+                  "replay takes --limit, --every, --rate, --offset, --source, --range-max, --pose-sigma",
+                  [&](const std::string& flag, const std::string& value) {
+    if (flag == "--limit") limit = static_cast<std::size_t>(parse_count(value));
+    else if (flag == "--every") every = static_cast<std::size_t>(parse_count(value));
+    else if (flag == "--source") source = value;
+    else if (flag == "--rate") {
       char* end = nullptr;
-      rate_hz = std::strtod(words[i + 1].c_str(), &end);
+      rate_hz = std::strtod(value.c_str(), &end);
       if (*end != '\0' || !(rate_hz > 0)) throw UsageError("--rate: expected scans per second > 0");
-    } else if (words[i] == "--offset") {
-      if (std::sscanf(words[i + 1].c_str(), "%lf,%lf", &offset_x, &offset_y) != 2 || !std::isfinite(offset_x) ||
+    } else if (flag == "--offset") {
+      if (std::sscanf(value.c_str(), "%lf,%lf", &offset_x, &offset_y) != 2 || !std::isfinite(offset_x) ||
           !std::isfinite(offset_y))
         throw UsageError("--offset: expected DX,DY in metres");
-    } else if (words[i] == "--pose-sigma") {
-      if (std::sscanf(words[i + 1].c_str(), "%lf,%lf", &sigma_xy, &sigma_theta) != 2 || !(sigma_xy >= 0) || !(sigma_theta >= 0))
+    } else if (flag == "--pose-sigma") {
+      if (std::sscanf(value.c_str(), "%lf,%lf", &sigma_xy, &sigma_theta) != 2 || !(sigma_xy >= 0) || !(sigma_theta >= 0))
         throw UsageError("--pose-sigma: expected SIGMA_XY,SIGMA_THETA in metres and radians, e.g. 0.03,0.0087");
-    } else if (words[i] == "--range-max") {
+    } else if (flag == "--range-max") {
       char* end = nullptr;
-      options.flaser_range_max_m = std::strtod(words[i + 1].c_str(), &end);
+      options.flaser_range_max_m = std::strtod(value.c_str(), &end);
       if (*end != '\0' || !(options.flaser_range_max_m > 0)) throw UsageError("--range-max: expected metres > 0");
     } else {
-      throw UsageError("replay takes --limit, --every, --rate, --offset, --source, --range-max, --pose-sigma");
+      return false;
     }
-  }
+    return true;
+  });
   wm::logs::CarmenLogReader reader(words[1], options);
   const auto start = std::chrono::steady_clock::now();
   std::size_t read = 0, posted = 0, decisions = 0;
@@ -332,13 +345,14 @@ int run(const std::vector<std::string>& args) {
   if (command == "floorplan" && words.size() >= 3 && words[1] == "load") {
     // DXF and RMF files go in an import envelope with the options; JSON (plan or AMRL map) goes as it is.
     std::string mapping_file, units, level;
-    for (std::size_t i = 3; i < words.size(); i += 2) {
-      if (i + 1 >= words.size()) throw UsageError("floorplan load FILE [--mapping FILE.json] [--units m|cm|mm|in|ft] [--level NAME]");
-      if (words[i] == "--mapping") mapping_file = words[i + 1];
-      else if (words[i] == "--units") units = words[i + 1];
-      else if (words[i] == "--level") level = words[i + 1];
-      else throw UsageError("floorplan load takes --mapping, --units, --level");
-    }
+    for_each_option(words, 3, "floorplan load FILE [--mapping FILE.json] [--units m|cm|mm|in|ft] [--level NAME]",
+                    "floorplan load takes --mapping, --units, --level", [&](const std::string& flag, const std::string& value) {
+      if (flag == "--mapping") mapping_file = value;
+      else if (flag == "--units") units = value;
+      else if (flag == "--level") level = value;
+      else return false;
+      return true;
+    });
     const std::string file = words[2];
     auto extension = std::filesystem::path(file).extension().string();
     std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -407,11 +421,12 @@ int run(const std::vector<std::string>& args) {
   }
   if (command == "decisions") {
     std::string query;
-    for (std::size_t i = 1; i < words.size(); i += 2) {
-      if (i + 1 >= words.size() || (words[i] != "--since" && words[i] != "--limit" && words[i] != "--element"))
-        throw UsageError("decisions takes --since SEQ, --limit N, --element ID");
-      query += (query.empty() ? "?" : "&") + words[i].substr(2) + "=" + words[i + 1];
-    }
+    const std::string usage = "decisions takes --since SEQ, --limit N, --element ID";
+    for_each_option(words, 1, usage, usage, [&](const std::string& flag, const std::string& value) {
+      if (flag != "--since" && flag != "--limit" && flag != "--element") return false;
+      query += (query.empty() ? "?" : "&") + flag.substr(2) + "=" + value;
+      return true;
+    });
     return emit(parse_answer(client.request("GET", "/api/v1/decisions" + query)), [](const json& r) {
       for (const auto& d : r["decisions"]) print_decision(d);
       std::cout << r["decisions"].size() << " decisions\n";
@@ -460,13 +475,14 @@ int run(const std::vector<std::string>& args) {
   }
   if (command == "grid") {
     std::string out, layer = "bayes", bbox;
-    for (std::size_t i = 1; i < words.size(); i += 2) {
-      if (i + 1 >= words.size()) throw UsageError("grid --out FILE.pgm [--layer L] [--bbox x0,y0,x1,y1]");
-      if (words[i] == "--out") out = words[i + 1];
-      else if (words[i] == "--layer") layer = words[i + 1];
-      else if (words[i] == "--bbox") bbox = words[i + 1];
-      else throw UsageError("grid takes --out, --layer, --bbox");
-    }
+    for_each_option(words, 1, "grid --out FILE.pgm [--layer L] [--bbox x0,y0,x1,y1]", "grid takes --out, --layer, --bbox",
+                    [&](const std::string& flag, const std::string& value) {
+      if (flag == "--out") out = value;
+      else if (flag == "--layer") layer = value;
+      else if (flag == "--bbox") bbox = value;
+      else return false;
+      return true;
+    });
     if (out.empty()) throw UsageError("grid needs --out FILE.pgm");
     const std::string query = "?layer=" + layer + (bbox.empty() ? "" : "&bbox=" + bbox);
     const auto image = client.request("GET", "/api/v1/grid" + query + "&format=pgm");
