@@ -198,18 +198,45 @@ Response post_query(const Request& req, Services& s) {
   }
 }
 
+// The client's request id: the Idempotency-Key header (optional), see WorldService::post_primitives.
+std::optional<std::string> request_id(const Request& req) {
+  const auto value = req["Idempotency-Key"];
+  try {
+    return service::parse_request_id(std::string_view(value.data(), value.size()));
+  } catch (const std::invalid_argument& e) {
+    throw bad_request("Idempotency-Key", e.what());
+  }
+}
+
+// Runs a post that may carry a request id: an id reused for another request is 409; a retry's answer (the
+// original one, nothing applied again) says so in `Idempotent-Replayed: true`.
+template <typename Post, typename Answer>
+Response idempotent_post(const Request& req, Post&& post, Answer&& answer) {
+  try {
+    const auto outcome = post(request_id(req));
+    auto res = json_response(req, answer(outcome));
+    if (outcome.replayed) res.set("Idempotent-Replayed", "true");
+    return res;
+  } catch (const service::RequestIdConflict& e) {
+    throw ApiError(409, "request_id_conflict", e.what());
+  }
+}
+
 Response post_scan(const Request& req, Services& s) {
   require_token(req, s);
   require_json_body(req);
   auto scan = json_codec::parse_scan(req.body(), s.options.scan_limits);
-  const auto outcome = s.world.post_scan(std::move(scan), req.body());
-  json answer = {{"seq", outcome.seq}, {"grid_revision", outcome.grid_revision}, {"lines", nullptr}};
-  if (outcome.lines) {
-    json decisions = json::array();
-    for (const auto& d : outcome.lines->decisions) decisions.push_back(json_codec::decision_json(d));
-    answer["lines"] = {{"observation", outcome.lines->seq}, {"version", outcome.lines->version}, {"decisions", decisions}};
-  }
-  return json_response(req, answer);
+  return idempotent_post(
+      req, [&](std::optional<std::string> id) { return s.world.post_scan(std::move(scan), req.body(), std::move(id)); },
+      [](const service::WorldService::ScanOutcome& outcome) {
+        json answer = {{"seq", outcome.seq}, {"grid_revision", outcome.grid_revision}, {"lines", nullptr}};
+        if (outcome.lines) {
+          json decisions = json::array();
+          for (const auto& d : outcome.lines->decisions) decisions.push_back(json_codec::decision_json(d));
+          answer["lines"] = {{"observation", outcome.lines->seq}, {"version", outcome.lines->version}, {"decisions", decisions}};
+        }
+        return answer;
+      });
 }
 
 using Layer = fusion::OccupancyGrid::Layer;
@@ -522,10 +549,14 @@ Response post_primitives(const Request& req, Services& s) {
   require_token(req, s);
   require_json_body(req);
   auto observation = json_codec::parse_primitives(req.body(), s.world.options().world, s.options.primitive_limits);
-  const auto outcome = s.world.post_primitives(std::move(observation), req.body());
-  json decisions = json::array();
-  for (const auto& d : outcome.decisions) decisions.push_back(json_codec::decision_json(d));
-  return json_response(req, {{"seq", outcome.seq}, {"version", outcome.version}, {"decisions", std::move(decisions)}});
+  return idempotent_post(
+      req,
+      [&](std::optional<std::string> id) { return s.world.post_primitives(std::move(observation), req.body(), std::move(id)); },
+      [](const service::WorldService::PrimitivesOutcome& outcome) {
+        json decisions = json::array();
+        for (const auto& d : outcome.decisions) decisions.push_back(json_codec::decision_json(d));
+        return json{{"seq", outcome.seq}, {"version", outcome.version}, {"decisions", std::move(decisions)}};
+      });
 }
 
 Response get_decisions(const Request& req, const Target& t, Services& s) {

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <system_error>
 #include <variant>
 
 namespace wm::service {
@@ -28,7 +29,54 @@ rules::DecisionFacts decision_facts(const world::DecisionRecord& d, double at) {
   return {d.seq, d.action, d.rule, d.element, d.object, d.observer, at};
 }
 
+// FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
+// Not a defence against a client that crafts collisions, which could only confuse its own requests.
+std::int64_t body_hash(std::string_view body) {
+  std::uint64_t h = 14695981039346656037ull;
+  for (const unsigned char c : body) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return static_cast<std::int64_t>(h);
+}
+
+constexpr std::size_t kMaxRequestIdLength = 200;
+
 }  // namespace
+
+std::optional<std::string> parse_request_id(std::string_view value) {
+  while (!value.empty() && (value.front() == ' ' || value.front() == '\t')) value.remove_prefix(1);
+  while (!value.empty() && (value.back() == ' ' || value.back() == '\t')) value.remove_suffix(1);
+  if (value.empty()) return std::nullopt;
+  if (value.size() >= 2 && value.front() == '"' && value.back() == '"') value = value.substr(1, value.size() - 2);
+  if (value.empty() || value.size() > kMaxRequestIdLength)
+    throw std::invalid_argument("expected 1 to " + std::to_string(kMaxRequestIdLength) + " characters");
+  for (const char c : value)
+    if (c < 0x21 || c > 0x7e || c == '"' || c == '\\')
+      throw std::invalid_argument("only visible ASCII characters other than '\"' and '\\' are allowed");
+  return std::string(value);
+}
+
+WriterPreferringMutex::WriterPreferringMutex() {
+  pthread_rwlockattr_t attr;
+  pthread_rwlockattr_init(&attr);
+  pthread_rwlockattr_setkind_np(&attr, PTHREAD_RWLOCK_PREFER_WRITER_NONRECURSIVE_NP);
+  const int rc = pthread_rwlock_init(&rwlock_, &attr);
+  pthread_rwlockattr_destroy(&attr);
+  if (rc != 0) throw std::system_error(rc, std::generic_category(), "pthread_rwlock_init");
+}
+WriterPreferringMutex::~WriterPreferringMutex() { pthread_rwlock_destroy(&rwlock_); }
+void WriterPreferringMutex::lock() {
+  if (const int rc = pthread_rwlock_wrlock(&rwlock_)) throw std::system_error(rc, std::generic_category(), "rwlock");
+}
+bool WriterPreferringMutex::try_lock() { return pthread_rwlock_trywrlock(&rwlock_) == 0; }
+void WriterPreferringMutex::unlock() { pthread_rwlock_unlock(&rwlock_); }
+void WriterPreferringMutex::lock_shared() {
+  // EAGAIN (too many readers) cannot happen below 2^31 readers; EDEADLK is a recursive call: a bug.
+  if (const int rc = pthread_rwlock_rdlock(&rwlock_)) throw std::system_error(rc, std::generic_category(), "rwlock");
+}
+bool WriterPreferringMutex::try_lock_shared() { return pthread_rwlock_tryrdlock(&rwlock_) == 0; }
+void WriterPreferringMutex::unlock_shared() { pthread_rwlock_unlock(&rwlock_); }
 
 WorldService::WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine,
                            events::EventHub* events)
@@ -45,12 +93,16 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   if (stored) {
     for (const auto& [index, data] : stored->tiles) grid_->set_tile(index, data);
     flushed_scan_seq_ = last_scan_seq_ = stored->through_scan_seq;
+    grid_revision_ = last_scan_seq_;
   }
+  // The journal is the grid's source of truth: a scan is journaled (with its line decisions) before it
+  // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
+  // revision, to the last journaled scan.
   const auto replay = store_.scans_after(flushed_scan_seq_);
-  for (const auto& record : replay) {
-    insert_scan(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}));
-    last_scan_seq_ = record.seq;
-  }
+  for (const auto& record : replay) insert_scan(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}), record.seq);
+  if (last_scan_seq_ != store_.last_scan_seq())
+    throw storage::StorageError("the scan journal ends at " + std::to_string(store_.last_scan_seq()) +
+                                " but the grid was rebuilt to " + std::to_string(last_scan_seq_));
   // Replayed tiles stay dirty: the next flush (or the one at shutdown) writes them.
   writer_ = std::make_unique<PrologWorker>(engine_, options_.max_queued_requests, "world model's write");
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
@@ -90,10 +142,25 @@ void WorldService::emit(const nlohmann::json& event) {
   }
 }
 
-void WorldService::insert_scan(const json_codec::ScanRequest& scan) {
-  std::unique_lock lock(grid_mutex_);
-  std::visit([this](const auto& s) { grid_->insert(s); }, scan.scan);
-  ++grid_revision_;
+void WorldService::insert_scan(const json_codec::ScanRequest& scan, std::int64_t seq) {
+  {
+    std::unique_lock lock(grid_mutex_);
+    std::visit([this](const auto& s) { grid_->insert(s); }, scan.scan);
+  }
+  last_scan_seq_ = seq;
+  grid_revision_ = seq;
+}
+
+std::optional<storage::RequestRecord> WorldService::known_request(const std::string& request_id, std::string_view kind,
+                                                                  std::int64_t hash) {
+  auto record = store_.find_request(request_id);
+  if (!record) return std::nullopt;
+  if (record->kind != kind)
+    throw RequestIdConflict("request id '" + request_id + "' was used for a " + record->kind + " request");
+  if (record->body_hash != hash)
+    throw RequestIdConflict("request id '" + request_id + "' was used with another body (" + record->kind + " " +
+                            std::to_string(record->seq) + ")");
+  return record;
 }
 
 void WorldService::flush_grid(bool force) {
@@ -124,13 +191,66 @@ void WorldService::flush_grid(bool force) {
   last_flush_ = now;
 }
 
-WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json) {
-  return writer_->run([this, scan = std::move(scan), payload = std::move(payload_json)] {
-    const auto seq = store_.append_scan(scan.observer, scan.sensor(), scan.stamp_s, payload);
-    insert_scan(scan);
-    last_scan_seq_ = seq;
-    flush_grid(false);
-    ScanOutcome outcome{seq, grid_revision_.load(), std::nullopt};
+WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json,
+                                                  std::optional<std::string> request_id) {
+  return writer_->run([this, scan = std::move(scan), payload = std::move(payload_json), request_id = std::move(request_id)] {
+    const auto hash = body_hash(payload);
+    if (request_id) {
+      if (const auto known = known_request(*request_id, "scan", hash)) {
+        ScanOutcome outcome{known->seq, known->grid_revision, std::nullopt, true};
+        if (known->lines_seq)
+          outcome.lines = PrimitivesOutcome{*known->lines_seq, known->version, store_.observation_decisions(*known->lines_seq), true};
+        return outcome;
+      }
+    }
+    const std::int64_t seq = last_scan_seq_ + 1;
+    // Decide the lines first (nothing is stored yet), then commit the scan and its lines together: a crash
+    // leaves either both or neither, never a scan in the grid whose line decisions are gone.
+    std::optional<PreparedUpdate> lines;
+    const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
+    if (options_.extract_scan_lines && laser) {
+      std::vector<fusion::RangeReading> readings;
+      for (std::size_t i = 0; i < laser->ranges_m.size(); ++i) {
+        const double r = laser->ranges_m[i];
+        // No return (>= range_max) and invalid readings carry no surface.
+        if (std::isfinite(r) && r >= laser->range_min_m && r < laser->range_max_m && r > 0)
+          readings.push_back({r, laser->angle_min_rad + static_cast<double>(i) * laser->angle_increment_rad});
+      }
+      auto line_options = options_.scan_lines;
+      line_options.sigma_range_m = laser->sigma_range_m;
+      const auto segments = fusion::extract_scan_lines(readings, laser->sensor_pose, scan.pose_cov, line_options);
+      if (!segments.empty()) {
+        world::Observation observation;
+        observation.observer = scan.observer;
+        observation.source = "scan";
+        observation.sensor = "laser";
+        observation.stamp_s = scan.stamp_s;
+        for (const auto& segment : segments) observation.segments.push_back({segment});
+        lines = prepare_update(std::move(observation));
+      }
+    }
+    std::optional<storage::RequestRecord> record;
+    if (request_id) {
+      record = storage::RequestRecord{*request_id, "scan", hash, seq, lines ? lines->update.state.version : 0, seq,
+                                      lines ? std::optional<std::int64_t>(lines->seq) : std::nullopt};
+    }
+    const std::string lines_payload = "{\"scan\": " + std::to_string(seq) + "}";
+    const storage::ScanEntry entry{seq, scan.observer, scan.sensor(), scan.stamp_s, payload};
+    if (lines) {
+      commit_prepared(*lines, [&] {
+        store_.commit_scan(entry, storage::ObservationEntry{lines->update, lines->observation, lines_payload}, record);
+      });
+    } else {
+      store_.commit_scan(entry, std::nullopt, record);
+    }
+    // Committed: from here on nothing may fail the request (its retry would apply it twice).
+    insert_scan(scan, seq);
+    try {
+      flush_grid(false);
+    } catch (const std::exception& e) {
+      std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what() << "\n";
+    }
+    ScanOutcome outcome{seq, seq, std::nullopt, false};
     if (events_ && events_->subscriber_count() > 0) {
       // Where the robot is and what it saw (at most 360 points), and the region of the grid that changed.
       const auto& pose = std::visit([](const auto& s) -> const fusion::Pose2D& { return s.sensor_pose; }, scan.scan);
@@ -173,30 +293,16 @@ WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, 
             {"bbox", changed_box},
             {"points", points}});
     }
-    const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
-    if (options_.extract_scan_lines && laser) {
-      std::vector<fusion::RangeReading> readings;
-      for (std::size_t i = 0; i < laser->ranges_m.size(); ++i) {
-        const double r = laser->ranges_m[i];
-        // No return (>= range_max) and invalid readings carry no surface.
-        if (std::isfinite(r) && r >= laser->range_min_m && r < laser->range_max_m && r > 0)
-          readings.push_back({r, laser->angle_min_rad + static_cast<double>(i) * laser->angle_increment_rad});
-      }
-      auto line_options = options_.scan_lines;
-      line_options.sigma_range_m = laser->sigma_range_m;
-      const auto segments = fusion::extract_scan_lines(readings, laser->sensor_pose, scan.pose_cov, line_options);
-      if (!segments.empty()) {
-        world::Observation observation;
-        observation.observer = scan.observer;
-        observation.source = "scan";
-        observation.sensor = "laser";
-        observation.stamp_s = scan.stamp_s;
-        for (const auto& segment : segments) observation.segments.push_back({segment});
-        outcome.lines = apply_on_writer(std::move(observation), "{\"scan\": " + std::to_string(seq) + "}");
+    if (lines) outcome.lines = finish_update(std::move(*lines));
+    // The periodic grid extraction is its own observation, not part of the scan: a crash before it skips one
+    // extraction, the scan stays whole.
+    if (options_.grid_extract_every > 0 && outcome.grid_revision % static_cast<std::int64_t>(options_.grid_extract_every) == 0) {
+      try {
+        extract_grid_lines_on_writer();
+      } catch (const std::exception& e) {
+        std::cerr << "wmd: grid line extraction after scan " << seq << " failed: " << e.what() << "\n";
       }
     }
-    if (options_.grid_extract_every > 0 && outcome.grid_revision % static_cast<std::int64_t>(options_.grid_extract_every) == 0)
-      extract_grid_lines_on_writer();
     return outcome;
   });
 }
@@ -259,35 +365,69 @@ void WorldService::sync_all_facts(const world::WorldState& state) {
   engine_.set_elements(elements);
 }
 
-WorldService::PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json) {
-  return writer_->run([this, observation = std::move(observation), payload = std::move(payload_json)]() mutable {
-    return apply_on_writer(std::move(observation), payload);
+WorldService::PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
+                                                              std::optional<std::string> request_id) {
+  return writer_->run([this, observation = std::move(observation), payload = std::move(payload_json),
+                       request_id = std::move(request_id)]() mutable {
+    if (!request_id) return apply_on_writer(std::move(observation), payload);
+    const auto hash = body_hash(payload);
+    if (const auto known = known_request(*request_id, "primitives", hash))
+      return PrimitivesOutcome{known->seq, known->version, store_.observation_decisions(known->seq), true};
+    auto prepared = prepare_update(std::move(observation));
+    const storage::RequestRecord record{*request_id, "primitives", hash, prepared.seq, prepared.update.state.version, 0,
+                                        std::nullopt};
+    commit_prepared(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload, record); });
+    return finish_update(std::move(prepared));
   });
 }
 
 WorldService::PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, const std::string& payload) {
-  const auto current = snapshot();
-  const std::int64_t seq = current->last_observation_seq + 1;
+  auto prepared = prepare_update(std::move(observation));
+  commit_prepared(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload); });
+  return finish_update(std::move(prepared));
+}
+
+WorldService::PreparedUpdate WorldService::prepare_update(world::Observation observation) {
+  PreparedUpdate p;
+  p.base = snapshot();
+  p.seq = p.base->last_observation_seq + 1;
   observation.received_at_unix_s = now_unix_s();
-  auto update = world::apply_observation(*current, observation, seq, options_.world,
-                                         [this](const rules::DecisionQuery& q) { return engine_.decide(q); });
+  p.update = world::apply_observation(*p.base, observation, p.seq, options_.world,
+                                      [this](const rules::DecisionQuery& q) { return engine_.decide(q); });
   try {
     // The rules' prune/3 sees the map as this update leaves it.
     std::vector<rules::ElementFacts> upserts;
-    for (auto number : update.changed_elements) upserts.push_back(element_facts(update.state.elements.at(number)));
+    for (auto number : p.update.changed_elements) upserts.push_back(element_facts(p.update.state.elements.at(number)));
     engine_.update_elements(upserts, {});
     const auto orders = engine_.prune_orders(options_.max_prune_per_update);
     if (!orders.empty()) {
-      world::apply_prune(update, orders, seq, observation.observer);
+      world::apply_prune(p.update, orders, p.seq, observation.observer);
       std::vector<std::string> removed;
-      for (auto number : update.removed_elements) removed.push_back("e" + std::to_string(number));
+      for (auto number : p.update.removed_elements) removed.push_back("e" + std::to_string(number));
       engine_.update_elements({}, removed);
     }
-    store_.commit_observation(update, observation, payload);
   } catch (...) {
-    sync_all_facts(*current);  // nothing was applied: the facts go back to the committed map
+    sync_all_facts(*p.base);  // nothing was applied: the facts go back to the committed map
     throw;
   }
+  p.observation = std::move(observation);
+  return p;
+}
+
+template <typename F>
+void WorldService::commit_prepared(const PreparedUpdate& prepared, F&& commit) {
+  try {
+    commit();
+  } catch (...) {
+    sync_all_facts(*prepared.base);  // nothing was applied: the facts go back to the committed map
+    throw;
+  }
+}
+
+WorldService::PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
+  auto& update = prepared.update;
+  const auto& observation = prepared.observation;
+  const auto seq = prepared.seq;
   const bool moved = std::any_of(update.decisions.begin(), update.decisions.end(),
                                  [](const auto& d) { return d.action == "rigid_adjust"; });
   std::vector<rules::DecisionFacts> logged;
@@ -295,7 +435,7 @@ WorldService::PrimitivesOutcome WorldService::apply_on_writer(world::Observation
     logged.push_back(decision_facts(d, observation.received_at_unix_s));
     if (d.fallback) std::cerr << "wmd: decision " << d.seq << " fell back to add: " << d.explanation << "\n";
   }
-  PrimitivesOutcome outcome{seq, update.state.version, update.decisions};
+  PrimitivesOutcome outcome{seq, update.state.version, update.decisions, false};
   if (events_ && events_->subscriber_count() > 0) {
     nlohmann::json decisions = nlohmann::json::array(), elements = nlohmann::json::array(),
                    removed = nlohmann::json::array(), objects = nlohmann::json::array();

@@ -7,6 +7,10 @@
 #include <mutex>
 #include <optional>
 #include <shared_mutex>
+#include <stdexcept>
+#include <string_view>
+
+#include <pthread.h>
 
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
@@ -44,6 +48,39 @@ struct ServiceOptions {
   fusion::GridLineOptions grid_lines;
 };
 
+/// A request id (Idempotency-Key) that was used before with another body or on another endpoint (HTTP 409).
+class RequestIdConflict : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The request id in an `Idempotency-Key` header value: 1 to 200 visible ASCII characters (0x21–0x7E), bare
+/// or in double quotes (the structured-field string form of the IETF httpapi draft). nullopt for an empty
+/// value (no header). @throw std::invalid_argument naming what is wrong.
+std::optional<std::string> parse_request_id(std::string_view header_value);
+
+/// A reader–writer lock that lets a waiting writer in before new readers (a glibc rwlock of kind
+/// PTHREAD_RWLOCK_PREFER_WRITER_NONRECURSIVE_NP). std::shared_mutex on glibc prefers readers: with a few
+/// clients reading the grid in a loop their shared locks overlap and the writer waited for seconds per scan.
+/// Meets SharedMutex, so std::shared_lock and std::unique_lock work with it. Not recursive: a thread that holds
+/// it shared must not take it shared again (it would queue behind a waiting writer and deadlock).
+class WriterPreferringMutex {
+ public:
+  WriterPreferringMutex();
+  ~WriterPreferringMutex();
+  WriterPreferringMutex(const WriterPreferringMutex&) = delete;
+  WriterPreferringMutex& operator=(const WriterPreferringMutex&) = delete;
+  void lock();
+  bool try_lock();
+  void unlock();
+  void lock_shared();
+  bool try_lock_shared();
+  void unlock_shared();
+
+ private:
+  pthread_rwlock_t rwlock_;
+};
+
 /// One re-decided observation of a dry run whose decision differs.
 struct DryRunChange {
   world::DecisionRecord recorded;  // as it was decided and logged
@@ -78,10 +115,19 @@ class WorldService {
     std::int64_t seq = 0;
     std::int64_t version = 0;
     std::vector<world::DecisionRecord> decisions;
+    bool replayed = false;  // the answer of an earlier request with the same request id; nothing applied now
   };
   /// Applies one request whole or not at all, and returns after it is committed.
-  /// @throw Busy, storage::StorageError, std::exception from the update (nothing applied then).
-  PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json);
+  ///
+  /// `request_id` (optional, from the client): the first request with it is applied and its id is committed
+  /// in the same transaction; a later one with the same id and the same body (`payload_json`, byte for byte)
+  /// is not applied again but answered as the first was (same seq, version and decisions, replayed = true),
+  /// as long as the id is among the last StoreOptions::request_ids_kept. A request that fails stores nothing,
+  /// so its retry is applied.
+  /// @throw Busy, storage::StorageError, std::exception from the update (nothing applied then);
+  /// RequestIdConflict for a known id with another body or from the scans endpoint.
+  PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
+                                    std::optional<std::string> request_id = std::nullopt);
   /// Replaces the floor plan (store and knowledge base facts). Returns the new map version.
   std::int64_t load_floor_plan(apriori::FloorPlan plan);
 
@@ -90,13 +136,21 @@ class WorldService {
   /// rules stay active then.
   rules::RulesStatus reload_rules();
   struct ScanOutcome {
-    std::int64_t seq = 0;          // journal sequence of the scan
-    std::int64_t grid_revision = 0;  // scans inserted into the grid so far (this one included)
+    std::int64_t seq = 0;            // journal sequence of the scan
+    std::int64_t grid_revision = 0;  // scans ever inserted into the grid (this one included); = seq
     std::optional<PrimitivesOutcome> lines;  // the decisions on the lines extracted from it, if any
+    bool replayed = false;                   // as for PrimitivesOutcome
   };
-  /// Journals the scan and inserts it into both grids. @throw Busy, storage::StorageError.
-  ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json);
-  /// Runs `read(grid)` under a shared lock: concurrent readers, never during an insert.
+  /// Applies a scan whole or not at all: the lines extracted from a laser scan are decided first, then the
+  /// scan's journal entry, the observation of its lines with every decision and change, and the request id
+  /// commit in one transaction; only then is the scan inserted into both grids (whose tiles are flushed
+  /// lazily: the journal is the grid's source of truth and is replayed past the last flush at start).
+  /// `request_id` as for post_primitives. @throw Busy, storage::StorageError (nothing applied then),
+  /// RequestIdConflict.
+  ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
+                        std::optional<std::string> request_id = std::nullopt);
+  /// Runs `read(grid)` under a shared lock: concurrent readers, never during an insert. A waiting insert goes
+  /// before readers that come after it, so readers cannot starve ingest. `read` must not call read_grid.
   template <typename F>
   auto read_grid(F&& read) const {
     std::shared_lock lock(grid_mutex_);
@@ -121,8 +175,25 @@ class WorldService {
   std::vector<rules::ObjectFacts> object_facts(const world::WorldState& state) const;
   void sync_all_facts(const world::WorldState& state);
   void on_rules_changed();
-  void insert_scan(const json_codec::ScanRequest& scan);
+  void insert_scan(const json_codec::ScanRequest& scan, std::int64_t seq);
+  /// An observation decided and applied in memory (the rules' facts already follow it), not yet committed.
+  struct PreparedUpdate {
+    std::shared_ptr<const world::WorldState> base;  // the state it was decided against
+    world::Observation observation;
+    world::UpdateResult update;
+    std::int64_t seq = 0;
+  };
+  PreparedUpdate prepare_update(world::Observation observation);
+  /// Runs `commit`; if it throws, puts the rules' facts back to the committed map and rethrows.
+  template <typename F>
+  void commit_prepared(const PreparedUpdate& prepared, F&& commit);
+  /// After the commit: publishes the new state, tells the rules and live clients.
+  PrimitivesOutcome finish_update(PreparedUpdate prepared);
   PrimitivesOutcome apply_on_writer(world::Observation observation, const std::string& payload);
+  /// The stored record of `request_id` when it was used before (nullopt: apply the request).
+  /// @throw RequestIdConflict when it was used with another body or kind.
+  std::optional<storage::RequestRecord> known_request(const std::string& request_id, std::string_view kind,
+                                                      std::int64_t body_hash);
   std::optional<PrimitivesOutcome> extract_grid_lines_on_writer();
   void flush_grid(bool force);
   void emit(const nlohmann::json& event);
@@ -135,10 +206,12 @@ class WorldService {
   mutable std::mutex snapshot_mutex_;
   std::shared_ptr<const world::WorldState> snapshot_;
 
-  mutable std::shared_mutex grid_mutex_;
+  mutable WriterPreferringMutex grid_mutex_;
   std::unique_ptr<fusion::OccupancyGrid> grid_;  // changed on the writer thread only
+  /// The journal sequence of the last scan in the grid = scans ever accepted (the journal numbers them 1, 2,
+  /// …); persisted with the scan, so it never goes back across restarts.
   std::atomic<std::int64_t> grid_revision_{0};
-  std::int64_t last_scan_seq_ = 0;
+  std::int64_t last_scan_seq_ = 0;  // the last scan inserted into the grid (all journaled scans, once started)
   std::int64_t flushed_scan_seq_ = 0;
   bool flush_all_tiles_ = false;
   std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();

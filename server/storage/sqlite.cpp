@@ -66,6 +66,9 @@ Statement& Statement::bind(int index, const std::optional<std::string>& value) {
   return value ? bind(index, std::string_view(*value)) : bind_null(index);
 }
 Statement& Statement::bind(int index, const std::optional<double>& value) { return value ? bind(index, *value) : bind_null(index); }
+Statement& Statement::bind(int index, const std::optional<std::int64_t>& value) {
+  return value ? bind(index, *value) : bind_null(index);
+}
 
 bool Statement::step() {
   const int rc = sqlite3_step(stmt_);
@@ -98,6 +101,10 @@ std::optional<std::string> Statement::column_optional_text(int column) const {
 std::optional<double> Statement::column_optional_double(int column) const {
   if (sqlite3_column_type(stmt_, column) == SQLITE_NULL) return std::nullopt;
   return column_double(column);
+}
+std::optional<std::int64_t> Statement::column_optional_int(int column) const {
+  if (sqlite3_column_type(stmt_, column) == SQLITE_NULL) return std::nullopt;
+  return column_int(column);
 }
 std::int64_t Connection::last_insert_rowid() const { return sqlite3_last_insert_rowid(db_); }
 

@@ -53,6 +53,7 @@ class Statement {
   Statement& bind_null(int index);
   Statement& bind(int index, const std::optional<std::string>& value);
   Statement& bind(int index, const std::optional<double>& value);
+  Statement& bind(int index, const std::optional<std::int64_t>& value);
 
   /// Advances; true while a row is available. @throw StorageError.
   bool step();
@@ -65,6 +66,7 @@ class Statement {
   std::string column_text(int column) const;
   std::optional<std::string> column_optional_text(int column) const;
   std::optional<double> column_optional_double(int column) const;
+  std::optional<std::int64_t> column_optional_int(int column) const;
   std::vector<double> column_doubles(int column) const;  // a BLOB of native doubles
   const void* column_blob(int column) const;             // valid until the next step
   std::size_t column_bytes(int column) const;

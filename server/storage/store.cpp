@@ -51,6 +51,19 @@ CREATE TABLE grid_tiles(tx INTEGER NOT NULL, ty INTEGER NOT NULL, log_odds BLOB 
 CREATE TABLE grid_meta(id INTEGER PRIMARY KEY CHECK (id = 1), resolution REAL NOT NULL, tile_size INTEGER NOT NULL,
                        through_scan_seq INTEGER NOT NULL);
 )sql",
+    // v4: a scan and the observation of its extracted lines commit together (scans.lines_seq links them;
+    // filled here for older scans from the observation's payload {"scan": N}); request ids (Idempotency-Key)
+    // with what their request produced, committed with its effect; decisions found by observation.
+    R"sql(
+ALTER TABLE scans ADD COLUMN lines_seq INTEGER;
+UPDATE scans SET lines_seq = o.seq FROM observations o
+ WHERE o.kind = 'scan' AND o.payload LIKE '{"scan": %}'
+   AND scans.seq = CAST(substr(o.payload, 10, length(o.payload) - 10) AS INTEGER);
+CREATE TABLE requests(ord INTEGER PRIMARY KEY, request_id TEXT NOT NULL UNIQUE, kind TEXT NOT NULL,
+                      body_hash INTEGER NOT NULL, seq INTEGER NOT NULL, version INTEGER NOT NULL,
+                      grid_revision INTEGER NOT NULL, lines_seq INTEGER, created_at REAL NOT NULL);
+CREATE INDEX decisions_by_observation ON decisions(observation_seq);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);
@@ -202,10 +215,17 @@ void Store::insert_observation(std::int64_t seq, std::string_view kind, const st
 }
 
 void Store::commit_observation(const world::UpdateResult& update, const world::Observation& observation,
-                               std::string_view payload_json) {
+                               std::string_view payload_json, const std::optional<RequestRecord>& request) {
   Transaction tx(writer_);
-  insert_observation(update.state.last_observation_seq, observation.source, observation.observer, observation.stamp_s,
-                     payload_json);
+  write_observation({update, observation, payload_json});
+  if (request) write_request(*request);
+  tx.commit();
+}
+
+void Store::write_observation(const ObservationEntry& entry) {
+  const auto& update = entry.update;
+  insert_observation(update.state.last_observation_seq, entry.observation.source, entry.observation.observer,
+                     entry.observation.stamp_s, entry.payload);
   {
     Statement s(writer_,
                 "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
@@ -250,7 +270,34 @@ void Store::commit_observation(const world::UpdateResult& update, const world::O
     }
   }
   write_counters(update.state);
-  tx.commit();
+}
+
+void Store::write_request(const RequestRecord& r) {
+  Statement s(writer_,
+              "INSERT INTO requests(request_id, kind, body_hash, seq, version, grid_revision, lines_seq, created_at) "
+              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
+  s.bind(1, std::string_view(r.request_id)).bind(2, std::string_view(r.kind)).bind(3, r.body_hash).bind(4, r.seq);
+  s.bind(5, r.version).bind(6, r.grid_revision);
+  s.bind(7, r.lines_seq).bind(8, now_unix_s()).run();
+  // Bounded by count: rows are numbered in insertion order, so the oldest go in one range delete.
+  Statement forget(writer_, "DELETE FROM requests WHERE ord <= ?1");
+  forget.bind(1, writer_.last_insert_rowid() - options_.request_ids_kept).run();
+}
+
+std::optional<RequestRecord> Store::find_request(const std::string& request_id) {
+  Statement s(writer_,
+              "SELECT kind, body_hash, seq, version, grid_revision, lines_seq FROM requests WHERE request_id = ?1");
+  s.bind(1, std::string_view(request_id));
+  if (!s.step()) return std::nullopt;
+  RequestRecord r;
+  r.request_id = request_id;
+  r.kind = s.column_text(0);
+  r.body_hash = s.column_int(1);
+  r.seq = s.column_int(2);
+  r.version = s.column_int(3);
+  r.grid_revision = s.column_int(4);
+  r.lines_seq = s.column_optional_int(5);
+  return r;
 }
 
 void Store::commit_floor_plan(const world::UpdateResult& update, const apriori::FloorPlan& plan) {
@@ -324,13 +371,20 @@ std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std:
   return result;
 }
 
-std::int64_t Store::append_scan(const std::string& observer, std::string_view sensor, double stamp, std::string_view payload) {
+void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines,
+                        const std::optional<RequestRecord>& request) {
   Transaction tx(writer_);
-  Statement s(writer_, "INSERT INTO scans(observer, sensor, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5)");
-  s.bind(1, std::string_view(observer)).bind(2, sensor).bind(3, stamp).bind(4, now_unix_s()).bind(5, payload).run();
-  const auto seq = writer_.last_insert_rowid();
+  if (lines) write_observation(*lines);
+  Statement s(writer_,
+              "INSERT INTO scans(seq, observer, sensor, stamp, received_at, payload, lines_seq) "
+              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)");
+  s.bind(1, scan.seq).bind(2, scan.observer).bind(3, scan.sensor).bind(4, scan.stamp_s).bind(5, now_unix_s());
+  s.bind(6, scan.payload);
+  if (lines) s.bind(7, lines->update.state.last_observation_seq);
+  else s.bind_null(7);
+  s.run();
+  if (request) write_request(*request);
   tx.commit();
-  return seq;
 }
 
 std::int64_t Store::last_scan_seq() {
@@ -406,6 +460,24 @@ void Store::flush_grid(const StoredGrid& changed) {
     s.run();
   }
   tx.commit();
+}
+
+std::vector<world::DecisionRecord> Store::observation_decisions(std::int64_t observation_seq) {
+  std::lock_guard lock(reader_mutex_);
+  Statement s(reader_, std::string(kDecisionColumns) + "WHERE observation_seq = ?1 ORDER BY seq");
+  s.bind(1, observation_seq);
+  std::vector<world::DecisionRecord> result;
+  while (s.step()) result.push_back(read_decision(s));
+  return result;
+}
+
+std::int64_t Store::scans_missing_line_decisions() {
+  std::lock_guard lock(reader_mutex_);
+  Statement s(reader_,
+              "SELECT COUNT(*) FROM scans WHERE lines_seq IS NOT NULL AND NOT EXISTS "
+              "(SELECT 1 FROM decisions d WHERE d.observation_seq = scans.lines_seq)");
+  s.step();
+  return s.column_int(0);
 }
 
 std::vector<world::DecisionRecord> Store::object_decisions(const std::string& object_id, std::size_t limit) {

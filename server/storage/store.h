@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -15,8 +16,39 @@ namespace wm::storage {
 struct StoreOptions {
   std::string path;  // SQLite file; created when missing
   /// synchronous=FULL makes every acknowledged request survive a power loss (one fsync per commit,
-  /// ~0.3 ms here); NORMAL survives process crashes only. See SERVER.md §5.
+  /// ~0.3 ms here); NORMAL survives process crashes only.
   bool synchronous_full = true;
+  /// Request ids (Idempotency-Key) remembered: the newest this many; older ones are forgotten, and a retry
+  /// that late is applied again. At ~100 bytes a row, 100 000 ids cost ~10 MB.
+  std::int64_t request_ids_kept = 100000;
+};
+
+/// What a request that carried a client-supplied request id produced, kept (in the same transaction as its
+/// effect) so that a retry is answered the same without being applied again.
+struct RequestRecord {
+  std::string request_id;
+  std::string kind;            // "primitives" or "scan"
+  std::int64_t body_hash = 0;  // of the request body, to refuse the same id with another body
+  std::int64_t seq = 0;        // primitives: the observation; scan: the scan's journal sequence
+  std::int64_t version = 0;    // the map version after the observation (a scan: after its lines; 0 without)
+  std::int64_t grid_revision = 0;           // scan only
+  std::optional<std::int64_t> lines_seq;    // scan only: the observation of its extracted lines, if any
+};
+
+/// One scan for the journal: its request body is what is replayed into the grid at start.
+struct ScanEntry {
+  std::int64_t seq = 0;  // = the grid revision it brings the grid to (one more than the last journaled scan)
+  std::string_view observer;
+  std::string_view sensor;
+  double stamp_s = 0;
+  std::string_view payload;
+};
+
+/// An observation and what applying it changed, to be written together.
+struct ObservationEntry {
+  const world::UpdateResult& update;
+  const world::Observation& observation;
+  std::string_view payload;
 };
 
 /// The world model's SQLite file: WAL, schema versioned by PRAGMA user_version with forward migrations.
@@ -27,23 +59,30 @@ class Store {
   /// Opens or creates the file and migrates it. @throw StorageError (also for a file newer than this build).
   explicit Store(const StoreOptions& options);
 
-  static constexpr int kSchemaVersion = 3;
+  static constexpr int kSchemaVersion = 4;
   int schema_version();
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
   world::WorldState load(const world::WorldOptions& options);
 
-  /// Journals the observation and writes its effects (changed rows, decisions, counters) in one transaction.
+  /// Journals the observation and writes its effects (changed rows, decisions, counters) and the request
+  /// record, when given, in one transaction. @throw StorageError (nothing written then).
   void commit_observation(const world::UpdateResult& update, const world::Observation& observation,
-                          std::string_view payload_json);
+                          std::string_view payload_json, const std::optional<RequestRecord>& request = std::nullopt);
   /// Replaces the stored floor plan and objects in one transaction.
   void commit_floor_plan(const world::UpdateResult& update, const apriori::FloorPlan& plan);
 
   /// Decisions with seq > since_seq in order, at most `limit`; only those about `element` when given.
   std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
                                                const std::optional<std::string>& element = std::nullopt);
-  /// Journals a scan (its request body) durably; returns its sequence number.
-  std::int64_t append_scan(const std::string& observer, std::string_view sensor, double stamp, std::string_view payload);
+  /// A scan is all or nothing: its journal entry, the observation of the lines extracted from it with their
+  /// decisions and effects, and the request record all commit in one transaction (the grid tiles are not
+  /// written here: they are flushed later and rebuilt from this journal at start). `scan.seq` must be
+  /// last_scan_seq() + 1. @throw StorageError (nothing written then).
+  void commit_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines,
+                   const std::optional<RequestRecord>& request = std::nullopt);
+  /// The sequence of the last journaled scan, 0 for none. Scans are never deleted and numbered 1, 2, …, so
+  /// this is also the number of scans ever accepted: the grid revision.
   std::int64_t last_scan_seq();
   struct ScanRecord {
     std::int64_t seq = 0;
@@ -64,6 +103,14 @@ class Store {
   /// Writes changed tiles and the scan sequence they include, in one transaction.
   void flush_grid(const StoredGrid& changed);
 
+  /// The record of a request id, if it is still kept.
+  std::optional<RequestRecord> find_request(const std::string& request_id);
+  /// The decisions of one observation, in order.
+  std::vector<world::DecisionRecord> observation_decisions(std::int64_t observation_seq);
+  /// Journaled scans whose line observation is recorded but has no decision: 0 unless a scan was half
+  /// applied (possible only in files written before schema 4). Cheap check for tests and start-up.
+  std::int64_t scans_missing_line_decisions();
+
   /// Decisions about a CAD object (about the object or any of its edges), in order, at most `limit`.
   std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t limit);
 
@@ -76,6 +123,8 @@ class Store {
   void write_objects(const world::UpdateResult& update);
   void insert_observation(std::int64_t seq, std::string_view kind, const std::string& observer, double stamp,
                           std::string_view payload);
+  void write_observation(const ObservationEntry& entry);
+  void write_request(const RequestRecord& request);
 
   StoreOptions options_;
   Connection writer_;

@@ -93,6 +93,115 @@ TEST(StoreTest, FailedCommitLeavesNothingBehind) {
   EXPECT_EQ(store.decisions(0, 10).size(), 1u);
 }
 
+RequestRecord request(const std::string& id, std::int64_t seq) {
+  return RequestRecord{id, "primitives", 42, seq, seq, 0, std::nullopt};
+}
+
+TEST(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
+  testing::TempDir dir;
+  Store store({(dir.path() / "a.db").string(), true});
+  const auto lines = add_element(world::WorldState{}, 1);
+  const world::Observation observation{"r", "scan", "laser", 0, 0, {}};
+  const RequestRecord record{"scan-1", "scan", -7, 1, lines.state.version, 1, 1};
+  store.commit_scan({1, "r", "laser", 2.5, R"({"ranges": []})"}, ObservationEntry{lines, observation, R"({"scan": 1})"}, record);
+  EXPECT_EQ(store.last_scan_seq(), 1);
+  ASSERT_EQ(store.scans_after(0).size(), 1u);
+  EXPECT_EQ(store.scans_after(0)[0].payload, R"({"ranges": []})");
+  EXPECT_EQ(store.observation_decisions(1).size(), 1u);
+  EXPECT_EQ(store.scans_missing_line_decisions(), 0);
+  const auto found = store.find_request("scan-1");
+  ASSERT_TRUE(found);
+  EXPECT_EQ(found->kind, "scan");
+  EXPECT_EQ(found->body_hash, -7);
+  EXPECT_EQ(found->lines_seq, 1);
+  EXPECT_EQ(found->version, lines.state.version);
+  // A scan without lines.
+  store.commit_scan({2, "r", "laser", 3.0, "{}"}, std::nullopt);
+  EXPECT_EQ(store.last_scan_seq(), 2);
+  EXPECT_FALSE(store.find_request("scan-2"));
+}
+
+TEST(StoreTest, AScanWhoseLinesFailToCommitLeavesNoJournalEntry) {
+  testing::TempDir dir;
+  Store store({(dir.path() / "a.db").string(), true});
+  const auto first = add_element(world::WorldState{}, 1);
+  store.commit_observation(first, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
+  // Lines with the observation sequence already taken: the line write fails, so the scan must not stay.
+  const auto clash = add_element(first.state, 1);
+  const world::Observation observation{"r", "scan", "laser", 0, 0, {}};
+  EXPECT_THROW(store.commit_scan({1, "r", "laser", 0, "{}"}, ObservationEntry{clash, observation, R"({"scan": 1})"},
+                                 RequestRecord{"s", "scan", 1, 1, 2, 1, 1}),
+               StorageError);
+  EXPECT_EQ(store.last_scan_seq(), 0);
+  EXPECT_FALSE(store.find_request("s"));
+  EXPECT_EQ(store.decisions(0, 10).size(), 1u);
+}
+
+TEST(StoreTest, ARequestIdIsKeptOnlyWithItsEffectAndOnlyOnce) {
+  testing::TempDir dir;
+  Store store({(dir.path() / "a.db").string(), true});
+  auto update = add_element(world::WorldState{}, 1);
+  store.commit_observation(update, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("a", 1));
+  // The effect fails (seq taken): the id is not stored either.
+  auto clash = add_element(update.state, 1);
+  EXPECT_THROW(store.commit_observation(clash, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("b", 1)),
+               StorageError);
+  EXPECT_FALSE(store.find_request("b"));
+  // The id is taken: the effect rolls back with it.
+  auto next = add_element(update.state, 2);
+  EXPECT_THROW(store.commit_observation(next, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("a", 2)),
+               StorageError);
+  EXPECT_EQ(store.load(world::WorldOptions{}).last_observation_seq, 1);
+  ASSERT_TRUE(store.find_request("a"));
+  EXPECT_EQ(store.find_request("a")->seq, 1);
+}
+
+TEST(StoreTest, OnlyTheNewestRequestIdsAreKept) {
+  testing::TempDir dir;
+  StoreOptions options{(dir.path() / "a.db").string(), true};
+  options.request_ids_kept = 3;
+  Store store(options);
+  world::WorldState state;
+  for (std::int64_t seq = 1; seq <= 5; ++seq) {
+    auto update = add_element(state, seq);
+    store.commit_observation(update, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}",
+                             request("id-" + std::to_string(seq), seq));
+    state = update.state;
+  }
+  EXPECT_FALSE(store.find_request("id-1"));
+  EXPECT_FALSE(store.find_request("id-2"));
+  for (const auto* id : {"id-3", "id-4", "id-5"}) EXPECT_TRUE(store.find_request(id)) << id;
+}
+
+TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
+  testing::TempDir dir;
+  const auto path = (dir.path() / "a.db").string();
+  { Store store({path, true}); }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  // Back to schema 3 as version 3 wrote it: scan 1 with lines (observation 2), scan 2 without.
+  const char* v3 = R"sql(
+    DROP INDEX decisions_by_observation; DROP TABLE requests; ALTER TABLE scans DROP COLUMN lines_seq;
+    PRAGMA user_version = 3;
+    INSERT INTO observations VALUES (1, 'client', 'r', 0, 0, '{}'), (2, 'scan', 'r', 0, 0, '{"scan": 1}');
+    INSERT INTO scans VALUES (1, 'r', 'laser', 0, 0, '{}'), (2, 'r', 'laser', 0, 0, '{}');)sql";
+  ASSERT_EQ(sqlite3_exec(db, v3, nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+  sqlite3_close(db);
+  Store store({path, true});
+  EXPECT_EQ(store.schema_version(), 4);
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* stmt = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, "SELECT seq, lines_seq FROM scans ORDER BY seq", -1, &stmt, nullptr), SQLITE_OK);
+  ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
+  EXPECT_EQ(sqlite3_column_int64(stmt, 1), 2);
+  ASSERT_EQ(sqlite3_step(stmt), SQLITE_ROW);
+  EXPECT_EQ(sqlite3_column_type(stmt, 1), SQLITE_NULL);
+  sqlite3_finalize(stmt);
+  sqlite3_close(db);
+  // Observation 2 has no decision: the one way a scan can be half applied, from a file written before schema 4.
+  EXPECT_EQ(store.scans_missing_line_decisions(), 1);
+}
+
 TEST(StoreTest, RefusesADatabaseFromANewerVersion) {
   testing::TempDir dir;
   const auto path = (dir.path() / "a.db").string();
