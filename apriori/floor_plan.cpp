@@ -17,7 +17,7 @@ std::string index(const std::string& path, std::size_t i) { return path + "[" + 
 
 void require_known_keys(const json& object, const std::string& path, std::initializer_list<const char*> known) {
   for (const auto& [key, value] : object.items()) {
-    const bool ok = std::any_of(known.begin(), known.end(), [&](const char* k) { return key == k; });
+    const bool ok = std::any_of(known.begin(), known.end(), [&key = key](const char* k) { return key == k; });
     if (!ok) throw FloorPlanError(join(path, key), "unknown field");
   }
 }
