@@ -1,18 +1,77 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds everything with -Werror, proves fusion builds with Eigen alone, and runs
 # every test (GoogleTest suites, plunit rule tests, end-to-end tests against the real wmd) through ctest.
+# Then, in a second build directory (clang, -DWM_SANITIZE=ON -DWM_FUZZ=ON), runs the same suite under
+# AddressSanitizer + UndefinedBehaviorSanitizer (tests/sanitizer/: run-time options and suppressions; the
+# browser tests are left out, they test JavaScript) and each libFuzzer harness for WM_FUZZ_SECONDS (default 30).
+# Any sanitizer report, leak outside SWI-Prolog or fuzzer crash fails the run. Times each phase.
+# WM_SANITIZE_TESTS=0 skips the sanitizer build, its tests and the fuzzers.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh web
 jobs=$(nproc)
+sanitize=${WM_SANITIZE_TESTS:-1}
 
-echo "== fusion alone (Eigen only)"
-cmake -S . -B build/fusion-only -G Ninja -DWM_FUSION_ONLY=ON -DWM_BUILD_TESTS=OFF -DCMAKE_BUILD_TYPE=Release >/dev/null
+# clang with its sanitizer and libFuzzer run-times, llvm-symbolizer for readable sanitizer stacks.
+if [ "$sanitize" != 0 ]; then
+  missing=()
+  for p in clang libclang-rt-14-dev llvm; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -gt 0 ]; then
+    echo "test: installing ${missing[*]}"
+    sudo_cmd=()
+    [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
+    "${sudo_cmd[@]}" apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  fi
+fi
+launcher=()
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+
+timings=()
+phase_name=
+phase() {
+  finish_phase
+  phase_name=$1
+  phase_start=$SECONDS
+  echo "== $phase_name"
+}
+finish_phase() {
+  if [ -n "$phase_name" ]; then
+    timings+=("$(printf '%-28s %5d s' "$phase_name" $((SECONDS - phase_start)))")
+    phase_name=
+  fi
+}
+report() {
+  finish_phase
+  echo "== phase times"
+  printf '%s\n' "${timings[@]}"
+}
+trap report EXIT
+
+phase "fusion alone (Eigen only)"
+cmake -S . -B build/fusion-only -G Ninja -DWM_FUSION_ONLY=ON -DWM_BUILD_TESTS=OFF -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" >/dev/null
 cmake --build build/fusion-only -j"$jobs"
 
-echo "== full build"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_WERROR=ON >/dev/null
+phase "full build"
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_WERROR=ON "${launcher[@]}" >/dev/null
 cmake --build build -j"$jobs"
 
-echo "== tests"
+phase "tests"
 ctest --test-dir build --output-on-failure -j"$jobs" --timeout 600
+
+[ "$sanitize" = 0 ] && exit 0
+
+# The sanitizer options are exported for the build too: gtest_discover_tests runs the test binaries.
+source tests/sanitizer/env.sh
+phase "sanitizer build (clang)"
+cmake -S . -B build/sanitize -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_SANITIZE=ON \
+  -DWM_FUZZ=ON -DWM_WERROR=OFF "${launcher[@]}" >/dev/null
+cmake --build build/sanitize -j"$jobs"
+
+phase "sanitizer tests"
+ctest --test-dir build/sanitize --output-on-failure -j"$jobs" --timeout 900 -E '^web_'
+
+phase "fuzzers"
+WM_SANITIZE_BUILD_DIR=build/sanitize bash scripts/fuzz.sh "${WM_FUZZ_SECONDS:-30}"

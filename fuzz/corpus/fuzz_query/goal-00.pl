@@ -1,0 +1,1 @@
+G = assertz(object(evil, wall)), call(G)

@@ -1,0 +1,1 @@
+assertz(object(evil, wall))

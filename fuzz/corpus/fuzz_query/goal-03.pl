@@ -1,0 +1,1 @@
+atom_length(X, _)

@@ -1,0 +1,1 @@
+call(assertz, object(evil, wall))

@@ -1,0 +1,1 @@
+decide(client, 2.0, 0.0, 4.0, D)

@@ -1,0 +1,1 @@
+element(E, S, O, R, P, L, N, T), R > 1.0

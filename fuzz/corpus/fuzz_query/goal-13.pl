@@ -1,0 +1,1 @@
+findall(O-A, attribute(O, A), L)

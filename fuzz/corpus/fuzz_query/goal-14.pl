@@ -1,0 +1,1 @@
+forall(member(X, [a, "s", 1.5, f(Y)]), atom(X))

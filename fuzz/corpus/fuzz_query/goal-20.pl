@@ -1,0 +1,1 @@
+wm_kb:assertz(object(evil, wall))

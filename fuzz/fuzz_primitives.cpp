@@ -1,0 +1,19 @@
+// POST /api/v1/primitives bodies with the server's default options and limits. Expected: an observation or an
+// api::ApiError (400 naming the field).
+#include <cstddef>
+#include <cstdint>
+
+#include "fuzz/fuzz_support.h"
+#include "server/api/api_error.h"
+#include "server/json/codec.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using namespace wm;
+  static const world::WorldOptions options;
+  static const json_codec::PrimitiveLimits limits;
+  try {
+    json_codec::parse_primitives(fuzz::as_text(data, size), options, limits);
+  } catch (const api::ApiError&) {
+  }
+  return 0;
+}

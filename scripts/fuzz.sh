@@ -1,0 +1,83 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer harnesses (fuzz/, clang with ASan + UBSan) and runs each for a bounded time:
+#   bash scripts/fuzz.sh [SECONDS [HARNESS...]]      default 60 s each, every harness, one after the other
+#   WM_FUZZ_RUNS=1000000 bash scripts/fuzz.sh 0      a number of executions each instead (0 s: no time bound)
+# Each harness first re-runs its reproducers (fuzz/regressions/<harness>/), then fuzzes from the committed seeds
+# (fuzz/corpus/<harness>/) plus a working corpus kept in the build directory, so longer local runs build on
+# earlier ones. Exits 1 when any harness crashes, leaks, times out or trips a sanitizer; the reproducer is saved
+# as <build>/fuzz-artifacts/<harness>/crash-* (minimise it with -minimize_crash=1 and commit it under
+# fuzz/regressions/<harness>/). Prints executions and coverage per harness.
+# Environment: WM_SANITIZE_BUILD_DIR (default build/sanitize, shared with the sanitizer suite of scripts/test.sh),
+# WM_FUZZ_JOBS (build parallelism, default nproc).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+seconds=${1:-60}
+shift || true
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_query fuzz_rules_text)
+harnesses=("$@")
+[ ${#harnesses[@]} -eq 0 ] && harnesses=("${all[@]}")
+build=${WM_SANITIZE_BUILD_DIR:-build/sanitize}
+jobs=${WM_FUZZ_JOBS:-$(nproc)}
+source tests/sanitizer/env.sh
+
+command -v clang++ >/dev/null || { echo "fuzz: clang++ is missing (apt-get install clang)" >&2; exit 2; }
+launcher=()
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+if [ ! -f "$build/CMakeCache.txt" ]; then
+  # -Werror stays with the gcc build of scripts/test.sh; clang warns about other things.
+  cmake -S . -B "$build" -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_SANITIZE=ON \
+    -DWM_FUZZ=ON -DWM_WERROR=OFF "${launcher[@]}" >/dev/null
+fi
+cmake --build "$build" -j"$jobs" --target "${harnesses[@]}"
+
+# Input size bound, dictionary and timeout per harness: texts a little bigger than the largest seed.
+options_for() {
+  case "$1" in
+    fuzz_floor_plan_json) echo "-max_len=4096 -dict=fuzz/dict/json.dict" ;;
+    fuzz_primitives | fuzz_scan) echo "-max_len=4096 -dict=fuzz/dict/json.dict" ;;
+    fuzz_dxf) echo "-max_len=4096 -dict=fuzz/dict/dxf.dict" ;;
+    fuzz_rmf) echo "-max_len=4096 -dict=fuzz/dict/yaml.dict" ;;
+    fuzz_carmen) echo "-max_len=8192 -dict=fuzz/dict/carmen.dict" ;;
+    fuzz_query) echo "-max_len=512 -dict=fuzz/dict/prolog.dict" ;;
+    fuzz_rules_text) echo "-max_len=8192 -dict=fuzz/dict/prolog.dict" ;;
+    *) echo "fuzz: unknown harness $1 (${all[*]})" >&2; exit 2 ;;
+  esac
+}
+
+failed=()
+printf '%-22s %12s %8s %8s %8s  %s\n' harness executions exec/s cov ft result
+for h in "${harnesses[@]}"; do
+  opts=$(options_for "$h")
+  bin="$build/bin/$h"
+  work="$build/fuzz-corpus/$h"
+  artifacts="$build/fuzz-artifacts/$h"
+  log="$build/fuzz-logs/$h.log"
+  mkdir -p "$work" "$artifacts" "$(dirname "$log")"
+  result=ok
+  shopt -s nullglob
+  reproducers=(fuzz/regressions/"$h"/*)
+  shopt -u nullglob
+  if [ ${#reproducers[@]} -gt 0 ] && ! "$bin" $opts "${reproducers[@]}" >"$log.regressions" 2>&1; then
+    result="REGRESSION (see $log.regressions)"
+  fi
+  # -timeout: one input taking longer is a finding (the server would hang on it too).
+  # shellcheck disable=SC2086
+  if ! "$bin" $opts -max_total_time="$seconds" ${WM_FUZZ_RUNS:+-runs=$WM_FUZZ_RUNS} -timeout=25 -rss_limit_mb=2560 -print_final_stats=1 \
+      -artifact_prefix="$artifacts/" "$work" "fuzz/corpus/$h" >"$log" 2>&1; then
+    result="CRASH (see $log)"
+  fi
+  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+  rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  printf '%-22s %12s %8s %8s %8s  %s\n' "$h" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" "$result"
+  if [ "$result" != ok ]; then
+    failed+=("$h")
+    tail -n 60 "$log.regressions" "$log" 2>/dev/null | grep -v '^#[0-9]' | tail -n 60 >&2
+  fi
+done
+if [ ${#failed[@]} -gt 0 ]; then
+  echo "fuzz: findings in ${failed[*]}; reproducers under $root/$build/fuzz-artifacts/" >&2
+  exit 1
+fi
