@@ -3,6 +3,9 @@
 #include <SWI-Prolog.h>
 
 #include <algorithm>
+#include <cctype>
+#include <csignal>
+#include <iterator>
 #include <atomic>
 #include <chrono>
 #include <clocale>
@@ -81,16 +84,72 @@ std::optional<std::string> text_of(term_t t) {
   return std::string(chars, length);
 }
 
-// Any term printed as writeq/1 would (used for exceptions, which should not happen: the support
-// module catches what it can report).
+// Any term printed as writeq/1 would, bounded by wm_engine:term_text/2: PL_get_nchars(CVT_WRITEQ)
+// writes by C recursion, and a term a rule or query built ten thousand levels deep overflows the
+// thread's C stack there.
 std::string written(term_t t) {
-  StringBufferMark mark;
-  std::size_t length = 0;
-  char* chars = nullptr;
-  if (!PL_get_nchars(t, &length, &chars, CVT_WRITEQ | REP_UTF8 | BUF_STACK)) {
-    return "<unprintable Prolog term>";
+  const fid_t frame = PL_open_foreign_frame();
+  if (frame == 0) return "<unprintable Prolog term>";
+  std::string text = "<unprintable Prolog term>";
+  term_t args = PL_new_term_refs(2);
+  if (PL_put_term(args, t) &&
+      PL_call_predicate(nullptr, PL_Q_NODEBUG | PL_Q_CATCH_EXCEPTION, PL_predicate("term_text", 2, "wm_engine"), args)) {
+    if (auto chars = text_of(args + 1)) text = std::move(*chars);
   }
-  return std::string(chars, length);
+  PL_discard_foreign_frame(frame);
+  return text;
+}
+
+// True when brackets ( [ { in `text` nest deeper than `max` outside quotes, character literals
+// (0'c) and comments; `line` is where. The reader and the writer of SWI-Prolog recurse in C for
+// each level, so the depth is refused before the text is parsed.
+bool nesting_exceeds(std::string_view text, int max, int& line) {
+  int depth = 0;
+  line = 1;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '\n') {
+      ++line;
+    } else if (c == '%') {
+      while (i + 1 < text.size() && text[i + 1] != '\n') ++i;
+    } else if (c == '/' && i + 1 < text.size() && text[i + 1] == '*') {
+      for (i += 2; i + 1 < text.size() && !(text[i] == '*' && text[i + 1] == '/'); ++i) line += text[i] == '\n';
+      ++i;
+    } else if (c == '0' && i + 1 < text.size() && text[i + 1] == '\'' &&
+               (i == 0 || !(std::isalnum(static_cast<unsigned char>(text[i - 1])) || text[i - 1] == '_'))) {
+      i += 2;  // 0'c: skip the character, an escape's backslash or a doubled quote with it
+      if (i < text.size() && (text[i] == '\\' || (text[i] == '\'' && i + 1 < text.size() && text[i + 1] == '\''))) ++i;
+    } else if (c == '\'' || c == '"' || c == '`') {
+      for (++i; i < text.size(); ++i) {
+        if (text[i] == '\\') {
+          ++i;
+        } else if (text[i] == c) {
+          if (i + 1 < text.size() && text[i + 1] == c) ++i;  // a doubled quote stands for itself
+          else break;
+        } else if (text[i] == '\n') {
+          ++line;
+        }
+      }
+    } else if (c == '(' || c == '[' || c == '{') {
+      if (++depth > max) return true;
+    } else if (c == ')' || c == ']' || c == '}') {
+      depth = std::max(0, depth - 1);
+    }
+  }
+  return false;
+}
+
+// wm_engine:text_nesting_exceeds(+Text, +Max, -Line): see nesting_exceeds(). Never throws.
+foreign_t pl_text_nesting_exceeds(term_t text, term_t max, term_t line) {
+  try {
+    auto chars = text_of(text);
+    int limit = 0;
+    if (!chars || !PL_get_integer(max, &limit)) return false;
+    int at = 0;
+    return nesting_exceeds(*chars, limit, at) && PL_unify_integer(line, at);
+  } catch (...) {
+    return false;
+  }
 }
 
 void put_atom(term_t t, std::string_view text) {
@@ -135,16 +194,27 @@ std::filesystem::path home_hint_argv0() {
 void initialise_runtime() {
   if (PL_is_initialised(nullptr, nullptr)) return;
   static std::string argv0 = home_hint_argv0().string();  // PL_initialise keeps the argv pointers
-  static char arg_no_signals[] = "--no-signals";
   static char arg_quiet[] = "-q";
   static char arg_no_packs[] = "--no-packs";
-  static char* argv[] = {argv0.data(), arg_no_signals, arg_quiet, arg_no_packs, nullptr};
+  static char* argv[] = {argv0.data(), arg_quiet, arg_no_packs, nullptr};
+  // SWI-Prolog's signal handling stays on: its alert signal lets call_with_time_limit/2 interrupt
+  // blocking calls (sleep/1), and its SIGSEGV handler on an alternate stack turns a C-stack overflow
+  // in Prolog's C code into resource_error(c_stack) instead of a crash. With --no-signals neither
+  // works. The process-control signals stay the host's: their dispositions are restored.
+  constexpr int kHostSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1, SIGCHLD};
+  struct sigaction saved[std::size(kHostSignals)];
+  for (std::size_t i = 0; i < std::size(kHostSignals); ++i) sigaction(kHostSignals[i], nullptr, &saved[i]);
   // PL_initialise switches LC_NUMERIC to the environment's: keep "C" so that numbers print with '.'
   // everywhere in the process (JSON, SQLite) and in Prolog's format/2.
   std::setlocale(LC_NUMERIC, "C");
-  const int ok = PL_initialise(4, argv);
+  const int ok = PL_initialise(3, argv);
   std::setlocale(LC_NUMERIC, "C");
+  for (std::size_t i = 0; i < std::size(kHostSignals); ++i) sigaction(kHostSignals[i], &saved[i], nullptr);
   if (!ok) throw RuleError("Engine: the SWI-Prolog runtime did not start");
+  if (!PL_register_foreign_in_module(kSupportModuleName, "text_nesting_exceeds", 3,
+                                     reinterpret_cast<pl_function_t>(pl_text_nesting_exceeds), 0)) {
+    throw RuleError("Engine: cannot register text_nesting_exceeds/3");
+  }
 }
 
 }  // namespace
@@ -601,7 +671,20 @@ void put_optional_atom(term_t t, const std::optional<std::string>& text, atom_t 
   }
 }
 
-QueryValue query_value(term_t t) {
+// Text an answer may carry in total [bytes]; beyond it the query fails with a limit error.
+constexpr std::size_t kMaxAnswerTextBytes = std::size_t{8} << 20;
+
+void charge(std::size_t& used, const QueryValue& v) {
+  used += v.text.size() + 16;
+  if (used > kMaxAnswerTextBytes) {
+    throw QueryError(QueryError::Reason::limit, "the answer is larger than " + std::to_string(kMaxAnswerTextBytes >> 20) +
+                                                    " MiB: ask for fewer solutions or smaller values");
+  }
+}
+
+// The support module bounds answers (depth 64, 1000 list items per level) before they get here, so
+// the recursion over nested lists stays shallow.
+QueryValue query_value(term_t t, std::size_t& used) {
   QueryValue v;
   switch (PL_term_type(t)) {
     case PL_VARIABLE:
@@ -636,7 +719,7 @@ QueryValue query_value(term_t t) {
       term_t list = PL_copy_term_ref(t);
       term_t head = PL_new_term_ref();
       v.kind = QueryValue::Kind::list;
-      while (PL_get_list(list, head, list)) v.items.push_back(query_value(head));
+      while (PL_get_list(list, head, list)) v.items.push_back(query_value(head, used));
       if (!PL_get_nil(list)) {  // a partial list: show it as written
         v.kind = QueryValue::Kind::compound;
         v.items.clear();
@@ -648,6 +731,7 @@ QueryValue query_value(term_t t) {
       v.kind = QueryValue::Kind::compound;
       v.text = written(t);
   }
+  charge(used, v);
   return v;
 }
 
@@ -795,9 +879,10 @@ QueryResult Engine::query(const std::string& goal, std::size_t max_solutions) {
   while (PL_get_list(list, head, list)) answer.variables.push_back(text_of(head).value_or("?"));
   if (!PL_get_arg(2, result, list)) throw RuleError("query: malformed answer");
   term_t row = PL_new_term_ref();
+  std::size_t used = 0;
   while (PL_get_list(list, row, list)) {
     std::vector<QueryValue> values;
-    while (PL_get_list(row, head, row)) values.push_back(query_value(head));
+    while (PL_get_list(row, head, row)) values.push_back(query_value(head, used));
     answer.solutions.push_back(std::move(values));
   }
   int truncated = 0;

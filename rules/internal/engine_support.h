@@ -20,6 +20,7 @@ inline constexpr const char* kSupportModule = R"wm_pl(
 :- use_module(library(apply), [foldl/4, maplist/2, maplist/3]).
 :- use_module(library(prolog_codewalk), [prolog_walk_code/1]).
 :- use_module(library(error), [must_be/2]).
+:- use_module(library(aggregate), [aggregate_all/3]).
 
 :- dynamic active_rules/1.          % active_rules(Module): the module decide/5 is answered from
 :- dynamic retired_rules/2.         % retired_rules(Module, RetiredAt [s]): freed after a grace period
@@ -177,13 +178,57 @@ explanation_string(E, S) :- format(string(S), "~W", [E, [quoted(true), max_depth
 
 %!  message_text(+Term, -Text:string) is det.
 %   The message SWI-Prolog would print for Term, without a location prefix, on one or more lines.
-message_text(Term, Text) :-
+message_text(Term0, Text) :-
+    %   A term built by a rule or a query can be nested deeper than the C stack can write.
+    bounded_term(Term0, Term),
     (   Term = error(Formal, file(_, _, _, _)) -> Bare = error(Formal, _) ; Bare = Term ),
     (   catch('$messages':translate_message(Bare, Lines, []), _, fail),
         catch(with_output_to(string(S0), print_message_lines(current_output, '', Lines)), _, fail)
     ->  split_string(S0, "", " \n", [Text])
     ;   format(string(Text), "~q", [Term])
     ).
+
+%!  bounded_term(+Term, -Bounded) is det.
+%   A copy of Term that prints safely: compound terms nested deeper than max_term_depth/1 and list
+%   elements beyond max_list_items/1 are replaced by '...'. SWI-Prolog writes (and compares) terms by C
+%   recursion, so a term nested some ten thousand levels deep can overflow the C stack of the thread
+%   that prints it; every term that leaves the knowledge base as text goes through this first.
+bounded_term(Term, Bounded) :-
+    max_term_depth(Depth),
+    bounded_term(Term, Depth, Bounded).
+
+max_term_depth(64).
+max_list_items(1000).
+
+bounded_term(T, _, T) :- \+ compound(T), !.
+bounded_term(_, 0, '...') :- !.
+bounded_term(T, D, B) :-
+    D1 is D - 1,
+    (   is_list_pair(T)
+    ->  max_list_items(Max),
+        bounded_list(T, Max, D1, B)
+    ;   compound_name_arguments(T, Name, Args),
+        bounded_args(Args, D1, BArgs),
+        compound_name_arguments(B, Name, BArgs)
+    ).
+
+is_list_pair(T) :- compound(T), T = [_|_].
+
+bounded_list(T, _, _, T) :- \+ is_list_pair(T), !.
+bounded_list(_, 0, _, ['...']) :- !.
+bounded_list([H|T], N, D, [BH|BT]) :-
+    bounded_term(H, D, BH),
+    N1 is N - 1,
+    (   is_list_pair(T) -> bounded_list(T, N1, D, BT) ; bounded_term(T, D, BT) ).
+
+bounded_args([], _, []).
+bounded_args([A|As], D, [B|Bs]) :- bounded_term(A, D, B), bounded_args(As, D, Bs).
+
+%!  term_text(+Term, -Text:string) is det.
+%   Term as writeq/1 prints it, bounded (see bounded_term/2). Used by C++ for any term it shows.
+term_text(Term, Text) :-
+    bounded_term(Term, Bounded),
+    format(string(Text), "~W", [Bounded, [quoted(true), portray(false), numbervars(true)]]).
 
 %!  reload(+Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result) is det.
 %   Loads Files, a list of file(Path, AbsolutePath) (Path is shown in messages), into a fresh module,
@@ -217,6 +262,10 @@ load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems) :-
     ->  check_undefined_calls(M)
     ;   true
     ),
+    (   \+ load_problem(_)
+    ->  check_rules_safe(M)          % before the self-check runs any rule
+    ;   true
+    ),
     findall(P, load_problem(P), LoadProblems),
     (   LoadProblems == []
     ->  self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems)
@@ -236,18 +285,39 @@ declare_hooks(M) :-
 %   frees them again: the active rules and the facts are untouched.
 %   Result = ok(Results) (decide_batch/4 results) | error(Problems).
 dry_run(Files, RulesDir, Cases, InferenceLimit, TimeLimit, Result) :-
+    %   The candidate text is untrusted: this thread gets the small stack of queries.
+    query_stack_limit(StackLimit),
+    set_prolog_flag(stack_limit, StackLimit),
     load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, _, Problems),
     (   Problems == []
     ->  length(Cases, N),
-        BatchLimit is TimeLimit * max(1, N),
+        max_dry_run_time_s(MaxTotal),
+        BatchLimit is min(MaxTotal, TimeLimit * max(1, N)),
         catch(call_with_time_limit(BatchLimit,
-                                   snapshot(decide_cases(Cases, M, InferenceLimit, Results))),
+                                   snapshot(decide_each(Cases, M, InferenceLimit, TimeLimit, Results))),
               E, ( message_text(E, Text), format(string(Msg), "dry run stopped: ~w", [Text]),
                    length(Results, N), maplist(=(error(Msg)), Results) )),
         Result = ok(Results)
     ;   Result = error(Problems)
     ),
     free_module(M).
+
+max_dry_run_time_s(30).
+
+%   Like decide_cases/4, with the time limit per case (a candidate may block in each case).
+decide_each([], _, _, _, []).
+decide_each([case(Observation, Match, Context)|Cases], M, InferenceLimit, TimeLimit, [Result|Results]) :-
+    b_setval(wm_context, Context),
+    run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result),
+    decide_each(Cases, M, InferenceLimit, TimeLimit, Results).
+
+%   Stack (global + local + trail) of a thread running queries or dry runs [bytes]. It also bounds
+%   what no time limit can interrupt: SWI-Prolog refuses a bignum result larger than the stack
+%   before computing it, and lists or strings built by a query.
+query_stack_limit(16000000).
+
+%   Cells of a query's answer (after bounded_term/2), ~8 bytes each.
+max_answer_cells(1000000).
 
 %!  prune(+Max, +InferenceLimit, +TimeLimit, -Result) is det.
 %   Asks the active rules' prune/3 which elements to remove.
@@ -282,7 +352,14 @@ prune_answer(M, E, R, X) :-
 %   order of Names | syntax(Message) | unsafe(Message) | limit(Message) | error(Message).
 query(Text, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
     (   active_rules(M) -> true ; M = wm_kb ),
-    (   catch(term_string(Goal, Text, [variable_names(Bindings), module(M)]), E,
+    query_stack_limit(StackLimit),
+    set_prolog_flag(stack_limit, StackLimit),
+    max_text_nesting(MaxNesting),
+    (   text_nesting_exceeds(Text, MaxNesting, Line)
+    ->  format(string(Msg), "brackets nested deeper than ~d levels (line ~d); queries are limited \c
+                             to that", [MaxNesting, Line]),
+        Result = syntax(Msg)
+    ;   catch(term_string(Goal, Text, [variable_names(Bindings), module(M)]), E,
               ( message_text(E, Msg), Result = syntax(Msg) ))
     ->  (   nonvar(Result)
         ->  true
@@ -294,8 +371,13 @@ query(Text, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
     ).
 
 run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
-    (   forbidden_subgoal(Goal, Bad)
-    ->  format(string(Msg), "~q changes the knowledge base; queries are read-only", [Bad]),
+    (   forbidden_subgoal(Goal, Bad0)
+    ->  bounded_term(Bad0, Bad),
+        format(string(Msg), "~q changes the knowledge base; queries are read-only", [Bad]),
+        Result = unsafe(Msg)
+    ;   unbounded_call(Goal, query, Bad0, Why)
+    ->  bounded_term(Bad0, Bad),
+        format(string(Msg), "~q is refused: ~w", [Bad, Why]),
         Result = unsafe(Msg)
     ;   catch(safe_goal(M:Goal), E, true),
         nonvar(E)
@@ -320,27 +402,158 @@ run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
         ->  format(string(Msg), "inference limit of ~D exceeded", [InferenceLimit]), Result = limit(Msg)
         ;   length(Rows0, Count),
             (   Count > MaxSolutions
-            ->  length(Rows, MaxSolutions), append(Rows, _, Rows0), Truncated = true
-            ;   Rows = Rows0, Truncated = false
+            ->  length(Rows1, MaxSolutions), append(Rows1, _, Rows0), Truncated = true
+            ;   Rows1 = Rows0, Truncated = false
             ),
-            Result = ok(Names, Rows, Truncated)
+            %  Values are shown bounded (deep terms would overflow the C stack when written); a
+            %  wide answer can take long to copy, so that runs under the time limit too.
+            max_answer_cells(MaxCells),
+            (   catch(call_with_time_limit(TimeLimit,
+                                           ( maplist(maplist(bounded_term), Rows1, Rows),
+                                             term_size(Rows, Cells) )),
+                      _, fail),
+                Cells =< MaxCells
+            ->  Result = ok(Names, Rows, Truncated)
+            ;   format(string(Msg), "the answer is too large (more than ~D cells or ~w s to copy): \c
+                                     ask for fewer solutions or smaller values", [MaxCells, TimeLimit]),
+                Result = limit(Msg)
+            )
         )
+    ).
+
+%!  unbounded_call(+Goal, +Context, -Call, -Why) is semidet.
+%   Call is a subterm of Goal that no time limit can interrupt once it runs (C code producing output
+%   of a size the arguments choose) or, in a query (Context = query), that builds atoms, which no
+%   stack limit bounds. Checked on the text of queries and on every clause of a rule set.
+unbounded_call(Goal, Context, Call, Why) :-
+    subterm_where(unbounded_in(Context), Goal, Call, Why).
+
+unbounded_in(Context, Call, Why) :-
+    compound(Call),
+    unbounded(Call, Context, Why).
+
+unbounded(format(F, _), _, Why) :- format_unbounded(F, Why).
+unbounded(format(_, F, _), _, Why) :- format_unbounded(F, Why).
+unbounded(sformat(_, F, _), _, Why) :- format_unbounded(F, Why).
+unbounded(sformat(_, F), _, Why) :- format_unbounded(F, Why).
+unbounded(Call, query, Why) :-
+    atom_doubling(Call),
+    functor(Call, Name, Arity),
+    format(string(Why), "~w can build atoms twice as long as its inputs, and atoms are not bounded \c
+                         by a query's stack limit; use strings (string_concat/3, \c
+                         format(string(S), ...))", [Name/Arity]).
+
+atom_doubling(atom_concat(_, _, _)).
+atom_doubling(atomic_list_concat(_, _)).
+atom_doubling(atomic_list_concat(_, _, _)).
+atom_doubling(term_to_atom(_, _)).
+atom_doubling(format(Sink, _, _)) :- nonvar(Sink), Sink = atom(_).
+atom_doubling(with_output_to(Sink, _)) :- nonvar(Sink), Sink = atom(_).
+
+%   A format text whose column, fill or precision argument exceeds max_format_argument/1, or that
+%   takes one from the arguments (*): format/2,3 would write that many characters in C.
+format_unbounded(F, Why) :-
+    (   atom(F) -> atom_codes(F, Codes)
+    ;   string(F) -> string_codes(F, Codes)
+    ;   is_list(F), F = [C|_], integer(C) -> Codes = F
+    ),
+    max_format_argument(Max),
+    format_directive_argument(Codes, Argument),
+    (   Argument == (*) ; integer(Argument), Argument > Max ),
+    !,
+    format(string(Why), "a format directive argument (~w) above ~d or taken from the arguments \c
+                         (*) could write without limit", [Argument, Max]).
+
+max_format_argument(1000).
+
+format_directive_argument([0'~|Codes], Argument) :-
+    directive_argument(Codes, Argument, _).
+format_directive_argument([0'~, 0'~|Codes], Argument) :- !,
+    format_directive_argument(Codes, Argument).
+format_directive_argument([_|Codes], Argument) :-
+    format_directive_argument(Codes, Argument).
+
+directive_argument([0'`, _|Codes], Argument, Rest) :- !,        % ~`ct: a fill character
+    directive_argument(Codes, Argument, Rest).
+directive_argument([0'*|Rest], (*), Rest) :- !.
+directive_argument([D|Codes], Argument, Rest) :-
+    code_type(D, digit(W)),
+    digits(Codes, W, Argument, Rest).
+
+digits([D|Codes], N0, N, Rest) :-
+    code_type(D, digit(W)), !,
+    N1 is N0 * 10 + W,
+    digits(Codes, N1, N, Rest).
+digits(Rest, N, N, Rest).
+
+%!  check_rules_safe(+Module) is det.
+%   Records a load_problem/1 unless everything decide/5 and prune/3 can call is safe to run: no
+%   file, process, thread, flag or cross-module database access (library(sandbox)), and no call
+%   that no time limit can interrupt (unbounded_call/4).
+check_rules_safe(M) :-
+    forall(( current_predicate(M:Name/Arity),
+             functor(Head, Name, Arity),
+             predicate_property(M:Head, implementation_module(M)),
+             clause(M:Head, Body, Ref),
+             unbounded_call(Body, rule, Call0, Why) ),
+           ( clause_location(Ref, Path, Line),
+             bounded_term(Call0, Call),
+             format(string(P), "~w:~w: ~q is refused: ~w", [Path, Line, Call, Why]),
+             assertz(load_problem(P)) )),
+    forall(( member(Name/Arity, [decide/5, prune/3]),
+             current_predicate(M:Name/Arity),
+             functor(Head, Name, Arity),
+             catch(safe_goal(M:Head), E, true),
+             nonvar(E) ),
+           ( entry_location(M, Head, Location),
+             message_text(E, Text),
+             format(string(P), "~w: ~w can reach a call that rules may not make: ~w",
+                    [Location, Name/Arity, Text]),
+             assertz(load_problem(P)) )).
+
+clause_location(Ref, Path, Line) :-
+    (   clause_property(Ref, file(Id)), clause_property(Ref, line_count(Line))
+    ->  ( source_path(Id, Path) -> true ; Path = Id )
+    ;   Path = '?', Line = 0
+    ).
+
+entry_location(M, Head, Location) :-
+    (   predicate_property(M:Head, file(Id)),
+        predicate_property(M:Head, line_count(Line))
+    ->  ( source_path(Id, Path) -> true ; Path = Id ),
+        format(string(Location), "~w:~w", [Path, Line])
+    ;   functor(Head, Name, Arity),
+        format(string(Location), "~w", [Name/Arity])
     ).
 
 binding_name_var(Name = Var, NameString, Var) :- atom_string(Name, NameString).
 
 %   Database writes the sandbox lets through (it accepts assertz/1 on the calling module).
-forbidden_subgoal(Goal, Goal) :-
-    callable(Goal),
+forbidden_subgoal(Goal, Bad) :-
+    subterm_where(forbidden_call, Goal, Bad, _).
+
+forbidden_call(Goal, Name/Arity) :-
     ( Goal = _:G -> true ; G = Goal ),
     callable(G),
     functor(G, Name, Arity),
-    forbidden(Name, Arity), !.
-forbidden_subgoal(Goal, Bad) :-
-    compound(Goal),
-    Goal =.. [_|Args],
-    member(Arg, Args),
-    forbidden_subgoal(Arg, Bad), !.
+    forbidden(Name, Arity).
+
+%!  subterm_where(:Test, +Term, -Sub, -Info) is semidet.
+%   Sub is the first callable subterm of Term (itself included, depth first) for which
+%   call(Test, Sub, Info) is true. A deterministic walk over an agenda: sub_term/2 leaves a choice
+%   point per level and takes quadratic time (and a deep stack) on a chain like 1+1+...+1.
+subterm_where(Test, Term, Sub, Info) :-
+    subterm_in([Term], Test, Sub, Info).
+
+subterm_in([T|Ts], Test, Sub, Info) :-
+    (   callable(T), call(Test, T, Info0)
+    ->  Sub = T, Info = Info0
+    ;   compound(T)
+    ->  compound_name_arguments(T, _, Args),
+        append(Args, Ts, Agenda),
+        subterm_in(Agenda, Test, Sub, Info)
+    ;   subterm_in(Ts, Test, Sub, Info)
+    ).
 
 forbidden(Name, _) :-
     memberchk(Name, [assert, asserta, assertz, retract, retractall, abolish, erase, recorda, recordz,
@@ -361,22 +574,145 @@ load_one(text(Path, Text), M, N, Hash) :-
     assertz(source_path(Id, Path)),
     catch(( sha_hash(Text, Digest, [algorithm(sha256), encoding(utf8)]),
             hash_atom(Digest, Hash),
-            setup_call_cleanup(open_string(Text, Stream),
-                               load_files(M:Id, [stream(Stream)]),
-                               close(Stream)),
-            check_not_module(Id, M, Path)
+            %   Loading runs directives and term expansion: the text is read as terms and checked
+            %   first, and loaded only when nothing in it can act beyond defining rules.
+            aggregate_all(count, load_problem(_), Before),
+            check_rule_text(Path, Text, M),
+            aggregate_all(count, load_problem(_), After),
+            (   After =:= Before
+            ->  max_load_time_s(LoadLimit),
+                setup_call_cleanup(open_string(Text, Stream),
+                                   call_with_time_limit(LoadLimit, load_files(M:Id, [stream(Stream)])),
+                                   close(Stream))
+            ;   true
+            )
           ),
           E,
           problem_at(Path, 0, E)),
     (   var(Hash) -> Hash = '' ; true ).
 
-check_not_module(Id, M, Path) :-
-    (   source_file_property(Id, module(Other)), Other \== M
-    ->  format(string(P), "~w:1: rule files are plain clauses: remove the module declaration (~w)",
-               [Path, Other]),
+max_load_time_s(10).
+
+%!  check_rule_text(+Path, +Text, +Module) is det.
+%   Reads Text as terms without running any of them and records a load_problem/1 for everything a
+%   rule file may not contain: text nested too deeply to read safely, a syntax error, a directive
+%   that is not on the allow-list, a clause for another module or for a hook of Prolog itself.
+check_rule_text(Path, Text, M) :-
+    max_text_nesting(MaxNesting),
+    (   text_nesting_exceeds(Text, MaxNesting, Line)
+    ->  format(string(P), "~w:~w: brackets nested deeper than ~d levels; rule files and queries \c
+                           are limited to that", [Path, Line, MaxNesting]),
         assertz(load_problem(P))
-    ;   true
+    ;   setup_call_cleanup(open_string(Text, Stream),
+                           check_terms(Stream, Path, M),
+                           close(Stream))
     ).
+
+max_text_nesting(200).
+
+check_terms(Stream, Path, M) :-
+    repeat,
+    (   catch(read_term(Stream, Term, [module(M), term_position(Pos), syntax_errors(error)]),
+              E, true)
+    ->  true
+    ;   Term = end_of_file
+    ),
+    (   nonvar(E)
+    ->  syntax_error_line(E, Line),
+        problem_at(Path, Line, E),
+        fail                            % read_term skipped the bad clause: go on with the next
+    ;   Term == end_of_file
+    ->  !
+    ;   stream_position_data(line_count, Pos, Line),
+        check_term(Term, Path, Line),
+        fail
+    ).
+
+syntax_error_line(error(_, stream(_, Line, _, _)), Line) :- integer(Line), !.
+syntax_error_line(error(_, string(_, _)), 0) :- !.
+syntax_error_line(_, 0).
+
+rule_problem(Path, Line, Format, Args) :-
+    format(string(Text), Format, Args),
+    format(string(P), "~w:~w: ~w", [Path, Line, Text]),
+    assertz(load_problem(P)).
+
+check_term(Term, Path, Line) :-
+    var(Term), !,
+    rule_problem(Path, Line, "a clause may not be a variable", []).
+check_term((:- Directive), Path, Line) :- !,
+    check_directive(Directive, Path, Line).
+check_term((?- Directive), Path, Line) :- !,
+    check_directive(Directive, Path, Line).
+check_term((Head --> _), Path, Line) :- !,
+    check_head(Head, 2, Path, Line).
+check_term((Head :- _), Path, Line) :- !,
+    check_head(Head, 0, Path, Line).
+check_term(Head, Path, Line) :-
+    check_head(Head, 0, Path, Line).
+
+check_directive(Directive, Path, Line) :-
+    (   var(Directive)
+    ->  rule_problem(Path, Line, "a directive may not be a variable", [])
+    ;   Directive = module(Other, _)
+    ->  rule_problem(Path, Line, "rule files are plain clauses: remove the module declaration (~q)", [Other])
+    ;   allowed_directive(Directive)
+    ->  true
+    ;   bounded_term(Directive, Shown),
+        safe_libraries(Libraries),
+        atomic_list_concat(Libraries, '|', Names),
+        rule_problem(Path, Line,
+                     "directive ~q is not allowed in a rule file (rule files are loaded without running \c
+                      code; allowed: use_module/ensure_loaded of library(~w), and dynamic, discontiguous, \c
+                      multifile of the file's own predicates)", [(:- Shown), Names])
+    ).
+
+allowed_directive(use_module(library(L))) :- safe_library(L).
+allowed_directive(use_module(library(L), Imports)) :- safe_library(L), is_list(Imports).
+allowed_directive(ensure_loaded(library(L))) :- safe_library(L).
+allowed_directive(dynamic(PIs)) :- local_indicators(PIs).
+allowed_directive(discontiguous(PIs)) :- local_indicators(PIs).
+allowed_directive(multifile(PIs)) :- local_indicators(PIs).
+allowed_directive(encoding(utf8)).
+
+safe_libraries([lists, apply, aggregate, pairs, yall, error, ordsets, assoc, rbtrees, option,
+                solution_sequences, occurs, strings, dicts]).
+
+safe_library(L) :- atom(L), safe_libraries(Ls), memberchk(L, Ls).
+
+local_indicators(PIs) :- var(PIs), !, fail.
+local_indicators((A, B)) :- !, local_indicators(A), local_indicators(B).
+local_indicators([]) :- !.
+local_indicators([PI|PIs]) :- !, local_indicators(PI), local_indicators(PIs).
+local_indicators(Name/Arity) :- !, atom(Name), integer(Arity), between(0, 64, Arity).
+local_indicators(Name//Arity) :- atom(Name), integer(Arity), between(0, 62, Arity).
+
+check_head(Head, Extra, Path, Line) :-
+    (   var(Head)
+    ->  rule_problem(Path, Line, "a clause head may not be a variable", [])
+    ;   Head = Module:_
+    ->  bounded_term(Module, Shown),
+        rule_problem(Path, Line,
+                     "clauses for another module (~q:...) are not allowed: rule files define \c
+                      predicates of the rule module only", [Shown])
+    ;   callable(Head),
+        functor(Head, Name, Arity0),
+        Arity is Arity0 + Extra,
+        reserved_head(Name/Arity)
+    ->  rule_problem(Path, Line, "~q is a hook of Prolog itself; rule files may not define it",
+                     [Name/Arity])
+    ;   true                            % load_files reports any other bad head
+    ).
+
+%   Hooks Prolog calls on its own while loading or printing: defining them would run code.
+reserved_head(term_expansion/2).
+reserved_head(term_expansion/4).
+reserved_head(goal_expansion/2).
+reserved_head(goal_expansion/4).
+reserved_head(message_hook/3).
+reserved_head(portray/1).
+reserved_head(prolog_load_file/2).
+reserved_head(exception/3).
 
 problem_at(File, Line, Term) :-
     message_text(Term, Text0),
@@ -464,12 +800,7 @@ defines_decide(M) :-
     \+ predicate_property(M:decide(_, _, _, _, _), imported_from(_)).
 
 decide_location(M, Location) :-
-    (   predicate_property(M:decide(_, _, _, _, _), file(Id)),
-        predicate_property(M:decide(_, _, _, _, _), line_count(Line))
-    ->  ( source_path(Id, Path) -> true ; Path = Id ),
-        format(string(Location), "~w:~w", [Path, Line])
-    ;   Location = "decide/5"
-    ).
+    entry_location(M, decide(_, _, _, _, _), Location).
 
 activate(M, GracePeriod) :-
     get_time(Now),

@@ -123,12 +123,15 @@ TEST_F(EngineReloadTest, RulesFileWithoutDecideIsRejected) {
   expect_shipped_rules_still_active();
 }
 
-TEST_F(EngineReloadTest, RulesFileWithoutDecideIsRejectedEvenWhenUserDefinesDecide) {
+TEST_F(EngineReloadTest, RulesFileCannotPutDecideIntoUser) {
   // The base(system) trap: with `user` as default import module, a rule module without decide/5
-  // would pass the self-check through user:decide/5. A directive puts such a clause into user.
+  // would pass the self-check through user:decide/5. Neither a directive nor a qualified clause can
+  // put such a clause into user any more.
   write_text(rules_file(), ":- assertz(user:(decide(_, _, add, from_user, \"user\"))).\nother_fact(1).\n");
-  EXPECT_TRUE(contains(rejected_reload(), "decide/5"));
-  write_text(rules_file(), "other_fact(1).\n");  // user:decide/5 still exists now
+  EXPECT_TRUE(contains(rejected_reload(), "is not allowed in a rule file"));
+  write_text(rules_file(), "user:decide(_, _, add, from_user, \"user\").\nother_fact(1).\n");
+  EXPECT_TRUE(contains(rejected_reload(), "clauses for another module"));
+  write_text(rules_file(), "other_fact(1).\n");
   EXPECT_TRUE(contains(rejected_reload(), "decide/5"));
   expect_shipped_rules_still_active();
 }
