@@ -13,6 +13,16 @@
       "file:line: message" for each problem.
     - Only `system` predicates, autoloadable library predicates and the facts below are visible;
       predicates of `user` are not.
+    - A file is read as terms and checked before it is loaded, so loading it runs nothing. Allowed
+      directives: `:- use_module(library(L))` (and ensure_loaded) for L in lists, apply, aggregate,
+      pairs, yall, error, ordsets, assoc, rbtrees, option, solution_sequences, occurs, strings,
+      dicts; `:- dynamic`, `:- discontiguous` and `:- multifile` of the file's own predicates. Any
+      other directive, a clause for another module (`user:...`) or for a hook of Prolog itself
+      (term_expansion, goal_expansion, message_hook, portray, ...) rejects the reload.
+    - Everything decide/5 and prune/3 can call must pass library(sandbox) (no files, processes,
+      threads, flags or writes to other modules), and no format text may use a column, fill or
+      precision argument above 1000 or take one from its arguments (~*c): such calls run in C,
+      where no time limit can stop them. Brackets may nest at most 200 levels deep.
 
     Facts (asserted by C++ from the floor plan; they exist, possibly empty, at all times):
 
