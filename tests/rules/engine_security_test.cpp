@@ -198,7 +198,7 @@ TEST_F(QuerySecurityTest, DeepTermsBuiltAtRunTimeCannotCrashTheProcess) {
                               "string_concat(Open, x, S0), string_concat(S0, Close, S), term_string(T, S)";
     std::string message;
     if (refusal(build + ", format(string(W), \"~w\", [T]), string_length(W, N)", &message)) {
-      EXPECT_TRUE(contains(message, "C-stack limit")) << message;
+      EXPECT_TRUE(contains(message, "ran out of C stack")) << message;
     }
     // An error whose culprit is that deep term is reported with the culprit cut short.
     ASSERT_TRUE(refusal(build + ", atom_length(T, _)", &message).has_value());
@@ -212,8 +212,7 @@ TEST_F(QuerySecurityTest, BlockingAndRunawayBuiltinsStopWithinTheLimit) {
                                  "numlist(1, 100000000, L)", "between(1, inf, _), fail"}) {
     const auto start = Clock::now();
     std::string message;
-    EXPECT_EQ(refusal(goal, &message).value_or(QueryError::Reason::syntax) == QueryError::Reason::syntax, false)
-        << goal << " answered";
+    EXPECT_EQ(refusal(goal, &message), QueryError::Reason::limit) << goal << ": " << message;
     EXPECT_LT(Clock::now() - start, std::chrono::seconds(4)) << goal << ": " << message;
   }
 }
