@@ -7,6 +7,8 @@
 #include <Eigen/Eigenvalues>
 #include <nlohmann/json.hpp>
 
+#include "apriori/import/json_limits.h"
+
 namespace wm::apriori {
 namespace {
 
@@ -158,6 +160,7 @@ std::vector<fusion::LocalEdge> PlanObject::edges() const {
 }
 
 FloorPlan parse_floor_plan_json(std::string_view text_in, const FloorPlanLimits& limits) {
+  if (auto error = json_nesting_error(text_in)) throw FloorPlanError("", *error);
   json doc;
   try {
     doc = json::parse(text_in.begin(), text_in.end());

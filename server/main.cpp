@@ -8,6 +8,8 @@
 
 #include <pthread.h>
 
+#include <boost/asio/ip/address.hpp>
+
 #include "apriori/floor_plan.h"
 #include "server/api/router.h"
 #include "server/config/server_config.h"
@@ -67,13 +69,19 @@ int main(int argc, char** argv) {
       world.load_floor_plan(std::move(plan));
     }
     api::Services services{cfg.api, world};
-    http::HttpServer server(
-        cfg.http, [&services](const api::Request& r) { return api::handle_request(r, services); }, &events);
+    http::HttpServer::Handlers handlers{
+        [&services](const api::Request& r) { return api::handle_request(r, services); },
+        [](const api::Request& r) { return api::handler_lane(r); },
+        [&services](const api::Request& r) { return api::authorize_events(r, services); }};
+    http::HttpServer server(cfg.http, std::move(handlers), &events);
     std::thread signal_waiter([&server, signals] {
       int signal = 0;
       sigwait(&signals, &signal);
       server.stop();
     });
+    if (cfg.api.token.empty() && !boost::asio::ip::make_address(cfg.http.bind_address).is_loopback())
+      std::cerr << "wmd: warning: no --token and --bind " << cfg.http.bind_address
+                << " (--insecure-no-token): anyone who reaches the port can change the map\n";
     std::cout << "wmd: database " << cfg.store.path << ", rules " << cfg.rules.rules_dir.string() << "\n"
               << "wmd: listening on http://" << cfg.http.bind_address << ":" << server.port() << "/" << std::endl;
     server.run();

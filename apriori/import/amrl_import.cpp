@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "apriori/import/json_limits.h"
 #include "apriori/internal/plan_builder.h"
 
 namespace wm::apriori {
@@ -40,6 +41,7 @@ struct Segment {
 };
 
 std::vector<Segment> parse_json(std::string_view text) {
+  if (auto error = json_nesting_error(text)) throw FloorPlanError("", *error);
   json doc;
   try {
     doc = json::parse(text.begin(), text.end());

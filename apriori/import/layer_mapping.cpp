@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "apriori/floor_plan.h"
+#include "apriori/import/json_limits.h"
 
 namespace wm::apriori {
 namespace {
@@ -139,6 +140,7 @@ const LayerRule* LayerMapping::match_layer(std::string_view layer) const { retur
 const LayerRule* LayerMapping::match_block(std::string_view block_name) const { return first_match(blocks, block_name); }
 
 LayerMapping parse_layer_mapping_json(std::string_view text) {
+  if (auto error = json_nesting_error(text)) throw FloorPlanError("", *error);
   Json doc;
   try {
     doc = Json::parse(text.begin(), text.end());

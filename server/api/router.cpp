@@ -16,6 +16,7 @@
 #include <charconv>
 #include <map>
 
+#include <boost/asio/ip/address.hpp>
 #include <nlohmann/json.hpp>
 
 #include "rules/engine.h"
@@ -51,6 +52,7 @@ std::string percent_decode(std::string_view in) {
   return out;
 }
 
+// Query parameters become names (?name=, ?level=) that end up in JSON: each must be UTF-8.
 Target parse_target(std::string_view target) {
   Target t;
   const auto q = target.find('?');
@@ -61,11 +63,124 @@ Target parse_target(std::string_view target) {
     const auto amp = rest.find('&');
     const auto pair = rest.substr(0, amp);
     const auto eq = pair.find('=');
-    if (!pair.empty())
-      t.query[percent_decode(pair.substr(0, eq))] = eq == std::string_view::npos ? "" : percent_decode(pair.substr(eq + 1));
+    if (!pair.empty()) {
+      auto key = percent_decode(pair.substr(0, eq));
+      auto value = eq == std::string_view::npos ? std::string() : percent_decode(pair.substr(eq + 1));
+      if (json_codec::invalid_utf8_offset(key)) throw bad_request("", "a query parameter's name is not UTF-8");
+      if (auto at = json_codec::invalid_utf8_offset(value))
+        throw bad_request(key, "invalid UTF-8 at byte " + std::to_string(*at) + " of the query parameter");
+      t.query[std::move(key)] = std::move(value);
+    }
     rest = amp == std::string_view::npos ? std::string_view() : rest.substr(amp + 1);
   }
   return t;
+}
+
+std::string_view header_target(const Request& req) {
+  const auto target = req.target();
+  return {target.data(), target.size()};
+}
+
+std::string lower(std::string_view text) {
+  std::string out(text);
+  for (auto& c : out)
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  return out;
+}
+
+std::string_view trimmed(std::string_view text) {
+  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
+  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
+  return text;
+}
+
+std::string_view header(const Request& req, http::field field) {
+  const auto value = req[field];
+  return {value.data(), value.size()};
+}
+
+// The host of a Host header or an origin's authority, lower case, without port or trailing dot; IPv6
+// keeps its brackets ("[::1]").
+std::string host_of_authority(std::string_view authority) {
+  std::string host = lower(trimmed(authority));
+  if (!host.empty() && host.front() == '[') {
+    const auto close = host.find(']');
+    return close == std::string::npos ? host : host.substr(0, close + 1);
+  }
+  host = host.substr(0, host.find(':'));
+  if (!host.empty() && host.back() == '.') host.pop_back();
+  return host;
+}
+
+bool is_ip_literal(const std::string& host) {
+  std::string address = host;
+  if (address.size() > 2 && address.front() == '[' && address.back() == ']') {
+    address = address.substr(1, address.size() - 2);
+  } else if (address.find(':') != std::string::npos) {
+    return false;  // an IPv6 address in a Host header has brackets
+  }
+  boost::system::error_code ec;
+  boost::asio::ip::make_address(address, ec);
+  return !ec;
+}
+
+// Host check against DNS rebinding: a page of attacker.example that re-resolves its name to 127.0.0.1
+// reaches us with "Host: attacker.example". IP literals cannot be rebound, so they always pass; a
+// request without Host (HTTP/1.0, no browser) too.
+void require_allowed_host(const Request& req, const Services& s) {
+  if (s.options.allowed_hosts.empty()) return;
+  const auto value = header(req, http::field::host);
+  if (trimmed(value).empty()) return;
+  const auto host = host_of_authority(value);
+  if (is_ip_literal(host)) return;
+  if (std::find(s.options.allowed_hosts.begin(), s.options.allowed_hosts.end(), host) != s.options.allowed_hosts.end())
+    return;
+  throw ApiError(421, "misdirected_request",
+                 "this server does not answer to Host '" + host + "' (DNS rebinding?); start wmd with --allowed-hosts " +
+                     host + " to allow it");
+}
+
+// Origin allow-list: same origin (the origin's host:port is the Host header) or --allowed-origins. A
+// request without Origin does not come from a browser page and passes.
+void require_allowed_origin(const Request& req, const Services& s) {
+  const auto origin = lower(trimmed(header(req, http::field::origin)));
+  if (origin.empty()) return;
+  std::string normalised = origin;
+  while (!normalised.empty() && normalised.back() == '/') normalised.pop_back();
+  if (std::find(s.options.allowed_origins.begin(), s.options.allowed_origins.end(), normalised) !=
+      s.options.allowed_origins.end())
+    return;
+  const auto scheme_end = normalised.find("://");
+  const auto host = lower(trimmed(header(req, http::field::host)));
+  if (scheme_end != std::string::npos && !host.empty()) {
+    const auto scheme = normalised.substr(0, scheme_end);
+    auto authority = normalised.substr(scheme_end + 3);
+    // Browsers leave the default port out of Origin; a client may still write it in Host.
+    const bool same = authority == host || (scheme == "http" && authority + ":80" == host) ||
+                      (scheme == "https" && authority + ":443" == host);
+    if ((scheme == "http" || scheme == "https") && same) return;
+  }
+  throw ApiError(403, "forbidden_origin",
+                 "requests from pages of '" + origin + "' are refused (not this server's origin); start wmd with "
+                 "--allowed-origins " + origin + " to allow them");
+}
+
+// Compares without stopping at the first difference, so the time taken says nothing about the token.
+bool same_secret(std::string_view given, std::string_view expected) {
+  unsigned char difference = given.size() == expected.size() ? 0 : 1;
+  for (std::size_t i = 0; i < given.size(); ++i)
+    difference |= static_cast<unsigned char>(given[i] ^ (expected.empty() ? 0 : expected[i % expected.size()]));
+  return difference == 0;
+}
+
+// "Bearer <token>", the scheme in any case (RFC 7235 section 2.1), one or more spaces before the token.
+bool bearer_matches(std::string_view authorization, std::string_view token) {
+  constexpr std::string_view kScheme = "bearer";
+  authorization = trimmed(authorization);
+  if (authorization.size() <= kScheme.size() || lower(authorization.substr(0, kScheme.size())) != kScheme ||
+      authorization[kScheme.size()] != ' ')
+    return false;
+  return same_secret(trimmed(authorization.substr(kScheme.size())), token);
 }
 
 std::int64_t query_int(const Target& t, const std::string& key, std::int64_t fallback, std::int64_t min, std::int64_t max) {
@@ -79,12 +194,19 @@ std::int64_t query_int(const Target& t, const std::string& key, std::int64_t fal
   return v;
 }
 
-Response json_response(const Request& req, const json& body, http::status status = http::status::ok) {
+// Text that was not checked as UTF-8 on its way in is written with U+FFFD rather than failing the request
+// (nlohmann's type_error 316) after the work is done.
+Response json_response(const Request& req, const json& body, http::status status = http::status::ok,
+                       std::size_t max_bytes = std::numeric_limits<std::size_t>::max()) {
   Response res{status, req.version()};
   res.set(http::field::content_type, "application/json");
   res.set(http::field::cache_control, "no-store");
   res.keep_alive(req.keep_alive());
-  res.body() = body.dump();
+  res.body() = body.dump(-1, ' ', false, json::error_handler_t::replace);
+  if (res.body().size() > max_bytes)
+    throw ApiError(422, "answer_too_large",
+                   "the answer is " + std::to_string(res.body().size()) + " bytes, more than the " +
+                       std::to_string(max_bytes) + " this server sends; ask for less");
   res.prepare_payload();
   return res;
 }
@@ -106,7 +228,7 @@ void require_json_body(const Request& req) {
 
 void require_token(const Request& req, const Services& s) {
   if (s.options.token.empty()) return;
-  if (req[http::field::authorization] != "Bearer " + s.options.token)
+  if (!bearer_matches(header(req, http::field::authorization), s.options.token))
     throw ApiError(401, "unauthorized", "this server needs 'Authorization: Bearer <token>' to change state");
 }
 
@@ -131,8 +253,7 @@ Response get_rules(const Request& req, Services& s) {
 
 json parse_json_object(const Request& req) {
   require_json_body(req);
-  json doc = json::parse(req.body(), nullptr, false);
-  if (doc.is_discarded()) throw bad_request("", "malformed JSON");
+  json doc = json_codec::parse_json(req.body());
   if (!doc.is_object()) throw bad_request("", "expected a JSON object");
   return doc;
 }
@@ -167,6 +288,13 @@ Response post_rules_reload(const Request& req, Services& s) {
 }
 
 Response post_rules_dry_run(const Request& req, Services& s) {
+  // A dry run loads rule text into this process: like any write it needs the token, and with none
+  // configured only an explicit start-up flag allows it.
+  if (s.options.token.empty() && !s.options.allow_dry_run_without_token)
+    throw ApiError(403, "forbidden",
+                   "dry runs load rule text into the server and need a token: start wmd with --token TOKEN and send "
+                   "'Authorization: Bearer TOKEN' (or, where every local user is trusted, with "
+                   "--allow-dry-run-without-token)");
   require_token(req, s);
   const json doc = parse_json_object(req);
   require_known_keys(doc, {"file", "text", "last"});
@@ -186,7 +314,9 @@ Response post_query(const Request& req, Services& s) {
   const auto goal = string_field(doc, "goal", 64 * 1024);
   const auto max_solutions = count_field(doc, "max_solutions", 100, 10000);
   try {
-    return json_response(req, json_codec::query_result_json(s.world.query(goal, max_solutions)));
+    const auto answer = s.world.query(goal, max_solutions);
+    return json_response(req, json_codec::query_result_json(answer, s.options.max_query_answer_bytes), http::status::ok,
+                         s.options.max_query_answer_bytes);
   } catch (const rules::QueryError& e) {
     switch (e.reason()) {
       case rules::QueryError::Reason::syntax: throw ApiError(400, "bad_query", e.what());
@@ -328,16 +458,34 @@ Response get_grid(const Request& req, const Target& t, Services& s) {
   if (!region) throw ApiError(404, "empty_grid", "no scan has reached the grid yet; POST /api/v1/scans first");
   const auto values = s.world.read_grid([&](const fusion::OccupancyGrid& g) { return g.export_layer(layer, *region); });
   if (format == "pgm") return raw_response(req, pgm_image(values, *region), "image/x-portable-graymap");
-  json data = json::array();
-  for (const float v : values) data.push_back(std::isnan(v) ? json(nullptr) : json(std::round(v * 1e4) / 1e4));
-  return json_response(req, {{"layer", t.query.count("layer") ? t.query.at("layer") : "bayes"},
-                             {"resolution", region->resolution_m()},
-                             {"origin", json::array({region->origin_m().x(), region->origin_m().y()})},
-                             {"width", region->width()},
-                             {"height", region->height()},
-                             {"revision", s.world.grid_revision()},
-                             {"order", "row-major from the lower-left cell; null = unknown"},
-                             {"data", std::move(data)}});
+  const json head = {{"layer", t.query.count("layer") ? t.query.at("layer") : "bayes"},
+                     {"resolution", region->resolution_m()},
+                     {"origin", json::array({region->origin_m().x(), region->origin_m().y()})},
+                     {"width", region->width()},
+                     {"height", region->height()},
+                     {"revision", s.world.grid_revision()},
+                     {"order", "row-major from the lower-left cell; null = unknown"}};
+  auto res = json_response(req, head);
+  // The cells are written here rather than as a JSON array of a million values: nlohmann builds one
+  // node per cell and formats each double on its own, 1 s for the 1.4 M cells of the Intel lab.
+  std::string& body = res.body();
+  body.pop_back();  // the head's closing brace
+  body.reserve(body.size() + 16 + values.size() * 7);
+  body += ",\"data\":[";
+  char number[32];
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (i > 0) body += ',';
+    if (std::isnan(values[i])) {
+      body += "null";
+      continue;
+    }
+    const double rounded = std::round(static_cast<double>(values[i]) * 1e4) / 1e4;  // [0, 1] to 4 decimals
+    const auto [end, ec] = std::to_chars(number, number + sizeof number, rounded);
+    body.append(number, ec == std::errc() ? end : number);
+  }
+  body += "]}";
+  res.prepare_payload();
+  return res;
 }
 
 // The map_server pair: the YAML names map.pgm beside it; both describe the same region.
@@ -385,6 +533,23 @@ Response get_history(const Request& req, Services& s, const std::string& id, boo
   json list = json::array();
   for (const auto& d : rows) list.push_back(json_codec::decision_json(d));
   return json_response(req, {{"id", id}, {"exists", exists}, {"decisions", std::move(list)}});
+}
+
+// Every name of a plan is stored and written as JSON: one that is not UTF-8 (from a file format that does
+// not check it) is refused here, by field, instead of failing when it is written.
+void require_utf8_names(const apriori::FloorPlan& plan) {
+  const auto check = [](const std::string& text, const std::string& path) {
+    if (const auto at = json_codec::invalid_utf8_offset(text))
+      throw bad_request(path, "invalid UTF-8 at byte " + std::to_string(*at));
+  };
+  check(plan.name, "name");
+  for (std::size_t i = 0; i < plan.objects.size(); ++i) {
+    const auto path = "objects[" + std::to_string(i) + "]";
+    check(plan.objects[i].id, path + ".id");
+    check(plan.objects[i].kind, path + ".kind");
+    for (std::size_t k = 0; k < plan.objects[i].attributes.size(); ++k)
+      check(plan.objects[i].attributes[k], path + ".attributes[" + std::to_string(k) + "]");
+  }
 }
 
 // Units names for ?units= and "units" of an import envelope.
@@ -437,11 +602,16 @@ Response put_floor_plan(const Request& req, Services& s) {
   if (has_content_type(req, "image/vnd.dxf") || has_content_type(req, "application/dxf")) {
     imported = import_plan("dxf", req.body(), query_options, s);
   } else if (has_content_type(req, "application/yaml") || has_content_type(req, "application/x-yaml")) {
+    if (const auto at = json_codec::invalid_utf8_offset(req.body())) {
+      const auto line = 1 + std::count(req.body().begin(), req.body().begin() + static_cast<std::ptrdiff_t>(*at), '\n');
+      throw bad_request("body", "invalid UTF-8 at byte " + std::to_string(*at) + " (line " + std::to_string(line) +
+                                    "); YAML is UTF-8 text");
+    }
     imported = import_plan("rmf", req.body(), query_options, s);
   } else {
     require_json_body(req);
     // Ordered: a layer mapping's rules apply in file order (first match wins).
-    const auto doc = nlohmann::ordered_json::parse(req.body(), nullptr, false);
+    const auto doc = json_codec::parse_ordered_json(req.body());
     if (doc.is_object() && doc.contains("import")) {
       // {"import": {"format": "dxf", "data": "<the file's text>", "mapping": {...}, "units": "mm", ...}}
       const auto& spec = doc["import"];
@@ -460,13 +630,14 @@ Response put_floor_plan(const Request& req, Services& s) {
     }
   }
   auto plan = imported ? std::move(imported->plan) : apriori::parse_floor_plan_json(req.body(), s.options.plan_limits);
+  require_utf8_names(plan);
   std::size_t edges = 0;
   for (const auto& o : plan.objects) edges += o.edges().size();
   const auto objects = plan.objects.size();
   const auto name = plan.name;
   const auto version = s.world.load_floor_plan(std::move(plan));
   json answer = {{"name", name}, {"objects", objects}, {"edges", edges}, {"version", version}};
-  if (imported) answer["report"] = json::parse(apriori::to_json_text(imported->report));
+  if (imported) answer["report"] = json_codec::parse_json(apriori::to_json_text(imported->report));
   return json_response(req, answer);
 }
 
@@ -542,7 +713,7 @@ Response get_floor_plan(const Request& req, Services& s) {
   const auto snap = s.world.snapshot();
   apriori::FloorPlan plan{snap->plan_name, {}};
   for (const auto& o : snap->objects) plan.objects.push_back(*o.plan);
-  return json_response(req, json::parse(apriori::to_json_text(plan)));
+  return json_response(req, json_codec::parse_json(apriori::to_json_text(plan)));
 }
 
 Response post_primitives(const Request& req, Services& s) {
@@ -730,6 +901,35 @@ Response error_response(unsigned http_version, bool keep_alive, int status, cons
   return res;
 }
 
+Lane handler_lane(const Request& req) {
+  const auto target = header_target(req);
+  const auto path = target.substr(0, target.find('?'));
+  const auto method = req.method();
+  if (method == http::verb::get && (path == "/api/v1/health" || path == "/api/v1")) return Lane::immediate;
+  if (method == http::verb::get || method == http::verb::head) return Lane::read;
+  // Queries and dry runs wait for the Prolog reader, not the writer.
+  if (path == "/api/v1/query" || path == "/api/v1/rules/dry-run") return Lane::read;
+  return Lane::write;
+}
+
+std::optional<Response> authorize_events(const Request& req, const Services& services) {
+  try {
+    require_allowed_host(req, services);
+    require_allowed_origin(req, services);
+    const auto& token = services.options.token;
+    if (token.empty() || bearer_matches(header(req, http::field::authorization), token)) return std::nullopt;
+    const auto raw_target = req.target();
+    const Target t = parse_target(std::string_view(raw_target.data(), raw_target.size()));
+    if (const auto it = t.query.find("token"); it != t.query.end() && same_secret(it->second, token)) return std::nullopt;
+    throw ApiError(401, "unauthorized",
+                   "the events stream of this server needs 'Authorization: Bearer <token>' or ?token=<token>");
+  } catch (const ApiError& e) {
+    return error_response(req.version(), false, e.status(), e.error(), e.what());
+  } catch (const std::exception& e) {
+    return error_response(req.version(), false, 500, "internal_error", e.what());
+  }
+}
+
 Response handle_request(const Request& req, Services& services) {
   const auto fail = [&](int status, const std::string& error, const std::string& detail) {
     auto res = error_response(req.version(), req.keep_alive(), status, error, detail);
@@ -737,6 +937,10 @@ Response handle_request(const Request& req, Services& services) {
     return res;
   };
   try {
+    require_allowed_host(req, services);
+    // Browsers send simple cross-site POSTs (a form, text/plain) without asking first: whatever changes
+    // state must come from our own pages or an allowed origin.
+    if (req.method() != http::verb::get && req.method() != http::verb::head) require_allowed_origin(req, services);
     return route(req, services);
   } catch (const ApiError& e) {
     return fail(e.status(), e.error(), e.what());

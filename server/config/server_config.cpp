@@ -1,10 +1,13 @@
 #include "server/config/server_config.h"
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <sstream>
+
+#include <boost/asio/ip/address.hpp>
 
 namespace wm::config {
 namespace {
@@ -18,6 +21,21 @@ T parse_number(const std::string& flag, const std::string& text, T min, T max) {
   return value;
 }
 
+// "a, B,c" → {"a", "b", "c"}: lower case (host names and origins compare without case), no empty items.
+std::vector<std::string> comma_list(const std::string& text) {
+  std::vector<std::string> items;
+  std::string current;
+  for (const char ch : text + ",") {
+    if (ch == ',') {
+      if (!current.empty()) items.push_back(current);
+      current.clear();
+    } else if (ch != ' ') {
+      current.push_back(ch >= 'A' && ch <= 'Z' ? static_cast<char>(ch - 'A' + 'a') : ch);
+    }
+  }
+  return items;
+}
+
 }  // namespace
 
 std::string usage() {
@@ -27,9 +45,18 @@ std::string usage() {
          "  --bind ADDR            address to listen on (default 127.0.0.1)\n"
          "  --rules DIR            directory of *.pl rule files (default: the shipped rules/prolog)\n"
          "  --floorplan FILE       load this JSON floor plan at start (replaces the stored one)\n"
-         "  --token TOKEN          require 'Authorization: Bearer TOKEN' for requests that change state\n"
+         "  --token TOKEN          require 'Authorization: Bearer TOKEN' for requests that change state, dry runs\n"
+         "                         and the events WebSocket (which also takes ?token=TOKEN)\n"
+         "  --insecure-no-token    allow a non-loopback --bind without --token (anyone who reaches the port can write)\n"
+         "  --allow-dry-run-without-token  allow POST /api/v1/rules/dry-run when no --token is set (default: 403)\n"
+         "  --allowed-hosts LIST   comma-separated host names accepted in the Host header besides localhost,\n"
+         "                         127.0.0.1, [::1] and the bind address (IP addresses always pass; '*': no check)\n"
+         "  --allowed-origins LIST comma-separated origins (http://host:port) whose pages may use the events\n"
+         "                         WebSocket and send writes, besides the server's own\n"
          "  --max-body-bytes N     largest accepted request body (default 16777216)\n"
          "  --threads N            HTTP I/O threads (default 4)\n"
+         "  --handler-threads N    threads that run request handlers off the I/O threads (default 8)\n"
+         "  --handler-queue N      requests waiting for a handler thread before 503 + Retry-After (default 256)\n"
          "  --gate-chi2 X          χ² gate (2 dof) for matching segments (default 5.991, 95 %)\n"
          "  --max-gap M            largest gap [m] between collinear extents still matched (default 0.10)\n"
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
@@ -51,6 +78,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
   c.api.web_dir = default_web_dir.string();
   c.rules.rules_dir = default_rules_dir;
   bool watch_rules = true;
+  bool insecure_no_token = false;
+  std::vector<std::string> extra_hosts;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& flag = args[i];
     if (flag == "--help" || flag == "-h") {
@@ -63,6 +92,14 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     }
     if (flag == "--no-scan-lines") {
       c.service.extract_scan_lines = false;
+      continue;
+    }
+    if (flag == "--insecure-no-token") {
+      insecure_no_token = true;
+      continue;
+    }
+    if (flag == "--allow-dry-run-without-token") {
+      c.api.allow_dry_run_without_token = true;
       continue;
     }
     if (i + 1 >= args.size()) throw ConfigError(flag.rfind("--", 0) == 0 ? flag + ": missing value" : "unexpected argument '" + flag + "'");
@@ -87,6 +124,22 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     else if (flag == "--token") c.api.token = value;
     else if (flag == "--max-body-bytes") c.http.max_body_bytes = parse_number<std::size_t>(flag, value, 1024, std::size_t{1} << 31);
     else if (flag == "--threads") c.http.threads = parse_number<int>(flag, value, 1, 64);
+    else if (flag == "--handler-threads") c.http.handler_threads = parse_number<int>(flag, value, 1, 256);
+    else if (flag == "--handler-queue") c.http.handler_queue = parse_number<std::size_t>(flag, value, 1, 100000);
+    else if (flag == "--allowed-hosts") {
+      for (auto& host : comma_list(value)) {
+        if (host.find('/') != std::string::npos) throw ConfigError("--allowed-hosts: '" + host + "' is not a host name");
+        if (host.front() != '[') host = host.substr(0, host.find(':'));  // a port, if given, is not compared
+        extra_hosts.push_back(std::move(host));
+      }
+    } else if (flag == "--allowed-origins") {
+      for (auto& origin : comma_list(value)) {
+        while (!origin.empty() && origin.back() == '/') origin.pop_back();
+        if (origin.rfind("http://", 0) != 0 && origin.rfind("https://", 0) != 0)
+          throw ConfigError("--allowed-origins: '" + origin + "' is not an origin like http://host:port");
+        c.api.allowed_origins.push_back(std::move(origin));
+      }
+    }
     else if (flag == "--gate-chi2") c.service.world.match.gate_chi2 = parse_number<double>(flag, value, 0.01, 1e4);
     else if (flag == "--max-gap") c.service.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
     else if (flag == "--rule-inferences") c.rules.inference_limit = parse_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
@@ -104,6 +157,20 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     }
   }
   if (c.store.path.empty()) throw ConfigError("--db: must not be empty");
+  boost::system::error_code bad_address;
+  const auto bind = boost::asio::ip::make_address(c.http.bind_address, bad_address);
+  if (bad_address) throw ConfigError("--bind: '" + c.http.bind_address + "' is not an IP address");
+  if (!bind.is_loopback() && c.api.token.empty() && !insecure_no_token)
+    throw ConfigError("--bind " + c.http.bind_address +
+                      " makes the server reachable from other machines, and without --token anyone who reaches the "
+                      "port can change the map; give --token TOKEN (or --insecure-no-token on a trusted network)");
+  // Host names requests may carry: loopback names, the bind address (IP literals pass anyway) and --allowed-hosts.
+  const bool no_host_check = std::find(extra_hosts.begin(), extra_hosts.end(), "*") != extra_hosts.end();
+  if (!no_host_check) {
+    c.api.allowed_hosts = {"localhost", "127.0.0.1", "[::1]"};
+    c.api.allowed_hosts.push_back(bind.is_v6() ? "[" + bind.to_string() + "]" : bind.to_string());
+    c.api.allowed_hosts.insert(c.api.allowed_hosts.end(), extra_hosts.begin(), extra_hosts.end());
+  }
   if (!std::filesystem::is_directory(c.rules.rules_dir))
     throw ConfigError("--rules: '" + c.rules.rules_dir.string() + "' is not a directory");
   if (watch_rules) c.service.watch_rules_dir = c.rules.rules_dir;

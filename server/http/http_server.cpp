@@ -1,20 +1,27 @@
 #include "server/http/http_server.h"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <iostream>
+#include <mutex>
 #include <optional>
 #include <thread>
 #include <vector>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/ip/tcp.hpp>
-#include <boost/asio/signal_set.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/asio/steady_timer.hpp>
 #include <boost/asio/strand.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
-#include <deque>
 
 namespace wm::http {
 namespace {
@@ -25,6 +32,98 @@ namespace net = boost::asio;
 using tcp = net::ip::tcp;
 
 namespace websocket = boost::beast::websocket;
+
+// Threads that take jobs from one bounded queue, in order. A full queue refuses at once (the caller answers
+// 503) rather than letting requests pile up without bound.
+class WorkQueue {
+ public:
+  /// `nice`: added to the threads' CPU niceness (Linux schedules threads on their own; 0 leaves it).
+  WorkQueue(int threads, std::size_t max_queued, int nice) : max_queued_(max_queued) {
+    for (int i = 0; i < threads; ++i)
+      threads_.emplace_back([this, nice] {
+        if (nice != 0) ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), nice);  // best effort
+        loop();
+      });
+  }
+  ~WorkQueue() { stop(); }
+  WorkQueue(const WorkQueue&) = delete;
+  WorkQueue& operator=(const WorkQueue&) = delete;
+
+  /// False when the queue is full or stopped.
+  bool try_post(std::function<void()> job) {
+    {
+      std::lock_guard lock(mutex_);
+      if (stopping_ || queue_.size() >= max_queued_) return false;
+      queue_.push_back(std::move(job));
+    }
+    cv_.notify_one();
+    return true;
+  }
+
+  /// Lets running jobs finish, drops queued ones, joins. Idempotent.
+  void stop() {
+    {
+      std::lock_guard lock(mutex_);
+      stopping_ = true;
+    }
+    cv_.notify_all();
+    for (auto& t : threads_)
+      if (t.joinable()) t.join();
+    std::deque<std::function<void()>> dropped;
+    std::lock_guard lock(mutex_);
+    dropped.swap(queue_);
+  }
+
+ private:
+  void loop() {
+    for (;;) {
+      std::function<void()> job;
+      {
+        std::unique_lock lock(mutex_);
+        cv_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+        if (stopping_) return;
+        job = std::move(queue_.front());
+        queue_.pop_front();
+      }
+      job();
+    }
+  }
+
+  const std::size_t max_queued_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<std::function<void()>> queue_;
+  bool stopping_ = false;
+  std::vector<std::thread> threads_;
+};
+
+// The handler threads in two lanes. Writes (ingest, plan loads, reloads) mostly wait for the single writer
+// and get a quarter of the threads (at least one) to themselves, so readers can never take every thread.
+// Reads (map, grid, queries, dry runs) get the rest, at a lower CPU priority: on a busy machine the
+// serialisation of megabytes of map and grid yields to the writer instead of slowing ingest (on this
+// 2-core VM, 8 map and 4 grid readers took ingest from 118 to 12 scans/s at equal priority).
+class HandlerPool {
+ public:
+  static constexpr int kReadNice = 10;
+
+  HandlerPool(int threads, std::size_t max_queued)
+      : writes_(write_threads(threads), max_queued, 0),
+        reads_(std::max(1, threads - write_threads(threads)), max_queued, kReadNice) {}
+
+  bool try_post(bool write, std::function<void()> job) {
+    return (write ? writes_ : reads_).try_post(std::move(job));
+  }
+  void stop() {
+    reads_.stop();
+    writes_.stop();
+  }
+
+ private:
+  static int write_threads(int threads) { return std::max(1, threads / 4); }
+
+  WorkQueue writes_;
+  WorkQueue reads_;
+};
 
 // One live-events WebSocket: forwards the hub's events in order; reads only to notice the close.
 class EventSession : public std::enable_shared_from_this<EventSession> {
@@ -103,8 +202,9 @@ class EventSession : public std::enable_shared_from_this<EventSession> {
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  Session(tcp::socket&& socket, const HttpOptions& options, const HttpServer::Handler& handler, events::EventHub* hub)
-      : stream_(std::move(socket)), options_(options), handler_(handler), hub_(hub) {}
+  Session(tcp::socket&& socket, const HttpOptions& options, const HttpServer::Handlers& handlers, HandlerPool& pool,
+          events::EventHub* hub)
+      : stream_(std::move(socket)), options_(options), handlers_(handlers), pool_(pool), hub_(hub) {}
 
   void start() { net::dispatch(stream_.get_executor(), beast::bind_front_handler(&Session::read, shared_from_this())); }
 
@@ -140,15 +240,45 @@ class Session : public std::enable_shared_from_this<Session> {
     if (websocket::is_upgrade(parser_->get())) {
       const auto target = parser_->get().target();
       if (hub_ && target.substr(0, target.find('?')) == "/api/v1/events") {
+        if (handlers_.authorize_upgrade) {
+          if (auto refusal = handlers_.authorize_upgrade(parser_->get())) return write(std::move(*refusal));
+        }
         stream_.expires_never();
         std::make_shared<EventSession>(stream_.release_socket(), *hub_)->run(parser_->release());
         return;
       }
     }
-    write(handler_(parser_->get()));
+    const auto lane = handlers_.lane ? handlers_.lane(parser_->get()) : api::Lane::read;
+    if (lane == api::Lane::immediate) return write(answer(parser_->get()));
+    // The handler may wait for the writer or Prolog for long: the I/O thread goes back to other connections,
+    // and the answer comes back to this connection's strand.
+    auto request = std::make_shared<api::Request>(parser_->release());
+    stream_.expires_never();
+    const auto version = request->version();
+    const bool keep_alive = request->keep_alive();
+    const bool queued = pool_.try_post(lane == api::Lane::write, [self = shared_from_this(), request] {
+      auto response = self->answer(*request);
+      net::post(self->stream_.get_executor(),
+                [self, response = std::move(response)]() mutable { self->write(std::move(response)); });
+    });
+    if (!queued) {
+      auto busy = api::error_response(version, keep_alive, 503, "busy",
+                                      "every request handler is taken and the queue is full; retry later");
+      busy.set(bhttp::field::retry_after, "1");
+      write(std::move(busy));
+    }
+  }
+
+  api::Response answer(const api::Request& request) const {
+    try {
+      return handlers_.handle(request);
+    } catch (const std::exception& e) {  // handlers do not throw; should one, the client still gets an answer
+      return api::error_response(request.version(), false, 500, "internal_error", e.what());
+    }
   }
 
   void write(api::Response response) {
+    stream_.expires_after(options_.read_timeout);
     response_ = std::make_shared<api::Response>(std::move(response));
     bhttp::async_write(stream_, *response_,
                        beast::bind_front_handler(&Session::on_write, shared_from_this(), response_->need_eof()));
@@ -190,32 +320,55 @@ class Session : public std::enable_shared_from_this<Session> {
   std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
   std::shared_ptr<api::Response> response_;
   const HttpOptions& options_;
-  const HttpServer::Handler& handler_;
+  const HttpServer::Handlers& handlers_;
+  HandlerPool& pool_;
   events::EventHub* hub_;
 };
 
 }  // namespace
 
 struct HttpServer::Impl {
-  HttpOptions options;
-  Handler handler;
+  explicit Impl(const HttpOptions& o) : options(o), pool(o.handler_threads, o.handler_queue) {}
+
+  const HttpOptions options;
+  Handlers handlers;
   events::EventHub* hub = nullptr;
   net::io_context ioc;
   tcp::acceptor acceptor{net::make_strand(ioc)};
+  net::steady_timer accept_timer{acceptor.get_executor()};
+  std::chrono::milliseconds accept_delay{0};  // 0: the last accept succeeded
+  // Declared after the io_context: destroyed (joined) first, and queued jobs' sessions still find it.
+  HandlerPool pool;
 
   void accept() {
     acceptor.async_accept(net::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
-      if (ec == net::error::operation_aborted) return;
-      if (!ec) std::make_shared<Session>(std::move(socket), options, handler, hub)->start();
-      if (acceptor.is_open()) accept();
+      if (ec == net::error::operation_aborted || !acceptor.is_open()) return;
+      if (ec) return back_off(ec);
+      if (accept_delay.count() != 0) {
+        std::cerr << "wmd: accepting connections again" << std::endl;
+        accept_delay = std::chrono::milliseconds(0);
+      }
+      std::make_shared<Session>(std::move(socket), options, handlers, pool, hub)->start();
+      accept();
+    });
+  }
+
+  // EMFILE, ENFILE, ENOBUFS...: the pending connection stays in the backlog, so accepting again at once
+  // fails again at once. Wait 50 ms, doubling up to 1 s, until descriptors are free again.
+  void back_off(const beast::error_code& ec) {
+    if (accept_delay.count() == 0)
+      std::cerr << "wmd: accept failed (" << ec.message() << "); retrying every 50 ms to 1 s until it succeeds" << std::endl;
+    accept_delay = std::clamp(accept_delay * 2, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
+    accept_timer.expires_after(accept_delay);
+    accept_timer.async_wait([this](beast::error_code wait_ec) {
+      if (!wait_ec && acceptor.is_open()) accept();
     });
   }
 };
 
-HttpServer::HttpServer(const HttpOptions& options, Handler handler, events::EventHub* events)
-    : impl_(std::make_unique<Impl>()) {
-  impl_->options = options;
-  impl_->handler = std::move(handler);
+HttpServer::HttpServer(const HttpOptions& options, Handlers handlers, events::EventHub* events)
+    : impl_(std::make_unique<Impl>(options)) {
+  impl_->handlers = std::move(handlers);
   impl_->hub = events;
   const tcp::endpoint endpoint{net::ip::make_address(options.bind_address), options.port};
   impl_->acceptor.open(endpoint.protocol());
@@ -234,12 +387,14 @@ void HttpServer::run() {
   for (int i = 1; i < impl_->options.threads; ++i) threads.emplace_back([this] { impl_->ioc.run(); });
   impl_->ioc.run();
   for (auto& t : threads) t.join();
+  impl_->pool.stop();  // handlers still running finish (their answers go nowhere); queued ones are dropped
 }
 
 void HttpServer::stop() {
   net::post(impl_->acceptor.get_executor(), [this] {
     beast::error_code ignored;
     impl_->acceptor.close(ignored);
+    impl_->accept_timer.cancel();
   });
   impl_->ioc.stop();
 }

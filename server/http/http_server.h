@@ -3,6 +3,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "server/api/router.h"
@@ -14,19 +15,39 @@ struct HttpOptions {
   std::string bind_address = "127.0.0.1";
   unsigned short port = 8080;            // 0 picks a free port; port() tells which
   std::size_t max_body_bytes = 16 << 20; // larger bodies get 413 (explicit: Beast 1.74 rejects all with none)
-  int threads = 4;                       // I/O threads; handlers that write wait for the single writer
-  std::chrono::seconds read_timeout{30};
+  int threads = 4;                       // I/O threads: they only move bytes and never wait for a handler
+  /// Threads that run handlers, which may wait for the writer or the Prolog reader, or serialise bodies
+  /// of megabytes. A quarter of them (at least one) is kept for writes, so readers cannot stop ingest.
+  int handler_threads = 8;
+  /// Requests of each lane (read, write) waiting for a handler thread; one more is answered 503 with
+  /// Retry-After.
+  std::size_t handler_queue = 256;
+  std::chrono::seconds read_timeout{30};   // to receive a whole request, and to send a whole response
 };
 
 /// HTTP/1.1 server over Asio/Beast. Connection code only moves bytes: every complete request goes to
-/// `handler`; oversized bodies (413), oversized headers (431) and unparsable requests (400) are answered
-/// here with JSON errors because they never become a request.
+/// `handlers.handle`, on the I/O thread for Lane::immediate and on the handler pool otherwise (the answer
+/// is written back on the connection's strand); oversized bodies (413), oversized headers (431),
+/// unparsable requests (400) and a full handler queue (503, Retry-After: 1) are answered here with JSON
+/// errors because they never reach a handler.
+///
+/// Accept errors (EMFILE/ENFILE when file descriptors run out, ...) are retried after a pause that starts
+/// at 50 ms and doubles up to 1 s, logged once per streak, instead of re-arming at once (which spins a
+/// core while the pending connection stays in the backlog).
 class HttpServer {
  public:
-  using Handler = std::function<api::Response(const api::Request&)>;
+  /// What the server does with a request. Each is called from several threads at once and must not throw.
+  struct Handlers {
+    /// Answers one complete request; may block (not for Lane::immediate).
+    std::function<api::Response(const api::Request&)> handle;
+    /// Where `handle` runs for this request (empty: Lane::read for every request).
+    std::function<api::Lane(const api::Request&)> lane;
+    /// Refuses (the response) or allows (nullopt) a WebSocket upgrade of /api/v1/events (empty: allowed).
+    std::function<std::optional<api::Response>(const api::Request&)> authorize_upgrade;
+  };
   /// Binds and listens. WebSocket upgrades of GET /api/v1/events subscribe to `events` (when given).
   /// @throw boost::system::system_error when the address cannot be bound.
-  HttpServer(const HttpOptions& options, Handler handler, events::EventHub* events = nullptr);
+  HttpServer(const HttpOptions& options, Handlers handlers, events::EventHub* events = nullptr);
   ~HttpServer();
   unsigned short port() const;
   /// Serves until stop(); runs the I/O threads (the caller's thread is one of them).

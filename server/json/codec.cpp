@@ -2,15 +2,30 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <regex>
 
+#include "apriori/import/json_limits.h"
 #include "server/api/api_error.h"
 
 namespace wm::json_codec {
 namespace {
 
 using nlohmann::json;
+
+template <typename Json>
+Json parse_checked(std::string_view text) {
+  if (auto error = apriori::json_nesting_error(text)) throw api::bad_request("", *error);
+  try {
+    return Json::parse(text.begin(), text.end());
+  } catch (const nlohmann::json::parse_error& e) {
+    throw api::bad_request("", std::string("malformed JSON: ") + e.what());
+  } catch (const nlohmann::json::out_of_range& e) {
+    // nlohmann refuses literals like 1e999 that overflow a double: they would become Inf.
+    throw api::bad_request("", std::string("number out of range (must be finite): ") + e.what());
+  }
+}
 
 std::string field(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
 std::string item(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
@@ -59,16 +74,44 @@ json segment_json(const fusion::LineSegment& s) {
 
 }  // namespace
 
-world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits) {
-  json doc;
-  try {
-    doc = json::parse(body.begin(), body.end());
-  } catch (const json::parse_error& e) {
-    throw api::bad_request("", std::string("malformed JSON: ") + e.what());
-  } catch (const json::out_of_range& e) {
-    // nlohmann refuses literals like 1e999 that overflow a double: they would become Inf.
-    throw api::bad_request("", std::string("number out of range (must be finite): ") + e.what());
+json parse_json(std::string_view text) { return parse_checked<json>(text); }
+nlohmann::ordered_json parse_ordered_json(std::string_view text) { return parse_checked<nlohmann::ordered_json>(text); }
+
+std::optional<std::size_t> invalid_utf8_offset(std::string_view text) {
+  const auto* s = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  std::size_t i = 0;
+  while (i < n) {
+    const unsigned char c = s[i];
+    if (c < 0x80) {
+      ++i;
+      continue;
+    }
+    std::size_t length = 0;
+    unsigned char lo = 0x80, hi = 0xBF;  // the allowed range of the second byte (RFC 3629, table 3-7 of Unicode)
+    if (c >= 0xC2 && c <= 0xDF) {
+      length = 2;
+    } else if (c >= 0xE0 && c <= 0xEF) {
+      length = 3;
+      if (c == 0xE0) lo = 0xA0;  // overlong
+      if (c == 0xED) hi = 0x9F;  // UTF-16 surrogates
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      length = 4;
+      if (c == 0xF0) lo = 0x90;  // overlong
+      if (c == 0xF4) hi = 0x8F;  // above U+10FFFF
+    } else {
+      return i;
+    }
+    if (i + length > n || s[i + 1] < lo || s[i + 1] > hi) return i;
+    for (std::size_t k = 2; k < length; ++k)
+      if (s[i + k] < 0x80 || s[i + k] > 0xBF) return i;
+    i += length;
   }
+  return std::nullopt;
+}
+
+world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits) {
+  const json doc = parse_json(body);
   if (!doc.is_object()) throw api::bad_request("", "expected an object with \"segments\"");
   for (const auto& [key, value] : doc.items())
     if (key != "source" && key != "stamp" && key != "segments" && key != "sensor")
@@ -123,16 +166,6 @@ world::Observation parse_primitives(std::string_view body, const world::WorldOpt
 
 namespace {
 
-json parse_document(std::string_view body) {
-  try {
-    return json::parse(body.begin(), body.end());
-  } catch (const json::parse_error& e) {
-    throw api::bad_request("", std::string("malformed JSON: ") + e.what());
-  } catch (const json::out_of_range& e) {
-    throw api::bad_request("", std::string("number out of range (must be finite): ") + e.what());
-  }
-}
-
 std::vector<double> number_list(const json& doc, const std::string& key, std::size_t max_items, bool allow_null) {
   const auto it = doc.find(key);
   if (it == doc.end()) throw api::bad_request(key, "missing field");
@@ -162,7 +195,7 @@ double required_number(const json& doc, const std::string& key, double limit, co
 }  // namespace
 
 ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
-  const json doc = parse_document(body);
+  const json doc = parse_json(body);
   if (!doc.is_object()) throw api::bad_request("", "expected a scan object");
   const auto sensor_it = doc.find("sensor");
   if (sensor_it == doc.end()) throw api::bad_request("sensor", "missing field (\"laser\" or \"sonar\")");
@@ -334,26 +367,57 @@ json decision_json(const rules::Decision& d) {
 }
 
 json rules_status_json(const rules::RulesStatus& status) {
+  // Every rule file lies in the rules directory: what precedes its name ("/home/x/wm/rules/") is cut.
+  std::string prefix;
+  if (!status.files.empty()) {
+    const auto parent = std::filesystem::path(status.files.front().path).parent_path().parent_path().string();
+    if (!parent.empty()) prefix = parent.back() == '/' ? parent : parent + "/";
+  }
+  const auto relative = [&prefix](std::string text) {
+    if (prefix.empty()) return text;
+    for (auto at = text.find(prefix); at != std::string::npos; at = text.find(prefix, at)) text.erase(at, prefix.size());
+    return text;
+  };
   json files = json::array();
   for (const auto& f : status.files)
-    files.push_back({{"path", f.path}, {"checksum", f.sha256_or_checksum}, {"loaded_at", f.loaded_at_unix_s}});
-  return {{"files", files}, {"generation", status.generation}, {"last_error", status.last_error}};
+    files.push_back({{"path", relative(f.path)}, {"checksum", f.sha256_or_checksum}, {"loaded_at", f.loaded_at_unix_s}});
+  return {{"files", files}, {"generation", status.generation}, {"last_error", relative(status.last_error)}};
 }
 
 namespace {
 
-json query_value_json(const rules::QueryValue& v) {
+struct AnswerBudget {
+  std::size_t max_bytes;
+  std::size_t left;
+};
+
+// Builds one answer value, counting the bytes of its texts against what is left of the answer's budget.
+json query_value_json(const rules::QueryValue& v, std::size_t depth, AnswerBudget& budget) {
   using Kind = rules::QueryValue::Kind;
+  const auto spend = [&budget](std::size_t bytes) {
+    if (bytes > budget.left)
+      throw api::ApiError(422, "answer_too_large",
+                          "the answer is larger than " + std::to_string(budget.max_bytes) +
+                              " bytes; ask for fewer solutions (max_solutions) or smaller terms");
+    budget.left -= bytes;
+  };
+  // What each value adds to the text, its comma included (escapes aside: the dumped size is checked again).
   switch (v.kind) {
-    case Kind::unbound: return nullptr;
+    case Kind::unbound: spend(5); return nullptr;
     case Kind::atom:
     case Kind::string:
-    case Kind::compound: return v.text;
-    case Kind::integer: return v.integer;
-    case Kind::floating: return std::isfinite(v.floating) ? json(v.floating) : json(nullptr);
+    case Kind::compound:
+      spend(v.text.size() + 3);
+      return v.text;
+    case Kind::integer: spend(std::to_string(v.integer).size() + 1); return v.integer;
+    case Kind::floating: spend(25); return std::isfinite(v.floating) ? json(v.floating) : json(nullptr);
     case Kind::list: {
+      if (depth >= apriori::kMaxJsonDepth)
+        throw api::ApiError(422, "answer_too_large",
+                            "the answer nests lists deeper than " + std::to_string(apriori::kMaxJsonDepth) + " levels");
+      spend(3);
       json items = json::array();
-      for (const auto& item : v.items) items.push_back(query_value_json(item));
+      for (const auto& item : v.items) items.push_back(query_value_json(item, depth + 1, budget));
       return items;
     }
   }
@@ -362,12 +426,13 @@ json query_value_json(const rules::QueryValue& v) {
 
 }  // namespace
 
-json query_result_json(const rules::QueryResult& result) {
+json query_result_json(const rules::QueryResult& result, std::size_t max_bytes) {
+  AnswerBudget budget{max_bytes, max_bytes};
   json solutions = json::array();
   for (const auto& row : result.solutions) {
     json solution = json::object();
     for (std::size_t i = 0; i < row.size() && i < result.variables.size(); ++i)
-      solution[result.variables[i]] = query_value_json(row[i]);
+      solution[result.variables[i]] = query_value_json(row[i], 1, budget);
     solutions.push_back(std::move(solution));
   }
   return {{"variables", result.variables}, {"solutions", solutions}, {"count", result.solutions.size()},

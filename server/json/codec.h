@@ -1,15 +1,31 @@
 #pragma once
 
+#include <optional>
 #include <string_view>
 
 #include <nlohmann/json.hpp>
 
+#include <limits>
 #include <variant>
 
 #include "fusion/grid/scan.h"
 #include "server/world/update.h"
 
 namespace wm::json_codec {
+
+/// Parses a JSON request body: refuses nesting deeper than apriori::kMaxJsonDepth before nlohmann's
+/// recursive DOM sees it, malformed JSON (including invalid UTF-8 in strings) and numbers that overflow a
+/// double. Every JSON body the server reads goes through one of these two.
+/// @throw api::ApiError(400, "bad_request") saying what and where.
+nlohmann::json parse_json(std::string_view text);
+/// The same, keeping the order of object keys (layer mappings apply their rules in file order).
+nlohmann::ordered_json parse_ordered_json(std::string_view text);
+
+/// The byte offset of the first byte of `text` that is not part of well-formed UTF-8 (RFC 3629: no
+/// overlong forms, no surrogates, nothing above U+10FFFF), or nullopt when all of it is. nlohmann refuses
+/// such strings only when it writes them (type_error 316), so text that did not come through a JSON
+/// parser (YAML, query parameters) is checked with this where it enters.
+std::optional<std::size_t> invalid_utf8_offset(std::string_view text);
 
 /// Limits on a posted primitives request; bigger or stranger input is refused with 400.
 struct PrimitiveLimits {
@@ -45,9 +61,15 @@ nlohmann::json element_json(const world::Element& element);
 nlohmann::json map_json(const world::WorldState& state, const world::WorldOptions& options);
 nlohmann::json decision_json(const world::DecisionRecord& decision);
 nlohmann::json decision_json(const rules::Decision& decision);
+/// The rules' status with file paths relative to the rules directory's parent ("prolog/world_model.pl"),
+/// also inside `last_error`: an unauthenticated reader learns nothing about the server's file system.
 nlohmann::json rules_status_json(const rules::RulesStatus& status);
 /// {"variables": [...], "solutions": [{"X": value, ...}], "count": n, "truncated": bool}; atoms and strings
 /// as JSON strings, numbers as numbers, lists as arrays, other compound terms as their Prolog text.
-nlohmann::json query_result_json(const rules::QueryResult& result);
+/// @throw api::ApiError(422, "answer_too_large") when the texts of the answer add up to more than
+/// `max_bytes`, or lists nest deeper than apriori::kMaxJsonDepth (checked while building, so a huge answer
+/// is refused before its JSON exists).
+nlohmann::json query_result_json(const rules::QueryResult& result,
+                                 std::size_t max_bytes = std::numeric_limits<std::size_t>::max());
 
 }  // namespace wm::json_codec

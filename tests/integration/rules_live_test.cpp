@@ -38,6 +38,7 @@ class RulesLiveTest : public ServerFixture {
     std::filesystem::create_directories(rules);
     std::filesystem::copy_file(std::filesystem::path(WM_RULES_DIR) / "world_model.pl", rules / "world_model.pl");
     rules_dir_ = rules.string();
+    extra_args_ = {"--allow-dry-run-without-token"};  // the dry-run tests run without a token
     ServerFixture::SetUp();
     send_json("PUT", "/api/v1/floorplan", lab_plan());
   }

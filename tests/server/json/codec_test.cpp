@@ -50,5 +50,96 @@ TEST(CodecTest, TooManySegmentsAreRefused) {
                api::ApiError);
 }
 
+// Issue 10: 100 000 nested objects crashed nlohmann's recursive parse; the nesting is checked first.
+TEST(CodecTest, ParseJsonRefusesNestingBeyond64LevelsBeforeParsing) {
+  const auto nested = [](std::size_t levels) { return std::string(levels, '[') + std::string(levels, ']'); };
+  EXPECT_NO_THROW(parse_json(nested(64)));
+  EXPECT_NO_THROW(parse_ordered_json(nested(64)));
+  const auto message = [](const std::string& text) {
+    try {
+      parse_json(text);
+    } catch (const api::ApiError& e) {
+      EXPECT_EQ(e.status(), 400);
+      EXPECT_EQ(e.error(), "bad_request");
+      return std::string(e.what());
+    }
+    return std::string("<accepted>");
+  };
+  EXPECT_EQ(message(nested(65)), "JSON nested deeper than 64 levels at byte 64");
+  EXPECT_EQ(message(nested(100000)), "JSON nested deeper than 64 levels at byte 64");
+  // Brackets inside strings, escaped quotes included, do not count.
+  EXPECT_NO_THROW(parse_json("{\"a\": \"" + std::string(1000, '[') + "\\\"" + std::string(1000, '{') + "\"}"));
+  EXPECT_EQ(message("[1,"), "malformed JSON: [json.exception.parse_error.101] parse error at line 1, column 4: syntax "
+                            "error while parsing value - unexpected end of input; expected '[', '{', or a literal");
+  EXPECT_THROW(parse_ordered_json(nested(65)), api::ApiError);
+}
+
+TEST(CodecTest, InvalidUtf8IsFoundAtItsByte) {
+  EXPECT_EQ(invalid_utf8_offset("plain ascii"), std::nullopt);
+  EXPECT_EQ(invalid_utf8_offset("pavill\xc3\xb3n \xe2\x82\xac \xf0\x9f\xa4\x96"), std::nullopt);  // ó € 🤖
+  EXPECT_EQ(invalid_utf8_offset("main_d\xff\xfeoor"), 6u);
+  EXPECT_EQ(invalid_utf8_offset("ab\xc3"), 2u);              // truncated sequence
+  EXPECT_EQ(invalid_utf8_offset("\xc0\xaf"), 0u);            // overlong '/'
+  EXPECT_EQ(invalid_utf8_offset("x\xe0\x80\xaf"), 1u);       // overlong, 3 bytes
+  EXPECT_EQ(invalid_utf8_offset("\xed\xa0\x80"), 0u);        // UTF-16 surrogate D800
+  EXPECT_EQ(invalid_utf8_offset("\xf4\x90\x80\x80"), 0u);    // above U+10FFFF
+  EXPECT_EQ(invalid_utf8_offset("ok\xe2\x28\xa1"), 2u);      // bad continuation byte
+  EXPECT_EQ(invalid_utf8_offset(std::string("a\0b", 3)), std::nullopt);
+}
+
+rules::QueryValue atom(std::string text) {
+  rules::QueryValue v;
+  v.kind = rules::QueryValue::Kind::atom;
+  v.text = std::move(text);
+  return v;
+}
+
+// Issue 10: length(L, 10000000) answered 50 MB. The answer is refused while it is built.
+TEST(CodecTest, QueryAnswersAreBoundedInBytesAndNesting) {
+  rules::QueryResult result;
+  result.variables = {"X"};
+  for (int i = 0; i < 100; ++i) result.solutions.push_back({atom(std::string(1000, 'a'))});
+  EXPECT_EQ(query_result_json(result, 200'000)["count"], 100);
+  try {
+    query_result_json(result, 50'000);
+    ADD_FAILURE() << "a 100 kB answer passed a 50 kB limit";
+  } catch (const api::ApiError& e) {
+    EXPECT_EQ(e.status(), 422);
+    EXPECT_EQ(e.error(), "answer_too_large");
+    EXPECT_EQ(std::string(e.what()), "the answer is larger than 50000 bytes; ask for fewer solutions (max_solutions) or smaller terms");
+  }
+
+  rules::QueryValue deep = atom("x");
+  for (int i = 0; i < 100; ++i) {
+    rules::QueryValue list;
+    list.kind = rules::QueryValue::Kind::list;
+    list.items.push_back(std::move(deep));
+    deep = std::move(list);
+  }
+  rules::QueryResult nested;
+  nested.variables = {"L"};
+  nested.solutions.push_back({deep});
+  try {
+    query_result_json(nested);
+    ADD_FAILURE() << "100 nested lists passed";
+  } catch (const api::ApiError& e) {
+    EXPECT_EQ(e.status(), 422);
+    EXPECT_EQ(std::string(e.what()), "the answer nests lists deeper than 64 levels");
+  }
+}
+
+// Issue 10: /api/v1/health showed the absolute path of the rules directory.
+TEST(CodecTest, RulesStatusShowsPathsRelativeToTheRulesDirectorysParent) {
+  rules::RulesStatus status{{{"/home/robot/wm/rules/prolog/world_model.pl", "ab", 1}, {"/home/robot/wm/rules/prolog/glass.pl", "cd", 2}},
+                            "/home/robot/wm/rules/prolog/glass.pl:3: Syntax error: Operator expected",
+                            4};
+  const auto j = rules_status_json(status);
+  EXPECT_EQ(j["files"][0]["path"], "prolog/world_model.pl");
+  EXPECT_EQ(j["files"][1]["path"], "prolog/glass.pl");
+  EXPECT_EQ(j["last_error"], "prolog/glass.pl:3: Syntax error: Operator expected");
+  EXPECT_EQ(j["generation"], 4);
+  EXPECT_EQ(j.dump().find("/home/robot"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace wm::json_codec
