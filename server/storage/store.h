@@ -107,8 +107,9 @@ class Store {
   std::optional<RequestRecord> find_request(const std::string& request_id);
   /// The decisions of one observation, in order.
   std::vector<world::DecisionRecord> observation_decisions(std::int64_t observation_seq);
-  /// Journaled scans whose line observation is recorded but has no decision: 0 unless a scan was half
-  /// applied (possible only in files written before schema 4). Cheap check for tests and start-up.
+  /// Journaled scans whose line observation is recorded but has no decision: a consistency check (0 unless
+  /// the file was changed by something else than this store). Scans of files written before schema 4 whose
+  /// line observation a crash lost have no recorded line observation, so they are not counted.
   std::int64_t scans_missing_line_decisions();
 
   /// Decisions about a CAD object (about the object or any of its edges), in order, at most `limit`.
