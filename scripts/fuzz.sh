@@ -8,7 +8,7 @@
 # as <build>/fuzz-artifacts/<harness>/crash-* (minimise it with -minimize_crash=1 and commit it under
 # fuzz/regressions/<harness>/). Prints executions and coverage per harness.
 # Environment: WM_SANITIZE_BUILD_DIR (default build/sanitize, shared with the sanitizer suite of scripts/test.sh),
-# WM_FUZZ_JOBS (build parallelism, default nproc).
+# WM_FUZZ_JOBS (build parallelism, default nproc), WM_FUZZ_NO_BUILD=1 (use the binaries as they are).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -24,12 +24,12 @@ source tests/sanitizer/env.sh
 command -v clang++ >/dev/null || { echo "fuzz: clang++ is missing (apt-get install clang)" >&2; exit 2; }
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-if [ ! -f "$build/CMakeCache.txt" ]; then
+if [ ! -f "$build/CMakeCache.txt" ] && [ "${WM_FUZZ_NO_BUILD:-0}" != 1 ]; then
   # -Werror stays with the gcc build of scripts/test.sh; clang warns about other things.
   cmake -S . -B "$build" -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_SANITIZE=ON \
     -DWM_FUZZ=ON -DWM_WERROR=OFF "${launcher[@]}" >/dev/null
 fi
-cmake --build "$build" -j"$jobs" --target "${harnesses[@]}"
+[ "${WM_FUZZ_NO_BUILD:-0}" = 1 ] || cmake --build "$build" -j"$jobs" --target "${harnesses[@]}"
 
 # Input size bound, dictionary and timeout per harness: texts a little bigger than the largest seed.
 options_for() {
