@@ -146,9 +146,9 @@ void WorldService::insert_scan(const json_codec::ScanRequest& scan, std::int64_t
   {
     std::unique_lock lock(grid_mutex_);
     std::visit([this](const auto& s) { grid_->insert(s); }, scan.scan);
+    grid_revision_ = seq;  // under the lock: a reader that reads it inside read_grid sees the revision of what it reads
   }
   last_scan_seq_ = seq;
-  grid_revision_ = seq;
 }
 
 std::optional<storage::RequestRecord> WorldService::known_request(const std::string& request_id, std::string_view kind,
