@@ -48,8 +48,9 @@ struct Services {
 };
 
 /// Where the connection code runs a request's handler. `immediate`: on the I/O thread (cheap, never
-/// blocks: health, the index); `read`: the handler pool, may take long (map, grid, queries, dry runs);
-/// `write`: the handler pool ahead of reads, waits for the single writer (ingest, floor plans, reloads).
+/// blocks: health, the index); `read`: the read threads of the handler pool, may take long (map, grid,
+/// queries, dry runs); `write`: the pool's own threads for writes, which wait for the single writer
+/// (ingest, floor plans, reloads).
 enum class Lane { immediate, read, write };
 Lane handler_lane(const Request& request);
 

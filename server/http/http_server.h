@@ -17,7 +17,8 @@ struct HttpOptions {
   std::size_t max_body_bytes = 16 << 20; // larger bodies get 413 (explicit: Beast 1.74 rejects all with none)
   int threads = 4;                       // I/O threads: they only move bytes and never wait for a handler
   /// Threads that run handlers, which may wait for the writer or the Prolog reader, or serialise bodies
-  /// of megabytes. A quarter of them (at least one) is kept for writes, so readers cannot stop ingest.
+  /// of megabytes. A quarter of them (at least one) serve only writes, so readers cannot stop ingest; the
+  /// others serve reads at a lower CPU priority (nice +10), so serialising yields to the writer.
   int handler_threads = 8;
   /// Requests of each lane (read, write) waiting for a handler thread; one more is answered 503 with
   /// Retry-After.
