@@ -27,10 +27,15 @@ export function apiBaseFromLocation(location) {
   return location.origin;
 }
 
-/** ws(s)://host/api/v1/events for an http(s) API origin. */
-export function eventsUrl(base) {
+/**
+ * ws(s)://host/api/v1/events for an http(s) API origin. A server started with --token needs the token on
+ * the upgrade, and a browser cannot set headers on a WebSocket: a `token` given to the page
+ * (`/?token=...`) is passed on as `?token=`.
+ */
+export function eventsUrl(base, token = '') {
   const url = new URL('/api/v1/events', base);
   url.protocol = url.protocol === 'https:' ? 'wss:' : 'ws:';
+  if (token) url.searchParams.set('token', token);
   return url.href;
 }
 

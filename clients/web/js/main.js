@@ -287,7 +287,7 @@ Object.defineProperty(window, 'worldmodelViewer', { value: Object.freeze(hook), 
 
 renderLegend();
 updateReadout();
-const stream = new EventStream(eventsUrl(api.base), {
+const stream = new EventStream(eventsUrl(api.base, new URLSearchParams(location.search).get('token') ?? ''), {
   onEvent,
   onState: (s) => {
     state.connection = s;

@@ -12,6 +12,7 @@ test('the API origin is the page origin unless ?api= names an http(s) origin', (
   assert.equal(apiBaseFromLocation(page('?api=not a url')), 'http://127.0.0.1:8080');
   assert.equal(eventsUrl('http://127.0.0.1:9000'), 'ws://127.0.0.1:9000/api/v1/events');
   assert.equal(eventsUrl('https://example.test'), 'wss://example.test/api/v1/events');
+  assert.equal(eventsUrl('http://127.0.0.1:9000', 's3cr&t'), 'ws://127.0.0.1:9000/api/v1/events?token=s3cr%26t');
 });
 
 class FakeSocket {
