@@ -16,7 +16,9 @@ python3 clients/demo/make_demo_plan.py clients/demo/data/GDC1.vectormap.json > b
 log=tests/data/carmen/intel-corrected-excerpt.log.gz
 [ -f ../shared/data/carmen/intel-corrected.log.gz ] && log=../shared/data/carmen/intel-corrected.log.gz
 
-build/bin/wmd --db "$db" --port "$port" --floorplan build/demo-plan.json --sync normal &
+# Loopback only and no token, like a developer's machine: dry runs are allowed explicitly so that the
+# README's rule-writing walk-through works (a shared server runs with --token instead).
+build/bin/wmd --db "$db" --port "$port" --floorplan build/demo-plan.json --sync normal --allow-dry-run-without-token &
 wmd_pid=$!
 trap 'kill $wmd_pid 2>/dev/null; wait $wmd_pid 2>/dev/null' EXIT INT TERM
 for _ in $(seq 100); do curl -sf "$url/api/v1/health" >/dev/null && break; sleep 0.1; done
