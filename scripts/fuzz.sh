@@ -74,7 +74,9 @@ for h in "${harnesses[@]}"; do
   printf '%-22s %12s %8s %8s %8s  %s\n' "$h" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" "$result"
   if [ "$result" != ok ]; then
     failed+=("$h")
-    tail -n 60 "$log.regressions" "$log" 2>/dev/null | grep -v '^#[0-9]' | tail -n 60 >&2
+    for f in "$log.regressions" "$log"; do
+      [ -f "$f" ] && grep -av '^#[0-9]' "$f" | tail -n 60 >&2
+    done
   fi
 done
 if [ ${#failed[@]} -gt 0 ]; then

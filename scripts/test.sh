@@ -76,8 +76,12 @@ cmake --build build/sanitize -j"$jobs" --target wmd wmctl apriori_tests logs_tes
   fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_query fuzz_rules_text
 
 phase "sanitizer tests"
-# Test binaries that were not built register as <name>_NOT_BUILT.
-ctest --test-dir build/sanitize --output-on-failure -j"$jobs" --timeout 900 -E '^web_|_NOT_BUILT$'
+# Test binaries that were not built register as <name>_NOT_BUILT. Also left out: the accept back-off test, which
+# runs wmd out of file descriptors, and then UBSan's vptr check cannot open the pipe it probes memory with and
+# reports every virtual call as an invalid vptr; the Freiburg replay (the Intel replay runs the same path on a
+# smaller log), which takes over its 120 s limit under ASan.
+ctest --test-dir build/sanitize --output-on-failure -j"$jobs" --timeout 900 \
+  -E '^web_|_NOT_BUILT$|^SecurityHttpTest[.]AcceptBacksOffWhenFileDescriptorsRunOut$|^ReplayTest[.]Freiburg079'
 
 phase "fuzzers"
 WM_SANITIZE_BUILD_DIR=build/sanitize WM_FUZZ_NO_BUILD=1 bash scripts/fuzz.sh "${WM_FUZZ_SECONDS:-30}"
