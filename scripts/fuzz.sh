@@ -65,7 +65,7 @@ for h in "${harnesses[@]}"; do
   # shellcheck disable=SC2086
   if ! "$bin" $opts -max_total_time="$seconds" ${WM_FUZZ_RUNS:+-runs=$WM_FUZZ_RUNS} -timeout=25 -rss_limit_mb=2560 -print_final_stats=1 \
       -artifact_prefix="$artifacts/" "$work" "fuzz/corpus/$h" >"$log" 2>&1; then
-    result="CRASH (see $log)"
+    if [ "$result" = ok ]; then result="CRASH (see $log)"; else result="$result, CRASH (see $log)"; fi
   fi
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
