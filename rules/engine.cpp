@@ -9,6 +9,8 @@
 #include <atomic>
 #include <chrono>
 #include <clocale>
+#include <fstream>
+#include <sstream>
 #include <cmath>
 #include <mutex>
 #include <set>
@@ -16,6 +18,7 @@
 #include <system_error>
 #include <utility>
 
+#include "common/utf8.h"
 #include "rules/internal/engine_support.h"
 
 namespace wm::rules {
@@ -180,6 +183,41 @@ std::optional<std::string> call_once(predicate_t pred, term_t args) {
   }
   PL_cut_query(qid);
   return error;
+}
+
+// Where `text` stops being well-formed UTF-8 without NUL bytes, if it does. SWI-Prolog's reader
+// misbehaves on malformed UTF-8 (a heap use-after-free found by fuzzing), so no text reaches it unchecked.
+struct TextProblem {
+  std::size_t line = 0, byte = 0;
+  std::string what;  // "not UTF-8" | "a NUL byte"
+
+  std::string where() const { return "byte " + std::to_string(byte) + ": " + what; }
+};
+
+std::optional<TextProblem> text_problem(std::string_view text) {
+  std::size_t at = text.find('\0');
+  std::string what = "a NUL byte";
+  if (const auto bad = common::invalid_utf8_offset(text); bad && *bad < at) {
+    at = *bad;
+    what = "not UTF-8";
+  }
+  if (at == std::string_view::npos) return std::nullopt;
+  const auto newlines = std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n');
+  return TextProblem{1 + static_cast<std::size_t>(newlines), at, what};
+}
+
+// Refuses a rule text the reader must not see, as "name:line: ..." like every load problem.
+void check_rule_text(const std::string& name, std::string_view text) {
+  if (const auto problem = text_problem(text)) {
+    throw RuleError(name + ":" + std::to_string(problem->line) + ": rule text with " + problem->where());
+  }
+}
+
+void check_rule_file_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  check_rule_text(path, text.str());
 }
 
 std::filesystem::path home_hint_argv0() {
@@ -577,6 +615,7 @@ RulesStatus Engine::reload() {
     if (paths.empty()) {
       throw RuleError(d.options.rules_dir.string() + ":0: no *.pl rule file in the rules directory");
     }
+    for (const auto& path : paths) check_rule_file_text(path);
     std::vector<std::string> hashes;
     {
       Frame frame;
@@ -847,6 +886,9 @@ std::vector<PruneOrder> Engine::prune_orders(std::size_t max) {
 
 QueryResult Engine::query(const std::string& goal, std::size_t max_solutions) {
   require_attached("query");
+  if (const auto problem = text_problem(goal)) {
+    throw QueryError(QueryError::Reason::syntax, "query text with " + problem->where());
+  }
   Impl& d = *impl_;
   Frame frame;
   // query(+Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result)
@@ -897,8 +939,12 @@ std::vector<Decision> Engine::dry_run(const RuleText& candidate, const std::vect
     throw std::invalid_argument("dry_run: the candidate needs a plain file name ending in .pl (got '" + candidate.name + "')");
   }
   for (const auto& query : queries) validate_query(query);
+  check_rule_text(candidate.name, candidate.text);
   Impl& d = *impl_;
   const std::vector<std::string> paths = d.rule_files();
+  for (const auto& path : paths) {
+    if (std::filesystem::path(path).filename() != candidate.name) check_rule_file_text(path);
+  }
   Frame frame;
   // dry_run(+Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result)
   term_t args = PL_new_term_refs(6);

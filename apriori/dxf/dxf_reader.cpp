@@ -7,6 +7,7 @@
 #include <span>
 
 #include "apriori/floor_plan.h"
+#include "common/utf8.h"
 
 namespace wm::apriori::dxf {
 namespace {
@@ -35,29 +36,7 @@ std::string shorten(std::string_view s) {
   return s.size() > 40 ? out + "..." : out;
 }
 
-bool valid_utf8(std::string_view s) {
-  std::size_t i = 0;
-  while (i < s.size()) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    std::size_t extra = 0;
-    if (c < 0x80) {
-      extra = 0;
-    } else if (c >= 0xC2 && c <= 0xDF) {
-      extra = 1;
-    } else if ((c & 0xF0) == 0xE0) {
-      extra = 2;
-    } else if (c >= 0xF0 && c <= 0xF4) {
-      extra = 3;
-    } else {
-      return false;
-    }
-    if (extra > 0 && i + extra >= s.size()) return false;
-    for (std::size_t k = 1; k <= extra; ++k)
-      if ((static_cast<unsigned char>(s[i + k]) & 0xC0) != 0x80) return false;
-    i += extra + 1;
-  }
-  return true;
-}
+bool valid_utf8(std::string_view s) { return !common::invalid_utf8_offset(s); }
 
 void append_utf8(std::string& out, std::uint32_t cp) {
   if (cp < 0x80) {

@@ -7,6 +7,7 @@
 #include <regex>
 
 #include "apriori/import/json_limits.h"
+#include "common/utf8.h"
 #include "server/api/api_error.h"
 
 namespace wm::json_codec {
@@ -77,38 +78,7 @@ json segment_json(const fusion::LineSegment& s) {
 json parse_json(std::string_view text) { return parse_checked<json>(text); }
 nlohmann::ordered_json parse_ordered_json(std::string_view text) { return parse_checked<nlohmann::ordered_json>(text); }
 
-std::optional<std::size_t> invalid_utf8_offset(std::string_view text) {
-  const auto* s = reinterpret_cast<const unsigned char*>(text.data());
-  const std::size_t n = text.size();
-  std::size_t i = 0;
-  while (i < n) {
-    const unsigned char c = s[i];
-    if (c < 0x80) {
-      ++i;
-      continue;
-    }
-    std::size_t length = 0;
-    unsigned char lo = 0x80, hi = 0xBF;  // the allowed range of the second byte (RFC 3629, table 3-7 of Unicode)
-    if (c >= 0xC2 && c <= 0xDF) {
-      length = 2;
-    } else if (c >= 0xE0 && c <= 0xEF) {
-      length = 3;
-      if (c == 0xE0) lo = 0xA0;  // overlong
-      if (c == 0xED) hi = 0x9F;  // UTF-16 surrogates
-    } else if (c >= 0xF0 && c <= 0xF4) {
-      length = 4;
-      if (c == 0xF0) lo = 0x90;  // overlong
-      if (c == 0xF4) hi = 0x8F;  // above U+10FFFF
-    } else {
-      return i;
-    }
-    if (i + length > n || s[i + 1] < lo || s[i + 1] > hi) return i;
-    for (std::size_t k = 2; k < length; ++k)
-      if (s[i + k] < 0x80 || s[i + k] > 0xBF) return i;
-    i += length;
-  }
-  return std::nullopt;
-}
+std::optional<std::size_t> invalid_utf8_offset(std::string_view text) { return common::invalid_utf8_offset(text); }
 
 world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits) {
   const json doc = parse_json(body);

@@ -121,6 +121,22 @@ TEST_F(RuleTextSecurityTest, DeeplyNestedRuleTextIsRefusedBeforeParsing) {
   expect_knowledge_base_intact();
 }
 
+TEST_F(RuleTextSecurityTest, TextThatIsNotUtf8IsRefusedBeforeTheReaderSeesIt) {
+  // The fuzzer's reproducer: malformed UTF-8 made SWI-Prolog's reader use freed memory.
+  const auto message = refused_dry_run("ok(1).\nbad('\xff\x83\x83').\n");
+  EXPECT_TRUE(contains(message, "zz.pl:2: rule text with byte 12: not UTF-8")) << message;
+  EXPECT_TRUE(contains(refused_dry_run(std::string("ok(1).\0", 7)), "zz.pl:1: rule text with byte 6: a NUL byte"));
+  write_text(dir_ / "zz_latin1.pl", "% caf\xe9\n");
+  try {
+    engine_.reload();
+    FAIL() << "a file that is not UTF-8 was loaded";
+  } catch (const RuleError& e) {
+    EXPECT_TRUE(contains(e.what(), "zz_latin1.pl:1: rule text with byte 5: not UTF-8")) << e.what();
+  }
+  std::filesystem::remove(dir_ / "zz_latin1.pl");
+  expect_knowledge_base_intact();
+}
+
 TEST_F(RuleTextSecurityTest, ACandidateThatBlocksIsStoppedPerDecision) {
   const auto start = Clock::now();
   // It passes the self-check (source self_check) and blocks in the cases asked (source lidar).
@@ -205,6 +221,17 @@ TEST_F(QuerySecurityTest, DeepTermsBuiltAtRunTimeCannotCrashTheProcess) {
     EXPECT_LT(message.size(), 4000u) << message;
     EXPECT_EQ(engine_.decide(unmatched()).rule, "unmatched_added") << "the engine still answers";
   }
+}
+
+TEST_F(QuerySecurityTest, QueryTextThatIsNotUtf8IsRefused) {
+  std::string message;
+  const std::string reproducer = read_text(std::filesystem::path(WM_SOURCE_DIR) / "fuzz" / "regressions" / "fuzz_query" /
+                                           "read-term-use-after-free-invalid-utf8.pl");
+  EXPECT_EQ(refusal(reproducer, &message), QueryError::Reason::syntax);
+  EXPECT_TRUE(contains(message, "query text with byte")) << message;
+  EXPECT_EQ(refusal("X = 'caf\xe9'", &message), QueryError::Reason::syntax);
+  EXPECT_TRUE(contains(message, "byte 8: not UTF-8")) << message;
+  EXPECT_EQ(engine_.query("X = 'caf\xc3\xa9'", 1).solutions.size(), 1u) << "well-formed UTF-8 still answers";
 }
 
 TEST_F(QuerySecurityTest, BlockingAndRunawayBuiltinsStopWithinTheLimit) {
