@@ -9,6 +9,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "apriori/internal/plan_builder.h"
+#include "common/utf8.h"
 
 namespace wm::apriori {
 namespace {
@@ -291,6 +292,12 @@ ImportResult import_rmf_building(std::string_view yaml_text, const RmfImportOpti
     throw std::invalid_argument("import_rmf_building: default_model_size_m must be finite and > 0");
   for (const auto& [pattern, size] : options.model_sizes)
     if (!valid_size(size)) throw std::invalid_argument("import_rmf_building: model size for '" + pattern + "' must be > 0");
+  // YAML is Unicode text, and names end up in the plan's JSON: bytes that are not UTF-8 are refused here,
+  // with where, rather than by the JSON writer later.
+  if (const auto bad = common::invalid_utf8_offset(yaml_text)) {
+    const auto line = 1 + std::count(yaml_text.begin(), yaml_text.begin() + static_cast<std::ptrdiff_t>(*bad), '\n');
+    throw FloorPlanError("line " + std::to_string(line), "not UTF-8 (byte " + std::to_string(*bad) + ")");
+  }
   ImportResult result;
   result.report.format = "rmf-building";
   try {

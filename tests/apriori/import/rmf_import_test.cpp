@@ -98,6 +98,8 @@ TEST(RmfImportTest, ErrorsNameTheYamlPath) {
   EXPECT_EQ(error_path("coordinate_system: wgs84\nlevels: {}"), "coordinate_system");
   EXPECT_EQ(error_path("levels: [1, 2"), "line 1");
   EXPECT_EQ(error_path("- 1\n- 2\n"), "");
+  // A model name that is not UTF-8 (found by fuzz_rmf: it escaped as nlohmann's type_error 316).
+  EXPECT_EQ(error_path("levels:\n  L1: {models: [{model_name: t\xff, name: t\xff}]}\n", scale), "line 2");
 }
 
 TEST(RmfImportTest, CartesianMetresAreUsedAsTheyAre) {
