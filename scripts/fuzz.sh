@@ -39,8 +39,9 @@ options_for() {
     fuzz_dxf) echo "-max_len=4096 -dict=fuzz/dict/dxf.dict" ;;
     fuzz_rmf) echo "-max_len=4096 -dict=fuzz/dict/yaml.dict" ;;
     fuzz_carmen) echo "-max_len=8192 -dict=fuzz/dict/carmen.dict" ;;
-    fuzz_query) echo "-max_len=512 -dict=fuzz/dict/prolog.dict" ;;
-    fuzz_rules_text) echo "-max_len=8192 -dict=fuzz/dict/prolog.dict" ;;
+    # SWI-Prolog interrupts a goal at its time limit with SIGUSR2, which libFuzzer would take as "stop".
+    fuzz_query) echo "-max_len=512 -dict=fuzz/dict/prolog.dict -handle_usr1=0 -handle_usr2=0" ;;
+    fuzz_rules_text) echo "-max_len=8192 -dict=fuzz/dict/prolog.dict -handle_usr1=0 -handle_usr2=0" ;;
     *) echo "fuzz: unknown harness $1 (${all[*]})" >&2; exit 2 ;;
   esac
 }
