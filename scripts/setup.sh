@@ -9,12 +9,14 @@ packages=(
   zlib1g-dev libyaml-cpp-dev curl python3 python3-ezdxf
 )
 # Extra packages for a purpose: `scripts/setup.sh bench` (benchmarks' baselines), `scripts/setup.sh web`
-# (the browser test: Debian's Chromium and Node.js for playwright-core).
+# (the browser test: Debian's Chromium and Node.js for playwright-core), `scripts/setup.sh sanitize` (clang for
+# the ASan/UBSan build and the fuzzers).
 for extra in "$@"; do
   case "$extra" in
     bench) packages+=(liboctomap-dev libopencv-dev libopencv-contrib-dev) ;;
     web) packages+=(chromium nodejs) ;;  # npm comes with nodejs (Debian or NodeSource)
-    *) echo "setup: unknown extra '$extra' (bench, web)" >&2; exit 2 ;;
+    sanitize) packages+=(clang libclang-rt-14-dev llvm) ;;  # ASan/UBSan and libFuzzer run-times, llvm-symbolizer
+    *) echo "setup: unknown extra '$extra' (bench, web, sanitize)" >&2; exit 2 ;;
   esac
 done
 missing=()

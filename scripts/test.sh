@@ -12,24 +12,12 @@
 # WM_SANITIZE_TESTS=0 skips the sanitizer build, its tests and the fuzzers.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh web
 jobs=$(nproc)
 sanitize=${WM_SANITIZE_TESTS:-1}
-
-# clang with its sanitizer and libFuzzer run-times, llvm-symbolizer for readable sanitizer stacks.
-if [ "$sanitize" != 0 ]; then
-  missing=()
-  for p in clang libclang-rt-14-dev llvm; do
-    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-  done
-  if [ ${#missing[@]} -gt 0 ]; then
-    echo "test: installing ${missing[*]}"
-    sudo_cmd=()
-    [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
-    "${sudo_cmd[@]}" apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
-  fi
-fi
+# The sanitizer build needs clang with its sanitizer and libFuzzer run-times, and llvm-symbolizer.
+extras=(web)
+[ "$sanitize" != 0 ] && extras+=(sanitize)
+bash scripts/setup.sh "${extras[@]}"
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 
