@@ -1,7 +1,7 @@
 /*  world_model.pl — the shipped rules of the world-model knowledge base.
 
     A new line primitive is first matched numerically (in C++) against the vector map; these rules
-    then decide what happens to it (DESIGN.md, "The rules"). C++ does the numbers, this file only
+    then decide what happens to it (the Action below). C++ does the numbers, this file only
     decides and explains.
 
     CONTRACT FOR RULE WRITERS (every *.pl file of the rules directory is loaded; *.plt is ignored)

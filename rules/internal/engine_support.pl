@@ -1,0 +1,857 @@
+:- module(wm_engine, []).
+/*  engine_support.pl: the Prolog half of wm::rules::Engine (loading, checking and self-checking rule
+    files, dispatch of decisions under limits, fact replacement, read-only queries).
+
+    Not a rule file: users never edit it and the engine does not read it at run time. The build embeds
+    this text into the library (rules/CMakeLists.txt generates engine_support_pl.h from it), and the
+    Engine loads it from that text as source id "wm_engine_support.pl". engine_support.plt beside it
+    holds its plunit tests (run by ctest as rules_support_plunit).
+
+    Entry points, all called from C++ and all catching every error they can report:
+      init/0, set_floor_plan/1, set_elements/1, update_elements/2, add_decisions/2, decide/6,
+      decide_batch/4, reload/6, dry_run/6, prune/4, query/5, shutdown/0, term_text/2.
+    C++ registers one foreign predicate in this module before loading it: text_nesting_exceeds/3
+    (Text, Max, -Line), true when brackets nest deeper than Max outside quotes and comments.
+
+    Why one file of some 850 lines: it is one module whose parts share thread-local state
+    (load_problem/1, source_path/2, collecting/0) and the message hook that fills it; the text and
+    rule checks record their findings there while a rule set loads. Splitting it would mean exporting
+    that state between modules for no reader's gain. The sections below follow the order of a rule
+    set's life: facts, decisions, messages and bounded terms, loading, queries, checks, self-check,
+    activation. */
+:- use_module(library(time), [call_with_time_limit/2]).
+:- use_module(library(sha), [sha_hash/3, hash_atom/2]).
+:- use_module(library(lists), [member/2, append/3]).
+:- use_module(library(apply), [foldl/4, maplist/2, maplist/3]).
+:- use_module(library(prolog_codewalk), [prolog_walk_code/1]).
+:- use_module(library(error), [must_be/2]).
+:- use_module(library(aggregate), [aggregate_all/3]).
+
+:- dynamic active_rules/1.          % active_rules(Module): the module decide/5 is answered from
+:- dynamic retired_rules/2.         % retired_rules(Module, RetiredAt [s]): freed after a grace period
+:- thread_local collecting/0.       % this thread is loading rule files: capture its messages
+:- thread_local load_problem/1.     % load_problem(String) "file:line: text"
+:- thread_local source_path/2.      % source_path(SourceId, Path): source ids are unique per load
+
+:- use_module(library(sandbox), [safe_goal/1]).
+:- use_module(library(solution_sequences), [limit/2]).
+
+:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
+%   Observed map elements and recent decisions, kept in step with the map by the server.
+:- dynamic wm_kb:element/8, wm_kb:decision/7.
+
+%   What the rules can ask about the observation being decided (set per decision, backtrackable).
+wm_kb:observation_origin(Origin) :-
+    (   nb_current(wm_context, context(O, _)) -> Origin = O ; Origin = unknown ).
+wm_kb:observation_sensor(Sensor) :-
+    (   nb_current(wm_context, context(_, S)) -> Sensor = S ; Sensor = unknown ).
+
+% Without base(system), an undefined predicate in wm_kb or a rules module falls through to `user`.
+init :-
+    set_module(wm_kb:base(system)),
+    clear_facts.
+
+clear_facts :-
+    retractall(wm_kb:object(_, _)),
+    retractall(wm_kb:attribute(_, _)),
+    retractall(wm_kb:edge(_, _, _, _, _)).
+
+%!  set_elements(+Elements) is det.
+%   Replaces every element/8 fact. Elements: list of element(Id, Source, Observer, Rho, Phi, Length,
+%   Support, UpdatedAt).
+set_elements(Elements) :-
+    must_be(list, Elements),
+    transaction(( retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+                  forall(member(E, Elements), assertz(wm_kb:E)) )).
+
+%!  update_elements(+Upserts, +RemovedIds) is det.
+update_elements(Upserts, Removed) :-
+    transaction(( forall(member(element(Id, _, _, _, _, _, _, _), Upserts),
+                         retractall(wm_kb:element(Id, _, _, _, _, _, _, _))),
+                  forall(member(Id, Removed), retractall(wm_kb:element(Id, _, _, _, _, _, _, _))),
+                  forall(member(E, Upserts), assertz(wm_kb:E)) )).
+
+%!  add_decisions(+Decisions, +KeepLast) is det.
+%   Appends decision/7 facts and forgets all but the KeepLast newest (the full log is in SQLite).
+add_decisions(Decisions, KeepLast) :-
+    forall(member(D, Decisions), assertz(wm_kb:D)),
+    flag(wm_decision_facts, N0, N0),
+    length(Decisions, Added),
+    Excess is N0 + Added - KeepLast,
+    forget_oldest_decisions(Excess),
+    flag(wm_decision_facts, _, min(N0 + Added, KeepLast)).
+
+forget_oldest_decisions(N) :- N =< 0, !.
+forget_oldest_decisions(N) :-
+    (   retract(wm_kb:decision(_, _, _, _, _, _, _)) -> N1 is N - 1, forget_oldest_decisions(N1) ; true ).
+
+%!  set_floor_plan(+Objects) is det.
+%   Objects: list of object(Id, Kind, Attributes, Edges), Edges: list of edge(Id, Rho, Phi, Length).
+%   All facts are replaced in one transaction: other threads see the old or the new plan, never half.
+set_floor_plan(Objects) :-
+    must_be(list, Objects),
+    transaction(( clear_facts,
+                  forall(member(Object, Objects), assert_object(Object)) )).
+
+assert_object(object(Id, Kind, Attributes, Edges)) :-
+    assertz(wm_kb:object(Id, Kind)),
+    sort(Attributes, Unique),
+    forall(member(A, Unique), assertz(wm_kb:attribute(Id, A))),
+    forall(member(edge(E, Rho, Phi, Length), Edges),
+           assertz(wm_kb:edge(Id, E, Rho, Phi, Length))).
+
+%!  decide(+Observation, +Match, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Result = decision(Action:atom, Rule:string, Explanation:string) | error(Message:string).
+decide(Observation, Match, InferenceLimit, TimeLimit, Result) :-
+    (   active_rules(M)
+    ->  run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result)
+    ;   Result = error("no rules are active")
+    ).
+
+%!  decide(+Observation, +Match, +Context, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Context = context(Origin, Sensor), what observation_origin/1 and observation_sensor/1 answer.
+decide(Observation, Match, Context, InferenceLimit, TimeLimit, Result) :-
+    reset_inference_limit,
+    b_setval(wm_context, Context),
+    decide(Observation, Match, InferenceLimit, TimeLimit, Result).
+
+%   A time-limit exception that arrives while call_with_inference_limit/3 restores the previous limit
+%   can leave the thread's limit set, and a later call then stops with inference_limit_exceeded
+%   (seen once in a few hundred test runs). Entry points from C++ never run inside a limit, so each
+%   starts from "no limit" (the internal value of SWI-Prolog 9; the reset is skipped if it changes).
+reset_inference_limit :-
+    (   catch(system:'$inference_limit_false'(9223372036854775807), _, fail) -> true ; true ).
+
+%!  decide_batch(+Cases, +InferenceLimit, +TimeLimit, -Results) is det.
+%   Cases: list of case(Observation, Match, Context); one time limit around the whole batch (it costs
+%   more than a decision), the inference limit per case.
+decide_batch(Cases, InferenceLimit, TimeLimit, Results) :-
+    reset_inference_limit,
+    (   active_rules(M)
+    ->  catch(call_with_time_limit(TimeLimit, decide_cases(Cases, M, InferenceLimit, Results)),
+              E, ( message_text(E, Text), length(Cases, N), length(Results, N),
+                   format(string(Msg), "batch stopped: ~w", [Text]),
+                   maplist(=(error(Msg)), Results) ))
+    ;   length(Cases, N), length(Results, N), maplist(=(error("no rules are active")), Results)
+    ).
+
+decide_cases([], _, _, []).
+decide_cases([case(Observation, Match, Context)|Cases], M, InferenceLimit, [Result|Results]) :-
+    b_setval(wm_context, Context),
+    (   catch(limited_decide(M, Observation, Match, InferenceLimit, Answer), E, Answer = exception(E))
+    ->  true
+    ;   Answer = failed
+    ),
+    answer_result(Answer, InferenceLimit, 0, Result),
+    decide_cases(Cases, M, InferenceLimit, Results).
+
+run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result) :-
+    catch(call_with_time_limit(TimeLimit,
+                               limited_decide(M, Observation, Match, InferenceLimit, Answer)),
+          E, Answer = exception(E)),
+    answer_result(Answer, InferenceLimit, TimeLimit, Result).
+
+limited_decide(M, Observation, Match, InferenceLimit, Answer) :-
+    call_with_inference_limit(M:decide(Observation, Match, Action, Rule, Explanation),
+                              InferenceLimit, Status),
+    !,
+    (   Status == inference_limit_exceeded
+    ->  Answer = inference_limit
+    ;   Answer = answer(Action, Rule, Explanation)
+    ).
+limited_decide(_, _, _, _, failed).
+
+answer_result(answer(Action, Rule, Explanation), _, _, Result) :- !,
+    (   \+ atom(Action)
+    ->  format(string(Msg), "decide/5 answered an action that is not an atom: ~q", [Action]),
+        Result = error(Msg)
+    ;   \+ ( atom(Rule) ; string(Rule) )
+    ->  format(string(Msg), "decide/5 answered a rule name that is not an atom: ~q", [Rule]),
+        Result = error(Msg)
+    ;   var(Explanation)
+    ->  Result = error("decide/5 left the explanation unbound")
+    ;   atom_string(Rule, RuleString),
+        explanation_string(Explanation, ExplanationString),
+        Result = decision(Action, RuleString, ExplanationString)
+    ).
+answer_result(failed, _, _, error("no rule applies (decide/5 failed)")) :- !.
+answer_result(inference_limit, Limit, _, error(Msg)) :- !,
+    format(string(Msg), "inference limit of ~D exceeded (does a rule loop?)", [Limit]).
+answer_result(exception(E), _, TimeLimit, error(Msg)) :-
+    (   time_limit_error(E)
+    ->  format(string(Msg), "time limit of ~w s exceeded (does a rule loop or block?)", [TimeLimit])
+    ;   message_text(E, Text),
+        format(string(Msg), "decide/5 raised: ~w", [Text])
+    ).
+
+time_limit_error(E) :- E == time_limit_exceeded, !.
+time_limit_error(time_limit_exceeded(_)).
+
+explanation_string(E, S) :- catch(text_to_string(E, S), _, fail), !.
+explanation_string(E, S) :- format(string(S), "~W", [E, [quoted(true), max_depth(20)]]).
+
+%!  message_text(+Term, -Text:string) is det.
+%   The message SWI-Prolog would print for Term, without a location prefix, on one or more lines.
+message_text(Term0, Text) :-
+    %   A term built by a rule or a query can be nested deeper than the C stack can write.
+    bounded_term(Term0, Term),
+    (   Term = error(Formal, file(_, _, _, _)) -> Bare = error(Formal, _) ; Bare = Term ),
+    (   catch('$messages':translate_message(Bare, Lines, []), _, fail),
+        catch(with_output_to(string(S0), print_message_lines(current_output, '', Lines)), _, fail)
+    ->  split_string(S0, "", " \n", [Text])
+    ;   format(string(Text), "~q", [Term])
+    ).
+
+%!  bounded_term(+Term, -Bounded) is det.
+%   A copy of Term that prints safely: compound terms nested deeper than max_term_depth/1 and list
+%   elements beyond max_list_items/1 are replaced by '...'. SWI-Prolog writes (and compares) terms by C
+%   recursion, so a term nested some ten thousand levels deep can overflow the C stack of the thread
+%   that prints it; every term that leaves the knowledge base as text goes through this first.
+bounded_term(Term, Bounded) :-
+    max_term_depth(Depth),
+    bounded_term(Term, Depth, Bounded).
+
+max_term_depth(64).
+max_list_items(1000).
+
+bounded_term(T, _, T) :- \+ compound(T), !.
+bounded_term(_, 0, '...') :- !.
+bounded_term(T, D, B) :-
+    D1 is D - 1,
+    (   is_list_pair(T)
+    ->  max_list_items(Max),
+        bounded_list(T, Max, D1, B)
+    ;   compound_name_arguments(T, Name, Args),
+        bounded_args(Args, D1, BArgs),
+        compound_name_arguments(B, Name, BArgs)
+    ).
+
+is_list_pair(T) :- compound(T), T = [_|_].
+
+bounded_list(T, _, _, T) :- \+ is_list_pair(T), !.
+bounded_list(_, 0, _, ['...']) :- !.
+bounded_list([H|T], N, D, [BH|BT]) :-
+    bounded_term(H, D, BH),
+    N1 is N - 1,
+    (   is_list_pair(T) -> bounded_list(T, N1, D, BT) ; bounded_term(T, D, BT) ).
+
+bounded_args([], _, []).
+bounded_args([A|As], D, [B|Bs]) :- bounded_term(A, D, B), bounded_args(As, D, Bs).
+
+%!  term_text(+Term, -Text:string) is det.
+%   Term as writeq/1 prints it, bounded (see bounded_term/2). Used by C++ for any term it shows.
+term_text(Term, Text) :-
+    bounded_term(Term, Bounded),
+    format(string(Text), "~W", [Bounded, [quoted(true), portray(false), numbervars(true)]]).
+
+%!  reload(+Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result) is det.
+%   Loads Files, a list of file(Path, AbsolutePath) (Path is shown in messages), into a fresh module,
+%   self-checks it and makes it active.
+%   Result = ok(Hashes) with Hashes a list of sha256 hex atoms in the order of Files,
+%          | error(Problems), a non-empty list of strings "file:line: text"; then nothing changed.
+reload(Files, RulesDir, InferenceLimit, TimeLimit, GracePeriod, Result) :-
+    reset_inference_limit,
+    load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems),
+    (   Problems == []
+    ->  activate(M, GracePeriod),
+        Result = ok(Hashes)
+    ;   free_module(M),
+        Result = error(Problems)
+    ).
+
+%!  load_aside(+Files, +RulesDir, +InferenceLimit, +TimeLimit, -Module, -Hashes, -Problems) is det.
+%   Loads Files into a fresh module and self-checks it; nothing else changes. Files: file(Path,
+%   AbsolutePath) read from disk, or text(Path, Text) given in memory (a dry-run candidate).
+load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems) :-
+    flag(wm_rules_counter, N, N+1),
+    format(atom(M), "wm_rules_~d", [N]),
+    set_module(M:base(system)),
+    add_import_module(M, wm_kb, start),
+    declare_hooks(M),
+    retractall(load_problem(_)),
+    retractall(source_path(_, _)),
+    setup_call_cleanup(assertz(collecting),
+                       load_all(Files, M, N, Hashes),
+                       retractall(collecting)),
+    (   \+ load_problem(_)
+    ->  check_undefined_calls(M)
+    ;   true
+    ),
+    (   \+ load_problem(_)
+    ->  check_rules_safe(M)          % before the self-check runs any rule
+    ;   true
+    ),
+    findall(P, load_problem(P), LoadProblems),
+    (   LoadProblems == []
+    ->  self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems)
+    ;   Problems = LoadProblems
+    ),
+    retractall(load_problem(_)).
+
+%   Extension points any rule file may add clauses to, whatever the order the files load in:
+%   override/5 (tried by the shipped decide/5 before its own rules) and prune/3 (asked after each
+%   update which observed elements to remove).
+declare_hooks(M) :-
+    forall(member(Name/Arity, [override/5, prune/3]),
+           ( dynamic(M:Name/Arity), multifile(M:Name/Arity), discontiguous(M:Name/Arity) )).
+
+%!  dry_run(+Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Loads Files aside like reload/6, answers every case(Observation, Match, Context) with them, and
+%   frees them again: the active rules and the facts are untouched.
+%   Result = ok(Results) (decide_batch/4 results) | error(Problems).
+dry_run(Files, RulesDir, Cases, InferenceLimit, TimeLimit, Result) :-
+    %   The candidate text is untrusted: this thread gets the small stack of queries.
+    reset_inference_limit,
+    query_stack_limit(StackLimit),
+    set_prolog_flag(stack_limit, StackLimit),
+    load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, _, Problems),
+    (   Problems == []
+    ->  length(Cases, N),
+        max_dry_run_time_s(MaxTotal),
+        BatchLimit is min(MaxTotal, TimeLimit * max(1, N)),
+        catch(call_with_time_limit(BatchLimit,
+                                   snapshot(decide_each(Cases, M, InferenceLimit, TimeLimit, Results))),
+              E, ( message_text(E, Text), format(string(Msg), "dry run stopped: ~w", [Text]),
+                   length(Results, N), maplist(=(error(Msg)), Results) )),
+        Result = ok(Results)
+    ;   Result = error(Problems)
+    ),
+    free_module(M).
+
+max_dry_run_time_s(30).
+
+%   Like decide_cases/4, with the time limit per case (a candidate may block in each case).
+decide_each([], _, _, _, []).
+decide_each([case(Observation, Match, Context)|Cases], M, InferenceLimit, TimeLimit, [Result|Results]) :-
+    b_setval(wm_context, Context),
+    run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result),
+    decide_each(Cases, M, InferenceLimit, TimeLimit, Results).
+
+%   Stack (global + local + trail) of a thread running queries or dry runs [bytes]. It also bounds
+%   what no time limit can interrupt: SWI-Prolog refuses a bignum result larger than the stack
+%   before computing it, and lists or strings built by a query.
+query_stack_limit(16000000).
+
+%   Cells of a query's answer (after bounded_term/2), ~8 bytes each.
+max_answer_cells(1000000).
+
+%!  prune(+Max, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Asks the active rules' prune/3 which elements to remove.
+%   Result = ok(List of prune(ElementId, Rule, Explanation)) | error(Message).
+prune(Max, InferenceLimit, TimeLimit, Result) :-
+    reset_inference_limit,
+    (   active_rules(M)
+    ->  catch(call_with_time_limit(TimeLimit,
+                  call_with_inference_limit(
+                      findall(prune(E, R, X), limit(Max, prune_answer(M, E, R, X)), Orders),
+                      InferenceLimit, Status)),
+              Error, true),
+        (   nonvar(Error)
+        ->  message_text(Error, Text), format(string(Msg), "prune/3 raised: ~w", [Text]),
+            Result = error(Msg)
+        ;   Status == inference_limit_exceeded
+        ->  format(string(Msg), "prune/3: inference limit of ~D exceeded", [InferenceLimit]),
+            Result = error(Msg)
+        ;   Result = ok(Orders)
+        )
+    ;   Result = ok([])
+    ).
+
+prune_answer(M, E, R, X) :-
+    M:prune(E, R0, X0),
+    atom(E),
+    atom_string(R0, R),
+    explanation_string(X0, X).
+
+%!  query(+Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Runs a read-only goal given as text against the knowledge base (the active rules module, which
+%   sees the facts). Result = ok(Names, Rows, Truncated) with Rows a list of lists of values in the
+%   order of Names | syntax(Message) | unsafe(Message) | limit(Message) | error(Message).
+query(Text, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
+    (   active_rules(M) -> true ; M = wm_kb ),
+    reset_inference_limit,
+    query_stack_limit(StackLimit),
+    set_prolog_flag(stack_limit, StackLimit),
+    max_text_nesting(MaxNesting),
+    (   text_nesting_exceeds(Text, MaxNesting, Line)
+    ->  format(string(Msg), "brackets nested deeper than ~d levels (line ~d); queries are limited \c
+                             to that", [MaxNesting, Line]),
+        Result = syntax(Msg)
+    ;   catch(term_string(Goal, Text, [variable_names(Bindings), module(M)]), E,
+              ( message_text(E, Msg), Result = syntax(Msg) ))
+    ->  (   nonvar(Result)
+        ->  true
+        ;   var(Goal)
+        ->  Result = syntax("the query is a variable, not a goal")
+        ;   run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result)
+        )
+    ;   Result = syntax("the query text is not a term")
+    ).
+
+run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
+    (   forbidden_subgoal(Goal, Bad0)
+    ->  bounded_term(Bad0, Bad),
+        format(string(Msg), "~q changes the knowledge base; queries are read-only", [Bad]),
+        Result = unsafe(Msg)
+    ;   unbounded_call(Goal, query, Bad0, Why)
+    ->  bounded_term(Bad0, Bad),
+        format(string(Msg), "~q is refused: ~w", [Bad, Why]),
+        Result = unsafe(Msg)
+    ;   catch(safe_goal(M:Goal), E, true),
+        nonvar(E)
+    ->  message_text(E, Msg0),
+        format(string(Msg), "refused by the sandbox: ~w", [Msg0]),
+        Result = unsafe(Msg)
+    ;   maplist(binding_name_var, Bindings, Names, Vars),
+        Max1 is MaxSolutions + 1,
+        %  snapshot/1 discards any database change a called rule might still make.
+        catch(call_with_time_limit(TimeLimit,
+                  call_with_inference_limit(
+                      snapshot(findall(Vars, limit(Max1, M:Goal), Rows0)),
+                      InferenceLimit, Status)),
+              E2, true),
+        (   nonvar(E2)
+        ->  (   time_limit_error(E2)
+            ->  format(string(Msg), "time limit of ~w s exceeded", [TimeLimit]), Result = limit(Msg)
+            ;   E2 = error(resource_error(c_stack), _)
+            ->  Result = limit("the query ran out of C stack (a term nested too deeply to write \c
+                                 or read)")
+            ;   E2 = error(resource_error(Resource), _)
+            ->  query_stack_limit(StackLimit),
+                format(string(Msg), "the query ran out of ~w (a query may use ~D bytes of stack)",
+                       [Resource, StackLimit]),
+                Result = limit(Msg)
+            ;   message_text(E2, Msg0), format(string(Msg), "the query raised: ~w", [Msg0]),
+                Result = error(Msg)
+            )
+        ;   Status == inference_limit_exceeded
+        ->  format(string(Msg), "inference limit of ~D exceeded", [InferenceLimit]), Result = limit(Msg)
+        ;   length(Rows0, Count),
+            (   Count > MaxSolutions
+            ->  length(Rows1, MaxSolutions), append(Rows1, _, Rows0), Truncated = true
+            ;   Rows1 = Rows0, Truncated = false
+            ),
+            %  Values are shown bounded (deep terms would overflow the C stack when written); a
+            %  wide answer can take long to copy, so that runs under the time limit too.
+            max_answer_cells(MaxCells),
+            (   catch(call_with_time_limit(TimeLimit,
+                                           ( maplist(maplist(bounded_term), Rows1, Rows),
+                                             term_size(Rows, Cells) )),
+                      _, fail),
+                Cells =< MaxCells
+            ->  Result = ok(Names, Rows, Truncated)
+            ;   format(string(Msg), "the answer is too large (more than ~D cells or ~w s to copy): \c
+                                     ask for fewer solutions or smaller values", [MaxCells, TimeLimit]),
+                Result = limit(Msg)
+            )
+        )
+    ).
+
+%!  unbounded_call(+Goal, +Context, -Call, -Why) is semidet.
+%   Call is a subterm of Goal that no time limit can interrupt once it runs (C code producing output
+%   of a size the arguments choose) or, in a query (Context = query), that builds atoms, which no
+%   stack limit bounds. Checked on the text of queries and on every clause of a rule set.
+unbounded_call(Goal, Context, Call, Why) :-
+    subterm_where(unbounded_in(Context), Goal, Call, Why).
+
+unbounded_in(Context, Call, Why) :-
+    compound(Call),
+    unbounded(Call, Context, Why).
+
+unbounded(format(F, _), _, Why) :- format_unbounded(F, Why).
+unbounded(format(_, F, _), _, Why) :- format_unbounded(F, Why).
+unbounded(sformat(_, F, _), _, Why) :- format_unbounded(F, Why).
+unbounded(sformat(_, F), _, Why) :- format_unbounded(F, Why).
+unbounded(Call, query, Why) :-
+    atom_doubling(Call),
+    functor(Call, Name, Arity),
+    format(string(Why), "~w can build atoms twice as long as its inputs, and atoms are not bounded \c
+                         by a query's stack limit; use strings (string_concat/3, \c
+                         format(string(S), ...))", [Name/Arity]).
+
+atom_doubling(atom_concat(_, _, _)).
+atom_doubling(atomic_list_concat(_, _)).
+atom_doubling(atomic_list_concat(_, _, _)).
+atom_doubling(term_to_atom(_, _)).
+atom_doubling(format(Sink, _, _)) :- nonvar(Sink), Sink = atom(_).
+atom_doubling(with_output_to(Sink, _)) :- nonvar(Sink), Sink = atom(_).
+
+%   A format text whose column, fill or precision argument exceeds max_format_argument/1, or that
+%   takes one from the arguments (*): format/2,3 would write that many characters in C.
+format_unbounded(F, Why) :-
+    (   atom(F) -> atom_codes(F, Codes)
+    ;   string(F) -> string_codes(F, Codes)
+    ;   is_list(F), F = [C|_], integer(C) -> Codes = F
+    ),
+    max_format_argument(Max),
+    format_directive_argument(Codes, Argument),
+    (   Argument == (*) ; integer(Argument), Argument > Max ),
+    !,
+    format(string(Why), "a format directive argument (~w) above ~d or taken from the arguments \c
+                         (*) could write without limit", [Argument, Max]).
+
+max_format_argument(1000).
+
+format_directive_argument([0'~|Codes], Argument) :-
+    directive_argument(Codes, Argument, _).
+format_directive_argument([0'~, 0'~|Codes], Argument) :- !,
+    format_directive_argument(Codes, Argument).
+format_directive_argument([_|Codes], Argument) :-
+    format_directive_argument(Codes, Argument).
+
+directive_argument([0'`, _|Codes], Argument, Rest) :- !,        % ~`ct: a fill character
+    directive_argument(Codes, Argument, Rest).
+directive_argument([0'*|Rest], (*), Rest) :- !.
+directive_argument([D|Codes], Argument, Rest) :-
+    code_type(D, digit(W)),
+    digits(Codes, W, Argument, Rest).
+
+digits([D|Codes], N0, N, Rest) :-
+    code_type(D, digit(W)), !,
+    N1 is N0 * 10 + W,
+    digits(Codes, N1, N, Rest).
+digits(Rest, N, N, Rest).
+
+%!  check_rules_safe(+Module) is det.
+%   Records a load_problem/1 unless everything decide/5 and prune/3 can call is safe to run: no
+%   file, process, thread, flag or cross-module database access (library(sandbox)), and no call
+%   that no time limit can interrupt (unbounded_call/4).
+check_rules_safe(M) :-
+    forall(( current_predicate(M:Name/Arity),
+             functor(Head, Name, Arity),
+             predicate_property(M:Head, implementation_module(M)),
+             clause(M:Head, Body, Ref),
+             unbounded_call(Body, rule, Call0, Why) ),
+           ( clause_location(Ref, Path, Line),
+             bounded_term(Call0, Call),
+             format(string(P), "~w:~w: ~q is refused: ~w", [Path, Line, Call, Why]),
+             assertz(load_problem(P)) )),
+    forall(( member(Name/Arity, [decide/5, prune/3]),
+             current_predicate(M:Name/Arity),
+             functor(Head, Name, Arity),
+             catch(safe_goal(M:Head), E, true),
+             nonvar(E) ),
+           ( entry_location(M, Head, Location),
+             message_text(E, Text),
+             format(string(P), "~w: ~w can reach a call that rules may not make: ~w",
+                    [Location, Name/Arity, Text]),
+             assertz(load_problem(P)) )).
+
+clause_location(Ref, Path, Line) :-
+    (   clause_property(Ref, file(Id)), clause_property(Ref, line_count(Line))
+    ->  ( source_path(Id, Path) -> true ; Path = Id )
+    ;   Path = '?', Line = 0
+    ).
+
+entry_location(M, Head, Location) :-
+    (   predicate_property(M:Head, file(Id)),
+        predicate_property(M:Head, line_count(Line))
+    ->  ( source_path(Id, Path) -> true ; Path = Id ),
+        format(string(Location), "~w:~w", [Path, Line])
+    ;   functor(Head, Name, Arity),
+        format(string(Location), "~w", [Name/Arity])
+    ).
+
+binding_name_var(Name = Var, NameString, Var) :- atom_string(Name, NameString).
+
+%   Database writes the sandbox lets through (it accepts assertz/1 on the calling module).
+forbidden_subgoal(Goal, Bad) :-
+    subterm_where(forbidden_call, Goal, Bad, _).
+
+forbidden_call(Goal, Name/Arity) :-
+    ( Goal = _:G -> true ; G = Goal ),
+    callable(G),
+    functor(G, Name, Arity),
+    forbidden(Name, Arity).
+
+%!  subterm_where(:Test, +Term, -Sub, -Info) is semidet.
+%   Sub is the first callable subterm of Term (itself included, depth first) for which
+%   call(Test, Sub, Info) is true. A deterministic walk over an agenda: sub_term/2 leaves a choice
+%   point per level and takes quadratic time (and a deep stack) on a chain like 1+1+...+1.
+subterm_where(Test, Term, Sub, Info) :-
+    subterm_in([Term], Test, Sub, Info).
+
+subterm_in([T|Ts], Test, Sub, Info) :-
+    (   callable(T), call(Test, T, Info0)
+    ->  Sub = T, Info = Info0
+    ;   compound(T)
+    ->  compound_name_arguments(T, _, Args),
+        append(Args, Ts, Agenda),
+        subterm_in(Agenda, Test, Sub, Info)
+    ;   subterm_in(Ts, Test, Sub, Info)
+    ).
+
+forbidden(Name, _) :-
+    memberchk(Name, [assert, asserta, assertz, retract, retractall, abolish, erase, recorda, recordz,
+                     flag, nb_setval, b_setval, set_prolog_flag, dynamic, multifile, discontiguous,
+                     compile_predicates, garbage_collect_clauses, transaction, snapshot]).
+
+load_all([], _, _, []).
+load_all([File|Files], M, N, [Hash|Hashes]) :-
+    load_one(File, M, N, Hash),
+    load_all(Files, M, N, Hashes).
+
+load_one(file(Path, AbsolutePath), M, N, Hash) :- !,
+    catch(read_file_to_string(AbsolutePath, Text, [encoding(utf8)]), E,
+          ( problem_at(Path, 0, E), Text = "" )),
+    load_one(text(Path, Text), M, N, Hash).
+load_one(text(Path, Text), M, N, Hash) :-
+    format(atom(Id), "~w#~d", [Path, N]),
+    assertz(source_path(Id, Path)),
+    catch(( sha_hash(Text, Digest, [algorithm(sha256), encoding(utf8)]),
+            hash_atom(Digest, Hash),
+            %   Loading runs directives and term expansion: the text is read as terms and checked
+            %   first, and loaded only when nothing in it can act beyond defining rules.
+            aggregate_all(count, load_problem(_), Before),
+            check_rule_text(Path, Text, M),
+            aggregate_all(count, load_problem(_), After),
+            (   After =:= Before
+            ->  max_load_time_s(LoadLimit),
+                setup_call_cleanup(open_string(Text, Stream),
+                                   call_with_time_limit(LoadLimit, load_files(M:Id, [stream(Stream)])),
+                                   close(Stream))
+            ;   true
+            )
+          ),
+          E,
+          problem_at(Path, 0, E)),
+    (   var(Hash) -> Hash = '' ; true ).
+
+max_load_time_s(10).
+
+%!  check_rule_text(+Path, +Text, +Module) is det.
+%   Reads Text as terms without running any of them and records a load_problem/1 for everything a
+%   rule file may not contain: text nested too deeply to read safely, a syntax error, a directive
+%   that is not on the allow-list, a clause for another module or for a hook of Prolog itself.
+check_rule_text(Path, Text, M) :-
+    max_text_nesting(MaxNesting),
+    (   text_nesting_exceeds(Text, MaxNesting, Line)
+    ->  format(string(P), "~w:~w: brackets nested deeper than ~d levels; rule files and queries \c
+                           are limited to that", [Path, Line, MaxNesting]),
+        assertz(load_problem(P))
+    ;   setup_call_cleanup(open_string(Text, Stream),
+                           check_terms(Stream, Path, M),
+                           close(Stream))
+    ).
+
+max_text_nesting(200).
+
+check_terms(Stream, Path, M) :-
+    repeat,
+    (   catch(read_term(Stream, Term, [module(M), term_position(Pos), syntax_errors(error)]),
+              E, true)
+    ->  true
+    ;   Term = end_of_file
+    ),
+    (   nonvar(E)
+    ->  syntax_error_line(E, Line),
+        problem_at(Path, Line, E),
+        fail                            % read_term skipped the bad clause: go on with the next
+    ;   Term == end_of_file
+    ->  !
+    ;   stream_position_data(line_count, Pos, Line),
+        check_term(Term, Path, Line),
+        fail
+    ).
+
+syntax_error_line(error(_, stream(_, Line, _, _)), Line) :- integer(Line), !.
+syntax_error_line(error(_, string(_, _)), 0) :- !.
+syntax_error_line(_, 0).
+
+rule_problem(Path, Line, Format, Args) :-
+    format(string(Text), Format, Args),
+    format(string(P), "~w:~w: ~w", [Path, Line, Text]),
+    assertz(load_problem(P)).
+
+check_term(Term, Path, Line) :-
+    var(Term), !,
+    rule_problem(Path, Line, "a clause may not be a variable", []).
+check_term((:- Directive), Path, Line) :- !,
+    check_directive(Directive, Path, Line).
+check_term((?- Directive), Path, Line) :- !,
+    check_directive(Directive, Path, Line).
+check_term((Head --> _), Path, Line) :- !,
+    check_head(Head, 2, Path, Line).
+check_term((Head :- _), Path, Line) :- !,
+    check_head(Head, 0, Path, Line).
+check_term(Head, Path, Line) :-
+    check_head(Head, 0, Path, Line).
+
+check_directive(Directive, Path, Line) :-
+    (   var(Directive)
+    ->  rule_problem(Path, Line, "a directive may not be a variable", [])
+    ;   Directive = module(Other, _)
+    ->  rule_problem(Path, Line, "rule files are plain clauses: remove the module declaration (~q)", [Other])
+    ;   allowed_directive(Directive)
+    ->  true
+    ;   bounded_term(Directive, Shown),
+        safe_libraries(Libraries),
+        atomic_list_concat(Libraries, '|', Names),
+        rule_problem(Path, Line,
+                     "directive ~q is not allowed in a rule file (rule files are loaded without running \c
+                      code; allowed: use_module/ensure_loaded of library(~w), and dynamic, discontiguous, \c
+                      multifile of the file's own predicates)", [(:- Shown), Names])
+    ).
+
+allowed_directive(use_module(library(L))) :- safe_library(L).
+allowed_directive(use_module(library(L), Imports)) :- safe_library(L), is_list(Imports).
+allowed_directive(ensure_loaded(library(L))) :- safe_library(L).
+allowed_directive(dynamic(PIs)) :- local_indicators(PIs).
+allowed_directive(discontiguous(PIs)) :- local_indicators(PIs).
+allowed_directive(multifile(PIs)) :- local_indicators(PIs).
+allowed_directive(encoding(utf8)).
+
+safe_libraries([lists, apply, aggregate, pairs, yall, error, ordsets, assoc, rbtrees, option,
+                solution_sequences, occurs, strings, dicts]).
+
+safe_library(L) :- atom(L), safe_libraries(Ls), memberchk(L, Ls).
+
+local_indicators(PIs) :- var(PIs), !, fail.
+local_indicators((A, B)) :- !, local_indicators(A), local_indicators(B).
+local_indicators([]) :- !.
+local_indicators([PI|PIs]) :- !, local_indicators(PI), local_indicators(PIs).
+local_indicators(Name/Arity) :- !, atom(Name), integer(Arity), between(0, 64, Arity).
+local_indicators(Name//Arity) :- atom(Name), integer(Arity), between(0, 62, Arity).
+
+check_head(Head, Extra, Path, Line) :-
+    (   var(Head)
+    ->  rule_problem(Path, Line, "a clause head may not be a variable", [])
+    ;   Head = Module:_
+    ->  bounded_term(Module, Shown),
+        rule_problem(Path, Line,
+                     "clauses for another module (~q:...) are not allowed: rule files define \c
+                      predicates of the rule module only", [Shown])
+    ;   callable(Head),
+        functor(Head, Name, Arity0),
+        Arity is Arity0 + Extra,
+        reserved_head(Name/Arity)
+    ->  rule_problem(Path, Line, "~q is a hook of Prolog itself; rule files may not define it",
+                     [Name/Arity])
+    ;   true                            % load_files reports any other bad head
+    ).
+
+%   Hooks Prolog calls on its own while loading or printing: defining them would run code.
+reserved_head(term_expansion/2).
+reserved_head(term_expansion/4).
+reserved_head(goal_expansion/2).
+reserved_head(goal_expansion/4).
+reserved_head(message_hook/3).
+reserved_head(portray/1).
+reserved_head(prolog_load_file/2).
+reserved_head(exception/3).
+
+problem_at(File, Line, Term) :-
+    message_text(Term, Text0),
+    findall(Id-Path, source_path(Id, Path), SourceIds),
+    foldl(source_id_to_path, SourceIds, Text0, Text),
+    format(string(P), "~w:~w: ~w", [File, Line, Text]),
+    assertz(load_problem(P)).
+
+%   Messages name the unique source ids ("path#N"); users know the path.
+source_id_to_path(Id-Path, Text0, Text) :-
+    atomic_list_concat(Parts, Id, Text0),
+    atomic_list_concat(Parts, Path, Atom),
+    atom_string(Atom, Text).
+
+:- multifile user:message_hook/3.
+user:message_hook(Term, Kind, _Lines) :-
+    ( Kind == error ; Kind == warning ),
+    collecting,
+    message_location(Term, File, Line),
+    problem_at(File, Line, Term).
+
+message_location(Term, Path, Line) :-
+    (   Term = error(_, file(Id, Line, _, _))
+    ->  true
+    ;   source_location(Id, Line)
+    ->  true
+    ;   Id = '?', Line = 0
+    ),
+    (   source_path(Id, Path) -> true ; Path = Id ).
+
+%   A call to a predicate that neither the rule files, the facts, `system` nor the autoloadable
+%   libraries define is a typo that would otherwise only show as fallback decisions.
+check_undefined_calls(M) :-
+    catch(prolog_walk_code([ module(M), undefined(trace), on_trace(undefined_call(M)),
+                             infer_meta_predicates(false) ]),
+          E, problem_at('?', 0, E)).
+
+undefined_call(M, Callee, Caller, Location) :-
+    (   Location = clause(Ref),
+        clause_property(Ref, file(Id)),
+        clause_property(Ref, line_count(Line))
+    ->  ( source_path(Id, Path) -> true ; Path = Id )
+    ;   Path = '?', Line = 0
+    ),
+    unqualified(M, Callee, CalleePI),
+    unqualified(M, Caller, CallerPI),
+    format(string(P), "~w:~w: ~q calls the undefined predicate ~q", [Path, Line, CallerPI, CalleePI]),
+    assertz(load_problem(P)).
+
+unqualified(M, M:Head, Name/Arity) :- !, functor(Head, Name, Arity).
+unqualified(_, Q:Head, Q:Name/Arity) :- callable(Head), !, functor(Head, Name, Arity).
+unqualified(_, Goal, Goal).
+
+%   The canonical cases every rule set must answer with an atom action.
+canonical_case('matched solid',
+               observation(self_check, 2.0, 0.0, 4.0), element(wm_check_e1, wm_check_wall, 0.5)).
+canonical_case('matched element not in the plan',
+               observation(self_check, 2.0, 0.0, 4.0), element(wm_check_e2, none, 0.5)).
+canonical_case('matched not_deformable',
+               observation(self_check, 1.0, 1.5707963267948966, 0.8), element(wm_check_e3, wm_check_table, 0.5)).
+canonical_case('unmatched',
+               observation(self_check, 3.0, 3.141592653589793, 1.0), none).
+
+canonical_facts :-
+    set_floor_plan([ object(wm_check_wall, wall, [solid], [edge(wm_check_e1, 2.0, 0.0, 4.0)]),
+                     object(wm_check_table, table, [not_deformable],
+                            [edge(wm_check_e3, 1.0, 1.5707963267948966, 0.8)]) ]).
+
+self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems) :-
+    (   \+ defines_decide(M)
+    ->  format(string(P), "~w: no rule file defines decide/5", [RulesDir]),
+        Problems = [P]
+    ;   decide_location(M, Location),
+        snapshot(( canonical_facts,
+                   findall(P, ( canonical_case(Name, Observation, Match),
+                                run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result),
+                                Result = error(Msg),
+                                format(string(P), "~w: self-check '~w' (~q, ~q): ~w",
+                                       [Location, Name, Observation, Match, Msg]) ),
+                           Problems) ))
+    ).
+
+defines_decide(M) :-
+    current_predicate(M:decide/5),
+    \+ predicate_property(M:decide(_, _, _, _, _), imported_from(_)).
+
+decide_location(M, Location) :-
+    entry_location(M, decide(_, _, _, _, _), Location).
+
+activate(M, GracePeriod) :-
+    get_time(Now),
+    forall(active_rules(Old), assertz(retired_rules(Old, Now))),
+    transaction(( retractall(active_rules(_)), assertz(active_rules(M)) )),
+    free_retired(Now, GracePeriod).
+
+%   A retired module is freed only when no decision can still run in it (one started before the
+%   switch ends within the time limit).
+free_retired(Now, GracePeriod) :-
+    forall(( retired_rules(Old, At), Now - At > GracePeriod ),
+           ( free_module(Old), retractall(retired_rules(Old, _)) )).
+
+free_module(M) :-
+    forall(( current_predicate(M:Name/Arity),
+             functor(Head, Name, Arity),
+             predicate_property(M:Head, implementation_module(M)) ),
+           catch(abolish(M:Name/Arity), _, true)).
+
+shutdown :-
+    forall(active_rules(M), free_module(M)),
+    forall(retired_rules(M, _), free_module(M)),
+    retractall(active_rules(_)),
+    retractall(retired_rules(_, _)),
+    clear_facts,
+    retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+    retractall(wm_kb:decision(_, _, _, _, _, _, _)),
+    flag(wm_decision_facts, _, 0).
