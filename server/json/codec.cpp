@@ -294,7 +294,7 @@ namespace {
 json optional_text(const std::optional<std::string>& text) { return text ? json(*text) : json(nullptr); }
 
 // The numbers a decision changed (see DecisionRecord::before), labelled.
-json state_numbers_json(const std::string& action, const std::vector<double>& v) {
+json state_numbers_json(const std::vector<double>& v) {
   if (v.size() == 6) {
     return {{"rho", v[0]}, {"phi", v[1]}, {"cov", json::array({json::array({v[2], v[3]}), json::array({v[4], v[5]})})}};
   }
@@ -303,7 +303,6 @@ json state_numbers_json(const std::string& action, const std::vector<double>& v)
     for (int r = 0; r < 3; ++r) cov.push_back(json::array({v[3 + 3 * r], v[4 + 3 * r], v[5 + 3 * r]}));
     return {{"pose", {{"x", v[0]}, {"y", v[1]}, {"theta", v[2]}}}, {"pose_cov", cov}};
   }
-  (void)action;
   return nullptr;
 }
 
@@ -313,7 +312,7 @@ json decision_json(const world::DecisionRecord& d) {
   json j = {{"seq", d.seq},
             {"observation", d.observation_seq},
             {"index", d.index},
-            {"action", d.action},
+            {"action", rules::wire_name(d.action)},
             {"rule", d.rule},
             {"explanation", d.explanation},
             {"element", optional_text(d.element)},
@@ -327,8 +326,8 @@ json decision_json(const world::DecisionRecord& d) {
             {"observed",
              {{"p0", point_json(d.p0)}, {"p1", point_json(d.p1)}, {"rho", d.rho_m}, {"phi", d.phi_rad},
               {"cov", matrix_json(d.observed_cov)}}}};
-  if (!d.before.empty()) j["before"] = state_numbers_json(d.action, d.before);
-  if (!d.after.empty()) j["after"] = state_numbers_json(d.action, d.after);
+  if (!d.before.empty()) j["before"] = state_numbers_json(d.before);
+  if (!d.after.empty()) j["after"] = state_numbers_json(d.after);
   return j;
 }
 

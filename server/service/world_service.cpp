@@ -26,7 +26,7 @@ rules::ElementFacts element_facts(const world::Element& e) {
 }
 
 rules::DecisionFacts decision_facts(const world::DecisionRecord& d, double at) {
-  return {d.seq, d.action, d.rule, d.element, d.object, d.observer, at};
+  return {d.seq, std::string(rules::wire_name(d.action)), d.rule, d.element, d.object, d.observer, at};
 }
 
 // FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
@@ -429,7 +429,7 @@ WorldService::PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepa
   const auto& observation = prepared.observation;
   const auto seq = prepared.seq;
   const bool moved = std::any_of(update.decisions.begin(), update.decisions.end(),
-                                 [](const auto& d) { return d.action == "rigid_adjust"; });
+                                 [](const auto& d) { return d.action == rules::Action::rigid_adjust; });
   std::vector<rules::DecisionFacts> logged;
   for (const auto& d : update.decisions) {
     logged.push_back(decision_facts(d, observation.received_at_unix_s));
@@ -510,7 +510,7 @@ DryRunOutcome WorldService::dry_run(const rules::RuleText& candidate, std::size_
     for (std::size_t i = 0; i < recorded.size(); ++i) {
       const auto& before = recorded[i];
       const auto& after = answers[i];
-      if (before.rule != after.rule || before.action != after.action)
+      if (before.rule != after.rule || rules::wire_name(before.action) != after.action)
         outcome.changes.push_back({before, after});
     }
     return outcome;

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "apriori/floor_plan.h"
+#include "rules/action.h"
 
 namespace wm::storage {
 namespace {
@@ -255,7 +256,7 @@ void Store::write_observation(const ObservationEntry& entry) {
                 "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22)");
     for (const auto& d : update.decisions) {
       s.bind(1, d.seq).bind(2, d.observation_seq).bind(3, d.index);
-      s.bind(4, std::string_view(d.action)).bind(5, std::string_view(d.rule)).bind(6, std::string_view(d.explanation));
+      s.bind(4, rules::wire_name(d.action)).bind(5, std::string_view(d.rule)).bind(6, std::string_view(d.explanation));
       s.bind(7, d.element).bind(8, d.object).bind(9, d.mahalanobis_sq).bind(10, std::int64_t{d.fallback});
       s.bind(11, std::string_view(d.observer));
       s.bind(12, d.p0.x()).bind(13, d.p0.y()).bind(14, d.p1.x()).bind(15, d.p1.y());
@@ -328,7 +329,10 @@ world::DecisionRecord read_decision(const Statement& s) {
   d.seq = s.column_int(0);
   d.observation_seq = s.column_int(1);
   d.index = s.column_int(2);
-  d.action = s.column_text(3);
+  const std::string action = s.column_text(3);
+  const auto parsed = rules::parse_action(action);
+  if (!parsed) throw std::runtime_error("decision log: unknown action '" + action + "' (database written by a newer server?)");
+  d.action = *parsed;
   d.rule = s.column_text(4);
   d.explanation = s.column_text(5);
   d.element = s.column_optional_text(6);

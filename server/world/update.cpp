@@ -1,6 +1,8 @@
 #include "server/world/update.h"
 
 #include <stdexcept>
+#include <string>
+#include <string_view>
 
 namespace wm::world {
 namespace {
@@ -67,9 +69,9 @@ std::vector<double> pose_numbers(const fusion::RigidObject& body) {
   return v;
 }
 
-void make_fallback(DecisionRecord& record, const std::string& why) {
-  record.explanation = "fallback (" + why + "); rules said " + record.action + " by " + record.rule;
-  record.action = "add";
+void make_fallback(DecisionRecord& record, std::string_view answered, const std::string& why) {
+  record.explanation = "fallback (" + why + "); rules said " + std::string(answered) + " by " + record.rule;
+  record.action = rules::Action::add;
   record.rule = "fallback";
   record.fallback = true;
 }
@@ -95,7 +97,9 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     record.seq = ++state.last_decision_seq;
     record.observation_seq = observation_seq;
     record.index = static_cast<std::int64_t>(i);
-    record.action = decision.action;
+    // The rules' atom becomes an Action here, once; an atom the server does not know is the fallback add.
+    const auto action = rules::parse_action(decision.action);
+    record.action = action.value_or(rules::Action::add);
     record.rule = decision.rule;
     record.explanation = decision.explanation;
     record.fallback = decision.fallback;
@@ -114,16 +118,15 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     record.observed_cov = seen.line.cov;
 
     const CandidateRef* ref = match ? &candidates.refs[match->index] : nullptr;
-    if (record.action == "merge" && !ref) {
-      make_fallback(record, "merge needs a match");
-    } else if (record.action == "rigid_adjust" && !(ref && ref->object)) {
-      make_fallback(record, "rigid_adjust needs a matched CAD object");
-    } else if (record.action != "delete" && record.action != "merge" && record.action != "rigid_adjust" &&
-               record.action != "add" && record.action != "ignore") {
-      make_fallback(record, "action '" + record.action + "' is not known to the server");
+    if (!action || *action == rules::Action::prune) {
+      make_fallback(record, decision.action, "action '" + decision.action + "' is not known to the server");
+    } else if (record.action == rules::Action::merge && !ref) {
+      make_fallback(record, decision.action, "merge needs a match");
+    } else if (record.action == rules::Action::rigid_adjust && !(ref && ref->object)) {
+      make_fallback(record, decision.action, "rigid_adjust needs a matched CAD object");
     }
 
-    if (record.action == "delete") {
+    if (record.action == rules::Action::confirm) {
       if (ref && ref->object) {
         auto& object = state.objects[*ref->object];
         ++object.confirmations;
@@ -136,7 +139,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
         element.updated_at_unix_s = observation.received_at_unix_s;
         result.changed_elements.insert(ref->element);
       }
-    } else if (record.action == "merge" && !ref->object) {
+    } else if (record.action == rules::Action::merge && !ref->object) {
       auto& element = state.elements.at(ref->element);
       record.before = line_numbers(element.segment.line);
       element.segment = fusion::fuse(element.segment, seen);
@@ -145,7 +148,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       element.updated_version = state.version;
       element.updated_at_unix_s = observation.received_at_unix_s;
       result.changed_elements.insert(ref->element);
-    } else if (record.action == "merge") {
+    } else if (record.action == rules::Action::merge) {
       // Merged into a CAD edge (e.g. a door that moves): the drawing stays as drawn; the observed state
       // becomes an element that starts from the fusion of the drawn edge and the observation.
       const auto& object = state.objects[*ref->object];
@@ -163,7 +166,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       record.element = element.id();
       result.changed_elements.insert(element.number);
       state.elements.emplace(element.number, std::move(element));
-    } else if (record.action == "rigid_adjust") {
+    } else if (record.action == rules::Action::rigid_adjust) {
       auto& object = state.objects[*ref->object];
       try {
         record.before = pose_numbers(object.body);
@@ -174,10 +177,10 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
         result.changed_objects.insert(*ref->object);
       } catch (const std::invalid_argument& e) {
         record.before.clear();
-        make_fallback(record, std::string("rigid update failed: ") + e.what());
+        make_fallback(record, decision.action, std::string("rigid update failed: ") + e.what());
       }
     }
-    if (record.action == "add") {
+    if (record.action == rules::Action::add) {
       Element element;
       element.number = state.next_element_number++;
       element.segment = seen;
@@ -208,7 +211,7 @@ void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& ord
     record.seq = ++state.last_decision_seq;
     record.observation_seq = observation_seq;
     record.index = -1;  // not about a segment of the request
-    record.action = "prune";
+    record.action = rules::Action::prune;
     record.rule = order.rule;
     record.explanation = order.explanation;
     record.element = order.element_id;

@@ -6,7 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "rules/engine.h"
+#include "rules/action.h"
+#include "rules/types.h"
 #include "server/world/world_state.h"
 
 namespace wm::world {
@@ -31,7 +32,7 @@ struct DecisionRecord {
   std::int64_t seq = 0;              // global decision sequence number
   std::int64_t observation_seq = 0;  // the request it belongs to
   std::int64_t index = 0;            // position of the segment in the request
-  std::string action;
+  rules::Action action = rules::Action::add;  // what the server did (after any fallback)
   std::string rule;
   std::string explanation;
   std::optional<std::string> element;  // element or edge id the decision is about
@@ -68,7 +69,7 @@ struct UpdateResult {
 using Decide = std::function<rules::Decision(const rules::DecisionQuery&)>;
 
 /// Matches each segment in order against the current map (a-priori edges and elements), asks `decide`,
-/// and applies the action: delete (count a confirmation), merge (Kalman fusion into an element; into a CAD
+/// and applies the action: confirm (wire name "delete": count a confirmation), merge (Kalman fusion into an element; into a CAD
 /// edge: a new element starting from the fusion of the edge and the observation, the drawing unchanged),
 /// rigid_adjust (EKF on the object's pose), add (new element), ignore (nothing changes). An action the
 /// server cannot apply to the match (merge or rigid_adjust without a match, rigid_adjust on an element,

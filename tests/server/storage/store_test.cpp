@@ -71,7 +71,7 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
   EXPECT_EQ(a.t1_m, b.t1_m);
   const auto log = store.decisions(0, 10);
   ASSERT_EQ(log.size(), 1u);
-  EXPECT_EQ(log[0].action, "add");
+  EXPECT_EQ(log[0].action, rules::Action::add);
   EXPECT_EQ(log[0].element, "e1");
   EXPECT_EQ(log[0].observer, "robot-1");
   EXPECT_EQ(store.decisions(0, 10, std::string("e1")).size(), 1u);

@@ -51,7 +51,7 @@ TEST(UpdateTest, QueryNamesTheMatchedEdgeAndItsObject) {
   EXPECT_EQ(rules.asked[0].element_id, "wall-n/0");
   EXPECT_EQ(rules.asked[0].object_id, "wall-n");
   EXPECT_GT(rules.asked[0].mahalanobis_sq, 0.0);
-  EXPECT_EQ(result.decisions[0].action, "delete");
+  EXPECT_EQ(result.decisions[0].action, rules::Action::confirm);
   EXPECT_EQ(result.state.objects[0].confirmations, 1);
   EXPECT_EQ(result.state.version, start.version + 1);
   EXPECT_EQ(start.objects[0].confirmations, 0) << "the input state must not change";
@@ -72,11 +72,12 @@ TEST(UpdateTest, LaterSegmentsOfARequestSeeTheEarlierOnes) {
 TEST(UpdateTest, ActionsThatDoNotFitTheMatchFallBackToAdd) {
   WorldOptions options;
   const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
-  for (const std::string action : {"frobnicate"}) {
+  // "prune" is an action of prune/3 only: from decide/5 it is as unknown as any other atom.
+  for (const std::string action : {"frobnicate", "prune"}) {
     FixedRules rules{action, {}};
     const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
     ASSERT_EQ(result.decisions.size(), 1u);
-    EXPECT_EQ(result.decisions[0].action, "add") << action;
+    EXPECT_EQ(result.decisions[0].action, rules::Action::add) << action;
     EXPECT_EQ(result.decisions[0].rule, "fallback");
     EXPECT_TRUE(result.decisions[0].fallback);
     EXPECT_NE(result.decisions[0].explanation.find(action), std::string::npos);
@@ -99,7 +100,7 @@ TEST(UpdateTest, MergeIntoACadEdgeStartsAnElementFromTheDrawingAndKeepsTheDrawin
   const auto result = apply_observation(start, obs, 1, options, std::ref(merge));
   ASSERT_EQ(result.decisions.size(), 1u);
   const auto& d = result.decisions[0];
-  EXPECT_EQ(d.action, "merge");
+  EXPECT_EQ(d.action, rules::Action::merge);
   EXPECT_FALSE(d.fallback);
   EXPECT_EQ(d.element, "e1");
   EXPECT_EQ(d.matched_element, "wall-n/0");
@@ -121,7 +122,7 @@ TEST(UpdateTest, IgnoreChangesNothing) {
   FixedRules ignore{"ignore", {}};
   const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}, {{30, 30}, {31, 31}}}, options), 1,
                                         options, std::ref(ignore));
-  EXPECT_EQ(result.decisions[0].action, "ignore");
+  EXPECT_EQ(result.decisions[0].action, rules::Action::ignore);
   EXPECT_FALSE(result.decisions[1].fallback);
   EXPECT_TRUE(result.state.elements.empty());
   EXPECT_EQ(result.state.objects[0].confirmations, 0);
@@ -140,7 +141,7 @@ TEST(UpdateTest, PruneRemovesNamedElementsWithADecisionEach) {
   EXPECT_EQ(result.removed_elements, std::set<std::int64_t>{2});
   EXPECT_EQ(result.changed_elements, std::set<std::int64_t>{1});
   ASSERT_EQ(result.decisions.size(), 3u);
-  EXPECT_EQ(result.decisions[2].action, "prune");
+  EXPECT_EQ(result.decisions[2].action, rules::Action::prune);
   EXPECT_EQ(result.decisions[2].rule, "unconfirmed_pruned");
   EXPECT_EQ(result.decisions[2].element, "e2");
   EXPECT_EQ(result.decisions[2].seq, 3);
@@ -176,7 +177,7 @@ TEST(UpdateTest, CollinearWallsAcrossADoorwayStayApart) {
   FixedRules merge{"merge", {}};
   const auto result = apply_observation(state, observe({{{1, 5.002}, {3, 5.0}}}, options), 3, options, std::ref(merge));
   EXPECT_EQ(merge.asked[0].element_id, "e1");
-  EXPECT_EQ(result.decisions[0].action, "merge");
+  EXPECT_EQ(result.decisions[0].action, rules::Action::merge);
   EXPECT_EQ(result.state.elements.at(1).support, 2);
   EXPECT_EQ(result.state.elements.at(2).support, 1);
 }
@@ -193,3 +194,13 @@ TEST(UpdateTest, MidpointCovarianceCarriesTheLeverArm) {
 
 }  // namespace
 }  // namespace wm::world
+
+// The decision log, JSON and the knowledge base speak wire names; every Action has one and reads back as itself.
+TEST(ActionTest, WireNamesRoundTrip) {
+  for (const auto action : {wm::rules::Action::confirm, wm::rules::Action::merge, wm::rules::Action::rigid_adjust,
+                            wm::rules::Action::add, wm::rules::Action::ignore, wm::rules::Action::prune})
+    EXPECT_EQ(wm::rules::parse_action(wm::rules::wire_name(action)), action);
+  EXPECT_EQ(wm::rules::wire_name(wm::rules::Action::confirm), "delete");  // the seed paper's word, kept on the wire
+  EXPECT_FALSE(wm::rules::parse_action("confirm").has_value());
+  EXPECT_FALSE(wm::rules::parse_action("").has_value());
+}
