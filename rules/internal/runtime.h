@@ -1,0 +1,18 @@
+#pragma once
+
+// Start of the process-wide SWI-Prolog runtime and loading of the support module. Internal to
+// rules::Engine, which calls them from its constructor.
+
+namespace wm::rules::internal {
+
+/// Initialises the SWI-Prolog runtime once per process (a later call returns at once) and registers
+/// the foreign predicates of the support module. Keeps LC_NUMERIC "C" and the host's process-control
+/// signal dispositions. @throw RuleError when the runtime does not start or a registration fails.
+void initialise_runtime();
+
+/// Loads the wm_engine support module from the text embedded at build time (engine_support.pl).
+/// Loading it again (a later Engine in the same process) replaces it and resets its state. Needs an
+/// attached thread. @throw RuleError when it does not load.
+void load_support_module();
+
+}  // namespace wm::rules::internal
