@@ -1,24 +1,23 @@
 :- module(wm_engine, []).
-/*  engine_support.pl: the Prolog half of wm::rules::Engine (loading, checking and self-checking rule
-    files, dispatch of decisions under limits, fact replacement, read-only queries).
+/*  engine_support.pl: the Prolog half of wm::rules::Engine: loading, checking and self-checking rule
+    files, dispatch of decisions under limits, fact replacement, read-only queries.
 
     Not a rule file: users never edit it and the engine does not read it at run time. The build embeds
-    this text into the library (rules/CMakeLists.txt generates engine_support_pl.h from it), and the
-    Engine loads it from that text as source id "wm_engine_support.pl". engine_support.plt beside it
-    holds its plunit tests (run by ctest as rules_support_plunit).
+    this text into the library (rules/CMakeLists.txt generates a header from it), and the Engine loads
+    it as source id "wm_engine_support.pl", after rule_checks.pl (module wm_rule_checks: what a rule
+    text or query may contain, bounded printing), whose predicates it imports. engine_support.plt
+    beside it holds its plunit tests.
 
     Entry points, all called from C++ and all catching every error they can report:
       init/0, set_floor_plan/1, set_elements/1, update_elements/2, add_decisions/2, decide/6,
-      decide_batch/4, reload/6, dry_run/6, prune/4, query/5, shutdown/0, term_text/2.
+      decide_batch/4, reload/6, dry_run/6, prune/4, query/5, shutdown/0.
     C++ registers one foreign predicate in this module before loading it: text_nesting_exceeds/3
-    (Text, Max, -Line), true when brackets nest deeper than Max outside quotes and comments.
+    (+Text, +Max, -Line), true when brackets nest deeper than Max outside quotes and comments.
 
-    Why one file of some 850 lines: it is one module whose parts share thread-local state
-    (load_problem/1, source_path/2, collecting/0) and the message hook that fills it; the text and
-    rule checks record their findings there while a rule set loads. Splitting it would mean exporting
-    that state between modules for no reader's gain. The sections below follow the order of a rule
-    set's life: facts, decisions, messages and bounded terms, loading, queries, checks, self-check,
-    activation. */
+    The sections follow a rule set's life: facts, decisions, loading aside, dry runs, prune, queries,
+    safety of the loaded clauses, the load itself, self-check, activation. Some 630 lines: one module
+    whose parts share the thread-local load state below (load_problem/1, source_path/2, collecting/0)
+    and the message hook that fills it; the stateless checks live in rule_checks.pl. */
 :- use_module(library(time), [call_with_time_limit/2]).
 :- use_module(library(sha), [sha_hash/3, hash_atom/2]).
 :- use_module(library(lists), [member/2, append/3]).
@@ -26,6 +25,11 @@
 :- use_module(library(prolog_codewalk), [prolog_walk_code/1]).
 :- use_module(library(error), [must_be/2]).
 :- use_module(library(aggregate), [aggregate_all/3]).
+:- import(wm_rule_checks:term_problem/2).
+:- import(wm_rule_checks:unbounded_call/4).
+:- import(wm_rule_checks:forbidden_subgoal/2).
+:- import(wm_rule_checks:bounded_term/2).
+:- import(wm_rule_checks:message_text/2).
 
 :- dynamic active_rules/1.          % active_rules(Module): the module decide/5 is answered from
 :- dynamic retired_rules/2.         % retired_rules(Module, RetiredAt [s]): freed after a grace period
@@ -190,59 +194,6 @@ time_limit_error(time_limit_exceeded(_)).
 explanation_string(E, S) :- catch(text_to_string(E, S), _, fail), !.
 explanation_string(E, S) :- format(string(S), "~W", [E, [quoted(true), max_depth(20)]]).
 
-%!  message_text(+Term, -Text:string) is det.
-%   The message SWI-Prolog would print for Term, without a location prefix, on one or more lines.
-message_text(Term0, Text) :-
-    %   A term built by a rule or a query can be nested deeper than the C stack can write.
-    bounded_term(Term0, Term),
-    (   Term = error(Formal, file(_, _, _, _)) -> Bare = error(Formal, _) ; Bare = Term ),
-    (   catch('$messages':translate_message(Bare, Lines, []), _, fail),
-        catch(with_output_to(string(S0), print_message_lines(current_output, '', Lines)), _, fail)
-    ->  split_string(S0, "", " \n", [Text])
-    ;   format(string(Text), "~q", [Term])
-    ).
-
-%!  bounded_term(+Term, -Bounded) is det.
-%   A copy of Term that prints safely: compound terms nested deeper than max_term_depth/1 and list
-%   elements beyond max_list_items/1 are replaced by '...'. SWI-Prolog writes (and compares) terms by C
-%   recursion, so a term nested some ten thousand levels deep can overflow the C stack of the thread
-%   that prints it; every term that leaves the knowledge base as text goes through this first.
-bounded_term(Term, Bounded) :-
-    max_term_depth(Depth),
-    bounded_term(Term, Depth, Bounded).
-
-max_term_depth(64).
-max_list_items(1000).
-
-bounded_term(T, _, T) :- \+ compound(T), !.
-bounded_term(_, 0, '...') :- !.
-bounded_term(T, D, B) :-
-    D1 is D - 1,
-    (   is_list_pair(T)
-    ->  max_list_items(Max),
-        bounded_list(T, Max, D1, B)
-    ;   compound_name_arguments(T, Name, Args),
-        bounded_args(Args, D1, BArgs),
-        compound_name_arguments(B, Name, BArgs)
-    ).
-
-is_list_pair(T) :- compound(T), T = [_|_].
-
-bounded_list(T, _, _, T) :- \+ is_list_pair(T), !.
-bounded_list(_, 0, _, ['...']) :- !.
-bounded_list([H|T], N, D, [BH|BT]) :-
-    bounded_term(H, D, BH),
-    N1 is N - 1,
-    (   is_list_pair(T) -> bounded_list(T, N1, D, BT) ; bounded_term(T, D, BT) ).
-
-bounded_args([], _, []).
-bounded_args([A|As], D, [B|Bs]) :- bounded_term(A, D, B), bounded_args(As, D, Bs).
-
-%!  term_text(+Term, -Text:string) is det.
-%   Term as writeq/1 prints it, bounded (see bounded_term/2). Used by C++ for any term it shows.
-term_text(Term, Text) :-
-    bounded_term(Term, Bounded),
-    format(string(Text), "~W", [Bounded, [quoted(true), portray(false), numbervars(true)]]).
 
 %!  reload(+Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result) is det.
 %   Loads Files, a list of file(Path, AbsolutePath) (Path is shown in messages), into a fresh module,
@@ -447,70 +398,6 @@ run_query(M, Goal, Bindings, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
         )
     ).
 
-%!  unbounded_call(+Goal, +Context, -Call, -Why) is semidet.
-%   Call is a subterm of Goal that no time limit can interrupt once it runs (C code producing output
-%   of a size the arguments choose) or, in a query (Context = query), that builds atoms, which no
-%   stack limit bounds. Checked on the text of queries and on every clause of a rule set.
-unbounded_call(Goal, Context, Call, Why) :-
-    subterm_where(unbounded_in(Context), Goal, Call, Why).
-
-unbounded_in(Context, Call, Why) :-
-    compound(Call),
-    unbounded(Call, Context, Why).
-
-unbounded(format(F, _), _, Why) :- format_unbounded(F, Why).
-unbounded(format(_, F, _), _, Why) :- format_unbounded(F, Why).
-unbounded(sformat(_, F, _), _, Why) :- format_unbounded(F, Why).
-unbounded(sformat(_, F), _, Why) :- format_unbounded(F, Why).
-unbounded(Call, query, Why) :-
-    atom_doubling(Call),
-    functor(Call, Name, Arity),
-    format(string(Why), "~w can build atoms twice as long as its inputs, and atoms are not bounded \c
-                         by a query's stack limit; use strings (string_concat/3, \c
-                         format(string(S), ...))", [Name/Arity]).
-
-atom_doubling(atom_concat(_, _, _)).
-atom_doubling(atomic_list_concat(_, _)).
-atom_doubling(atomic_list_concat(_, _, _)).
-atom_doubling(term_to_atom(_, _)).
-atom_doubling(format(Sink, _, _)) :- nonvar(Sink), Sink = atom(_).
-atom_doubling(with_output_to(Sink, _)) :- nonvar(Sink), Sink = atom(_).
-
-%   A format text whose column, fill or precision argument exceeds max_format_argument/1, or that
-%   takes one from the arguments (*): format/2,3 would write that many characters in C.
-format_unbounded(F, Why) :-
-    (   atom(F) -> atom_codes(F, Codes)
-    ;   string(F) -> string_codes(F, Codes)
-    ;   is_list(F), F = [C|_], integer(C) -> Codes = F
-    ),
-    max_format_argument(Max),
-    format_directive_argument(Codes, Argument),
-    (   Argument == (*) ; integer(Argument), Argument > Max ),
-    !,
-    format(string(Why), "a format directive argument (~w) above ~d or taken from the arguments \c
-                         (*) could write without limit", [Argument, Max]).
-
-max_format_argument(1000).
-
-format_directive_argument([0'~|Codes], Argument) :-
-    directive_argument(Codes, Argument, _).
-format_directive_argument([0'~, 0'~|Codes], Argument) :- !,
-    format_directive_argument(Codes, Argument).
-format_directive_argument([_|Codes], Argument) :-
-    format_directive_argument(Codes, Argument).
-
-directive_argument([0'`, _|Codes], Argument, Rest) :- !,        % ~`ct: a fill character
-    directive_argument(Codes, Argument, Rest).
-directive_argument([0'*|Rest], (*), Rest) :- !.
-directive_argument([D|Codes], Argument, Rest) :-
-    code_type(D, digit(W)),
-    digits(Codes, W, Argument, Rest).
-
-digits([D|Codes], N0, N, Rest) :-
-    code_type(D, digit(W)), !,
-    N1 is N0 * 10 + W,
-    digits(Codes, N1, N, Rest).
-digits(Rest, N, N, Rest).
 
 %!  check_rules_safe(+Module) is det.
 %   Records a load_problem/1 unless everything decide/5 and prune/3 can call is safe to run: no
@@ -554,37 +441,6 @@ entry_location(M, Head, Location) :-
 
 binding_name_var(Name = Var, NameString, Var) :- atom_string(Name, NameString).
 
-%   Database writes the sandbox lets through (it accepts assertz/1 on the calling module).
-forbidden_subgoal(Goal, Bad) :-
-    subterm_where(forbidden_call, Goal, Bad, _).
-
-forbidden_call(Goal, Name/Arity) :-
-    ( Goal = _:G -> true ; G = Goal ),
-    callable(G),
-    functor(G, Name, Arity),
-    forbidden(Name, Arity).
-
-%!  subterm_where(:Test, +Term, -Sub, -Info) is semidet.
-%   Sub is the first callable subterm of Term (itself included, depth first) for which
-%   call(Test, Sub, Info) is true. A deterministic walk over an agenda: sub_term/2 leaves a choice
-%   point per level and takes quadratic time (and a deep stack) on a chain like 1+1+...+1.
-subterm_where(Test, Term, Sub, Info) :-
-    subterm_in([Term], Test, Sub, Info).
-
-subterm_in([T|Ts], Test, Sub, Info) :-
-    (   callable(T), call(Test, T, Info0)
-    ->  Sub = T, Info = Info0
-    ;   compound(T)
-    ->  compound_name_arguments(T, _, Args),
-        append(Args, Ts, Agenda),
-        subterm_in(Agenda, Test, Sub, Info)
-    ;   subterm_in(Ts, Test, Sub, Info)
-    ).
-
-forbidden(Name, _) :-
-    memberchk(Name, [assert, asserta, assertz, retract, retractall, abolish, erase, recorda, recordz,
-                     flag, nb_setval, b_setval, set_prolog_flag, dynamic, multifile, discontiguous,
-                     compile_predicates, garbage_collect_clauses, transaction, snapshot]).
 
 load_all([], _, _, []).
 load_all([File|Files], M, N, [Hash|Hashes]) :-
@@ -650,7 +506,11 @@ check_terms(Stream, Path, M) :-
     ;   Term == end_of_file
     ->  !
     ;   stream_position_data(line_count, Pos, Line),
-        check_term(Term, Path, Line),
+        (   term_problem(Term, Text)
+        ->  format(string(P), "~w:~w: ~w", [Path, Line, Text]),
+            assertz(load_problem(P))
+        ;   true
+        ),
         fail
     ).
 
@@ -658,87 +518,6 @@ syntax_error_line(error(_, stream(_, Line, _, _)), Line) :- integer(Line), !.
 syntax_error_line(error(_, string(_, _)), 0) :- !.
 syntax_error_line(_, 0).
 
-rule_problem(Path, Line, Format, Args) :-
-    format(string(Text), Format, Args),
-    format(string(P), "~w:~w: ~w", [Path, Line, Text]),
-    assertz(load_problem(P)).
-
-check_term(Term, Path, Line) :-
-    var(Term), !,
-    rule_problem(Path, Line, "a clause may not be a variable", []).
-check_term((:- Directive), Path, Line) :- !,
-    check_directive(Directive, Path, Line).
-check_term((?- Directive), Path, Line) :- !,
-    check_directive(Directive, Path, Line).
-check_term((Head --> _), Path, Line) :- !,
-    check_head(Head, 2, Path, Line).
-check_term((Head :- _), Path, Line) :- !,
-    check_head(Head, 0, Path, Line).
-check_term(Head, Path, Line) :-
-    check_head(Head, 0, Path, Line).
-
-check_directive(Directive, Path, Line) :-
-    (   var(Directive)
-    ->  rule_problem(Path, Line, "a directive may not be a variable", [])
-    ;   Directive = module(Other, _)
-    ->  rule_problem(Path, Line, "rule files are plain clauses: remove the module declaration (~q)", [Other])
-    ;   allowed_directive(Directive)
-    ->  true
-    ;   bounded_term(Directive, Shown),
-        safe_libraries(Libraries),
-        atomic_list_concat(Libraries, '|', Names),
-        rule_problem(Path, Line,
-                     "directive ~q is not allowed in a rule file (rule files are loaded without running \c
-                      code; allowed: use_module/ensure_loaded of library(~w), and dynamic, discontiguous, \c
-                      multifile of the file's own predicates)", [(:- Shown), Names])
-    ).
-
-allowed_directive(use_module(library(L))) :- safe_library(L).
-allowed_directive(use_module(library(L), Imports)) :- safe_library(L), is_list(Imports).
-allowed_directive(ensure_loaded(library(L))) :- safe_library(L).
-allowed_directive(dynamic(PIs)) :- local_indicators(PIs).
-allowed_directive(discontiguous(PIs)) :- local_indicators(PIs).
-allowed_directive(multifile(PIs)) :- local_indicators(PIs).
-allowed_directive(encoding(utf8)).
-
-safe_libraries([lists, apply, aggregate, pairs, yall, error, ordsets, assoc, rbtrees, option,
-                solution_sequences, occurs, strings, dicts]).
-
-safe_library(L) :- atom(L), safe_libraries(Ls), memberchk(L, Ls).
-
-local_indicators(PIs) :- var(PIs), !, fail.
-local_indicators((A, B)) :- !, local_indicators(A), local_indicators(B).
-local_indicators([]) :- !.
-local_indicators([PI|PIs]) :- !, local_indicators(PI), local_indicators(PIs).
-local_indicators(Name/Arity) :- !, atom(Name), integer(Arity), between(0, 64, Arity).
-local_indicators(Name//Arity) :- atom(Name), integer(Arity), between(0, 62, Arity).
-
-check_head(Head, Extra, Path, Line) :-
-    (   var(Head)
-    ->  rule_problem(Path, Line, "a clause head may not be a variable", [])
-    ;   Head = Module:_
-    ->  bounded_term(Module, Shown),
-        rule_problem(Path, Line,
-                     "clauses for another module (~q:...) are not allowed: rule files define \c
-                      predicates of the rule module only", [Shown])
-    ;   callable(Head),
-        functor(Head, Name, Arity0),
-        Arity is Arity0 + Extra,
-        reserved_head(Name/Arity)
-    ->  rule_problem(Path, Line, "~q is a hook of Prolog itself; rule files may not define it",
-                     [Name/Arity])
-    ;   true                            % load_files reports any other bad head
-    ).
-
-%   Hooks Prolog calls on its own while loading or printing: defining them would run code.
-reserved_head(term_expansion/2).
-reserved_head(term_expansion/4).
-reserved_head(goal_expansion/2).
-reserved_head(goal_expansion/4).
-reserved_head(message_hook/3).
-reserved_head(portray/1).
-reserved_head(prolog_load_file/2).
-reserved_head(exception/3).
 
 problem_at(File, Line, Term) :-
     message_text(Term, Text0),

@@ -1,23 +1,24 @@
-/*  plunit tests for engine_support.pl, the Prolog half of rules::Engine.
+/*  plunit tests for engine_support.pl, the Prolog half of rules::Engine (module wm_engine).
 
     Run:  swipl -g run_tests -t halt rules/internal/engine_support.plt
     (ctest runs it as rules_support_plunit.)
 
-    The module is loaded from its file here; the Engine loads the same text embedded in the library.
-    The Engine registers one foreign predicate in it, text_nesting_exceeds/3; a Prolog stand-in below
-    counts brackets the same way for plain texts (the C++ counter itself, with quotes, comments and
-    0'c literals, is tested through the Engine in tests/rules/engine_security_test.cpp).
+    The modules are loaded from their files here, rule_checks.pl first as the Engine does; the Engine
+    loads the same texts embedded in the library. The Engine registers one foreign predicate in
+    wm_engine, text_nesting_exceeds/3; a Prolog stand-in below counts brackets the same way for plain
+    texts (the C++ counter itself, with quotes, comments and 0'c literals, is tested through the
+    Engine in tests/rules/engine_security_test.cpp).
 
     Each test states values: what a check refuses and with which message, what it accepts, what a
-    decision, query or reload answers.
+    decision, query or reload answers. The stateless checks have their own tests in rule_checks.plt.
 */
 :- use_module(library(plunit)).
 :- use_module(library(lists)).
 :- use_module(library(apply)).
 
 :- prolog_load_context(directory, Dir),
-   directory_file_path(Dir, 'engine_support.pl', File),
-   use_module(File, []),
+   forall(member(Name, ['rule_checks.pl', 'engine_support.pl']),   % the order the Engine loads them in
+          ( directory_file_path(Dir, Name, File), use_module(File, []) )),
    assertz(test_dir(Dir)).
 
 %   Stand-in for the foreign predicate: depth of ( [ { in Text, ignoring quotes and comments.
@@ -151,80 +152,6 @@ test(refuses_nesting_deeper_than_200_levels) :-
     refused_with(Text, "brackets nested deeper than 200 levels").
 
 :- end_tests(check_rule_text).
-
-:- begin_tests(bounded_term).
-
-test(keeps_a_small_term, [B == f(a, [1, 2], "s")]) :-
-    wm_engine:bounded_term(f(a, [1, 2], "s"), B).
-
-test(cuts_depth_at_64, [D == 64]) :-
-    deep(1000, T),
-    wm_engine:bounded_term(T, B),
-    depth(B, D),
-    assertion(sub_term('...', B)).
-
-test(cuts_a_long_list_after_1000_items, [N-Last == 1001-'...']) :-
-    numlist(1, 5000, L),
-    wm_engine:bounded_term(L, B),
-    length(B, N),
-    last(B, Last).
-
-test(term_text_of_a_deep_term_is_short, [true(Length < 1000)]) :-
-    deep(100000, T),
-    wm_engine:term_text(T, Text),
-    string_length(Text, Length).
-
-test(term_text_quotes, [Text == "f('A b',\"s\")"]) :-
-    wm_engine:term_text(f('A b', "s"), Text).
-
-:- end_tests(bounded_term).
-
-:- begin_tests(unbounded_calls).
-
-unbounded(Goal, Context) :- wm_engine:unbounded_call(Goal, Context, _, _).
-
-test(refuses_a_star_column_argument, [Why == "a format directive argument (*) above 1000 or taken from the arguments (*) could write without limit"]) :-
-    wm_engine:unbounded_call(format("~*c", [100, 0'x]), rule, Call, Why),
-    assertion(Call == format("~*c", [100, 0'x])).
-
-test(refuses_a_column_above_1000) :-
-    unbounded(format(atom(_), "~1001|x", []), rule).
-
-test(refuses_a_fill_character_with_a_large_column) :-
-    unbounded((true, format("~`-t~5000|~n", [])), rule).
-
-test(accepts_a_column_of_1000, [fail]) :-
-    unbounded(format("~1000|x"), rule).
-
-test(accepts_an_escaped_tilde_before_a_star, [fail]) :-
-    unbounded(format("~~*c", []), rule).
-
-test(accepts_plain_directives, [fail]) :-
-    unbounded(format("~w and ~a~n", [x, y]), query).
-
-test(refuses_atom_building_in_a_query, [true(sub_string(Why, 0, _, _, "atom_concat/3 can build atoms"))]) :-
-    wm_engine:unbounded_call((X = a, atom_concat(X, X, _)), query, _, Why).
-
-test(allows_atom_building_in_a_rule, [fail]) :-
-    unbounded(atom_concat(a, b, _), rule).
-
-test(finds_a_write_in_a_nested_goal, [Bad =@= assertz(seen(_))]) :-
-    wm_engine:forbidden_subgoal((member(X, [1]), \+ \+ (X > 0, assertz(seen(X)))), Bad).
-
-test(finds_no_write_in_a_read_only_goal, [fail]) :-
-    wm_engine:forbidden_subgoal((member(X, [1]), X > 0), _).
-
-:- end_tests(unbounded_calls).
-
-:- begin_tests(messages).
-
-test(type_error_is_printed_as_prolog_would, [true(sub_string(Text, _, _, _, "Type error"))]) :-
-    wm_engine:message_text(error(type_error(integer, a), _), Text).
-
-test(unknown_term_is_written_quoted, [Text == "Unknown message: my_problem('X')"]) :-
-    wm_engine:message_text(my_problem('X'), Text).
-
-:- end_tests(messages).
 
 :- begin_tests(decisions, [cleanup(wm_engine:shutdown)]).
 

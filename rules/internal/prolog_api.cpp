@@ -39,7 +39,7 @@ std::string written(term_t t) {
   term_t args = PL_new_term_refs(2);  // term_text(+Term, -Text)
   if (PL_put_term(args, t) &&
       PL_call_predicate(nullptr, PL_Q_NODEBUG | PL_Q_CATCH_EXCEPTION,
-                        PL_predicate("term_text", 2, kSupportModuleName), args)) {
+                        PL_predicate("term_text", 2, kRuleChecksModuleName), args)) {
     if (auto chars = text_of(args + 1)) text = std::move(*chars);
   }
   PL_discard_foreign_frame(frame);

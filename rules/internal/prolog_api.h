@@ -19,6 +19,8 @@ namespace wm::rules::internal {
 
 /// Name of the support module (rules/internal/engine_support.pl) that holds every entry point C++ calls.
 inline constexpr const char* kSupportModuleName = "wm_engine";
+/// Name of the module of rule and query checks and bounded printing (rules/internal/rule_checks.pl).
+inline constexpr const char* kRuleChecksModuleName = "wm_rule_checks";
 
 /// @throw RuleError("<function>: thread not attached ...") when the calling thread has no Prolog engine.
 void require_attached(const char* function);
@@ -57,7 +59,7 @@ class StringBufferMark {
 /// Text of an atom or string term (UTF-8); nullopt for any other term.
 std::optional<std::string> text_of(term_t t);
 
-/// Any term as writeq/1 prints it, bounded by wm_engine:term_text/2 (depth 64, 1000 list items):
+/// Any term as writeq/1 prints it, bounded by wm_rule_checks:term_text/2 (depth 64, 1000 list items):
 /// PL_get_nchars(CVT_WRITEQ) writes by C recursion, and a term a rule or query built ten thousand
 /// levels deep overflows the thread's C stack there. "<unprintable Prolog term>" when that fails.
 std::string written(term_t t);

@@ -7,9 +7,11 @@
 #include <filesystem>
 #include <iterator>
 #include <string>
+#include <string_view>
 #include <system_error>
 
 #include "rules/internal/engine_support_pl.h"  // generated from engine_support.pl
+#include "rules/internal/rule_checks_pl.h"     // generated from rule_checks.pl
 #include "rules/internal/prolog_api.h"
 #include "rules/internal/text_checks.h"
 #include "rules/types.h"
@@ -17,8 +19,6 @@
 namespace wm::rules::internal {
 namespace {
 
-// Source id the support module is loaded under (shows in its messages); not a file on disk.
-constexpr const char* kSupportModuleSourceId = "wm_engine_support.pl";
 
 std::filesystem::path home_hint_argv0() {
   // PL_initialise derives the home from argv[0] when it can and otherwise falls back to the home
@@ -27,6 +27,35 @@ std::filesystem::path home_hint_argv0() {
   std::error_code ec;
   auto self = std::filesystem::read_symlink("/proc/self/exe", ec);
   return ec ? std::filesystem::path("wmd") : self;
+}
+
+// Loads a module from its embedded text under `source_id` (shows in its messages; not a file on
+// disk), then checks that `probe` (Module:Name/Arity) is defined.
+void load_module_text(std::string_view text, const char* source_id, const char* probe) {
+  const std::string what = std::string("Engine (loading ") + source_id + ")";
+  Frame frame;
+  term_t open_args = PL_new_term_refs(2);  // open_string(+Text, -Stream)
+  put_string(open_args, text, what);
+  call_or_throw(PL_predicate("open_string", 2, "system"), open_args, what.c_str());
+  term_t stream = open_args + 1;
+
+  term_t load_args = PL_new_term_refs(2);  // load_files(+Id, +[stream(Stream), silent(true)])
+  put_atom(load_args, source_id);
+  term_t option = PL_new_term_ref();
+  PL_put_nil(load_args + 1);
+  require_stack(PL_put_atom_chars(option, "true"), what);
+  put_functor(option, PL_new_functor(PL_new_atom("silent"), 1), option, what);
+  cons(load_args + 1, option);
+  put_functor(option, PL_new_functor(PL_new_atom("stream"), 1), stream, what);
+  cons(load_args + 1, option);
+  auto load_error = call_once(PL_predicate("load_files", 2, "system"), load_args);
+  (void)call_once(PL_predicate("close", 1, "system"), stream);
+  if (load_error) throw RuleError(what + ": " + *load_error);
+  term_t check = PL_new_term_ref();
+  const std::string goal = std::string("current_predicate(") + probe + ")";
+  if (!PL_chars_to_term(goal.c_str(), check) || call_once(PL_predicate("call", 1, "system"), check)) {
+    throw RuleError(what + ": " + probe + " is missing");
+  }
 }
 
 }  // namespace
@@ -58,30 +87,8 @@ void initialise_runtime() {
 }
 
 void load_support_module() {
-  constexpr const char* kWhat = "Engine (loading the support module)";
-  Frame frame;
-  term_t open_args = PL_new_term_refs(2);  // open_string(+Text, -Stream)
-  put_string(open_args, kSupportModuleText, kWhat);
-  call_or_throw(PL_predicate("open_string", 2, "system"), open_args, kWhat);
-  term_t stream = open_args + 1;
-
-  term_t load_args = PL_new_term_refs(2);  // load_files(+Id, +[stream(Stream), silent(true)])
-  put_atom(load_args, kSupportModuleSourceId);
-  term_t option = PL_new_term_ref();
-  PL_put_nil(load_args + 1);
-  require_stack(PL_put_atom_chars(option, "true"), kWhat);
-  put_functor(option, PL_new_functor(PL_new_atom("silent"), 1), option, kWhat);
-  cons(load_args + 1, option);
-  put_functor(option, PL_new_functor(PL_new_atom("stream"), 1), stream, kWhat);
-  cons(load_args + 1, option);
-  auto load_error = call_once(PL_predicate("load_files", 2, "system"), load_args);
-  (void)call_once(PL_predicate("close", 1, "system"), stream);
-  if (load_error) throw RuleError(std::string(kWhat) + ": " + *load_error);
-  term_t check = PL_new_term_ref();
-  if (!PL_chars_to_term("current_predicate(wm_engine:reload/6)", check) ||
-      call_once(PL_predicate("call", 1, "system"), check)) {
-    throw RuleError(std::string(kWhat) + ": wm_engine:reload/6 is missing");
-  }
+  load_module_text(kRuleChecksText, "wm_rule_checks.pl", "wm_rule_checks:term_problem/2");
+  load_module_text(kSupportModuleText, "wm_engine_support.pl", "wm_engine:reload/6");
 }
 
 }  // namespace wm::rules::internal

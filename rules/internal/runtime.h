@@ -10,9 +10,10 @@ namespace wm::rules::internal {
 /// signal dispositions. @throw RuleError when the runtime does not start or a registration fails.
 void initialise_runtime();
 
-/// Loads the wm_engine support module from the text embedded at build time (engine_support.pl).
-/// Loading it again (a later Engine in the same process) replaces it and resets its state. Needs an
-/// attached thread. @throw RuleError when it does not load.
+/// Loads the support modules from the texts embedded at build time: wm_rule_checks (rule_checks.pl),
+/// then wm_engine (engine_support.pl), which imports from it. Loading them again (a later Engine in the
+/// same process) replaces them and resets their state. Needs an attached thread.
+/// @throw RuleError when one does not load.
 void load_support_module();
 
 }  // namespace wm::rules::internal
