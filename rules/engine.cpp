@@ -39,12 +39,13 @@ using internal::require_attached;
 std::atomic<bool> engine_exists{false};
 
 std::int64_t unix_now_s() {
-  return std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
 // What decide() answers when the rules fail: adding keeps the observation and touches nothing else.
-Decision fallback_decision(const std::string& error) { return Decision{"add", "fallback", "rules failed: " + error, true}; }
+Decision fallback_decision(const std::string& error) {
+  return Decision{"add", "fallback", "rules failed: " + error, true};
+}
 
 // "line\nline..." of a list of problem texts, or `otherwise` when there is none.
 std::string joined_lines(const std::vector<std::string>& lines, const char* otherwise) {
@@ -73,9 +74,18 @@ struct EntryPoints {
 
   static EntryPoints lookup() {
     const auto p = [](const char* name, int arity) { return PL_predicate(name, arity, internal::kSupportModuleName); };
-    return {p("init", 0),        p("shutdown", 0),     p("set_floor_plan", 1), p("set_elements", 1),
-            p("update_elements", 2), p("add_decisions", 2), p("decide", 6),     p("decide_batch", 4),
-            p("reload", 6),      p("dry_run", 6),      p("prune", 4),          p("query", 5)};
+    return {.init = p("init", 0),
+            .shutdown = p("shutdown", 0),
+            .set_floor_plan = p("set_floor_plan", 1),
+            .set_elements = p("set_elements", 1),
+            .update_elements = p("update_elements", 2),
+            .add_decisions = p("add_decisions", 2),
+            .decide = p("decide", 6),
+            .decide_batch = p("decide_batch", 4),
+            .reload = p("reload", 6),
+            .dry_run = p("dry_run", 6),
+            .prune = p("prune", 4),
+            .query = p("query", 5)};
   }
 };
 
@@ -259,7 +269,8 @@ RulesStatus Engine::reload() {
       term_t list = PL_new_term_ref();
       if (!PL_get_arg(1, result, list)) throw RuleError("reload: malformed answer " + internal::written(result));
       std::vector<std::string> lines = internal::read_texts(list);
-      if (!PL_is_functor(result, d.vocabulary.ok)) throw RuleError(joined_lines(lines, "reload: the rules were rejected"));
+      if (!PL_is_functor(result, d.vocabulary.ok))
+        throw RuleError(joined_lines(lines, "reload: the rules were rejected"));
       hashes = std::move(lines);
     }
     if (hashes.size() != paths.size()) throw RuleError("reload: wrong number of file hashes");

@@ -37,9 +37,8 @@ std::string written(term_t t) {
   if (frame == 0) return "<unprintable Prolog term>";
   std::string text = "<unprintable Prolog term>";
   term_t args = PL_new_term_refs(2);  // term_text(+Term, -Text)
-  if (PL_put_term(args, t) &&
-      PL_call_predicate(nullptr, PL_Q_NODEBUG | PL_Q_CATCH_EXCEPTION,
-                        PL_predicate("term_text", 2, kRuleChecksModuleName), args)) {
+  if (PL_put_term(args, t) && PL_call_predicate(nullptr, PL_Q_NODEBUG | PL_Q_CATCH_EXCEPTION,
+                                                PL_predicate("term_text", 2, kRuleChecksModuleName), args)) {
     if (auto chars = text_of(args + 1)) text = std::move(*chars);
   }
   PL_discard_foreign_frame(frame);

@@ -11,14 +11,13 @@
 #include <system_error>
 
 #include "rules/internal/engine_support_pl.h"  // generated from engine_support.pl
-#include "rules/internal/rule_checks_pl.h"     // generated from rule_checks.pl
 #include "rules/internal/prolog_api.h"
+#include "rules/internal/rule_checks_pl.h"  // generated from rule_checks.pl
 #include "rules/internal/text_checks.h"
 #include "rules/types.h"
 
 namespace wm::rules::internal {
 namespace {
-
 
 std::filesystem::path home_hint_argv0() {
   // PL_initialise derives the home from argv[0] when it can and otherwise falls back to the home

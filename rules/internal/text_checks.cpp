@@ -57,8 +57,10 @@ bool nesting_exceeds(std::string_view text, int max, int& line) {
         if (text[i] == '\\') {
           ++i;
         } else if (text[i] == c) {
-          if (i + 1 < text.size() && text[i + 1] == c) ++i;  // a doubled quote stands for itself
-          else break;
+          if (i + 1 < text.size() && text[i + 1] == c)
+            ++i;  // a doubled quote stands for itself
+          else
+            break;
         } else if (text[i] == '\n') {
           ++line;
         }
