@@ -54,8 +54,10 @@ struct FloorPlanLimits {
   std::size_t max_id_length = 128;
 };
 
-/// Parses and validates the JSON floor plan of DESIGN.md ("units" may be "m", "cm" or "mm"; coordinates are
-/// converted to metres). @throw FloorPlanError with the path of the first bad field.
+/// Parses and validates a JSON floor plan: {"name", "units", "objects": [{"id", "kind", "attributes",
+/// "pose": {"x", "y", "theta"}, "segments" (open polylines) or "polygon" (closed), in the object's frame}]}.
+/// "units" may be "m", "cm" or "mm"; coordinates are converted to metres.
+/// @throw FloorPlanError with the path of the first bad field.
 FloorPlan parse_floor_plan_json(std::string_view text, const FloorPlanLimits& limits = {});
 
 /// The canonical JSON text of a plan (units "m"); parse_floor_plan_json(to_json_text(p)) == p exactly.

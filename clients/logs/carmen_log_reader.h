@@ -38,7 +38,7 @@ struct CarmenReaderOptions {
   /// ROBOTLASER1 lines carry their own maximum_range and ignore this.
   double flaser_range_max_m = 50.0;
   double range_min_m = 0.02;     // readings below are ignored [m]
-  double sigma_range_m = 0.01;   // range standard deviation given to every scan [m] (SICK LMS, FUSION.md §5)
+  double sigma_range_m = 0.01;   // range standard deviation given to every scan [m] (SICK LMS, docs/fusion.md §5)
 };
 
 /// Reads a CARMEN log, plain or gzip-compressed (detected from the content), line by line in file order, and

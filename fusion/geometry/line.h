@@ -49,7 +49,7 @@ struct LineSegment {
 };
 
 /// Expresses a line given in a local frame (pose relative to world) in the world frame, propagating both the
-/// line covariance and the pose covariance (3x3 over x [m], y [m], θ [rad]) to first order — FUSION.md §4
+/// line covariance and the pose covariance (3x3 over x [m], y [m], θ [rad]) to first order — docs/fusion.md §4
 /// "Robot frame to world frame": φ_w = φ + θ, ρ_w = ρ + x cos φ_w + y sin φ_w, C_w = J_L C_L J_Lᵀ + J_pose P J_poseᵀ.
 /// The result is normalized. `local` may be in either representation.
 /// @throw std::invalid_argument for non-finite input.

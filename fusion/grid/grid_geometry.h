@@ -13,9 +13,10 @@ struct CellIndex {
   bool operator==(const CellIndex&) const = default;
 };
 
-/// The extent of a finite raster, modelled on Cartographer's MapLimits but in the ROS map convention
-/// (DESIGN.md): origin = world position [m] of the lower-left corner of cell (0, 0), cells of `resolution` m,
-/// `width` columns along world x and `height` rows along world y, stored row-major from the bottom row.
+/// The extent of a finite raster, modelled on Cartographer's MapLimits but in the ROS map_server convention (so
+/// exported grids load there unchanged): origin = world position [m] of the lower-left corner of cell (0, 0),
+/// cells of `resolution` m, `width` columns along world x and `height` rows along world y, stored row-major from
+/// the bottom row.
 /// Invariant: origin finite, 0 < resolution <= 100 m, 1 <= width, height <= 1'000'000.
 class GridGeometry {
  public:

@@ -162,7 +162,7 @@ class OccupancyGrid {
   std::vector<TileIndex> dirty_;
 };
 
-/// Dempster's rule on the frame {O, E} (FUSION.md §1): K = a_O·b_E + a_E·b_O,
+/// Dempster's rule on the frame {O, E} (docs/fusion.md §1): K = a_O·b_E + a_E·b_O,
 /// m(O) = (a_O·b_O + a_O·b_Θ + a_Θ·b_O)/(1 − K), m(E) likewise, m(Θ) = a_Θ·b_Θ/(1 − K).
 /// Total conflict (K = 1, within 1e-12) returns nullopt masses (the caller keeps the old cell and records K = 1).
 struct DempsterResult {

@@ -12,7 +12,7 @@
 
 namespace wm::fusion {
 
-/// Inverse sensor models for the occupancy grids (seed paper §3, FUSION.md §1 and §5), shared by the Bayes and
+/// Inverse sensor models for the occupancy grids (seed paper §3, docs/fusion.md §1 and §5), shared by the Bayes and
 /// the Dempster–Shafer update. Every field is used; validate() checks them all once.
 ///
 /// Geometry of a beam: a cone (wedge) with its apex at the sensor, aperture laser_beam_width_rad (laser) or the
@@ -46,7 +46,7 @@ struct SensorModelOptions {
   double ds_empty_factor_k = 0.9;       // DS: P_e = k·(1 − P_o) along the beam, [0, 1)
   double ds_laser_occupied_mass = 0.9;  // DS: peak m(O) of a laser return; the rest stays unknown, (0, 1)
   double ds_sonar_occupied_mass = 0.5;  // DS: peak m(O) of a sonar arc cell, (0, 1)
-  double sonar_sigma_per_range = 0.01;  // sonar σ = scan σ + this × reading (FUSION.md §5: ±1 %) [m/m], >= 0
+  double sonar_sigma_per_range = 0.01;  // sonar σ = scan σ + this × reading (docs/fusion.md §5: ±1 %) [m/m], >= 0
   /// Longest distance a beam is walked [m] (OctoMap's maxrange, GMapping's maxUrange): a reading beyond it, or
   /// a "no return", clears free space up to it without marking a hit. Bounds the cost of a beam and keeps
   /// 80 m "no return" codes of old SICK logs from wiping whole buildings. > 0, finite.

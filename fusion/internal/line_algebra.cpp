@@ -70,7 +70,7 @@ AlignedLine align_to(const LineFeature& reference, const LineFeature& other, std
 }
 
 TransformedLine transform_line_raw(double rho_m, double phi_rad, const Pose2D& pose) {
-  // FUSION.md §4: φ_w = φ + θ, ρ_w = ρ + x cos φ_w + y sin φ_w. The along-line coordinate of the pose origin,
+  // docs/fusion.md §4: φ_w = φ + θ, ρ_w = ρ + x cos φ_w + y sin φ_w. The along-line coordinate of the pose origin,
   // −x sin φ_w + y cos φ_w, is the lever arm through which φ (and θ) errors move ρ_w.
   const double phi_w = normalize_angle(phi_rad + pose.theta_rad);
   const double c = std::cos(phi_w);

@@ -30,7 +30,7 @@ struct AlignedLine {
 AlignedLine align_to(const LineFeature& reference, const LineFeature& other, std::string_view caller);
 
 /// A local line mapped into the world by a pose, in the representation the formula gives (not normalized),
-/// with the Jacobians of FUSION.md §4: d_line = ∂(ρ_w, φ_w)/∂(ρ, φ), d_pose = ∂(ρ_w, φ_w)/∂(x, y, θ).
+/// with the Jacobians of docs/fusion.md §4: d_line = ∂(ρ_w, φ_w)/∂(ρ, φ), d_pose = ∂(ρ_w, φ_w)/∂(x, y, θ).
 /// d_pose is the measurement Jacobian H of a rigid object's edge.
 struct TransformedLine {
   double rho_m = 0.0;

@@ -8,7 +8,7 @@
 
 namespace wm::fusion {
 
-/// When an observed segment counts as the same element as a mapped one (FUSION.md §4 "Gating", "Segment extent").
+/// When an observed segment counts as the same element as a mapped one (docs/fusion.md §4 "Gating", "Segment extent").
 struct MatchOptions {
   double gate_chi2 = 5.991;  // χ²(2 dof) gate on (ρ, φ); 95 %
   double max_gap_m = 0.10;   // largest gap between the extents (projected on the element's line) still matched [m]
@@ -38,7 +38,7 @@ struct MatchResult {
 std::optional<MatchResult> best_match(std::span<const LineSegment> candidates, const LineSegment& observed,
                                       const MatchOptions& options);
 
-/// Information-form fusion (Kalman update with H = I, FUSION.md §4) of observed into element:
+/// Information-form fusion (Kalman update with H = I, docs/fusion.md §4) of observed into element:
 /// P = (Pa⁻¹+Pb⁻¹)⁻¹, L = P(Pa⁻¹La + Pb⁻¹Lb) with observed expressed in element's representation (the closer of
 /// its two representations, φ unwrapped next to element's), result normalized; extent = union of the four
 /// endpoints projected onto the fused line.

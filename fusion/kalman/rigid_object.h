@@ -20,7 +20,7 @@ struct LocalEdge {
 /// Invariant: edges never change; only the pose does, so every world edge is regenerated from the pose
 /// (lengths and angles between edges are kept exactly). pose_cov is symmetric positive semi-definite.
 /// State s = (x [m], y [m], θ [rad]); edge k is the local line (ρ_kᵒ, φ_kᵒ) through its endpoints, observed as
-/// h_k(s) = [ρ_kᵒ + x cos φ_k + y sin φ_k; φ_k], φ_k = φ_kᵒ + θ (FUSION.md §4, "Rigid object").
+/// h_k(s) = [ρ_kᵒ + x cos φ_k + y sin φ_k; φ_k], φ_k = φ_kᵒ + θ (docs/fusion.md §4, "Rigid object").
 class RigidObject {
  public:
   /// @throw std::invalid_argument: no edges, degenerate edge (<1e-9 m), non-finite values, pose_cov not symmetric
@@ -33,7 +33,7 @@ class RigidObject {
   const std::vector<LocalEdge>& edges() const { return edges_; }
 
   /// Edge k in the world frame: endpoints by transforming the local endpoints with pose(); the line covariance
-  /// is H P Hᵀ + edge_noise (H = ∂h_k/∂s, FUSION.md §4), so the gate sees the pose uncertainty. edge_noise
+  /// is H P Hᵀ + edge_noise (H = ∂h_k/∂s, docs/fusion.md §4), so the gate sees the pose uncertainty. edge_noise
   /// [m², rad²] is added in the normalized world representation.
   /// @throw std::out_of_range for k >= edges().size(); std::invalid_argument for non-finite edge_noise.
   LineSegment world_edge(std::size_t k, const Eigen::Matrix2d& edge_noise) const;

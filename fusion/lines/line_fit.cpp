@@ -53,7 +53,7 @@ RawFit solve(std::span<const Eigen::Vector2d> points, const std::vector<double>&
   return fit;
 }
 
-// C_L = Σ J_i Q_i J_iᵀ, FUSION.md §2:
+// C_L = Σ J_i Q_i J_iᵀ, docs/fusion.md §2:
 //   ∂α/∂x_i = w_i[−D(y_i−ȳ) + N(x_i−x̄)]/Q,  ∂α/∂y_i = w_i[−D(x_i−x̄) − N(y_i−ȳ)]/Q,  Q = N² + D²,
 //   ∂r/∂(x_i, y_i) = (w_i/W)(cos α, sin α) + t_c·∂α/∂(x_i, y_i),  t_c = −x̄ sin α + ȳ cos α.
 Eigen::Matrix2d covariance(std::span<const Eigen::Vector2d> points, std::span<const Eigen::Matrix2d> covs,

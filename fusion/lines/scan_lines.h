@@ -10,7 +10,7 @@
 
 namespace wm::fusion {
 
-/// Settings of the scan line extractor (split-and-merge, FUSION.md §2 for the fit).
+/// Settings of the scan line extractor (split-and-merge, docs/fusion.md §2 for the fit).
 struct ScanLineOptions {
   std::size_t min_points = 6;        // fewer points: no segment
   double min_length_m = 0.3;         // shorter: no segment

@@ -38,7 +38,7 @@ LineFeature fit_isotropic(const std::vector<Eigen::Vector2d>& points, double sig
   return fit_line(points, sigmas);
 }
 
-// FUSION.md §2 closed form for isotropic σ_i, in the representation of `line`:
+// docs/fusion.md §2 closed form for isotropic σ_i, in the representation of `line`:
 // var φ = 1/Σw(t−t̄)², var ρ = 1/W + t_c²·var φ, cov(ρ, φ) = t_c·var φ, t_c = coordinate of the weighted centroid.
 Eigen::Matrix2d closed_form_cov(const LineFeature& line, const std::vector<Eigen::Vector2d>& points,
                                 const std::vector<double>& sigmas) {
@@ -147,7 +147,7 @@ TEST(FitLineTest, PhiFlipsByPiWhenTheLineCrossesTheOrigin) {
 }
 
 TEST(FitLineTest, CovarianceMatchesClosedFormForIsotropicPoints) {
-  // Grid-cell style σ_i = cell / P_occ with P_occ in [0.6, 1] (FUSION.md §2), points off-centre so that
+  // Grid-cell style σ_i = cell / P_occ with P_occ in [0.6, 1] (docs/fusion.md §2), points off-centre so that
   // cov(ρ, φ) = t_c·var φ is far from zero.
   const double phis[] = {0.3, kPi, -2.0};  // −2.0 and π come out of the closed form with r < 0 and get flipped
   for (double phi : phis) {
