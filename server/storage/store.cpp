@@ -73,6 +73,28 @@ double now_unix_s() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
+// Binds `values` to ?1, ?2, ... in order (std::int64_t, double, std::string_view or their optionals).
+template <typename... Values>
+Statement& bind_all(Statement& s, const Values&... values) {
+  int index = 0;
+  (s.bind(++index, values), ...);
+  return s;
+}
+
+// Runs one statement that returns no rows, with its parameters. @throw StorageError.
+template <typename... Values>
+void run(Connection& db, std::string_view sql, const Values&... values) {
+  Statement s(db, sql);
+  bind_all(s, values...).run();
+}
+
+// The first column of the first row of a query that returns one (COUNT, MAX, PRAGMA). @throw StorageError.
+std::int64_t query_int(Connection& db, std::string_view sql) {
+  Statement s(db, sql);
+  s.step();
+  return s.column_int(0);
+}
+
 template <typename Matrix>
 void bind_matrix(Statement& s, int index, const Matrix& m) {
   s.bind_blob(index, m.data(), sizeof(double) * static_cast<std::size_t>(m.size()));
@@ -104,11 +126,7 @@ Store::Store(const StoreOptions& options) : options_(options), writer_(options.p
   migrate();
 }
 
-int Store::schema_version() {
-  Statement s(writer_, "PRAGMA user_version");
-  s.step();
-  return static_cast<int>(s.column_int(0));
-}
+int Store::schema_version() { return static_cast<int>(query_int(writer_, "PRAGMA user_version")); }
 
 void Store::migrate() {
   const int found = schema_version();
@@ -210,9 +228,8 @@ void Store::write_objects(const world::UpdateResult& update) {
 
 void Store::insert_observation(std::int64_t seq, std::string_view kind, const std::string& observer, double stamp,
                                std::string_view payload) {
-  Statement s(writer_,
-              "INSERT INTO observations(seq, kind, observer, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
-  s.bind(1, seq).bind(2, kind).bind(3, std::string_view(observer)).bind(4, stamp).bind(5, now_unix_s()).bind(6, payload).run();
+  run(writer_, "INSERT INTO observations(seq, kind, observer, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+      seq, kind, std::string_view(observer), stamp, now_unix_s(), payload);
 }
 
 void Store::commit_observation(const world::UpdateResult& update, const world::Observation& observation,
@@ -274,15 +291,13 @@ void Store::write_observation(const ObservationEntry& entry) {
 }
 
 void Store::write_request(const RequestRecord& r) {
-  Statement s(writer_,
-              "INSERT INTO requests(request_id, kind, body_hash, seq, version, grid_revision, lines_seq, created_at) "
-              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
-  s.bind(1, std::string_view(r.request_id)).bind(2, std::string_view(r.kind)).bind(3, r.body_hash).bind(4, r.seq);
-  s.bind(5, r.version).bind(6, r.grid_revision);
-  s.bind(7, r.lines_seq).bind(8, now_unix_s()).run();
+  run(writer_,
+      "INSERT INTO requests(request_id, kind, body_hash, seq, version, grid_revision, lines_seq, created_at) "
+      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
+      std::string_view(r.request_id), std::string_view(r.kind), r.body_hash, r.seq, r.version, r.grid_revision,
+      r.lines_seq, now_unix_s());
   // Bounded by count: rows are numbered in insertion order, so the oldest go in one range delete.
-  Statement forget(writer_, "DELETE FROM requests WHERE ord <= ?1");
-  forget.bind(1, writer_.last_insert_rowid() - options_.request_ids_kept).run();
+  run(writer_, "DELETE FROM requests WHERE ord <= ?1", writer_.last_insert_rowid() - options_.request_ids_kept);
 }
 
 std::optional<RequestRecord> Store::find_request(const std::string& request_id) {
@@ -305,13 +320,11 @@ void Store::commit_floor_plan(const world::UpdateResult& update, const apriori::
   const std::string text = apriori::to_json_text(plan);
   Transaction tx(writer_);
   writer_.exec("DELETE FROM objects");
-  {
-    Statement s(writer_,
-                "INSERT INTO floor_plan(id, name, plan_json, loaded_version) VALUES (1, ?1, ?2, ?3) "
-                "ON CONFLICT(id) DO UPDATE SET name = excluded.name, plan_json = excluded.plan_json, "
-                "loaded_version = excluded.loaded_version");
-    s.bind(1, std::string_view(plan.name)).bind(2, std::string_view(text)).bind(3, update.state.version).run();
-  }
+  run(writer_,
+      "INSERT INTO floor_plan(id, name, plan_json, loaded_version) VALUES (1, ?1, ?2, ?3) "
+      "ON CONFLICT(id) DO UPDATE SET name = excluded.name, plan_json = excluded.plan_json, "
+      "loaded_version = excluded.loaded_version",
+      std::string_view(plan.name), std::string_view(text), update.state.version);
   write_objects(update);
   write_counters(update.state);
   tx.commit();
@@ -362,17 +375,24 @@ world::DecisionRecord read_decision(const Statement& s) {
   return d;
 }
 
+// The decisions `where` (a WHERE clause with its ORDER BY and LIMIT) selects, its parameters bound in order.
+template <typename... Values>
+std::vector<world::DecisionRecord> select_decisions(Connection& db, std::string_view where, const Values&... values) {
+  Statement s(db, std::string(kDecisionColumns) + std::string(where));
+  bind_all(s, values...);
+  std::vector<world::DecisionRecord> result;
+  while (s.step()) result.push_back(read_decision(s));
+  return result;
+}
+
 }  // namespace
 
 std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std::size_t limit,
                                                     const std::optional<std::string>& element) {
   std::lock_guard lock(reader_mutex_);
-  Statement s(reader_, std::string(kDecisionColumns) +
-                           "WHERE seq > ?1 AND (?2 IS NULL OR element = ?2 OR matched_element = ?2) ORDER BY seq LIMIT ?3");
-  s.bind(1, since_seq).bind(2, element).bind(3, static_cast<std::int64_t>(limit));
-  std::vector<world::DecisionRecord> result;
-  while (s.step()) result.push_back(read_decision(s));
-  return result;
+  return select_decisions(reader_,
+                          "WHERE seq > ?1 AND (?2 IS NULL OR element = ?2 OR matched_element = ?2) ORDER BY seq LIMIT ?3",
+                          since_seq, element, static_cast<std::int64_t>(limit));
 }
 
 void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines,
@@ -391,11 +411,7 @@ void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEn
   tx.commit();
 }
 
-std::int64_t Store::last_scan_seq() {
-  Statement s(writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans");
-  s.step();
-  return s.column_int(0);
-}
+std::int64_t Store::last_scan_seq() { return query_int(writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans"); }
 
 std::vector<Store::ScanRecord> Store::scans_after(std::int64_t after) {
   Statement s(writer_, "SELECT seq, payload FROM scans WHERE seq > ?1 ORDER BY seq");
@@ -444,13 +460,11 @@ std::optional<Store::StoredGrid> Store::load_grid() {
 
 void Store::flush_grid(const StoredGrid& changed) {
   Transaction tx(writer_);
-  {
-    Statement s(writer_,
-                "INSERT INTO grid_meta(id, resolution, tile_size, through_scan_seq) VALUES (1, ?1, ?2, ?3) "
-                "ON CONFLICT(id) DO UPDATE SET resolution = excluded.resolution, tile_size = excluded.tile_size, "
-                "through_scan_seq = excluded.through_scan_seq");
-    s.bind(1, changed.resolution_m).bind(2, changed.tile_size_cells).bind(3, changed.through_scan_seq).run();
-  }
+  run(writer_,
+      "INSERT INTO grid_meta(id, resolution, tile_size, through_scan_seq) VALUES (1, ?1, ?2, ?3) "
+      "ON CONFLICT(id) DO UPDATE SET resolution = excluded.resolution, tile_size = excluded.tile_size, "
+      "through_scan_seq = excluded.through_scan_seq",
+      changed.resolution_m, changed.tile_size_cells, changed.through_scan_seq);
   Statement s(writer_,
               "INSERT INTO grid_tiles(tx, ty, log_odds, m_occupied, m_empty, conflict) VALUES (?1, ?2, ?3, ?4, ?5, ?6) "
               "ON CONFLICT(tx, ty) DO UPDATE SET log_odds = excluded.log_odds, m_occupied = excluded.m_occupied, "
@@ -468,37 +482,25 @@ void Store::flush_grid(const StoredGrid& changed) {
 
 std::vector<world::DecisionRecord> Store::observation_decisions(std::int64_t observation_seq) {
   std::lock_guard lock(reader_mutex_);
-  Statement s(reader_, std::string(kDecisionColumns) + "WHERE observation_seq = ?1 ORDER BY seq");
-  s.bind(1, observation_seq);
-  std::vector<world::DecisionRecord> result;
-  while (s.step()) result.push_back(read_decision(s));
-  return result;
+  return select_decisions(reader_, "WHERE observation_seq = ?1 ORDER BY seq", observation_seq);
 }
 
 std::int64_t Store::scans_missing_line_decisions() {
   std::lock_guard lock(reader_mutex_);
-  Statement s(reader_,
-              "SELECT COUNT(*) FROM scans WHERE lines_seq IS NOT NULL AND NOT EXISTS "
-              "(SELECT 1 FROM decisions d WHERE d.observation_seq = scans.lines_seq)");
-  s.step();
-  return s.column_int(0);
+  return query_int(reader_,
+                   "SELECT COUNT(*) FROM scans WHERE lines_seq IS NOT NULL AND NOT EXISTS "
+                   "(SELECT 1 FROM decisions d WHERE d.observation_seq = scans.lines_seq)");
 }
 
 std::vector<world::DecisionRecord> Store::object_decisions(const std::string& object_id, std::size_t limit) {
   std::lock_guard lock(reader_mutex_);
-  Statement s(reader_, std::string(kDecisionColumns) + "WHERE object = ?1 OR matched_object = ?1 ORDER BY seq LIMIT ?2");
-  s.bind(1, std::string_view(object_id)).bind(2, static_cast<std::int64_t>(limit));
-  std::vector<world::DecisionRecord> result;
-  while (s.step()) result.push_back(read_decision(s));
-  return result;
+  return select_decisions(reader_, "WHERE object = ?1 OR matched_object = ?1 ORDER BY seq LIMIT ?2",
+                          std::string_view(object_id), static_cast<std::int64_t>(limit));
 }
 
 std::vector<world::DecisionRecord> Store::latest_decisions(std::size_t count) {
   std::lock_guard lock(reader_mutex_);
-  Statement s(reader_, std::string(kDecisionColumns) + "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1");
-  s.bind(1, static_cast<std::int64_t>(count));
-  std::vector<world::DecisionRecord> result;
-  while (s.step()) result.push_back(read_decision(s));
+  auto result = select_decisions(reader_, "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1", static_cast<std::int64_t>(count));
   std::reverse(result.begin(), result.end());
   return result;
 }
