@@ -1,0 +1,29 @@
+#pragma once
+
+// The wmctl commands, one function each; main.cpp's command table names them with their usage.
+#include "clients/wmctl/cli.h"
+
+namespace wm::wmctl {
+
+// The map and the floor plan (map_commands.cpp).
+int health(const Invocation& in);
+int floorplan_load(const Invocation& in);
+int floorplan_show(const Invocation& in);
+int primitives_post(const Invocation& in);
+int map(const Invocation& in);
+int report(const Invocation& in);
+int grid(const Invocation& in);
+int grid_extract(const Invocation& in);
+
+// The decision log, the rules and queries (rules_commands.cpp).
+int decisions(const Invocation& in);
+int explain(const Invocation& in);
+int rules(const Invocation& in);
+int rules_reload(const Invocation& in);
+int rules_dry_run(const Invocation& in);
+int query(const Invocation& in);
+
+// Laser logs (replay_command.cpp).
+int replay(const Invocation& in);
+
+}  // namespace wm::wmctl

@@ -1,0 +1,163 @@
+// wmctl commands about the map: health, floor plan, primitives, map, as-built report, grid.
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <string>
+
+#include "clients/wmctl/commands.h"
+
+namespace wm::wmctl {
+namespace {
+
+std::string point(const json& p) { return "(" + fixed(p[0].get<double>()) + ", " + fixed(p[1].get<double>()) + ")"; }
+
+void print_map(const json& m) {
+  std::cout << "map version " << m["version"] << ", plan '" << m["plan"].get<std::string>() << "': " << m["objects"].size()
+            << " objects, " << m["elements"].size() << " observed elements\n";
+  for (const auto& o : m["objects"]) {
+    std::string attributes;
+    for (const auto& a : o["attributes"]) attributes += (attributes.empty() ? "" : ",") + a.get<std::string>();
+    std::cout << "  object " << std::left << std::setw(14) << o["id"].get<std::string>() << std::setw(10)
+              << o["kind"].get<std::string>() << " [" << attributes << "] pose (" << fixed(o["pose"]["x"].get<double>()) << ", "
+              << fixed(o["pose"]["y"].get<double>()) << ", " << fixed(o["pose"]["theta"].get<double>(), 4) << ") edges "
+              << o["edges"].size() << ", confirmed " << o["confirmations"] << ", adjusted " << o["adjustments"] << "\n";
+  }
+  for (const auto& e : m["elements"])
+    std::cout << "  element " << std::left << std::setw(8) << e["id"].get<std::string>() << point(e["p0"]) << " -> "
+              << point(e["p1"]) << "  support " << e["support"] << ", source " << e["source"].get<std::string>() << "\n";
+}
+
+// Writes the answer's body to `path` (the body is not JSON: an image or a drawing).
+void save(const client::HttpResult& answer, const std::string& path) {
+  if (answer.status != 200) parse_answer(answer);
+  write_file(path, answer.body);
+}
+
+}  // namespace
+
+int health(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/health")), [](const json& h) {
+    std::cout << "status " << h["status"].get<std::string>() << ", map version " << h["version"] << ", plan '"
+              << h["plan"].get<std::string>() << "', " << h["objects"] << " objects, " << h["elements"] << " elements\n";
+    for (const auto& f : h["rules"]["files"]) std::cout << "rules: " << f["path"].get<std::string>() << "\n";
+    if (!h["rules"]["last_error"].get<std::string>().empty())
+      std::cout << "last rules error: " << h["rules"]["last_error"].get<std::string>() << "\n";
+  });
+}
+
+int floorplan_load(const Invocation& in) {
+  // DXF and RMF files go in an import envelope with the options; JSON (plan or AMRL map) goes as it is.
+  const std::string mapping_file = in.flag("--mapping").value_or("");
+  const std::string units = in.flag("--units").value_or("");
+  const std::string level = in.flag("--level").value_or("");
+  const std::string& file = in.operands[0];
+  auto extension = std::filesystem::path(file).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::string body = read_file(file);
+  if (extension == ".dxf" || extension == ".yaml" || extension == ".yml") {
+    // Ordered: the mapping's rules apply in file order.
+    nlohmann::ordered_json spec = {{"format", extension == ".dxf" ? "dxf" : "rmf"}, {"data", body},
+                                   {"name", std::filesystem::path(file).stem().string()}};
+    if (!mapping_file.empty()) {
+      const auto mapping = nlohmann::ordered_json::parse(read_file(mapping_file), nullptr, false);
+      if (mapping.is_discarded()) throw UsageError("'" + mapping_file + "' is not JSON");
+      spec["mapping"] = mapping;
+    }
+    if (!units.empty()) spec["units"] = units;
+    if (!level.empty()) spec["level"] = level;
+    body = nlohmann::ordered_json{{"import", spec}}.dump(-1, ' ', false, json::error_handler_t::replace);
+  } else if (!mapping_file.empty() || !units.empty() || !level.empty()) {
+    throw UsageError("--mapping, --units and --level apply to .dxf and RMF .yaml files");
+  }
+  return in.emit(parse_answer(in.client.request("PUT", "/api/v1/floorplan", body, "application/json", in.token)),
+                 [](const json& r) {
+                   std::cout << "loaded floor plan '" << r["name"].get<std::string>() << "': " << r["objects"]
+                             << " objects, " << r["edges"] << " edges (map version " << r["version"] << ")\n";
+                   if (!r.contains("report")) return;
+                   const auto& report = r["report"];
+                   for (const auto& [type, count] : report["entity_counts"].items())
+                     std::cout << "  " << type << ": " << count << "\n";
+                   for (const auto& layer : report["unknown_layers"])
+                     std::cout << "  unknown layer (skipped): " << layer.get<std::string>() << "\n";
+                   for (const auto& warning : report["warnings"])
+                     std::cout << "  warning: " << warning.get<std::string>() << "\n";
+                 });
+}
+
+int floorplan_show(const Invocation& in) {
+  // Always JSON: the plan is the document the user loaded.
+  std::cout << parse_answer(in.client.request("GET", "/api/v1/floorplan")).dump(2) << "\n";
+  return kExitOk;
+}
+
+int primitives_post(const Invocation& in) {
+  const auto answer =
+      in.client.request("POST", "/api/v1/primitives", read_file(in.operands[0]), "application/json", in.token);
+  return in.emit(parse_answer(answer), [](const json& r) {
+    std::cout << "observation " << r["seq"] << " applied, map version " << r["version"] << "\n";
+    for (const auto& d : r["decisions"]) print_decision(d);
+  });
+}
+
+int map(const Invocation& in) {
+  const auto format = in.flag("--format");
+  const auto out = in.flag("--out");
+  if (format.has_value() != out.has_value()) throw UsageError("map: --format and --out go together");
+  if (!format) return in.emit(parse_answer(in.client.request("GET", "/api/v1/map")), print_map);
+  const auto answer = in.client.request("GET", "/api/v1/map?format=" + *format);
+  save(answer, *out);
+  std::cout << "wrote " << *out << " (" << answer.body.size() << " bytes)\n";
+  return kExitOk;
+}
+
+int report(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/report/as-built")), [](const json& r) {
+    const auto& s = r["summary"];
+    std::cout << "plan '" << r["plan"].get<std::string>() << "': " << s["objects"] << " objects, " << s["confirmed"]
+              << " confirmed, " << s["moved"] << " moved, " << s["never_observed"] << " never observed; "
+              << s["not_in_plan"] << " observed elements not in the plan\n";
+    for (const auto& o : r["objects"]) {
+      if (o["status"] != "moved") continue;
+      std::cout << "  moved: " << o["id"].get<std::string>() << " by " << o["moved_by"]["distance"].get<double>()
+                << " m, " << o["moved_by"]["dtheta"].get<double>() << " rad\n";
+    }
+  });
+}
+
+int grid(const Invocation& in) {
+  const auto out = in.flag("--out");  // required in the command table
+  const std::string layer = in.flag("--layer").value_or("bayes");
+  const std::string bbox = in.flag("--bbox").value_or("");
+  const std::string query = "?layer=" + layer + (bbox.empty() ? "" : "&bbox=" + bbox);
+  const auto image = in.client.request("GET", "/api/v1/grid" + query + "&format=pgm");
+  save(image, *out);
+  std::cout << "wrote " << *out << " (" << image.body.size() << " bytes)\n";
+  if (layer == "bayes") {
+    // map_server reads the image path relative to the YAML file.
+    const auto yaml = in.client.request("GET", "/api/v1/grid/map.yaml" + (bbox.empty() ? std::string() : "?bbox=" + bbox));
+    if (yaml.status != 200) parse_answer(yaml);
+    std::string text = yaml.body;
+    const auto at = text.find("image: map.pgm");
+    if (at != std::string::npos) text.replace(at, 14, "image: " + std::filesystem::path(*out).filename().string());
+    const auto yaml_path = std::filesystem::path(*out).replace_extension(".yaml").string();
+    write_file(yaml_path, text);
+    std::cout << "wrote " << yaml_path << "\n";
+  }
+  return kExitOk;
+}
+
+int grid_extract(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("POST", "/api/v1/grid/extract", "{}", "application/json", in.token)),
+                 [](const json& r) {
+                   if (r["observation"].is_null()) {
+                     std::cout << "no lines in the grid\n";
+                     return;
+                   }
+                   std::cout << r["segments"] << " grid lines, observation " << r["observation"] << "\n";
+                   for (const auto& d : r["decisions"]) print_decision(d);
+                 });
+}
+
+}  // namespace wm::wmctl
