@@ -13,8 +13,7 @@ url="http://127.0.0.1:$port"
 db=build/demo.db
 rm -f "$db" "$db-wal" "$db-shm"
 python3 clients/demo/make_demo_plan.py clients/demo/data/GDC1.vectormap.json > build/demo-plan.json
-log=tests/data/carmen/intel-corrected-excerpt.log.gz
-[ -f ../shared/data/carmen/intel-corrected.log.gz ] && log=../shared/data/carmen/intel-corrected.log.gz
+log=tests/data/carmen/intel-corrected.log.gz  # the whole Intel lab log, shipped for the tests
 
 # Loopback only and no token, like a developer's machine: dry runs are allowed explicitly so that the
 # README's rule-writing walk-through works (a shared server runs with --token instead).

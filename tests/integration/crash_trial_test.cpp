@@ -22,24 +22,16 @@
 #include <thread>
 #include <vector>
 
-#include <boost/asio/connect.hpp>
-#include <boost/asio/ip/tcp.hpp>
-#include <boost/beast/core.hpp>
-#include <boost/beast/http.hpp>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "clients/logs/carmen_log_reader.h"
-#include "support/temp_dir.h"
-#include "support/wmd_process.h"
+#include "e2e_fixture.h"
 
 namespace wm::testing {
 namespace {
 
-using nlohmann::json;
-namespace beast = boost::beast;
 namespace http = boost::beast::http;
-namespace net = boost::asio;
 
 struct Reply {
   int status = 0;
@@ -51,25 +43,10 @@ struct Reply {
 // out): the request may or may not have been applied.
 std::optional<Reply> send(int port, http::verb verb, const std::string& target, const std::string& body,
                           const std::string& request_id, std::chrono::milliseconds timeout = std::chrono::seconds(20)) {
+  Headers headers{{"Host", "127.0.0.1"}};
+  if (!request_id.empty()) headers.emplace_back("Idempotency-Key", request_id);
   try {
-    net::io_context ioc;
-    beast::tcp_stream stream(ioc);
-    stream.expires_after(timeout);
-    stream.connect(net::ip::tcp::endpoint(net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)));
-    http::request<http::string_body> req{verb, target, 11};
-    req.set(http::field::host, "127.0.0.1");
-    if (!request_id.empty()) req.set("Idempotency-Key", request_id);
-    if (!body.empty()) {
-      req.set(http::field::content_type, "application/json");
-      req.body() = body;
-    }
-    req.prepare_payload();
-    http::write(stream, req);
-    beast::flat_buffer buffer;
-    http::response<http::string_body> res;
-    http::read(stream, buffer, res);
-    beast::error_code ignored;
-    stream.socket().shutdown(net::ip::tcp::socket::shutdown_both, ignored);
+    const auto res = raw_request(port, verb, target, headers, body, timeout);
     return Reply{static_cast<int>(res.result_int()), res.body(), res["Idempotent-Replayed"] == "true"};
   } catch (const std::exception&) {
     return std::nullopt;

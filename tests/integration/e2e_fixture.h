@@ -1,26 +1,70 @@
 #pragma once
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "clients/wmctl/http_client.h"
+#include "support/test_data.h"
 #include "support/wmd_process.h"
 
 namespace wm::testing {
 
 using nlohmann::json;
+using Headers = std::vector<std::pair<std::string, std::string>>;
 
-/// A file of the real data beside the checkout (../shared/data); throws when it is missing.
-inline std::filesystem::path shared(const std::string& relative) {
-  const auto path = std::filesystem::path(WM_SHARED_DATA) / relative;
-  if (!std::filesystem::exists(path)) throw std::runtime_error("missing real data file " + path.string());
-  return path;
+/// One HTTP/1.1 request on a fresh loopback connection to `port`, with exactly the headers given (Host, Origin,
+/// Idempotency-Key...; the HttpClient sets its own) and a JSON body when `body` is not empty.
+/// @throw boost::system::system_error when no whole answer comes back within `timeout` (refused, reset, timed out).
+inline boost::beast::http::response<boost::beast::http::string_body> raw_request(
+    int port, boost::beast::http::verb method, const std::string& target, const Headers& headers,
+    const std::string& body = {}, std::chrono::milliseconds timeout = std::chrono::seconds(60)) {
+  namespace beast = boost::beast;
+  namespace net = boost::asio;
+  net::io_context ioc;
+  beast::tcp_stream stream(ioc);
+  stream.expires_after(timeout);
+  stream.connect(net::ip::tcp::endpoint(net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)));
+  beast::http::request<beast::http::string_body> req{method, target, 11};
+  for (const auto& [name, value] : headers) req.set(name, value);
+  if (!body.empty()) {
+    req.set(beast::http::field::content_type, "application/json");
+    req.body() = body;
+  }
+  req.prepare_payload();
+  beast::http::write(stream, req);
+  beast::flat_buffer buffer;
+  beast::http::response<beast::http::string_body> res;
+  beast::http::read(stream, buffer, res);
+  beast::error_code ignored;
+  stream.socket().shutdown(net::ip::tcp::socket::shutdown_both, ignored);
+  return res;
+}
+
+/// The whole content of a file ("" when it cannot be read).
+inline std::string slurp(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+/// The shell command that runs wmctl against `server` with `args`.
+inline std::string wmctl(const std::string& server, const std::string& args) {
+  return std::string(WM_WMCTL_PATH) + " --server " + server + " " + args;
 }
 
 /// The lab of the foundation issue: a solid wall, a rotated not_deformable table, free space elsewhere.

@@ -1,23 +1,11 @@
 // Real floor plans through the running wmd: DXF with a layer mapping, Open-RMF, AMRL; export and as-built.
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "e2e_fixture.h"
 
 namespace wm::testing {
 namespace {
-
-std::string slurp(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-std::string wmctl(const std::string& server, const std::string& args) {
-  return std::string(WM_WMCTL_PATH) + " --server " + server + " " + args;
-}
 
 TEST_F(ServerFixture, TheBarcelonaPavilionLoadsWithItsLayersMapped) {
   const auto mapping = dir_.path() / "layers.json";
@@ -27,8 +15,8 @@ TEST_F(ServerFixture, TheBarcelonaPavilionLoadsWithItsLayersMapped) {
                                             "Doors": {"kind": "door", "attributes": ["movable"]},
                                             "Furniture": {"kind": "furniture", "attributes": ["not_deformable"], "cluster": true},
                                             "*": {"ignore": true}}})";
-  const auto r = run_command(wmctl(server_->url(), "--json floorplan load " + shared("barcelona-pavilion/plan.dxf").string() +
-                                                       " --mapping " + mapping.string()));
+  const auto plan = real_data("barcelona-pavilion/plan.dxf", "plans/barcelona-pavilion.dxf");
+  const auto r = run_command(wmctl(server_->url(), "--json floorplan load " + plan.string() + " --mapping " + mapping.string()));
   ASSERT_EQ(r.status, 0) << r.output;
   const auto answer = json::parse(r.output);
   const auto& report = answer["report"];
@@ -80,14 +68,15 @@ TEST_F(ServerFixture, TheBarcelonaPavilionLoadsWithItsLayersMapped) {
 }
 
 TEST_F(ServerFixture, RoboticsFloorPlanFormatsLoad) {
-  auto r = run_command(wmctl(server_->url(), "--json floorplan load " + shared("rmf-office/office.building.yaml").string()));
+  const auto building = real_data("rmf-office/office.building.yaml", "plans/rmf-office.building.yaml");
+  auto r = run_command(wmctl(server_->url(), "--json floorplan load " + building.string()));
   ASSERT_EQ(r.status, 0) << r.output;
   auto answer = json::parse(r.output);
   EXPECT_EQ(answer["report"]["format"], "rmf-building");
   EXPECT_GT(answer["objects"].get<int>(), 10);
 
   // An AMRL vector map is a JSON array of lines: one solid wall per line.
-  const auto text = slurp(shared("amrl-vectormaps/GDC1.vectormap.json"));
+  const auto text = slurp(real_data("amrl-vectormaps/GDC1.vectormap.json", "plans/GDC1.vectormap.json"));
   const auto lines = json::parse(text);
   const auto loaded = send_json("PUT", "/api/v1/floorplan", lines);
   EXPECT_EQ(loaded["report"]["format"], "amrl-vectormap");
@@ -98,7 +87,7 @@ TEST_F(ServerFixture, RoboticsFloorPlanFormatsLoad) {
 TEST_F(ServerFixture, ABadDrawingChangesNothing) {
   send_json("PUT", "/api/v1/floorplan", lab_plan());
   const auto before = get_json("/api/v1/map");
-  const auto dxf = slurp(shared("barcelona-pavilion/plan.dxf"));
+  const auto dxf = slurp(real_data("barcelona-pavilion/plan.dxf", "plans/barcelona-pavilion.dxf"));
   for (const auto& body : {dxf.substr(0, dxf.size() / 2), std::string("AutoCAD Binary DXF\r\n\x1a", 21) + std::string(40, '\0')}) {
     const auto r = call("PUT", "/api/v1/floorplan", body, "image/vnd.dxf");
     EXPECT_EQ(r.status, 400) << r.body.substr(0, 200);

@@ -15,10 +15,6 @@
 #include <utility>
 #include <vector>
 
-#include <boost/asio/connect.hpp>
-#include <boost/asio/ip/tcp.hpp>
-#include <boost/beast/core.hpp>
-#include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
 #include "e2e_fixture.h"
@@ -30,35 +26,6 @@ namespace beast = boost::beast;
 namespace bhttp = boost::beast::http;
 namespace net = boost::asio;
 namespace websocket = boost::beast::websocket;
-using Headers = std::vector<std::pair<std::string, std::string>>;
-
-std::string slurp(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// One request with exactly the headers given (Host, Origin, Authorization...); the HttpClient sets its own.
-bhttp::response<bhttp::string_body> raw_request(int port, bhttp::verb method, const std::string& target,
-                                                const Headers& headers, const std::string& body = {}) {
-  net::io_context ioc;
-  beast::tcp_stream stream(ioc);
-  stream.expires_after(std::chrono::seconds(60));
-  stream.connect(net::ip::tcp::endpoint(net::ip::make_address("127.0.0.1"), static_cast<unsigned short>(port)));
-  bhttp::request<bhttp::string_body> req{method, target, 11};
-  for (const auto& [name, value] : headers) req.set(name, value);
-  if (!body.empty()) {
-    req.set(bhttp::field::content_type, "application/json");
-    req.body() = body;
-  }
-  req.prepare_payload();
-  bhttp::write(stream, req);
-  beast::flat_buffer buffer;
-  bhttp::response<bhttp::string_body> res;
-  bhttp::read(stream, buffer, res);
-  return res;
-}
 
 struct Upgrade {
   int status = 0;           // 101 when upgraded

@@ -18,12 +18,12 @@
 
 #include "fusion/grid/occupancy_grid.h"
 #include "support/temp_dir.h"
+#include "support/test_data.h"
 
 namespace wm::logs {
 namespace {
 
 const std::filesystem::path kTestData = WM_TEST_DATA_DIR;
-const std::filesystem::path kSharedData = WM_SHARED_DATA_DIR;
 constexpr double kPi = std::numbers::pi;
 
 std::vector<LogScan> read_all(const std::filesystem::path& path, const CarmenReaderOptions& options = {}) {
@@ -259,10 +259,9 @@ TEST(CarmenLogReaderTest, TruncatedGzipThrowsAfterTheScansBeforeTheCut) {
 }
 
 TEST(CarmenLogReaderTest, ReadsTheRealRobotLaser1Log) {
-  const auto path = kSharedData / "csail-robotlaser1" / "csail.log";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not present";
-  const auto scans = read_all(path);
-  // Counts and first/last values from ../shared/data/csail-robotlaser1/SOURCE.md and the file's text.
+  // No copy in tests/data: the file states no licence (tests/data/carmen/SOURCE.md).
+  const auto scans = read_all(testing::real_data("csail-robotlaser1/csail.log"));
+  // Counts and first/last values from the file's text (its SOURCE.md gives the same count).
   ASSERT_EQ(scans.size(), 686u);
   for (const LogScan& s : scans) {
     ASSERT_EQ(s.scan.ranges_m.size(), 361u);
@@ -324,9 +323,7 @@ class NaiveGrid {
 // corrected poses, land within one cell of an occupied cell at least as often as in the naive grid — the issue's
 // end-to-end criterion, here without the server.
 TEST(CarmenLogReaderTest, IntelLogBuildsAGridWhoseWallsHoldTheReturns) {
-  const auto path = kSharedData / "carmen" / "intel-corrected.log.gz";
-  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " not present";
-  const auto scans = read_all(path);
+  const auto scans = read_all(testing::real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected.log.gz"));
   ASSERT_EQ(scans.size(), 910u);  // SOURCE.md
   const fusion::GridOptions options;
   fusion::OccupancyGrid grid(options);
