@@ -72,6 +72,7 @@ int main(int argc, char** argv) {
     http::HttpServer::Handlers handlers{
         [&services](const api::Request& r) { return api::handle_request(r, services); },
         [](const api::Request& r) { return api::handler_lane(r); },
+        [](const api::Request& r) { return api::is_websocket_upgrade(r); },
         [&services](const api::Request& r) { return api::authorize_events(r, services); }};
     http::HttpServer server(cfg.http, std::move(handlers), &events);
     std::thread signal_waiter([&server, signals] {

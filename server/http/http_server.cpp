@@ -23,6 +23,8 @@
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
 
+#include "server/api/response.h"
+
 namespace wm::http {
 namespace {
 
@@ -237,16 +239,13 @@ class Session : public std::enable_shared_from_this<Session> {
       }
       return write(api::error_response(11, false, status, error, detail));
     }
-    if (websocket::is_upgrade(parser_->get())) {
-      const auto target = parser_->get().target();
-      if (hub_ && target.substr(0, target.find('?')) == "/api/v1/events") {
-        if (handlers_.authorize_upgrade) {
-          if (auto refusal = handlers_.authorize_upgrade(parser_->get())) return write(std::move(*refusal));
-        }
-        stream_.expires_never();
-        std::make_shared<EventSession>(stream_.release_socket(), *hub_)->run(parser_->release());
-        return;
+    if (hub_ && websocket::is_upgrade(parser_->get()) && handlers_.is_websocket && handlers_.is_websocket(parser_->get())) {
+      if (handlers_.authorize_upgrade) {
+        if (auto refusal = handlers_.authorize_upgrade(parser_->get())) return write(std::move(*refusal));
       }
+      stream_.expires_never();
+      std::make_shared<EventSession>(stream_.release_socket(), *hub_)->run(parser_->release());
+      return;
     }
     const auto lane = handlers_.lane ? handlers_.lane(parser_->get()) : api::Lane::read;
     if (lane == api::Lane::immediate) return write(answer(parser_->get()));

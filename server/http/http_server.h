@@ -6,7 +6,7 @@
 #include <optional>
 #include <string>
 
-#include "server/api/router.h"
+#include "server/api/http_types.h"
 #include "server/events/event_hub.h"
 
 namespace wm::http {
@@ -43,10 +43,14 @@ class HttpServer {
     std::function<api::Response(const api::Request&)> handle;
     /// Where `handle` runs for this request (empty: Lane::read for every request).
     std::function<api::Lane(const api::Request&)> lane;
-    /// Refuses (the response) or allows (nullopt) a WebSocket upgrade of /api/v1/events (empty: allowed).
+    /// Whether a WebSocket upgrade request names a WebSocket route (the api's route table says which); empty:
+    /// none does, and every request goes to `handle`.
+    std::function<bool(const api::Request&)> is_websocket;
+    /// Refuses (the response) or allows (nullopt) a WebSocket upgrade of such a route (empty: allowed).
     std::function<std::optional<api::Response>(const api::Request&)> authorize_upgrade;
   };
-  /// Binds and listens. WebSocket upgrades of GET /api/v1/events subscribe to `events` (when given).
+  /// Binds and listens. WebSocket upgrades that `handlers.is_websocket` accepts subscribe to `events` (when
+  /// given).
   /// @throw boost::system::system_error when the address cannot be bound.
   HttpServer(const HttpOptions& options, Handlers handlers, events::EventHub* events = nullptr);
   ~HttpServer();

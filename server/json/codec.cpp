@@ -8,7 +8,7 @@
 
 #include "apriori/import/json_limits.h"
 #include "common/utf8.h"
-#include "server/api/api_error.h"
+#include "server/json/codec_error.h"
 
 namespace wm::json_codec {
 namespace {
@@ -17,14 +17,14 @@ using nlohmann::json;
 
 template <typename Json>
 Json parse_checked(std::string_view text) {
-  if (auto error = apriori::json_nesting_error(text)) throw api::bad_request("", *error);
+  if (auto error = apriori::json_nesting_error(text)) throw bad_request("", *error);
   try {
     return Json::parse(text.begin(), text.end());
   } catch (const nlohmann::json::parse_error& e) {
-    throw api::bad_request("", std::string("malformed JSON: ") + e.what());
+    throw bad_request("", std::string("malformed JSON: ") + e.what());
   } catch (const nlohmann::json::out_of_range& e) {
     // nlohmann refuses literals like 1e999 that overflow a double: they would become Inf.
-    throw api::bad_request("", std::string("number out of range (must be finite): ") + e.what());
+    throw bad_request("", std::string("number out of range (must be finite): ") + e.what());
   }
 }
 
@@ -32,27 +32,27 @@ std::string field(const std::string& path, const std::string& key) { return path
 std::string item(const std::string& path, std::size_t i) { return path + "[" + std::to_string(i) + "]"; }
 
 double finite_number(const json& value, const std::string& path, double limit) {
-  if (!value.is_number()) throw api::bad_request(path, "expected a number");
+  if (!value.is_number()) throw bad_request(path, "expected a number");
   const double v = value.get<double>();
-  if (!std::isfinite(v)) throw api::bad_request(path, "not a finite number");
-  if (std::abs(v) > limit) throw api::bad_request(path, "absurd value");
+  if (!std::isfinite(v)) throw bad_request(path, "not a finite number");
+  if (std::abs(v) > limit) throw bad_request(path, "absurd value");
   return v;
 }
 
 Eigen::Vector2d point(const json& value, const std::string& path, double limit) {
-  if (!value.is_array() || value.size() != 2) throw api::bad_request(path, "expected a point [x, y]");
+  if (!value.is_array() || value.size() != 2) throw bad_request(path, "expected a point [x, y]");
   return {finite_number(value[0], item(path, 0), limit), finite_number(value[1], item(path, 1), limit)};
 }
 
 Eigen::Matrix2d covariance(const json& value, const std::string& path) {
-  if (!value.is_array() || value.size() != 2) throw api::bad_request(path, "expected a 2x2 matrix [[a, b], [b, c]]");
+  if (!value.is_array() || value.size() != 2) throw bad_request(path, "expected a 2x2 matrix [[a, b], [b, c]]");
   Eigen::Matrix2d m;
   for (int r = 0; r < 2; ++r) {
-    if (!value[r].is_array() || value[r].size() != 2) throw api::bad_request(item(path, r), "expected 2 numbers");
+    if (!value[r].is_array() || value[r].size() != 2) throw bad_request(item(path, r), "expected 2 numbers");
     for (int c = 0; c < 2; ++c) m(r, c) = finite_number(value[r][c], item(item(path, r), c), 1e6);
   }
-  if (std::abs(m(0, 1) - m(1, 0)) > 1e-12 * std::max(1.0, std::abs(m(0, 1)))) throw api::bad_request(path, "not symmetric");
-  if (m(0, 0) <= 0.0 || m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0) <= 0.0) throw api::bad_request(path, "not positive definite");
+  if (std::abs(m(0, 1) - m(1, 0)) > 1e-12 * std::max(1.0, std::abs(m(0, 1)))) throw bad_request(path, "not symmetric");
+  if (m(0, 0) <= 0.0 || m(0, 0) * m(1, 1) - m(0, 1) * m(1, 0) <= 0.0) throw bad_request(path, "not positive definite");
   return m;
 }
 
@@ -82,43 +82,43 @@ std::optional<std::size_t> invalid_utf8_offset(std::string_view text) { return c
 
 world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits) {
   const json doc = parse_json(body);
-  if (!doc.is_object()) throw api::bad_request("", "expected an object with \"segments\"");
+  if (!doc.is_object()) throw bad_request("", "expected an object with \"segments\"");
   for (const auto& [key, value] : doc.items())
     if (key != "source" && key != "stamp" && key != "segments" && key != "sensor")
-      throw api::bad_request(key, "unknown field");
+      throw bad_request(key, "unknown field");
   world::Observation observation;
   observation.observer = "anonymous";
   if (auto it = doc.find("source"); it != doc.end()) {
     if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
-      throw api::bad_request("source", "expected a non-empty string of at most 128 characters");
+      throw bad_request("source", "expected a non-empty string of at most 128 characters");
     observation.observer = it->get<std::string>();
   }
   if (auto it = doc.find("sensor"); it != doc.end()) {
     // An atom the rules compare against (observation_sensor/1), e.g. laser or sonar.
     static const std::regex kSensor("[a-z][a-z0-9_]{0,31}");
     if (!it->is_string() || !std::regex_match(it->get<std::string>(), kSensor))
-      throw api::bad_request("sensor", "expected a lower-case name like \"laser\" or \"sonar\"");
+      throw bad_request("sensor", "expected a lower-case name like \"laser\" or \"sonar\"");
     observation.sensor = it->get<std::string>();
   }
   if (auto it = doc.find("stamp"); it != doc.end()) observation.stamp_s = finite_number(*it, "stamp", 1e12);
   auto it = doc.find("segments");
-  if (it == doc.end()) throw api::bad_request("segments", "missing field");
-  if (!it->is_array()) throw api::bad_request("segments", "expected an array");
-  if (it->empty()) throw api::bad_request("segments", "must not be empty");
+  if (it == doc.end()) throw bad_request("segments", "missing field");
+  if (!it->is_array()) throw bad_request("segments", "expected an array");
+  if (it->empty()) throw bad_request("segments", "must not be empty");
   if (it->size() > limits.max_segments)
-    throw api::bad_request("segments", "more than " + std::to_string(limits.max_segments) + " segments in one request");
+    throw bad_request("segments", "more than " + std::to_string(limits.max_segments) + " segments in one request");
   for (std::size_t i = 0; i < it->size(); ++i) {
     const auto path = item("segments", i);
     const json& s = (*it)[i];
-    if (!s.is_object()) throw api::bad_request(path, "expected {\"p0\", \"p1\", \"cov\"?}");
+    if (!s.is_object()) throw bad_request(path, "expected {\"p0\", \"p1\", \"cov\"?}");
     for (const auto& [key, value] : s.items())
-      if (key != "p0" && key != "p1" && key != "cov") throw api::bad_request(field(path, key), "unknown field");
-    if (!s.contains("p0")) throw api::bad_request(field(path, "p0"), "missing field");
-    if (!s.contains("p1")) throw api::bad_request(field(path, "p1"), "missing field");
+      if (key != "p0" && key != "p1" && key != "cov") throw bad_request(field(path, key), "unknown field");
+    if (!s.contains("p0")) throw bad_request(field(path, "p0"), "missing field");
+    if (!s.contains("p1")) throw bad_request(field(path, "p1"), "missing field");
     const auto p0 = point(s["p0"], field(path, "p0"), limits.max_abs_coordinate_m);
     const auto p1 = point(s["p1"], field(path, "p1"), limits.max_abs_coordinate_m);
     if ((p1 - p0).norm() < limits.min_length_m)
-      throw api::bad_request(path, "segment shorter than " + std::to_string(limits.min_length_m) + " m");
+      throw bad_request(path, "segment shorter than " + std::to_string(limits.min_length_m) + " m");
     try {
       if (s.contains("cov")) {
         observation.segments.push_back({fusion::LineSegment::from_points(p0, p1, covariance(s["cov"], field(path, "cov")))});
@@ -128,7 +128,7 @@ world::Observation parse_primitives(std::string_view body, const world::WorldOpt
         observation.segments.push_back({segment});
       }
     } catch (const std::invalid_argument& e) {
-      throw api::bad_request(path, e.what());
+      throw bad_request(path, e.what());
     }
   }
   return observation;
@@ -138,10 +138,10 @@ namespace {
 
 std::vector<double> number_list(const json& doc, const std::string& key, std::size_t max_items, bool allow_null) {
   const auto it = doc.find(key);
-  if (it == doc.end()) throw api::bad_request(key, "missing field");
-  if (!it->is_array()) throw api::bad_request(key, "expected an array of numbers");
-  if (it->empty()) throw api::bad_request(key, "must not be empty");
-  if (it->size() > max_items) throw api::bad_request(key, "more than " + std::to_string(max_items) + " values");
+  if (it == doc.end()) throw bad_request(key, "missing field");
+  if (!it->is_array()) throw bad_request(key, "expected an array of numbers");
+  if (it->empty()) throw bad_request(key, "must not be empty");
+  if (it->size() > max_items) throw bad_request(key, "more than " + std::to_string(max_items) + " values");
   std::vector<double> values;
   values.reserve(it->size());
   for (std::size_t i = 0; i < it->size(); ++i) {
@@ -158,7 +158,7 @@ std::vector<double> number_list(const json& doc, const std::string& key, std::si
 double required_number(const json& doc, const std::string& key, double limit, const std::string& parent = "") {
   const auto path = parent.empty() ? key : parent + "." + key;
   const auto it = doc.find(key);
-  if (it == doc.end()) throw api::bad_request(path, "missing field");
+  if (it == doc.end()) throw bad_request(path, "missing field");
   return finite_number(*it, path, limit);
 }
 
@@ -166,11 +166,11 @@ double required_number(const json& doc, const std::string& key, double limit, co
 
 ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
   const json doc = parse_json(body);
-  if (!doc.is_object()) throw api::bad_request("", "expected a scan object");
+  if (!doc.is_object()) throw bad_request("", "expected a scan object");
   const auto sensor_it = doc.find("sensor");
-  if (sensor_it == doc.end()) throw api::bad_request("sensor", "missing field (\"laser\" or \"sonar\")");
+  if (sensor_it == doc.end()) throw bad_request("sensor", "missing field (\"laser\" or \"sonar\")");
   if (!sensor_it->is_string() || (*sensor_it != "laser" && *sensor_it != "sonar"))
-    throw api::bad_request("sensor", "expected \"laser\" or \"sonar\"");
+    throw bad_request("sensor", "expected \"laser\" or \"sonar\"");
   const bool laser = *sensor_it == "laser";
   static const std::vector<std::string> kLaserKeys = {"sensor", "source", "stamp", "pose", "angle_min", "angle_increment",
                                                       "ranges", "range_min", "range_max", "sigma_range", "pose_cov"};
@@ -179,36 +179,36 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
   const auto& known = laser ? kLaserKeys : kSonarKeys;
   for (const auto& [key, value] : doc.items())
     if (std::find(known.begin(), known.end(), key) == known.end())
-      throw api::bad_request(key, std::string("unknown field for a ") + (laser ? "laser" : "sonar") + " scan");
+      throw bad_request(key, std::string("unknown field for a ") + (laser ? "laser" : "sonar") + " scan");
 
   ScanRequest request;
   if (auto it = doc.find("source"); it != doc.end()) {
     if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
-      throw api::bad_request("source", "expected a non-empty string of at most 128 characters");
+      throw bad_request("source", "expected a non-empty string of at most 128 characters");
     request.observer = it->get<std::string>();
   }
   if (auto it = doc.find("stamp"); it != doc.end()) request.stamp_s = finite_number(*it, "stamp", 1e12);
   const auto pose_it = doc.find("pose");
-  if (pose_it == doc.end()) throw api::bad_request("pose", "missing field (the sensor pose in the world)");
-  if (!pose_it->is_object()) throw api::bad_request("pose", "expected {\"x\", \"y\", \"theta\"}");
+  if (pose_it == doc.end()) throw bad_request("pose", "missing field (the sensor pose in the world)");
+  if (!pose_it->is_object()) throw bad_request("pose", "expected {\"x\", \"y\", \"theta\"}");
   for (const auto& [key, value] : pose_it->items())
-    if (key != "x" && key != "y" && key != "theta") throw api::bad_request("pose." + key, "unknown field");
+    if (key != "x" && key != "y" && key != "theta") throw bad_request("pose." + key, "unknown field");
   const fusion::Pose2D pose{required_number(*pose_it, "x", limits.max_abs_coordinate_m, "pose"),
                             required_number(*pose_it, "y", limits.max_abs_coordinate_m, "pose"),
                             required_number(*pose_it, "theta", 1e3, "pose")};
   if (auto it = doc.find("pose_cov"); it != doc.end()) {
-    if (!it->is_array() || it->size() != 3) throw api::bad_request("pose_cov", "expected a 3x3 matrix over x, y, theta");
+    if (!it->is_array() || it->size() != 3) throw bad_request("pose_cov", "expected a 3x3 matrix over x, y, theta");
     for (int r = 0; r < 3; ++r) {
-      if (!(*it)[r].is_array() || (*it)[r].size() != 3) throw api::bad_request(item("pose_cov", r), "expected 3 numbers");
+      if (!(*it)[r].is_array() || (*it)[r].size() != 3) throw bad_request(item("pose_cov", r), "expected 3 numbers");
       for (int c = 0; c < 3; ++c) request.pose_cov(r, c) = finite_number((*it)[r][c], item(item("pose_cov", r), c), 1e6);
     }
     if (!request.pose_cov.isApprox(request.pose_cov.transpose(), 1e-12) || request.pose_cov.diagonal().minCoeff() < 0)
-      throw api::bad_request("pose_cov", "not a symmetric covariance");
+      throw bad_request("pose_cov", "not a symmetric covariance");
   }
   const double range_min = doc.contains("range_min") ? finite_number(doc["range_min"], "range_min", limits.max_range_m) : 0.0;
   const double range_max = required_number(doc, "range_max", limits.max_range_m);
-  if (range_min < 0) throw api::bad_request("range_min", "must be >= 0");
-  if (range_max <= range_min) throw api::bad_request("range_max", "must be greater than range_min");
+  if (range_min < 0) throw bad_request("range_min", "must be >= 0");
+  if (range_max <= range_min) throw bad_request("range_max", "must be greater than range_min");
   auto ranges = number_list(doc, "ranges", limits.max_beams, true);
 
   if (laser) {
@@ -216,35 +216,35 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
     scan.sensor_pose = pose;
     scan.angle_min_rad = required_number(doc, "angle_min", 10.0);
     scan.angle_increment_rad = required_number(doc, "angle_increment", 1.0);
-    if (scan.angle_increment_rad == 0.0) throw api::bad_request("angle_increment", "must not be 0");
+    if (scan.angle_increment_rad == 0.0) throw bad_request("angle_increment", "must not be 0");
     scan.ranges_m = std::move(ranges);
     scan.range_min_m = range_min;
     scan.range_max_m = range_max;
     if (doc.contains("sigma_range")) scan.sigma_range_m = finite_number(doc["sigma_range"], "sigma_range", 10.0);
-    if (scan.sigma_range_m <= 0) throw api::bad_request("sigma_range", "must be > 0");
+    if (scan.sigma_range_m <= 0) throw bad_request("sigma_range", "must be > 0");
     request.scan = std::move(scan);
   } else {
     fusion::SonarScan scan;
     scan.sensor_pose = pose;
     scan.angles_rad = number_list(doc, "angles", limits.max_beams, false);
     if (scan.angles_rad.size() != ranges.size())
-      throw api::bad_request("angles", "needs one angle per range (" + std::to_string(ranges.size()) + ")");
+      throw bad_request("angles", "needs one angle per range (" + std::to_string(ranges.size()) + ")");
     for (std::size_t i = 0; i < scan.angles_rad.size(); ++i)
-      if (std::abs(scan.angles_rad[i]) > 10.0) throw api::bad_request(item("angles", i), "absurd angle [rad]");
+      if (std::abs(scan.angles_rad[i]) > 10.0) throw bad_request(item("angles", i), "absurd angle [rad]");
     scan.ranges_m = std::move(ranges);
     scan.range_min_m = range_min;
     scan.range_max_m = range_max;
     if (doc.contains("beam_width")) scan.beam_width_rad = finite_number(doc["beam_width"], "beam_width", 3.2);
-    if (scan.beam_width_rad <= 0) throw api::bad_request("beam_width", "must be > 0 [rad]");
+    if (scan.beam_width_rad <= 0) throw bad_request("beam_width", "must be > 0 [rad]");
     if (doc.contains("sigma_range")) scan.sigma_range_m = finite_number(doc["sigma_range"], "sigma_range", 10.0);
-    if (scan.sigma_range_m <= 0) throw api::bad_request("sigma_range", "must be > 0");
+    if (scan.sigma_range_m <= 0) throw bad_request("sigma_range", "must be > 0");
     request.scan = std::move(scan);
   }
   // The grid's own checks (sizes, finiteness) as a 400 rather than an internal error.
   try {
     std::visit([](const auto& scan) { fusion::validate(scan); }, request.scan);
   } catch (const std::invalid_argument& e) {
-    throw api::bad_request("", std::string("invalid scan: ") + e.what());
+    throw bad_request("", std::string("invalid scan: ") + e.what());
   }
   return request;
 }
@@ -365,9 +365,9 @@ json query_value_json(const rules::QueryValue& v, std::size_t depth, AnswerBudge
   using Kind = rules::QueryValue::Kind;
   const auto spend = [&budget](std::size_t bytes) {
     if (bytes > budget.left)
-      throw api::ApiError(422, "answer_too_large",
-                          "the answer is larger than " + std::to_string(budget.max_bytes) +
-                              " bytes; ask for fewer solutions (max_solutions) or smaller terms");
+      throw CodecError(CodecError::Kind::answer_too_large, "",
+                       "the answer is larger than " + std::to_string(budget.max_bytes) +
+                           " bytes; ask for fewer solutions (max_solutions) or smaller terms");
     budget.left -= bytes;
   };
   // What each value adds to the text, its comma included (escapes aside: the dumped size is checked again).
@@ -382,8 +382,8 @@ json query_value_json(const rules::QueryValue& v, std::size_t depth, AnswerBudge
     case Kind::floating: spend(25); return std::isfinite(v.floating) ? json(v.floating) : json(nullptr);
     case Kind::list: {
       if (depth >= apriori::kMaxJsonDepth)
-        throw api::ApiError(422, "answer_too_large",
-                            "the answer nests lists deeper than " + std::to_string(apriori::kMaxJsonDepth) + " levels");
+        throw CodecError(CodecError::Kind::answer_too_large, "",
+                         "the answer nests lists deeper than " + std::to_string(apriori::kMaxJsonDepth) + " levels");
       spend(3);
       json items = json::array();
       for (const auto& item : v.items) items.push_back(query_value_json(item, depth + 1, budget));

@@ -9,6 +9,7 @@
 #include <variant>
 
 #include "fusion/grid/scan.h"
+#include "server/json/codec_error.h"
 #include "server/world/update.h"
 
 namespace wm::json_codec {
@@ -16,7 +17,7 @@ namespace wm::json_codec {
 /// Parses a JSON request body: refuses nesting deeper than apriori::kMaxJsonDepth before nlohmann's
 /// recursive DOM sees it, malformed JSON (including invalid UTF-8 in strings) and numbers that overflow a
 /// double. Every JSON body the server reads goes through one of these two.
-/// @throw api::ApiError(400, "bad_request") saying what and where.
+/// @throw CodecError (bad_request) saying what and where.
 nlohmann::json parse_json(std::string_view text);
 /// The same, keeping the order of object keys (layer mappings apply their rules in file order).
 nlohmann::ordered_json parse_ordered_json(std::string_view text);
@@ -34,7 +35,7 @@ struct PrimitiveLimits {
   double min_length_m = 1.0e-3;
 };
 
-/// Parses and validates POST /api/v1/primitives. @throw api::ApiError(400) naming the bad field.
+/// Parses and validates POST /api/v1/primitives. @throw CodecError (bad_request) naming the bad field.
 world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits);
 
 /// A posted scan (POST /api/v1/scans): the robot, its clock, and a laser or a sonar scan.
@@ -53,7 +54,7 @@ struct ScanLimits {
 };
 
 /// Parses and validates POST /api/v1/scans. A range may be null (no reading); NaN-like and out-of-range
-/// readings are kept and ignored per beam by the grid. @throw api::ApiError(400) naming the bad field.
+/// readings are kept and ignored per beam by the grid. @throw CodecError (bad_request) naming the bad field.
 ScanRequest parse_scan(std::string_view body, const ScanLimits& limits);
 
 nlohmann::json object_json(const world::ObjectState& object, const world::WorldOptions& options);
@@ -66,7 +67,7 @@ nlohmann::json decision_json(const rules::Decision& decision);
 nlohmann::json rules_status_json(const rules::RulesStatus& status);
 /// {"variables": [...], "solutions": [{"X": value, ...}], "count": n, "truncated": bool}; atoms and strings
 /// as JSON strings, numbers as numbers, lists as arrays, other compound terms as their Prolog text.
-/// @throw api::ApiError(422, "answer_too_large") when the texts of the answer add up to more than
+/// @throw CodecError (answer_too_large) when the texts of the answer add up to more than
 /// `max_bytes`, or lists nest deeper than apriori::kMaxJsonDepth (checked while building, so a huge answer
 /// is refused before its JSON exists).
 nlohmann::json query_result_json(const rules::QueryResult& result,

@@ -11,14 +11,9 @@
 #include <thread>
 
 #include "rules/engine.h"
+#include "server/service/service_errors.h"
 
 namespace wm::service {
-
-/// The worker's queue is full: the caller should answer 503 and the client retry later.
-class Busy : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 /// One thread with a Prolog engine attached, running queued jobs in order. Attaching costs ~95 µs, so the
 /// thread lives as long as the worker.

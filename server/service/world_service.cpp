@@ -5,7 +5,11 @@
 #include <cmath>
 #include <iostream>
 #include <system_error>
+#include <tuple>
+#include <type_traits>
 #include <variant>
+
+#include "fusion/grid/scan_geometry.h"
 
 namespace wm::service {
 namespace {
@@ -40,22 +44,7 @@ std::int64_t body_hash(std::string_view body) {
   return static_cast<std::int64_t>(h);
 }
 
-constexpr std::size_t kMaxRequestIdLength = 200;
-
 }  // namespace
-
-std::optional<std::string> parse_request_id(std::string_view value) {
-  while (!value.empty() && (value.front() == ' ' || value.front() == '\t')) value.remove_prefix(1);
-  while (!value.empty() && (value.back() == ' ' || value.back() == '\t')) value.remove_suffix(1);
-  if (value.empty()) return std::nullopt;
-  if (value.size() >= 2 && value.front() == '"' && value.back() == '"') value = value.substr(1, value.size() - 2);
-  if (value.empty() || value.size() > kMaxRequestIdLength)
-    throw std::invalid_argument("expected 1 to " + std::to_string(kMaxRequestIdLength) + " characters");
-  for (const char c : value)
-    if (c < 0x21 || c > 0x7e || c == '"' || c == '\\')
-      throw std::invalid_argument("only visible ASCII characters other than '\"' and '\\' are allowed");
-  return std::string(value);
-}
 
 WriterPreferringMutex::WriterPreferringMutex() {
   pthread_rwlockattr_t attr;
@@ -191,127 +180,131 @@ void WorldService::flush_grid(bool force) {
   last_flush_ = now;
 }
 
-WorldService::ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json,
-                                                  std::optional<std::string> request_id) {
+ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json,
+                                   std::optional<std::string> request_id) {
   return writer_->run([this, scan = std::move(scan), payload = std::move(payload_json), request_id = std::move(request_id)] {
     const auto hash = body_hash(payload);
-    if (request_id) {
-      if (const auto known = known_request(*request_id, "scan", hash)) {
-        ScanOutcome outcome{known->seq, known->grid_revision, std::nullopt, true};
-        if (known->lines_seq)
-          outcome.lines = PrimitivesOutcome{*known->lines_seq, known->version, store_.observation_decisions(*known->lines_seq), true};
-        return outcome;
-      }
-    }
+    if (auto replayed = replayed_scan(request_id, hash)) return std::move(*replayed);
     const std::int64_t seq = last_scan_seq_ + 1;
     // Decide the lines first (nothing is stored yet), then commit the scan and its lines together: a crash
     // leaves either both or neither, never a scan in the grid whose line decisions are gone.
-    std::optional<PreparedUpdate> lines;
-    const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
-    if (options_.extract_scan_lines && laser) {
-      std::vector<fusion::RangeReading> readings;
-      for (std::size_t i = 0; i < laser->ranges_m.size(); ++i) {
-        const double r = laser->ranges_m[i];
-        // No return (>= range_max) and invalid readings carry no surface.
-        if (std::isfinite(r) && r >= laser->range_min_m && r < laser->range_max_m && r > 0)
-          readings.push_back({r, laser->angle_min_rad + static_cast<double>(i) * laser->angle_increment_rad});
-      }
-      auto line_options = options_.scan_lines;
-      line_options.sigma_range_m = laser->sigma_range_m;
-      const auto segments = fusion::extract_scan_lines(readings, laser->sensor_pose, scan.pose_cov, line_options);
-      if (!segments.empty()) {
-        world::Observation observation;
-        observation.observer = scan.observer;
-        observation.source = "scan";
-        observation.sensor = "laser";
-        observation.stamp_s = scan.stamp_s;
-        for (const auto& segment : segments) observation.segments.push_back({segment});
-        lines = prepare_update(std::move(observation));
-      }
-    }
-    std::optional<storage::RequestRecord> record;
-    if (request_id) {
-      record = storage::RequestRecord{*request_id, "scan", hash, seq, lines ? lines->update.state.version : 0, seq,
-                                      lines ? std::optional<std::int64_t>(lines->seq) : std::nullopt};
-    }
-    const std::string lines_payload = "{\"scan\": " + std::to_string(seq) + "}";
-    const storage::ScanEntry entry{seq, scan.observer, scan.sensor(), scan.stamp_s, payload};
-    if (lines) {
-      commit_prepared(*lines, [&] {
-        store_.commit_scan(entry, storage::ObservationEntry{lines->update, lines->observation, lines_payload}, record);
-      });
-    } else {
-      store_.commit_scan(entry, std::nullopt, record);
-    }
+    auto lines = prepare_scan_lines(scan);
+    commit_scan(scan, seq, payload, lines, request_id, hash);
     // Committed: from here on nothing may fail the request (its retry would apply it twice).
-    insert_scan(scan, seq);
-    try {
-      flush_grid(false);
-    } catch (const std::exception& e) {
-      std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what() << "\n";
-    }
+    insert_committed_scan(scan, seq);
     ScanOutcome outcome{seq, seq, std::nullopt, false};
-    if (events_ && events_->subscriber_count() > 0) {
-      // Where the robot is and what it saw (at most 360 points), and the region of the grid that changed.
-      const auto& pose = std::visit([](const auto& s) -> const fusion::Pose2D& { return s.sensor_pose; }, scan.scan);
-      const auto& ranges = std::visit([](const auto& s) -> const std::vector<double>& { return s.ranges_m; }, scan.scan);
-      const double range_max = std::visit([](const auto& s) { return s.range_max_m; }, scan.scan);
-      nlohmann::json points = nlohmann::json::array();
-      // The grid changed around the pose and along every beam, up to its return or the grid's usable range.
-      const double reach = std::min(range_max, options_.grid.sensor.max_usable_range_m);
-      double box[4] = {pose.x_m, pose.y_m, pose.x_m, pose.y_m};
-      for (std::size_t i = 0; i < ranges.size(); ++i) {
-        const double r = ranges[i];
-        if (!std::isfinite(r) || r <= 0) continue;
-        double bearing = 0;
-        if (const auto* l = std::get_if<fusion::LaserScan>(&scan.scan)) bearing = l->angle_min_rad + static_cast<double>(i) * l->angle_increment_rad;
-        else bearing = std::get<fusion::SonarScan>(scan.scan).angles_rad[i];
-        const auto p = pose.transform_point({std::min(r, reach) * std::cos(bearing), std::min(r, reach) * std::sin(bearing)});
-        box[0] = std::min(box[0], p.x());
-        box[1] = std::min(box[1], p.y());
-        box[2] = std::max(box[2], p.x());
-        box[3] = std::max(box[3], p.y());
-      }
-      // Wide beams (a sonar cone, the laser's 2°) reach beyond their axis: pad by the cone's half width at reach.
-      const double half_width = std::holds_alternative<fusion::SonarScan>(scan.scan)
-                                    ? std::get<fusion::SonarScan>(scan.scan).beam_width_rad / 2
-                                    : options_.grid.sensor.laser_beam_width_rad / 2;
-      const double pad = 2 * grid_->resolution_m() + reach * std::sin(std::min(half_width, 1.5));
-      const nlohmann::json changed_box = {box[0] - pad, box[1] - pad, box[2] + pad, box[3] + pad};
-      const std::size_t step = std::max<std::size_t>(1, ranges.size() / 360);
-      for (std::size_t i = 0; i < ranges.size(); i += step) {
-        const double r = ranges[i];
-        if (!std::isfinite(r) || r <= 0 || r >= range_max) continue;
-        double bearing = 0;
-        if (const auto* l = std::get_if<fusion::LaserScan>(&scan.scan)) bearing = l->angle_min_rad + static_cast<double>(i) * l->angle_increment_rad;
-        else bearing = std::get<fusion::SonarScan>(scan.scan).angles_rad[i];
-        const auto p = pose.transform_point({r * std::cos(bearing), r * std::sin(bearing)});
-        points.push_back({std::round(p.x() * 1000) / 1000, std::round(p.y() * 1000) / 1000});
-      }
-      emit({{"type", "scan"}, {"scan_seq", seq}, {"observer", scan.observer}, {"sensor", scan.sensor()},
-            {"pose", {{"x", pose.x_m}, {"y", pose.y_m}, {"theta", pose.theta_rad}}}, {"grid_revision", outcome.grid_revision},
-            {"bbox", changed_box},
-            {"points", points}});
-    }
+    emit_scan_event(scan, seq);
     if (lines) outcome.lines = finish_update(std::move(*lines));
-    // The periodic grid extraction is its own observation, not part of the scan: a crash before it skips one
-    // extraction, the scan stays whole.
-    if (options_.grid_extract_every > 0 && outcome.grid_revision % static_cast<std::int64_t>(options_.grid_extract_every) == 0) {
-      try {
-        extract_grid_lines_on_writer();
-      } catch (const std::exception& e) {
-        std::cerr << "wmd: grid line extraction after scan " << seq << " failed: " << e.what() << "\n";
-      }
-    }
+    extract_grid_lines_if_due(seq);
     return outcome;
   });
 }
 
-std::optional<WorldService::PrimitivesOutcome> WorldService::extract_grid_lines() {
+std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::string>& request_id,
+                                                       std::int64_t hash) {
+  if (!request_id) return std::nullopt;
+  const auto known = known_request(*request_id, "scan", hash);
+  if (!known) return std::nullopt;
+  ScanOutcome outcome{known->seq, known->grid_revision, std::nullopt, true};
+  if (known->lines_seq)
+    outcome.lines = PrimitivesOutcome{*known->lines_seq, known->version, store_.observation_decisions(*known->lines_seq), true};
+  return outcome;
+}
+
+std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(const json_codec::ScanRequest& scan) {
+  const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
+  if (!options_.extract_scan_lines || !laser) return std::nullopt;
+  std::vector<fusion::RangeReading> readings;
+  for (std::size_t i = 0; i < laser->ranges_m.size(); ++i) {
+    const double r = laser->ranges_m[i];
+    // No return (>= range_max) and invalid readings carry no surface.
+    if (std::isfinite(r) && r >= laser->range_min_m && r < laser->range_max_m && r > 0)
+      readings.push_back({r, fusion::beam_bearing_rad(*laser, i)});
+  }
+  auto line_options = options_.scan_lines;
+  line_options.sigma_range_m = laser->sigma_range_m;
+  const auto segments = fusion::extract_scan_lines(readings, laser->sensor_pose, scan.pose_cov, line_options);
+  if (segments.empty()) return std::nullopt;
+  world::Observation observation;
+  observation.observer = scan.observer;
+  observation.source = "scan";
+  observation.sensor = "laser";
+  observation.stamp_s = scan.stamp_s;
+  for (const auto& segment : segments) observation.segments.push_back({segment});
+  return prepare_update(std::move(observation));
+}
+
+void WorldService::commit_scan(const json_codec::ScanRequest& scan, std::int64_t seq, const std::string& payload,
+                               const std::optional<PreparedUpdate>& lines, const std::optional<std::string>& request_id,
+                               std::int64_t hash) {
+  std::optional<storage::RequestRecord> record;
+  if (request_id) {
+    record = storage::RequestRecord{*request_id, "scan", hash, seq, lines ? lines->update.state.version : 0, seq,
+                                    lines ? std::optional<std::int64_t>(lines->seq) : std::nullopt};
+  }
+  const std::string lines_payload = "{\"scan\": " + std::to_string(seq) + "}";
+  const storage::ScanEntry entry{seq, scan.observer, scan.sensor(), scan.stamp_s, payload};
+  if (lines) {
+    commit_prepared(*lines, [&] {
+      store_.commit_scan(entry, storage::ObservationEntry{lines->update, lines->observation, lines_payload}, record);
+    });
+  } else {
+    store_.commit_scan(entry, std::nullopt, record);
+  }
+}
+
+void WorldService::insert_committed_scan(const json_codec::ScanRequest& scan, std::int64_t seq) {
+  insert_scan(scan, seq);
+  try {
+    flush_grid(false);
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what() << "\n";
+  }
+}
+
+void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq) {
+  if (!events_ || events_->subscriber_count() == 0) return;
+  constexpr std::size_t kMaxEventPoints = 360;
+  const auto& sensor = options_.grid.sensor;
+  // The grid changed around the pose and along every beam, up to its return or the grid's usable range; wide
+  // beams (a sonar cone, the laser's 2°) reach beyond their axis.
+  const auto [pose, changed, points] = std::visit(
+      [&](const auto& s) {
+        const double reach = std::min(s.range_max_m, sensor.max_usable_range_m);
+        double half_width = sensor.laser_beam_width_rad / 2;
+        if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
+        return std::tuple{s.sensor_pose, fusion::scan_footprint(s, reach, half_width, 2 * grid_->resolution_m()),
+                          fusion::scan_returns(s, kMaxEventPoints)};
+      },
+      scan.scan);
+  nlohmann::json returns = nlohmann::json::array();
+  for (const auto& p : points) returns.push_back({std::round(p.x() * 1000) / 1000, std::round(p.y() * 1000) / 1000});
+  emit({{"type", "scan"},
+        {"scan_seq", seq},
+        {"observer", scan.observer},
+        {"sensor", scan.sensor()},
+        {"pose", {{"x", pose.x_m}, {"y", pose.y_m}, {"theta", pose.theta_rad}}},
+        {"grid_revision", seq},
+        {"bbox", {changed.min().x(), changed.min().y(), changed.max().x(), changed.max().y()}},
+        {"points", returns}});
+}
+
+void WorldService::extract_grid_lines_if_due(std::int64_t scan_seq) {
+  // The extraction is its own observation, not part of the scan: a crash before it skips one extraction, the
+  // scan stays whole.
+  if (options_.grid_extract_every == 0 || scan_seq % static_cast<std::int64_t>(options_.grid_extract_every) != 0) return;
+  try {
+    extract_grid_lines_on_writer();
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: grid line extraction after scan " << scan_seq << " failed: " << e.what() << "\n";
+  }
+}
+
+std::optional<PrimitivesOutcome> WorldService::extract_grid_lines() {
   return writer_->run([this] { return extract_grid_lines_on_writer(); });
 }
 
-std::optional<WorldService::PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
+std::optional<PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
   std::optional<fusion::ProbabilityRaster> raster;
   {
     std::shared_lock lock(grid_mutex_);
@@ -365,7 +358,7 @@ void WorldService::sync_all_facts(const world::WorldState& state) {
   engine_.set_elements(elements);
 }
 
-WorldService::PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
+PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
                                                               std::optional<std::string> request_id) {
   return writer_->run([this, observation = std::move(observation), payload = std::move(payload_json),
                        request_id = std::move(request_id)]() mutable {
@@ -381,7 +374,7 @@ WorldService::PrimitivesOutcome WorldService::post_primitives(world::Observation
   });
 }
 
-WorldService::PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, const std::string& payload) {
+PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, const std::string& payload) {
   auto prepared = prepare_update(std::move(observation));
   commit_prepared(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload); });
   return finish_update(std::move(prepared));
@@ -424,7 +417,7 @@ void WorldService::commit_prepared(const PreparedUpdate& prepared, F&& commit) {
   }
 }
 
-WorldService::PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
+PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
   auto& update = prepared.update;
   const auto& observation = prepared.observation;
   const auto seq = prepared.seq;
@@ -514,6 +507,30 @@ DryRunOutcome WorldService::dry_run(const rules::RuleText& candidate, std::size_
         outcome.changes.push_back({before, after});
     }
     return outcome;
+  });
+}
+
+std::vector<world::DecisionRecord> WorldService::decisions(std::int64_t since_seq, std::size_t limit,
+                                                         const std::optional<std::string>& element) {
+  return store_.decisions(since_seq, limit, element);
+}
+
+std::vector<world::DecisionRecord> WorldService::object_decisions(const std::string& object_id, std::size_t limit) {
+  return store_.object_decisions(object_id, limit);
+}
+
+double WorldService::grid_resolution_m() const {
+  return read_grid([](const fusion::OccupancyGrid& grid) { return grid.resolution_m(); });
+}
+
+std::optional<fusion::GridGeometry> WorldService::grid_bounds() const {
+  return read_grid([](const fusion::OccupancyGrid& grid) { return grid.bounds(); });
+}
+
+GridLayerValues WorldService::grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const {
+  // The revision is read under the same lock as the cells: it counts exactly the scans they include.
+  return read_grid([&](const fusion::OccupancyGrid& grid) {
+    return GridLayerValues{grid.export_layer(layer, region), grid_revision_.load()};
   });
 }
 

@@ -19,6 +19,7 @@
 #include "server/json/codec.h"
 #include "rules/engine.h"
 #include "server/service/prolog_worker.h"
+#include "server/service/world_port.h"
 #include "server/service/rules_watcher.h"
 #include "server/storage/store.h"
 #include "server/world/update.h"
@@ -48,17 +49,6 @@ struct ServiceOptions {
   fusion::GridLineOptions grid_lines;
 };
 
-/// A request id (Idempotency-Key) that was used before with another body or on another endpoint (HTTP 409).
-class RequestIdConflict : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-/// The request id in an `Idempotency-Key` header value: 1 to 200 visible ASCII characters (0x21–0x7E), bare
-/// or in double quotes (the structured-field string form of the IETF httpapi draft). nullopt for an empty
-/// value (no header). @throw std::invalid_argument naming what is wrong.
-std::optional<std::string> parse_request_id(std::string_view header_value);
-
 /// A reader–writer lock that lets a waiting writer in before new readers (a glibc rwlock of kind
 /// PTHREAD_RWLOCK_PREFER_WRITER_NONRECURSIVE_NP). std::shared_mutex on glibc prefers readers: with a few
 /// clients reading the grid in a loop their shared locks overlap and the writer waited for seconds per scan.
@@ -81,23 +71,12 @@ class WriterPreferringMutex {
   pthread_rwlock_t rwlock_;
 };
 
-/// One re-decided observation of a dry run whose decision differs.
-struct DryRunChange {
-  world::DecisionRecord recorded;  // as it was decided and logged
-  rules::Decision candidate;       // what the candidate rules answer to the same question
-};
-
-struct DryRunOutcome {
-  std::size_t redecided = 0;
-  std::vector<DryRunChange> changes;
-};
-
 /// Owns the world model. One writer thread applies every change (match → rules → apply → store) in
 /// arrival order; readers take immutable snapshots that are swapped after each committed request, so
 /// they never block the writer and never see half an update. Prolog decisions run on the writer thread;
 /// knowledge-base queries and dry runs run on a second Prolog thread, so a slow query never holds up
 /// ingest. The knowledge base mirrors the committed map: objects, elements, recent decisions.
-class WorldService {
+class WorldService final : public WorldPort {
  public:
   /// Starts the writer with the state loaded from `store`. @throw storage::StorageError, rules::RuleError.
   /// `events` (optional) receives what changed after every commit, for live clients.
@@ -107,16 +86,11 @@ class WorldService {
   WorldService(const WorldService&) = delete;
   WorldService& operator=(const WorldService&) = delete;
 
-  std::shared_ptr<const world::WorldState> snapshot() const;
   const ServiceOptions& options() const { return options_; }
-  storage::Store& store() { return store_; }
 
-  struct PrimitivesOutcome {
-    std::int64_t seq = 0;
-    std::int64_t version = 0;
-    std::vector<world::DecisionRecord> decisions;
-    bool replayed = false;  // the answer of an earlier request with the same request id; nothing applied now
-  };
+  std::shared_ptr<const world::WorldState> snapshot() const override;
+  const world::WorldOptions& world_options() const override { return options_.world; }
+
   /// Applies one request whole or not at all, and returns after it is committed.
   ///
   /// `request_id` (optional, from the client): the first request with it is applied and its id is committed
@@ -127,20 +101,7 @@ class WorldService {
   /// @throw Busy, storage::StorageError, std::exception from the update (nothing applied then);
   /// RequestIdConflict for a known id with another body or from the scans endpoint.
   PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
-                                    std::optional<std::string> request_id = std::nullopt);
-  /// Replaces the floor plan (store and knowledge base facts). Returns the new map version.
-  std::int64_t load_floor_plan(apriori::FloorPlan plan);
-
-  rules::RulesStatus rules_status();
-  /// Reloads the rule files atomically. @throw rules::RuleError ("file:line: message" lines); the previous
-  /// rules stay active then.
-  rules::RulesStatus reload_rules();
-  struct ScanOutcome {
-    std::int64_t seq = 0;            // journal sequence of the scan
-    std::int64_t grid_revision = 0;  // scans ever inserted into the grid (this one included); = seq
-    std::optional<PrimitivesOutcome> lines;  // the decisions on the lines extracted from it, if any
-    bool replayed = false;                   // as for PrimitivesOutcome
-  };
+                                    std::optional<std::string> request_id) override;
   /// Applies a scan whole or not at all: the lines extracted from a laser scan are decided first, then the
   /// scan's journal entry, the observation of its lines with every decision and change, and the request id
   /// commit in one transaction; only then is the scan inserted into both grids (whose tiles are flushed
@@ -148,33 +109,48 @@ class WorldService {
   /// `request_id` as for post_primitives. @throw Busy, storage::StorageError (nothing applied then),
   /// RequestIdConflict.
   ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
-                        std::optional<std::string> request_id = std::nullopt);
-  /// Runs `read(grid)` under a shared lock: concurrent readers, never during an insert. A waiting insert goes
-  /// before readers that come after it, so readers cannot starve ingest. `read` must not call read_grid.
-  template <typename F>
-  auto read_grid(F&& read) const {
-    std::shared_lock lock(grid_mutex_);
-    return read(*grid_);
-  }
-  std::int64_t grid_revision() const { return grid_revision_.load(); }
-
+                        std::optional<std::string> request_id) override;
+  /// Replaces the floor plan (store and knowledge base facts). Returns the new map version.
+  std::int64_t load_floor_plan(apriori::FloorPlan plan) override;
   /// Converts the Bayes grid into line segments (threshold, thinning, Hough, fits with eq. 3 covariance) and
   /// decides them like posted primitives (origin "grid"). nullopt when the grid is empty or yields no line.
-  std::optional<PrimitivesOutcome> extract_grid_lines();
+  std::optional<PrimitivesOutcome> extract_grid_lines() override;
 
+  rules::RulesStatus rules_status() override;
+  /// Reloads the rule files atomically. @throw rules::RuleError ("file:line: message" lines); the previous
+  /// rules stay active then.
+  rules::RulesStatus reload_rules() override;
   /// Read-only knowledge-base query. @throw rules::QueryError, Busy.
-  rules::QueryResult query(const std::string& goal, std::size_t max_solutions);
+  rules::QueryResult query(const std::string& goal, std::size_t max_solutions) override;
   /// Re-decides the last `count` logged segment decisions with `candidate` in place of the file of its
   /// name, and returns those whose action or rule would differ. Each is asked the question it was asked
   /// then (same match): later observations are not replayed against a map that would have diverged.
   /// @throw rules::RuleError when the candidate does not load; std::invalid_argument for a bad name.
-  DryRunOutcome dry_run(const rules::RuleText& candidate, std::size_t count);
+  DryRunOutcome dry_run(const rules::RuleText& candidate, std::size_t count) override;
+
+  std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
+                                               const std::optional<std::string>& element) override;
+  std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t limit) override;
+
+  double grid_resolution_m() const override;
+  std::optional<fusion::GridGeometry> grid_bounds() const override;
+  GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const override;
+  /// Scans in the grid: the journal sequence of the last one inserted.
+  std::int64_t grid_revision() const { return grid_revision_.load(); }
 
  private:
   void publish(world::WorldState state);
   std::vector<rules::ObjectFacts> object_facts(const world::WorldState& state) const;
   void sync_all_facts(const world::WorldState& state);
   void on_rules_changed();
+  /// Runs `read(grid)` under the grid's shared lock: concurrent readers, never during an insert; a waiting
+  /// insert goes before readers that come after it, so readers cannot starve ingest. `read` must not take the
+  /// lock again.
+  template <typename F>
+  auto read_grid(F&& read) const {
+    std::shared_lock lock(grid_mutex_);
+    return read(*grid_);
+  }
   void insert_scan(const json_codec::ScanRequest& scan, std::int64_t seq);
   /// An observation decided and applied in memory (the rules' facts already follow it), not yet committed.
   struct PreparedUpdate {
@@ -195,6 +171,25 @@ class WorldService {
   std::optional<storage::RequestRecord> known_request(const std::string& request_id, std::string_view kind,
                                                       std::int64_t body_hash);
   std::optional<PrimitivesOutcome> extract_grid_lines_on_writer();
+
+  // The steps of post_scan, in order, on the writer thread.
+  /// The first answer to a scan retried with its request id; nullopt: apply it. @throw RequestIdConflict.
+  std::optional<ScanOutcome> replayed_scan(const std::optional<std::string>& request_id, std::int64_t body_hash);
+  /// The lines of a laser scan, extracted and decided against the committed map (nothing stored yet); nullopt
+  /// for a sonar scan, with scan lines off, or when no line is found.
+  std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
+  /// Journals the scan, its lines' observation and its request id in one transaction. @throw StorageError.
+  void commit_scan(const json_codec::ScanRequest& scan, std::int64_t seq, const std::string& payload,
+                   const std::optional<PreparedUpdate>& lines, const std::optional<std::string>& request_id,
+                   std::int64_t body_hash);
+  /// After the commit: into the grids, and a lazy flush of their tiles. Never throws (a retry of the request
+  /// would apply it twice); a failed flush is logged and retried with the next one.
+  void insert_committed_scan(const json_codec::ScanRequest& scan, std::int64_t seq);
+  /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
+  void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
+  /// The periodic grid line extraction (ServiceOptions::grid_extract_every), its own observation after the scan.
+  void extract_grid_lines_if_due(std::int64_t scan_seq);
+
   void flush_grid(bool force);
   void emit(const nlohmann::json& event);
 

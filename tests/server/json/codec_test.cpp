@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "server/api/api_error.h"
+#include "server/json/codec_error.h"
 
 namespace wm::json_codec {
 namespace {
@@ -10,8 +10,8 @@ namespace {
 std::string refusal(const std::string& body) {
   try {
     parse_primitives(body, world::WorldOptions{}, PrimitiveLimits{});
-  } catch (const api::ApiError& e) {
-    EXPECT_EQ(e.status(), 400);
+  } catch (const CodecError& e) {
+    EXPECT_EQ(e.kind(), CodecError::Kind::bad_request);
     return e.what();
   }
   return "<accepted>";
@@ -47,7 +47,7 @@ TEST(CodecTest, TooManySegmentsAreRefused) {
   limits.max_segments = 1;
   EXPECT_THROW(parse_primitives(R"({"segments": [{"p0": [1, 2], "p1": [4, 2]}, {"p0": [1, 3], "p1": [4, 3]}]})",
                                 world::WorldOptions{}, limits),
-               api::ApiError);
+               CodecError);
 }
 
 // Issue 10: 100 000 nested objects crashed nlohmann's recursive parse; the nesting is checked first.
@@ -58,9 +58,8 @@ TEST(CodecTest, ParseJsonRefusesNestingBeyond64LevelsBeforeParsing) {
   const auto message = [](const std::string& text) {
     try {
       parse_json(text);
-    } catch (const api::ApiError& e) {
-      EXPECT_EQ(e.status(), 400);
-      EXPECT_EQ(e.error(), "bad_request");
+    } catch (const CodecError& e) {
+      EXPECT_EQ(e.kind(), CodecError::Kind::bad_request);
       return std::string(e.what());
     }
     return std::string("<accepted>");
@@ -71,7 +70,7 @@ TEST(CodecTest, ParseJsonRefusesNestingBeyond64LevelsBeforeParsing) {
   EXPECT_NO_THROW(parse_json("{\"a\": \"" + std::string(1000, '[') + "\\\"" + std::string(1000, '{') + "\"}"));
   EXPECT_EQ(message("[1,"), "malformed JSON: [json.exception.parse_error.101] parse error at line 1, column 4: syntax "
                             "error while parsing value - unexpected end of input; expected '[', '{', or a literal");
-  EXPECT_THROW(parse_ordered_json(nested(65)), api::ApiError);
+  EXPECT_THROW(parse_ordered_json(nested(65)), CodecError);
 }
 
 TEST(CodecTest, InvalidUtf8IsFoundAtItsByte) {
@@ -103,9 +102,8 @@ TEST(CodecTest, QueryAnswersAreBoundedInBytesAndNesting) {
   try {
     query_result_json(result, 50'000);
     ADD_FAILURE() << "a 100 kB answer passed a 50 kB limit";
-  } catch (const api::ApiError& e) {
-    EXPECT_EQ(e.status(), 422);
-    EXPECT_EQ(e.error(), "answer_too_large");
+  } catch (const CodecError& e) {
+    EXPECT_EQ(e.kind(), CodecError::Kind::answer_too_large);
     EXPECT_EQ(std::string(e.what()), "the answer is larger than 50000 bytes; ask for fewer solutions (max_solutions) or smaller terms");
   }
 
@@ -122,8 +120,8 @@ TEST(CodecTest, QueryAnswersAreBoundedInBytesAndNesting) {
   try {
     query_result_json(nested);
     ADD_FAILURE() << "100 nested lists passed";
-  } catch (const api::ApiError& e) {
-    EXPECT_EQ(e.status(), 422);
+  } catch (const CodecError& e) {
+    EXPECT_EQ(e.kind(), CodecError::Kind::answer_too_large);
     EXPECT_EQ(std::string(e.what()), "the answer nests lists deeper than 64 levels");
   }
 }

@@ -1,0 +1,63 @@
+#pragma once
+
+// The request handlers, one file per resource under server/api/handlers/. Each is a pure function of the call
+// (request, its decoded target, the path parameter, the options and the service port) to a response: no sockets,
+// no store, no Prolog. A refusal is thrown (ApiError, or a module's own error) and becomes JSON in http_error().
+// Which handler answers which method and path is said once, in the route table (server/api/routes.cpp).
+#include <string>
+
+#include "server/api/api_options.h"
+#include "server/api/http_types.h"
+#include "server/api/request.h"
+#include "server/service/world_port.h"
+
+namespace wm::api {
+
+/// One request as a handler sees it.
+struct Call {
+  const Request& request;
+  const Target& target;       // the percent-decoded path and query parameters
+  const std::string& param;   // what the route pattern's {placeholder} matched; empty when it has none
+  const ApiOptions& options;
+  service::WorldPort& world;
+};
+
+using Handler = Response (*)(const Call&);
+
+// handlers/health.cpp, index.cpp
+Response get_health(const Call& call);
+Response get_index(const Call& call);        // GET /api/v1: the route table as JSON
+Response get_root(const Call& call);         // GET /: the viewer's index.html when served, else the index
+// handlers/floorplan.cpp
+Response get_floor_plan(const Call& call);
+Response put_floor_plan(const Call& call);
+// handlers/map.cpp
+Response get_map(const Call& call);
+// handlers/objects.cpp: CAD objects, observed elements and their decision histories
+Response get_objects(const Call& call);
+Response get_object(const Call& call);
+Response get_object_history(const Call& call);
+Response get_elements(const Call& call);
+Response get_element(const Call& call);
+Response get_element_history(const Call& call);
+// handlers/primitives.cpp, scans.cpp
+Response post_primitives(const Call& call);
+Response post_scan(const Call& call);
+// handlers/grid.cpp
+Response get_grid(const Call& call);
+Response get_grid_map_yaml(const Call& call);
+Response get_grid_map_pgm(const Call& call);
+Response post_grid_extract(const Call& call);
+// handlers/rules.cpp, query.cpp, decisions.cpp, reports.cpp
+Response get_rules(const Call& call);
+Response post_rules_reload(const Call& call);
+Response post_rules_dry_run(const Call& call);
+Response post_query(const Call& call);
+Response get_decisions(const Call& call);
+Response get_as_built_report(const Call& call);
+// handlers/static_files.cpp
+Response get_static(const Call& call);
+// handlers/events.cpp: a plain GET of the events route, which only answers WebSocket upgrades
+Response get_events_without_upgrade(const Call& call);
+
+}  // namespace wm::api

@@ -1,0 +1,146 @@
+#include "server/api/request.h"
+
+#include <algorithm>
+#include <charconv>
+
+#include <boost/beast/core/string.hpp>
+
+#include "server/api/api_error.h"
+#include "server/json/codec.h"
+
+namespace wm::api {
+namespace {
+
+namespace http = boost::beast::http;
+
+std::string percent_decode(std::string_view in) {
+  std::string out;
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (in[i] == '%' && i + 2 < in.size()) {
+      int value = 0;
+      auto [p, ec] = std::from_chars(in.data() + i + 1, in.data() + i + 3, value, 16);
+      if (ec != std::errc() || p != in.data() + i + 3) throw bad_request("", "bad percent-encoding in the URL");
+      out.push_back(static_cast<char>(value));
+      i += 2;
+    } else if (in[i] == '+') {
+      out.push_back(' ');
+    } else {
+      out.push_back(in[i]);
+    }
+  }
+  return out;
+}
+
+constexpr std::size_t kMaxRequestIdLength = 200;
+
+}  // namespace
+
+std::optional<std::string> Target::param(const std::string& name) const {
+  const auto it = query.find(name);
+  if (it == query.end()) return std::nullopt;
+  return it->second;
+}
+
+Target parse_target(std::string_view target) {
+  Target t;
+  const auto q = target.find('?');
+  t.path = percent_decode(target.substr(0, q));
+  if (q == std::string_view::npos) return t;
+  std::string_view rest = target.substr(q + 1);
+  while (!rest.empty()) {
+    const auto amp = rest.find('&');
+    const auto pair = rest.substr(0, amp);
+    const auto eq = pair.find('=');
+    if (!pair.empty()) {
+      auto key = percent_decode(pair.substr(0, eq));
+      auto value = eq == std::string_view::npos ? std::string() : percent_decode(pair.substr(eq + 1));
+      if (json_codec::invalid_utf8_offset(key)) throw bad_request("", "a query parameter's name is not UTF-8");
+      if (auto at = json_codec::invalid_utf8_offset(value))
+        throw bad_request(key, "invalid UTF-8 at byte " + std::to_string(*at) + " of the query parameter");
+      t.query[std::move(key)] = std::move(value);
+    }
+    rest = amp == std::string_view::npos ? std::string_view() : rest.substr(amp + 1);
+  }
+  return t;
+}
+
+std::string_view header(const Request& request, http::field field) {
+  const auto value = request[field];
+  return {value.data(), value.size()};
+}
+
+bool has_content_type(const Request& request, std::string_view wanted) {
+  const auto value = request[http::field::content_type];
+  auto type = value.substr(0, value.find(';'));
+  while (!type.empty() && type.back() == ' ') type.remove_suffix(1);
+  return boost::beast::iequals(type, boost::beast::string_view(wanted.data(), wanted.size()));
+}
+
+std::int64_t query_int(const Target& target, const std::string& key, std::int64_t fallback, std::int64_t min,
+                       std::int64_t max) {
+  const auto it = target.query.find(key);
+  if (it == target.query.end()) return fallback;
+  std::int64_t v = 0;
+  const auto& s = it->second;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc() || p != s.data() + s.size() || v < min || v > max)
+    throw bad_request(key, "expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) + "], got '" +
+                               s + "'");
+  return v;
+}
+
+void require_json_body(const Request& request) {
+  if (request.body().empty()) throw bad_request("", "empty body");
+  if (!has_content_type(request, "application/json"))
+    throw ApiError(415, "unsupported_media_type",
+                   "send the body as Content-Type: application/json (got '" +
+                       std::string(header(request, http::field::content_type)) + "')");
+}
+
+nlohmann::json parse_json_object(const Request& request) {
+  require_json_body(request);
+  auto doc = json_codec::parse_json(request.body());
+  if (!doc.is_object()) throw bad_request("", "expected a JSON object");
+  return doc;
+}
+
+std::string string_field(const nlohmann::json& doc, const std::string& key, std::size_t max_size) {
+  const auto it = doc.find(key);
+  if (it == doc.end()) throw bad_request(key, "missing field");
+  if (!it->is_string()) throw bad_request(key, "expected a string");
+  auto text = it->get<std::string>();
+  if (text.empty() || text.size() > max_size)
+    throw bad_request(key, "expected 1 to " + std::to_string(max_size) + " characters");
+  return text;
+}
+
+std::size_t count_field(const nlohmann::json& doc, const std::string& key, std::size_t fallback, std::size_t max) {
+  const auto it = doc.find(key);
+  if (it == doc.end()) return fallback;
+  if (!it->is_number_integer() || it->get<std::int64_t>() < 1 || it->get<std::int64_t>() > static_cast<std::int64_t>(max))
+    throw bad_request(key, "expected an integer in [1, " + std::to_string(max) + "]");
+  return static_cast<std::size_t>(it->get<std::int64_t>());
+}
+
+void require_known_keys(const nlohmann::json& doc, std::initializer_list<std::string_view> known) {
+  for (const auto& [key, value] : doc.items())
+    if (std::find(known.begin(), known.end(), key) == known.end()) throw bad_request(key, "unknown field");
+}
+
+std::optional<std::string> request_id(const Request& request) {
+  const auto raw = request["Idempotency-Key"];
+  std::string_view value(raw.data(), raw.size());
+  const auto refuse = [](const std::string& why) { return bad_request("Idempotency-Key", why); };
+  while (!value.empty() && (value.front() == ' ' || value.front() == '\t')) value.remove_prefix(1);
+  while (!value.empty() && (value.back() == ' ' || value.back() == '\t')) value.remove_suffix(1);
+  if (value.empty()) return std::nullopt;
+  if (value.size() >= 2 && value.front() == '"' && value.back() == '"') value = value.substr(1, value.size() - 2);
+  if (value.empty() || value.size() > kMaxRequestIdLength)
+    throw refuse("expected 1 to " + std::to_string(kMaxRequestIdLength) + " characters");
+  for (const char c : value)
+    if (c < 0x21 || c > 0x7e || c == '"' || c == '\\')
+      throw refuse("only visible ASCII characters other than '\"' and '\\' are allowed");
+  return std::string(value);
+}
+
+}  // namespace wm::api

@@ -1,0 +1,56 @@
+#pragma once
+
+// Reading a request: its target, query parameters, headers and JSON body. Every refusal is an ApiError (400 or 415)
+// naming what is wrong.
+#include <cstdint>
+#include <initializer_list>
+#include <map>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "server/api/http_types.h"
+
+namespace wm::api {
+
+/// A request target, percent-decoded: the path, and the query parameters by name (the last of a repeated name).
+struct Target {
+  std::string path;
+  std::map<std::string, std::string> query;
+
+  /// The parameter's value, nullopt when absent.
+  std::optional<std::string> param(const std::string& name) const;
+};
+
+/// Parses a request target. Query parameters become names (?name=, ?level=) that end up in JSON: each must be
+/// UTF-8. @throw ApiError(400) for bad percent-encoding or text that is not UTF-8.
+Target parse_target(std::string_view target);
+
+/// The value of `field`, empty when absent.
+std::string_view header(const Request& request, boost::beast::http::field field);
+/// Whether the Content-Type (without parameters, case-insensitive) is `wanted`.
+bool has_content_type(const Request& request, std::string_view wanted);
+
+/// An integer query parameter in [min, max], `fallback` when absent. @throw ApiError(400) naming it.
+std::int64_t query_int(const Target& target, const std::string& key, std::int64_t fallback, std::int64_t min,
+                       std::int64_t max);
+
+/// @throw ApiError 400 for an empty body, 415 when it is not sent as application/json.
+void require_json_body(const Request& request);
+/// The body as a JSON object (after require_json_body). @throw ApiError(400), json_codec::CodecError.
+nlohmann::json parse_json_object(const Request& request);
+/// A string field of 1 to max_size characters. @throw ApiError(400) naming it.
+std::string string_field(const nlohmann::json& doc, const std::string& key, std::size_t max_size);
+/// An integer field in [1, max], `fallback` when absent. @throw ApiError(400) naming it.
+std::size_t count_field(const nlohmann::json& doc, const std::string& key, std::size_t fallback, std::size_t max);
+/// @throw ApiError(400) naming the first key of `doc` that is not `known`.
+void require_known_keys(const nlohmann::json& doc, std::initializer_list<std::string_view> known);
+
+/// The client's request id: the Idempotency-Key header, 1 to 200 visible ASCII characters other than '"' and
+/// '\', bare or in double quotes (the structured-field string form of the IETF httpapi draft). nullopt without
+/// the header. @throw ApiError(400, Idempotency-Key) for a malformed id.
+std::optional<std::string> request_id(const Request& request);
+
+}  // namespace wm::api

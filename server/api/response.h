@@ -1,0 +1,27 @@
+#pragma once
+
+#include <cstddef>
+#include <limits>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "server/api/http_types.h"
+
+namespace wm::api {
+
+/// A 200 (or `status`) JSON answer, not cached. Text that was not checked as UTF-8 on its way in is written
+/// with U+FFFD rather than failing the request after the work is done (nlohmann's type_error 316).
+/// @throw ApiError(422, "answer_too_large") when the text is longer than `max_bytes`.
+Response json_response(const Request& request, const nlohmann::json& body,
+                       boost::beast::http::status status = boost::beast::http::status::ok,
+                       std::size_t max_bytes = std::numeric_limits<std::size_t>::max());
+
+/// A 200 answer of `body` as is, with its Content-Type.
+Response raw_response(const Request& request, std::string body, const std::string& content_type);
+
+/// The JSON error {"error", "detail"} with its status (also used by the connection code for 413, 431, 503).
+Response error_response(unsigned http_version, bool keep_alive, int status, const std::string& error,
+                        const std::string& detail);
+
+}  // namespace wm::api

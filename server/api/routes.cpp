@@ -1,0 +1,105 @@
+#include "server/api/routes.h"
+
+#include <algorithm>
+#include <array>
+
+namespace wm::api {
+namespace {
+
+using boost::beast::http::verb;
+
+// Lanes: health and the index answer on the I/O thread even when every handler is busy; reads (and queries and
+// dry runs, which wait for the Prolog reader, not the writer) on the niced read lane; writes on their own lane.
+// Order matters where patterns overlap: ".../{id}/history" before ".../{id}".
+constexpr std::array kRoutes{
+    Route{verb::get, "/", get_root, Lane::read},
+    Route{verb::get, "/api/v1", get_index, Lane::immediate},
+    Route{verb::get, "/api/v1/health", get_health, Lane::immediate},
+    Route{verb::get, "/api/v1/floorplan", get_floor_plan, Lane::read},
+    Route{verb::put, "/api/v1/floorplan", put_floor_plan, Lane::write, "?units=U&level=L&name=N"},
+    Route{verb::get, "/api/v1/map", get_map, Lane::read, "?format=json|dxf|geojson"},
+    Route{verb::get, "/api/v1/report/as-built", get_as_built_report, Lane::read},
+    Route{verb::get, "/api/v1/objects", get_objects, Lane::read},
+    Route{verb::get, "/api/v1/objects/{id}/history", get_object_history, Lane::read},
+    Route{verb::get, "/api/v1/objects/{id}", get_object, Lane::read},
+    Route{verb::get, "/api/v1/elements", get_elements, Lane::read},
+    Route{verb::get, "/api/v1/elements/{id}/history", get_element_history, Lane::read},
+    Route{verb::get, "/api/v1/elements/{id}", get_element, Lane::read},
+    Route{verb::post, "/api/v1/primitives", post_primitives, Lane::write},
+    Route{verb::get, "/api/v1/decisions", get_decisions, Lane::read, "?since=SEQ&limit=N&element=ID"},
+    Route{verb::get, "/api/v1/rules", get_rules, Lane::read},
+    Route{verb::post, "/api/v1/rules/reload", post_rules_reload, Lane::write},
+    Route{verb::post, "/api/v1/rules/dry-run", post_rules_dry_run, Lane::read},
+    Route{verb::post, "/api/v1/query", post_query, Lane::read},
+    Route{verb::post, "/api/v1/scans", post_scan, Lane::write},
+    Route{verb::get, "/api/v1/grid", get_grid, Lane::read, "?layer=L&bbox=x0,y0,x1,y1&format=json|pgm"},
+    Route{verb::post, "/api/v1/grid/extract", post_grid_extract, Lane::write},
+    Route{verb::get, "/api/v1/grid/map.yaml", get_grid_map_yaml, Lane::read, "?bbox=x0,y0,x1,y1"},
+    Route{verb::get, "/api/v1/grid/map.pgm", get_grid_map_pgm, Lane::read, "?bbox=x0,y0,x1,y1"},
+    Route{verb::get, "/api/v1/events", get_events_without_upgrade, Lane::immediate, "?token=TOKEN", true},
+    Route{verb::get, "/web/{path}", get_static, Lane::read},
+};
+
+std::string method_name(verb method) {
+  const auto name = boost::beast::http::to_string(method);
+  return std::string(name.data(), name.size());
+}
+
+}  // namespace
+
+std::span<const Route> routes() { return kRoutes; }
+
+bool pattern_matches(std::string_view pattern, std::string_view path, std::string& param) {
+  const auto open = pattern.find('{');
+  if (open == std::string_view::npos) {
+    param.clear();
+    return pattern == path;
+  }
+  const auto close = pattern.find('}', open);
+  const auto prefix = pattern.substr(0, open);
+  const auto suffix = pattern.substr(close + 1);
+  if (path.size() <= prefix.size() + suffix.size() || !path.starts_with(prefix) || !path.ends_with(suffix))
+    return false;
+  param.assign(path.substr(prefix.size(), path.size() - prefix.size() - suffix.size()));
+  return true;
+}
+
+std::optional<RouteMatch> find_route(verb method, std::string_view path) {
+  RouteMatch match;
+  for (const auto& route : kRoutes) {
+    if (route.method == method && pattern_matches(route.pattern, path, match.param)) {
+      match.route = &route;
+      return match;
+    }
+  }
+  return std::nullopt;
+}
+
+std::string allowed_methods(std::string_view path) {
+  std::vector<verb> methods;
+  std::string ignored;
+  for (const auto& route : kRoutes)
+    if (pattern_matches(route.pattern, path, ignored) &&
+        std::find(methods.begin(), methods.end(), route.method) == methods.end())
+      methods.push_back(route.method);
+  std::string allow;
+  for (const auto method : methods) {
+    if (!allow.empty()) allow += ", ";
+    allow += method_name(method);
+  }
+  return allow;
+}
+
+bool is_websocket_target(std::string_view target) {
+  const auto path = target.substr(0, target.find('?'));
+  std::string ignored;
+  return std::any_of(kRoutes.begin(), kRoutes.end(), [&](const Route& route) {
+    return route.websocket && route.method == verb::get && pattern_matches(route.pattern, path, ignored);
+  });
+}
+
+std::string route_name(const Route& route) {
+  return method_name(route.method) + " " + std::string(route.pattern);
+}
+
+}  // namespace wm::api

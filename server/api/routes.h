@@ -1,0 +1,53 @@
+#pragma once
+
+// The route table: every method and path the server answers, with its handler and lane. Dispatch, the 405 Allow
+// header, the JSON index at GET /api/v1 and the WebSocket route the transport upgrades all come from it (and a
+// test checks the README's API reference against it).
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <boost/beast/http/verb.hpp>
+
+#include "server/api/handlers.h"
+
+namespace wm::api {
+
+struct Route {
+  boost::beast::http::verb method;
+  /// The path; at most one "{name}" placeholder, which matches one or more characters, '/' included (edge ids
+  /// are "table-1/2").
+  std::string_view pattern;
+  Handler handler;
+  Lane lane;
+  /// The query parameters it reads, as the index and the README show them ("?since=SEQ&limit=N"); empty: none.
+  std::string_view query = {};
+  /// A WebSocket route: an upgrade request is taken over by the transport; `handler` answers a plain GET.
+  bool websocket = false;
+};
+
+/// The table, in matching order: the first route whose pattern matches the path and whose method is the
+/// request's answers it.
+std::span<const Route> routes();
+
+/// Whether `pattern` matches `path`; the placeholder's text in `param` (empty for a pattern without one).
+bool pattern_matches(std::string_view pattern, std::string_view path, std::string& param);
+
+struct RouteMatch {
+  const Route* route = nullptr;
+  std::string param;
+};
+/// The route for a method and a decoded path, nullopt when none.
+std::optional<RouteMatch> find_route(boost::beast::http::verb method, std::string_view path);
+/// The methods of the routes whose pattern matches `path`, in table order without repeats ("GET, PUT"); empty
+/// when no route has this path.
+std::string allowed_methods(std::string_view path);
+/// Whether a GET upgrade of this target (path and query) is one the table names as a WebSocket.
+bool is_websocket_target(std::string_view target);
+
+/// "METHOD PATTERN" of a route, as the index and the README list it.
+std::string route_name(const Route& route);
+
+}  // namespace wm::api

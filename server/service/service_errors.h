@@ -1,0 +1,21 @@
+#pragma once
+
+#include <stdexcept>
+
+namespace wm::service {
+
+/// A queue of the service is full (the writer's or the knowledge-base reader's): the caller should answer 503
+/// and the client retry later. Nothing was applied.
+class Busy : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A request id (Idempotency-Key) that was used before with another body or on another endpoint (HTTP 409).
+/// Nothing was applied.
+class RequestIdConflict : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace wm::service

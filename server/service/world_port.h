@@ -1,0 +1,112 @@
+#pragma once
+
+// What the HTTP handlers may ask of the world-model service, and nothing more. The handlers (server/api/) see
+// only this class: no store, no knowledge base, no writer thread, no grid lock. WorldService implements it; the
+// handler tests implement it with a fake. It lives with the service (not the api) so that the dependency arrows
+// stay one-way (api → service → world, storage, rules) and the contract sits beside its implementation.
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "apriori/floor_plan.h"
+#include "fusion/grid/grid_geometry.h"
+#include "fusion/grid/occupancy_grid.h"
+#include "rules/types.h"
+#include "server/json/codec.h"
+#include "server/service/service_errors.h"
+#include "server/world/update.h"
+
+namespace wm::service {
+
+/// What an applied (or replayed) observation answered.
+struct PrimitivesOutcome {
+  std::int64_t seq = 0;      // the observation's journal sequence
+  std::int64_t version = 0;  // the map version after it
+  std::vector<world::DecisionRecord> decisions;  // one per segment, in order
+  bool replayed = false;  // the answer of an earlier request with the same request id; nothing applied now
+};
+
+struct ScanOutcome {
+  std::int64_t seq = 0;                    // journal sequence of the scan
+  std::int64_t grid_revision = 0;          // scans ever inserted into the grid (this one included); = seq
+  std::optional<PrimitivesOutcome> lines;  // the decisions on the lines extracted from it, if any
+  bool replayed = false;                   // as for PrimitivesOutcome
+};
+
+/// One re-decided observation of a dry run whose decision differs.
+struct DryRunChange {
+  world::DecisionRecord recorded;  // as it was decided and logged
+  rules::Decision candidate;       // what the candidate rules answer to the same question
+};
+
+struct DryRunOutcome {
+  std::size_t redecided = 0;
+  std::vector<DryRunChange> changes;
+};
+
+/// The cells of one grid layer over a region, with the grid revision they were read at.
+struct GridLayerValues {
+  std::vector<float> values;       // row-major from the lower-left cell; NaN = unknown
+  std::int64_t revision = 0;       // scans in the grid when it was read
+};
+
+/// The world-model service as the HTTP handlers see it. Every call is safe from any thread. Writes are applied
+/// whole or not at all, in arrival order, and return after they are committed; reads never wait for the writer.
+class WorldPort {
+ public:
+  virtual ~WorldPort() = default;
+
+  /// The committed world: an immutable snapshot, swapped after each applied request.
+  virtual std::shared_ptr<const world::WorldState> snapshot() const = 0;
+  virtual const world::WorldOptions& world_options() const = 0;
+
+  /// Applies one primitives request. `payload_json` is the request body, journaled as is. `request_id`
+  /// (Idempotency-Key, optional): a retry with the same id and the same body is answered as the first was
+  /// (replayed = true) without being applied again.
+  /// @throw Busy; RequestIdConflict for a known id with another body or from the scans endpoint;
+  ///        storage::StorageError; std::invalid_argument from the update (nothing applied in every case).
+  virtual PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
+                                            std::optional<std::string> request_id) = 0;
+  /// Journals a scan with the decisions on its extracted lines, then inserts it into the grids. `request_id`
+  /// as for post_primitives. @throw Busy, RequestIdConflict, storage::StorageError (nothing applied then).
+  virtual ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
+                                std::optional<std::string> request_id) = 0;
+  /// Replaces the floor plan; the observed elements stay. Returns the new map version.
+  /// @throw Busy, storage::StorageError, std::invalid_argument for bad geometry.
+  virtual std::int64_t load_floor_plan(apriori::FloorPlan plan) = 0;
+  /// Runs the grid line extractor on the Bayes layer and decides its segments like posted primitives.
+  /// nullopt when the grid is empty or yields no line. @throw Busy, storage::StorageError.
+  virtual std::optional<PrimitivesOutcome> extract_grid_lines() = 0;
+
+  virtual rules::RulesStatus rules_status() = 0;
+  /// Reloads the rule files atomically. @throw rules::RuleError ("file:line: message" lines; the previous rules
+  /// stay active), Busy.
+  virtual rules::RulesStatus reload_rules() = 0;
+  /// Read-only knowledge-base query. @throw rules::QueryError, Busy.
+  virtual rules::QueryResult query(const std::string& goal, std::size_t max_solutions) = 0;
+  /// Re-decides the last `count` logged segment decisions with `candidate` in place of the file of its name;
+  /// returns those whose action or rule would differ. Nothing is applied.
+  /// @throw rules::RuleError when the candidate does not load; std::invalid_argument for a bad name; Busy.
+  virtual DryRunOutcome dry_run(const rules::RuleText& candidate, std::size_t count) = 0;
+
+  /// The decision log: decisions with seq > since_seq, in order, at most `limit`; only those about `element`
+  /// (an element or edge id) when given. @throw storage::StorageError.
+  virtual std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
+                                                       const std::optional<std::string>& element) = 0;
+  /// Decisions about a CAD object or any of its edges ("table-1/2"), in order, at most `limit`.
+  /// @throw storage::StorageError.
+  virtual std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t limit) = 0;
+
+  /// The grid's cell size [m].
+  virtual double grid_resolution_m() const = 0;
+  /// The cells observed so far, nullopt while the grid is empty.
+  virtual std::optional<fusion::GridGeometry> grid_bounds() const = 0;
+  /// One layer over `region` (cells never observed are NaN), read under the grid's shared lock: never during an
+  /// insert, and a waiting insert goes first.
+  virtual GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const = 0;
+};
+
+}  // namespace wm::service

@@ -1,0 +1,138 @@
+#pragma once
+
+// A WorldPort for handler tests: a world state the test sets, canned answers, the calls it received, and an
+// exception to throw from the next call when the test wants one. No thread, no store, no Prolog.
+#include <exception>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fusion/grid/occupancy_grid.h"
+#include "server/service/world_port.h"
+
+namespace wm::testing {
+
+class FakeWorldPort final : public service::WorldPort {
+ public:
+  FakeWorldPort() : state_(std::make_shared<world::WorldState>()) {}
+
+  // --- what the test sets up ---
+  /// Replaces the world with `plan` loaded as drawn (version 1).
+  void load_plan(const apriori::FloorPlan& plan) {
+    auto update = world::apply_floor_plan(world::WorldState{}, plan, options_);
+    state_ = std::make_shared<world::WorldState>(std::move(update.state));
+  }
+  world::WorldState& state() { return *state_; }
+  /// The next call of any port method throws this (then it is cleared).
+  void fail_next(std::exception_ptr failure) { failure_ = std::move(failure); }
+  std::vector<world::DecisionRecord> logged;  // what decisions() and object_decisions() answer
+  rules::QueryResult query_answer;
+  service::DryRunOutcome dry_run_answer;
+  bool replay = false;                     // posts answer as replays
+  std::optional<fusion::OccupancyGrid> grid;  // nullopt: an empty grid of 0.05 m cells
+
+  // --- what the handlers did ---
+  std::vector<std::string> calls;  // method names, in order
+  std::optional<world::Observation> last_observation;
+  std::optional<json_codec::ScanRequest> last_scan;
+  std::optional<apriori::FloorPlan> last_plan;
+  std::optional<std::string> last_request_id;
+  std::string last_payload;
+  std::optional<std::string> last_element_filter;
+  std::string last_goal;
+  std::optional<rules::RuleText> last_candidate;
+
+  // --- WorldPort ---
+  std::shared_ptr<const world::WorldState> snapshot() const override { return state_; }
+  const world::WorldOptions& world_options() const override { return options_; }
+
+  service::PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
+                                             std::optional<std::string> request_id) override {
+    enter("post_primitives");
+    last_observation = std::move(observation);
+    last_payload = std::move(payload_json);
+    last_request_id = std::move(request_id);
+    return {7, 3, {decision(rules::Action::add, "e1")}, replay};
+  }
+  service::ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
+                                 std::optional<std::string> request_id) override {
+    enter("post_scan");
+    last_scan = std::move(scan);
+    last_payload = std::move(payload_json);
+    last_request_id = std::move(request_id);
+    return {4, 4, service::PrimitivesOutcome{8, 5, {decision(rules::Action::merge, "e2")}, replay}, replay};
+  }
+  std::int64_t load_floor_plan(apriori::FloorPlan plan) override {
+    enter("load_floor_plan");
+    last_plan = std::move(plan);
+    return 9;
+  }
+  std::optional<service::PrimitivesOutcome> extract_grid_lines() override {
+    enter("extract_grid_lines");
+    if (!grid) return std::nullopt;
+    return service::PrimitivesOutcome{11, 6, {decision(rules::Action::add, "e3")}, false};
+  }
+  rules::RulesStatus rules_status() override {
+    enter("rules_status");
+    return {{{"/srv/wm/prolog/world_model.pl", "abc", 1}}, "", 1};
+  }
+  rules::RulesStatus reload_rules() override {
+    enter("reload_rules");
+    return {{{"/srv/wm/prolog/world_model.pl", "def", 2}}, "", 2};
+  }
+  rules::QueryResult query(const std::string& goal, std::size_t) override {
+    enter("query");
+    last_goal = goal;
+    return query_answer;
+  }
+  service::DryRunOutcome dry_run(const rules::RuleText& candidate, std::size_t) override {
+    enter("dry_run");
+    last_candidate = candidate;
+    return dry_run_answer;
+  }
+  std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
+                                               const std::optional<std::string>& element) override {
+    enter("decisions");
+    last_element_filter = element;
+    std::vector<world::DecisionRecord> rows;
+    for (const auto& d : logged)
+      if (d.seq > since_seq && rows.size() < limit && (!element || d.element == element)) rows.push_back(d);
+    return rows;
+  }
+  std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t) override {
+    enter("object_decisions");
+    std::vector<world::DecisionRecord> rows;
+    for (const auto& d : logged)
+      if (d.object == object_id) rows.push_back(d);
+    return rows;
+  }
+  double grid_resolution_m() const override { return the_grid().resolution_m(); }
+  std::optional<fusion::GridGeometry> grid_bounds() const override { return the_grid().bounds(); }
+  service::GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const override {
+    return {the_grid().export_layer(layer, region), 4};
+  }
+
+  static world::DecisionRecord decision(rules::Action action, const std::string& element) {
+    world::DecisionRecord d;
+    d.seq = 1;
+    d.action = action;
+    d.rule = "test_rule";
+    d.element = element;
+    return d;
+  }
+
+ private:
+  void enter(const std::string& name) {
+    calls.push_back(name);
+    if (failure_) std::rethrow_exception(std::exchange(failure_, nullptr));
+  }
+  const fusion::OccupancyGrid& the_grid() const { return grid ? *grid : empty_grid_; }
+
+  world::WorldOptions options_;
+  std::shared_ptr<world::WorldState> state_;
+  std::exception_ptr failure_;
+  fusion::OccupancyGrid empty_grid_{fusion::GridOptions{}};
+};
+
+}  // namespace wm::testing

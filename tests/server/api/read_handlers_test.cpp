@@ -1,0 +1,252 @@
+// The handlers that read: each route's success and its documented refusals, through the router, against a fake
+// of the service port.
+#include "server/api/handlers.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "tests/server/api/api_test_helpers.h"
+#include "server/storage/sqlite.h"
+#include "tests/support/temp_dir.h"
+
+namespace wm::testing {
+namespace {
+
+using http::verb;
+
+class ReadHandlersTest : public ApiTest {
+ protected:
+  void SetUp() override { load_demo_plan(); }
+
+  void add_element(std::int64_t number, std::int64_t support) {
+    world::Element e;
+    e.number = number;
+    e.segment = fusion::LineSegment::from_points({1, 2}, {4, 2}, Eigen::Matrix2d::Identity() * 1e-4);
+    e.support = support;
+    e.source = "client";
+    e.observer = "robot-1";
+    world_.state().elements[number] = e;
+  }
+
+  /// A grid with one laser scan in it.
+  void fill_grid() {
+    world_.grid.emplace(fusion::GridOptions{});
+    fusion::LaserScan scan;
+    scan.sensor_pose = {0, 0, 0};
+    scan.angle_min_rad = -0.5;
+    scan.angle_increment_rad = 0.01;
+    scan.ranges_m.assign(101, 2.0);
+    scan.range_min_m = 0.05;
+    scan.range_max_m = 8.0;
+    world_.grid->insert(scan);
+  }
+};
+
+TEST_F(ReadHandlersTest, HealthSaysOkWithTheMapsCounts) {
+  const auto response = send(verb::get, "/api/v1/health");
+  ASSERT_EQ(status_of(response), 200);
+  const auto body = json_of(response);
+  EXPECT_EQ(body["status"], "ok");
+  EXPECT_EQ(body["plan"], "lab");
+  EXPECT_EQ(body["objects"], 2);
+  EXPECT_EQ(body["rules"]["files"][0]["path"], "prolog/world_model.pl");
+  EXPECT_EQ(response[http::field::content_type], "application/json");
+}
+
+TEST_F(ReadHandlersTest, RootIsTheIndexWithoutAViewerAndTheViewerWithOne) {
+  EXPECT_EQ(json_of(send(verb::get, "/"))["api"], "/api/v1");
+  TempDir dir;
+  std::ofstream(dir.path() / "index.html") << "<title>viewer</title>";
+  options_.web_dir = dir.path().string();
+  const auto response = send(verb::get, "/");
+  EXPECT_EQ(status_of(response), 200);
+  EXPECT_EQ(response.body(), "<title>viewer</title>");
+  EXPECT_EQ(response[http::field::content_type], "text/html; charset=utf-8");
+}
+
+TEST_F(ReadHandlersTest, StaticFilesAreServedFromTheViewerDirectoryOnly) {
+  EXPECT_EQ(status_of(send(verb::get, "/web/app.js")), 404);  // no --web
+  TempDir dir;
+  std::filesystem::create_directories(dir.path() / "web" / "lib");
+  std::ofstream(dir.path() / "web" / "lib" / "app.js") << "export const x = 1;";
+  std::ofstream(dir.path() / "web" / ".secret") << "token";
+  std::ofstream(dir.path() / "outside.txt") << "no";
+  options_.web_dir = (dir.path() / "web").string();
+  const auto response = send(verb::get, "/web/lib/app.js");
+  ASSERT_EQ(status_of(response), 200);
+  EXPECT_EQ(response.body(), "export const x = 1;");
+  EXPECT_EQ(response[http::field::content_type], "text/javascript; charset=utf-8");
+  for (const std::string target : {"/web/../outside.txt", "/web/%2e%2e/outside.txt", "/web/.secret", "/web/missing.js",
+                                   "/web/", "/web//etc/passwd"})
+    EXPECT_EQ(status_of(send(verb::get, target)), 404) << target;
+  EXPECT_EQ(status_of(send(verb::post, "/web/lib/app.js", "{}")), 405);
+}
+
+TEST_F(ReadHandlersTest, FloorPlanIsTheLoadedPlanInCanonicalJson) {
+  const auto response = send(verb::get, "/api/v1/floorplan");
+  ASSERT_EQ(status_of(response), 200);
+  const auto body = json_of(response);
+  EXPECT_EQ(body["name"], "lab");
+  EXPECT_EQ(body["objects"].size(), 2u);
+}
+
+TEST_F(ReadHandlersTest, MapComesAsJsonDxfOrGeoJsonAndRefusesOtherFormats) {
+  add_element(1, 1);
+  auto response = send(verb::get, "/api/v1/map");
+  ASSERT_EQ(status_of(response), 200);
+  EXPECT_EQ(json_of(response)["elements"].size(), 1u);
+  response = send(verb::get, "/api/v1/map?format=dxf");
+  ASSERT_EQ(status_of(response), 200);
+  EXPECT_EQ(response[http::field::content_type], "image/vnd.dxf");
+  EXPECT_NE(response.body().find("plan_unobserved"), std::string::npos);
+  response = send(verb::get, "/api/v1/map?format=geojson");
+  ASSERT_EQ(status_of(response), 200);
+  EXPECT_EQ(json_of(response)["type"], "FeatureCollection");
+  response = send(verb::get, "/api/v1/map?format=svg");
+  EXPECT_EQ(status_of(response), 400);
+  EXPECT_NE(response.body().find("format"), std::string::npos);
+}
+
+TEST_F(ReadHandlersTest, AsBuiltReportSaysWhatMovedAndByHowMuch) {
+  auto& table = world_.state().objects[1];
+  table.adjustments = 1;
+  table.body = fusion::RigidObject({5.3, 5.4, 0.4}, table.body.pose_cov(), table.plan->edges());
+  world_.state().objects[0].confirmations = 2;
+  add_element(3, 2);
+  const auto response = send(verb::get, "/api/v1/report/as-built");
+  ASSERT_EQ(status_of(response), 200);
+  const auto body = json_of(response);
+  EXPECT_EQ(body["summary"]["moved"], 1);
+  EXPECT_EQ(body["summary"]["confirmed"], 1);
+  EXPECT_EQ(body["summary"]["not_in_plan"], 1);
+  EXPECT_EQ(body["objects"][0]["status"], "confirmed");
+  EXPECT_FALSE(body["objects"][0].contains("moved_by"));
+  const auto& moved = body["objects"][1]["moved_by"];
+  EXPECT_NEAR(moved["dx"].get<double>(), 0.3, 1e-12);
+  EXPECT_NEAR(moved["dy"].get<double>(), 0.4, 1e-12);
+  EXPECT_NEAR(moved["distance"].get<double>(), 0.5, 1e-12);
+  EXPECT_NEAR(moved["dtheta"].get<double>(), 0.1, 1e-12);
+  EXPECT_EQ(body["not_in_plan"][0]["id"], "e3");
+}
+
+TEST_F(ReadHandlersTest, ObjectsAndElementsOneByOneOr404) {
+  add_element(1, 1);
+  EXPECT_EQ(json_of(send(verb::get, "/api/v1/objects"))["objects"].size(), 2u);
+  EXPECT_EQ(json_of(send(verb::get, "/api/v1/objects/table-1"))["edges"].size(), 4u);
+  EXPECT_EQ(json_of(send(verb::get, "/api/v1/elements"))["elements"].size(), 1u);
+  EXPECT_EQ(json_of(send(verb::get, "/api/v1/elements/e1"))["id"], "e1");
+  for (const std::string target : {"/api/v1/objects/chair", "/api/v1/elements/e9", "/api/v1/elements/x"}) {
+    const auto response = send(verb::get, target);
+    EXPECT_EQ(status_of(response), 404) << target;
+    EXPECT_EQ(error_of(response), "not_found");
+  }
+}
+
+TEST_F(ReadHandlersTest, HistoriesListTheDecisionsAboutAnObjectOrElementOr404) {
+  auto d = FakeWorldPort::decision(rules::Action::confirm, "table-1/2");
+  d.object = "table-1";
+  world_.logged = {d};
+  auto body = json_of(send(verb::get, "/api/v1/objects/table-1/history"));
+  EXPECT_EQ(body["exists"], true);
+  EXPECT_EQ(body["decisions"][0]["action"], "delete");
+  // An edge id has a slash; its element history is every decision about it.
+  body = json_of(send(verb::get, "/api/v1/elements/table-1/2/history"));
+  EXPECT_EQ(body["id"], "table-1/2");
+  EXPECT_EQ(body["exists"], false);
+  EXPECT_EQ(body["decisions"].size(), 1u);
+  EXPECT_EQ(status_of(send(verb::get, "/api/v1/elements/e5/history")), 404);
+  EXPECT_EQ(status_of(send(verb::get, "/api/v1/objects/chair/history")), 404);
+}
+
+TEST_F(ReadHandlersTest, DecisionsArePagedBySequenceAndCheckTheirParameters) {
+  for (int i = 1; i <= 3; ++i) {
+    auto d = FakeWorldPort::decision(rules::Action::add, "e" + std::to_string(i));
+    d.seq = i;
+    world_.logged.push_back(d);
+  }
+  auto body = json_of(send(verb::get, "/api/v1/decisions?since=1&limit=1"));
+  EXPECT_EQ(body["decisions"].size(), 1u);
+  EXPECT_EQ(body["next"], 2);
+  body = json_of(send(verb::get, "/api/v1/decisions?element=e3"));
+  EXPECT_EQ(world_.last_element_filter, "e3");
+  EXPECT_EQ(body["next"], 3);
+  EXPECT_EQ(json_of(send(verb::get, "/api/v1/decisions?since=9"))["next"], 9);
+  for (const std::string target : {"/api/v1/decisions?since=abc", "/api/v1/decisions?limit=0",
+                                   "/api/v1/decisions?limit=10001", "/api/v1/decisions?since=-1"}) {
+    const auto response = send(verb::get, target);
+    EXPECT_EQ(status_of(response), 400) << target;
+    EXPECT_EQ(error_of(response), "bad_request");
+  }
+}
+
+TEST_F(ReadHandlersTest, RulesStatusHasRelativePaths) {
+  const auto body = json_of(send(verb::get, "/api/v1/rules"));
+  EXPECT_EQ(body["generation"], 1);
+  EXPECT_EQ(body["files"][0]["path"], "prolog/world_model.pl");
+}
+
+TEST_F(ReadHandlersTest, AnEmptyGridIs404) {
+  for (const std::string target : {"/api/v1/grid", "/api/v1/grid/map.yaml", "/api/v1/grid/map.pgm"}) {
+    const auto response = send(verb::get, target);
+    EXPECT_EQ(status_of(response), 404) << target;
+    EXPECT_EQ(error_of(response), "empty_grid");
+  }
+}
+
+TEST_F(ReadHandlersTest, GridLayersComeAsJsonOrPgmWithTheMapServerYaml) {
+  fill_grid();
+  auto response = send(verb::get, "/api/v1/grid?layer=ds_conflict");
+  ASSERT_EQ(status_of(response), 200);
+  auto body = json_of(response);
+  ASSERT_TRUE(body.is_object()) << response.body().substr(0, 200);
+  EXPECT_EQ(body["layer"], "ds_conflict");
+  EXPECT_EQ(body["revision"], 4);
+  EXPECT_EQ(body["data"].size(), body["width"].get<std::size_t>() * body["height"].get<std::size_t>());
+  response = send(verb::get, "/api/v1/grid?bbox=0,0,1,1");
+  body = json_of(response);
+  EXPECT_EQ(body["width"], 20);
+  EXPECT_EQ(body["height"], 20);
+  response = send(verb::get, "/api/v1/grid?format=pgm&bbox=0,0,1,1");
+  ASSERT_EQ(status_of(response), 200);
+  EXPECT_EQ(response[http::field::content_type], "image/x-portable-graymap");
+  EXPECT_EQ(response.body().rfind("P5\n", 0), 0u);
+  EXPECT_EQ(send(verb::get, "/api/v1/grid/map.pgm?bbox=0,0,1,1").body(), response.body());
+  response = send(verb::get, "/api/v1/grid/map.yaml?bbox=0,0,1,1");
+  ASSERT_EQ(status_of(response), 200);
+  EXPECT_NE(response.body().find("image: map.pgm\n"), std::string::npos);
+  EXPECT_NE(response.body().find("origin: [0, 0, 0.0]\n"), std::string::npos);
+  for (const std::string target : {"/api/v1/grid?layer=heat", "/api/v1/grid?format=png", "/api/v1/grid?bbox=1,1,0,0",
+                                   "/api/v1/grid?bbox=0,0,1", "/api/v1/grid?bbox=0,0,1e9,1e9",
+                                   "/api/v1/grid/map.yaml?bbox=a,b,c,d"}) {
+    response = send(verb::get, target);
+    EXPECT_EQ(status_of(response), 400) << target;
+  }
+}
+
+TEST_F(ReadHandlersTest, APlainGetOfTheEventsWebSocketIsToldToUpgrade) {
+  const auto response = send(verb::get, "/api/v1/events");
+  EXPECT_EQ(status_of(response), 426);
+  EXPECT_EQ(error_of(response), "upgrade_required");
+  EXPECT_EQ(response[http::field::upgrade], "websocket");
+}
+
+TEST_F(ReadHandlersTest, AHostThatIsNotAllowedIs421ForEveryRoute) {
+  options_.allowed_hosts = {"localhost"};
+  auto request = make_request(verb::get, "/api/v1/health");
+  request.set(http::field::host, "attacker.example:8080");
+  EXPECT_EQ(status_of(send(request)), 421);
+  request.set(http::field::host, "localhost:8080");
+  EXPECT_EQ(status_of(send(request)), 200);
+}
+
+TEST_F(ReadHandlersTest, ServiceFailuresBecomeTheirStatus) {
+  world_.fail_next(std::make_exception_ptr(storage::StorageError("disk I/O error")));
+  auto response = send(verb::get, "/api/v1/decisions");
+  EXPECT_EQ(status_of(response), 503);
+  EXPECT_EQ(error_of(response), "storage_error");
+}
+
+}  // namespace
+}  // namespace wm::testing

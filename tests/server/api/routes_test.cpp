@@ -1,0 +1,154 @@
+#include "server/api/routes.h"
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "tests/server/api/api_test_helpers.h"
+
+namespace wm::testing {
+namespace {
+
+// "GET /api/v1/decisions?since=SEQ (WebSocket)" → "GET /api/v1/decisions".
+std::string without_query(std::string name) {
+  if (const auto space = name.find(' ', name.find(' ') + 1); space != std::string::npos) name.resize(space);
+  return name.substr(0, name.find('?'));
+}
+
+std::set<std::string> table_routes() {
+  std::set<std::string> names;
+  for (const auto& route : api::routes()) names.insert(api::route_name(route));
+  return names;
+}
+
+// The routes of the README's API reference: the first cell of each row of its table, every `METHOD /path`
+// item, a bare `/path` item taking the method before it.
+std::set<std::string> readme_routes() {
+  std::ifstream in(std::string(WM_SOURCE_DIR) + "/README.md");
+  EXPECT_TRUE(in) << "README.md not found under " << WM_SOURCE_DIR;
+  std::set<std::string> names;
+  std::string line;
+  bool in_section = false;
+  while (std::getline(in, line)) {
+    if (line.rfind("## ", 0) == 0) in_section = line.find("HTTP API") != std::string::npos;
+    if (!in_section || line.rfind("| `", 0) != 0) continue;
+    const auto cell = line.substr(2, line.find(" |", 2) - 2);
+    std::string method;
+    for (std::size_t open = cell.find('`'); open != std::string::npos; open = cell.find('`', open)) {
+      const auto close = cell.find('`', open + 1);
+      std::string item = cell.substr(open + 1, close - open - 1);
+      open = close + 1;
+      if (const auto space = item.find(' '); space != std::string::npos && item.front() != '/') {
+        method = item.substr(0, space);
+        item = item.substr(space + 1);
+      }
+      EXPECT_FALSE(method.empty()) << "a path without a method in: " << line;
+      names.insert(method + " " + item.substr(0, item.find('?')));
+    }
+  }
+  return names;
+}
+
+TEST(RoutesTest, APlaceholderMatchesOneOrMoreCharactersSlashesIncluded) {
+  std::string param;
+  EXPECT_TRUE(api::pattern_matches("/api/v1/map", "/api/v1/map", param));
+  EXPECT_EQ(param, "");
+  EXPECT_FALSE(api::pattern_matches("/api/v1/map", "/api/v1/map/", param));
+  EXPECT_TRUE(api::pattern_matches("/api/v1/elements/{id}", "/api/v1/elements/e12", param));
+  EXPECT_EQ(param, "e12");
+  EXPECT_TRUE(api::pattern_matches("/api/v1/elements/{id}/history", "/api/v1/elements/table-1/2/history", param));
+  EXPECT_EQ(param, "table-1/2");
+  EXPECT_FALSE(api::pattern_matches("/api/v1/elements/{id}", "/api/v1/elements/", param));
+  EXPECT_FALSE(api::pattern_matches("/api/v1/elements/{id}/history", "/api/v1/elements/history", param));
+}
+
+TEST(RoutesTest, HistoryRoutesComeBeforeTheIdRoutesTheyOverlap) {
+  const auto match = api::find_route(http::verb::get, "/api/v1/objects/table-1/history");
+  ASSERT_TRUE(match);
+  EXPECT_EQ(match->route->pattern, "/api/v1/objects/{id}/history");
+  EXPECT_EQ(match->param, "table-1");
+  EXPECT_EQ(api::find_route(http::verb::get, "/api/v1/objects/table-1")->route->pattern, "/api/v1/objects/{id}");
+}
+
+TEST(RoutesTest, AllowListsTheMethodsOfThePathInTableOrder) {
+  EXPECT_EQ(api::allowed_methods("/api/v1/floorplan"), "GET, PUT");
+  EXPECT_EQ(api::allowed_methods("/api/v1/primitives"), "POST");
+  EXPECT_EQ(api::allowed_methods("/api/v1/elements/e1"), "GET");
+  EXPECT_EQ(api::allowed_methods("/api/v1/nothing"), "");
+}
+
+TEST(RoutesTest, OnlyTheEventsRouteIsAWebSocket) {
+  EXPECT_TRUE(api::is_websocket_target("/api/v1/events"));
+  EXPECT_TRUE(api::is_websocket_target("/api/v1/events?token=x"));
+  EXPECT_FALSE(api::is_websocket_target("/api/v1/map"));
+  EXPECT_FALSE(api::is_websocket_target("/api/v1/events/x"));
+  auto upgrade = make_request(http::verb::get, "/api/v1/events");
+  upgrade.set(http::field::connection, "Upgrade");
+  upgrade.set(http::field::upgrade, "websocket");
+  upgrade.set(http::field::sec_websocket_key, "dGhlIHNhbXBsZSBub25jZQ==");
+  upgrade.set(http::field::sec_websocket_version, "13");
+  EXPECT_TRUE(api::is_websocket_upgrade(upgrade));
+  EXPECT_FALSE(api::is_websocket_upgrade(make_request(http::verb::get, "/api/v1/events")));
+  upgrade.target("/api/v1/map");
+  EXPECT_FALSE(api::is_websocket_upgrade(upgrade));
+}
+
+TEST(RoutesTest, EveryRouteRunsOnTheLaneTheTableGivesIt) {
+  for (const auto& route : api::routes()) {
+    std::string target(route.pattern);
+    if (const auto open = target.find('{'); open != std::string::npos)
+      target.replace(open, target.find('}') - open + 1, "x");
+    EXPECT_EQ(api::handler_lane(make_request(route.method, target)), route.lane) << api::route_name(route);
+  }
+  EXPECT_EQ(api::handler_lane(make_request(http::verb::get, "/api/v1/health")), api::Lane::immediate);
+  EXPECT_EQ(api::handler_lane(make_request(http::verb::post, "/api/v1/primitives")), api::Lane::write);
+  EXPECT_EQ(api::handler_lane(make_request(http::verb::post, "/api/v1/query")), api::Lane::read);
+  // No route: a 404 or 405 is answered at once, unless decoding may still find one.
+  EXPECT_EQ(api::handler_lane(make_request(http::verb::delete_, "/api/v1/map")), api::Lane::immediate);
+  EXPECT_EQ(api::handler_lane(make_request(http::verb::get, "/api/v1/objects%2Fx")), api::Lane::read);
+}
+
+class RouteTableTest : public ApiTest {};
+
+TEST_F(RouteTableTest, EveryPathAnswersMethodsItDoesNotTakeWith405AndTheTablesAllow) {
+  for (const auto& route : api::routes()) {
+    std::string target(route.pattern);
+    if (const auto open = target.find('{'); open != std::string::npos)
+      target.replace(open, target.find('}') - open + 1, "x");
+    for (const auto method : {http::verb::get, http::verb::put, http::verb::post, http::verb::delete_}) {
+      if (api::find_route(method, target)) continue;
+      const auto response = send(method, target);
+      EXPECT_EQ(status_of(response), 405) << api::route_name(route);
+      EXPECT_EQ(error_of(response), "method_not_allowed");
+      EXPECT_EQ(response[http::field::allow], api::allowed_methods(target)) << target;
+    }
+  }
+}
+
+TEST_F(RouteTableTest, AnUnknownPathIs404) {
+  const auto response = send(http::verb::get, "/api/v1/nothing");
+  EXPECT_EQ(status_of(response), 404);
+  EXPECT_EQ(error_of(response), "not_found");
+  EXPECT_NE(json_of(response)["detail"].get<std::string>().find("/api/v1/nothing"), std::string::npos);
+}
+
+TEST_F(RouteTableTest, TheIndexListsEveryRouteOfTheTableTheEventsWebSocketIncluded) {
+  const auto response = send(http::verb::get, "/api/v1");
+  ASSERT_EQ(status_of(response), 200);
+  const auto body = json_of(response);
+  EXPECT_EQ(body["service"], "worldmodel");
+  std::set<std::string> listed;
+  for (const auto& endpoint : body["endpoints"]) listed.insert(without_query(endpoint.get<std::string>()));
+  EXPECT_EQ(listed, table_routes());
+  EXPECT_TRUE(listed.count("GET /api/v1/events"));
+  EXPECT_EQ(body["endpoints"].size(), api::routes().size());
+}
+
+TEST_F(RouteTableTest, TheReadmeApiReferenceListsTheRoutesOfTheTable) {
+  EXPECT_EQ(readme_routes(), table_routes());
+}
+
+}  // namespace
+}  // namespace wm::testing
