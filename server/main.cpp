@@ -1,14 +1,13 @@
 // wmd: the world-model server. Builds the object graph (store → knowledge base → world service → HTTP)
 // and passes references down; nothing global.
+#include <pthread.h>
+
+#include <boost/asio/ip/address.hpp>
 #include <csignal>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 #include <thread>
-
-#include <pthread.h>
-
-#include <boost/asio/ip/address.hpp>
 
 #include "apriori/floor_plan.h"
 #include "server/api/router.h"

@@ -1,10 +1,9 @@
 #pragma once
 
-#include <cstddef>
-#include <vector>
-
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstddef>
+#include <vector>
 
 #include "fusion/grid/scan.h"
 

@@ -1,10 +1,9 @@
 #include "server/api/access.h"
 
 #include <algorithm>
+#include <boost/asio/ip/address.hpp>
 #include <string>
 #include <string_view>
-
-#include <boost/asio/ip/address.hpp>
 
 #include "server/api/api_error.h"
 #include "server/api/request.h"
@@ -82,8 +81,8 @@ void require_allowed_host(const Request& request, const ApiOptions& options) {
   if (std::find(options.allowed_hosts.begin(), options.allowed_hosts.end(), host) != options.allowed_hosts.end())
     return;
   throw ApiError(421, "misdirected_request",
-                 "this server does not answer to Host '" + host + "' (DNS rebinding?); start wmd with --allowed-hosts " +
-                     host + " to allow it");
+                 "this server does not answer to Host '" + host +
+                     "' (DNS rebinding?); start wmd with --allowed-hosts " + host + " to allow it");
 }
 
 void require_allowed_origin(const Request& request, const ApiOptions& options) {

@@ -14,10 +14,14 @@ namespace {
 
 HttpError query_error(const rules::QueryError& e) {
   switch (e.reason()) {
-    case rules::QueryError::Reason::syntax: return {400, "bad_query", e.what()};
-    case rules::QueryError::Reason::unsafe: return {403, "forbidden_goal", e.what()};
-    case rules::QueryError::Reason::limit: return {422, "query_limit", e.what()};
-    case rules::QueryError::Reason::failed: break;
+    case rules::QueryError::Reason::syntax:
+      return {400, "bad_query", e.what()};
+    case rules::QueryError::Reason::unsafe:
+      return {403, "forbidden_goal", e.what()};
+    case rules::QueryError::Reason::limit:
+      return {422, "query_limit", e.what()};
+    case rules::QueryError::Reason::failed:
+      break;
   }
   return {422, "query_error", e.what()};
 }

@@ -16,8 +16,8 @@ namespace wm::api {
 /// One request as a handler sees it.
 struct Call {
   const Request& request;
-  const Target& target;       // the percent-decoded path and query parameters
-  const std::string& param;   // what the route pattern's {placeholder} matched; empty when it has none
+  const Target& target;      // the percent-decoded path and query parameters
+  const std::string& param;  // what the route pattern's {placeholder} matched; empty when it has none
   const ApiOptions& options;
   service::WorldPort& world;
 };
@@ -26,8 +26,8 @@ using Handler = Response (*)(const Call&);
 
 // handlers/health.cpp, index.cpp
 Response get_health(const Call& call);
-Response get_index(const Call& call);        // GET /api/v1: the route table as JSON
-Response get_root(const Call& call);         // GET /: the viewer's index.html when served, else the index
+Response get_index(const Call& call);  // GET /api/v1: the route table as JSON
+Response get_root(const Call& call);   // GET /: the viewer's index.html when served, else the index
 // handlers/floorplan.cpp
 Response get_floor_plan(const Call& call);
 Response put_floor_plan(const Call& call);

@@ -1,9 +1,8 @@
 #include "server/api/request.h"
 
 #include <algorithm>
-#include <charconv>
-
 #include <boost/beast/core/string.hpp>
+#include <charconv>
 
 #include "server/api/api_error.h"
 #include "server/json/codec.h"
@@ -84,8 +83,8 @@ std::int64_t query_int(const Target& target, const std::string& key, std::int64_
   const auto& s = it->second;
   auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
   if (ec != std::errc() || p != s.data() + s.size() || v < min || v > max)
-    throw bad_request(key, "expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) + "], got '" +
-                               s + "'");
+    throw bad_request(
+        key, "expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) + "], got '" + s + "'");
   return v;
 }
 
@@ -117,7 +116,8 @@ std::string string_field(const nlohmann::json& doc, const std::string& key, std:
 std::size_t count_field(const nlohmann::json& doc, const std::string& key, std::size_t fallback, std::size_t max) {
   const auto it = doc.find(key);
   if (it == doc.end()) return fallback;
-  if (!it->is_number_integer() || it->get<std::int64_t>() < 1 || it->get<std::int64_t>() > static_cast<std::int64_t>(max))
+  if (!it->is_number_integer() || it->get<std::int64_t>() < 1 ||
+      it->get<std::int64_t>() > static_cast<std::int64_t>(max))
     throw bad_request(key, "expected an integer in [1, " + std::to_string(max) + "]");
   return static_cast<std::size_t>(it->get<std::int64_t>());
 }

@@ -2,9 +2,8 @@
 
 #include <cstddef>
 #include <limits>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "server/api/http_types.h"
 

@@ -29,8 +29,8 @@ Response dispatch(const Request& request, Services& services) {
     return match->route->handler(Call{request, target, match->param, services.options, services.world});
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
-  auto response = error_response(request.version(), request.keep_alive(), 405, "method_not_allowed",
-                                 "allowed: " + allow);
+  auto response =
+      error_response(request.version(), request.keep_alive(), 405, "method_not_allowed", "allowed: " + allow);
   response.set(http::field::allow, allow);
   return response;
 }

@@ -98,8 +98,6 @@ bool is_websocket_target(std::string_view target) {
   });
 }
 
-std::string route_name(const Route& route) {
-  return method_name(route.method) + " " + std::string(route.pattern);
-}
+std::string route_name(const Route& route) { return method_name(route.method) + " " + std::string(route.pattern); }
 
 }  // namespace wm::api

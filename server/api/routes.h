@@ -3,13 +3,12 @@
 // The route table: every method and path the server answers, with its handler and lane. Dispatch, the 405 Allow
 // header, the JSON index at GET /api/v1 and the WebSocket route the transport upgrades all come from it (and a
 // test checks the README's API reference against it).
+#include <boost/beast/http/verb.hpp>
 #include <optional>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <boost/beast/http/verb.hpp>
 
 #include "server/api/handlers.h"
 

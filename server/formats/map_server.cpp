@@ -25,8 +25,8 @@ std::string pgm_image(const std::vector<float>& values, const fusion::GridGeomet
     char* dst = out.data() + header + row * width;
     for (std::int64_t x = 0; x < width; ++x) {
       const float p = src[x];
-      dst[x] = static_cast<char>(std::isnan(p) ? kUnknownPixel
-                                               : static_cast<int>(std::lround(255.0 * (1.0 - std::clamp(p, 0.0f, 1.0f)))));
+      dst[x] = static_cast<char>(
+          std::isnan(p) ? kUnknownPixel : static_cast<int>(std::lround(255.0 * (1.0 - std::clamp(p, 0.0f, 1.0f)))));
     }
   }
   return out;

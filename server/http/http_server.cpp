@@ -1,19 +1,10 @@
 #include "server/http/http_server.h"
 
-#include <algorithm>
-#include <array>
-#include <chrono>
-#include <condition_variable>
-#include <deque>
-#include <iostream>
-#include <mutex>
-#include <optional>
-#include <thread>
-#include <vector>
-
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <array>
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/asio/post.hpp>
@@ -22,6 +13,14 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <iostream>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <vector>
 
 #include "server/api/response.h"
 
@@ -112,9 +111,7 @@ class HandlerPool {
       : writes_(write_threads(threads), max_queued, 0),
         reads_(std::max(1, threads - write_threads(threads)), max_queued, kReadNice) {}
 
-  bool try_post(bool write, std::function<void()> job) {
-    return (write ? writes_ : reads_).try_post(std::move(job));
-  }
+  bool try_post(bool write, std::function<void()> job) { return (write ? writes_ : reads_).try_post(std::move(job)); }
   void stop() {
     reads_.stop();
     writes_.stop();
@@ -239,7 +236,8 @@ class Session : public std::enable_shared_from_this<Session> {
       }
       return write(api::error_response(11, false, status, error, detail));
     }
-    if (hub_ && websocket::is_upgrade(parser_->get()) && handlers_.is_websocket && handlers_.is_websocket(parser_->get())) {
+    if (hub_ && websocket::is_upgrade(parser_->get()) && handlers_.is_websocket &&
+        handlers_.is_websocket(parser_->get())) {
       if (handlers_.authorize_upgrade) {
         if (auto refusal = handlers_.authorize_upgrade(parser_->get())) return write(std::move(*refusal));
       }
@@ -356,7 +354,8 @@ struct HttpServer::Impl {
   // fails again at once. Wait 50 ms, doubling up to 1 s, until descriptors are free again.
   void back_off(const beast::error_code& ec) {
     if (accept_delay.count() == 0)
-      std::cerr << "wmd: accept failed (" << ec.message() << "); retrying every 50 ms to 1 s until it succeeds" << std::endl;
+      std::cerr << "wmd: accept failed (" << ec.message() << "); retrying every 50 ms to 1 s until it succeeds"
+                << std::endl;
     accept_delay = std::clamp(accept_delay * 2, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
     accept_timer.expires_after(accept_delay);
     accept_timer.async_wait([this](beast::error_code wait_ec) {

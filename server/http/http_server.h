@@ -13,9 +13,9 @@ namespace wm::http {
 
 struct HttpOptions {
   std::string bind_address = "127.0.0.1";
-  unsigned short port = 8080;            // 0 picks a free port; port() tells which
-  std::size_t max_body_bytes = 16 << 20; // larger bodies get 413 (explicit: Beast 1.74 rejects all with none)
-  int threads = 4;                       // I/O threads: they only move bytes and never wait for a handler
+  unsigned short port = 8080;             // 0 picks a free port; port() tells which
+  std::size_t max_body_bytes = 16 << 20;  // larger bodies get 413 (explicit: Beast 1.74 rejects all with none)
+  int threads = 4;                        // I/O threads: they only move bytes and never wait for a handler
   /// Threads that run handlers, which may wait for the writer or the Prolog reader, or serialise bodies
   /// of megabytes. A quarter of them (at least one) serve only writes, so readers cannot stop ingest; the
   /// others serve reads at a lower CPU priority (nice +10), so serialising yields to the writer.
@@ -23,7 +23,7 @@ struct HttpOptions {
   /// Requests of each lane (read, write) waiting for a handler thread; one more is answered 503 with
   /// Retry-After.
   std::size_t handler_queue = 256;
-  std::chrono::seconds read_timeout{30};   // to receive a whole request, and to send a whole response
+  std::chrono::seconds read_timeout{30};  // to receive a whole request, and to send a whole response
 };
 
 /// HTTP/1.1 server over Asio/Beast. Connection code only moves bytes: every complete request goes to

@@ -23,7 +23,10 @@ json as_built_json(const world::WorldState& state, const world::AsBuiltReport& r
                  {"confirmations", object.confirmations},
                  {"adjustments", object.adjustments}};
     if (const auto& d = entry.moved_by) {
-      item["moved_by"] = {{"dx", d->dx_m}, {"dy", d->dy_m}, {"dtheta", d->dtheta_rad}, {"distance", d->distance_m},
+      item["moved_by"] = {{"dx", d->dx_m},
+                          {"dy", d->dy_m},
+                          {"dtheta", d->dtheta_rad},
+                          {"distance", d->distance_m},
                           {"sigma_xy", d->sigma_xy_m}};
     }
     objects.push_back(std::move(item));

@@ -2,9 +2,8 @@
 
 // JSON of what the service answers beyond single world values (see codec.h for those): decision lists and the
 // as-built report.
-#include <vector>
-
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "server/world/as_built.h"
 #include "server/world/update.h"

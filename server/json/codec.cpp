@@ -69,7 +69,7 @@ json matrix_json(const Eigen::MatrixXd& m) {
 }
 
 json segment_json(const fusion::LineSegment& s) {
-  return {{"p0", point_json(s.p0())}, {"p1", point_json(s.p1())}, {"rho", s.line.rho_m},
+  return {{"p0", point_json(s.p0())}, {"p1", point_json(s.p1())},       {"rho", s.line.rho_m},
           {"phi", s.line.phi_rad},    {"cov", matrix_json(s.line.cov)}, {"length", s.length_m()}};
 }
 
@@ -80,7 +80,8 @@ nlohmann::ordered_json parse_ordered_json(std::string_view text) { return parse_
 
 std::optional<std::size_t> invalid_utf8_offset(std::string_view text) { return common::invalid_utf8_offset(text); }
 
-world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits) {
+world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options,
+                                    const PrimitiveLimits& limits) {
   const json doc = parse_json(body);
   if (!doc.is_object()) throw bad_request("", "expected an object with \"segments\"");
   for (const auto& [key, value] : doc.items())
@@ -121,10 +122,12 @@ world::Observation parse_primitives(std::string_view body, const world::WorldOpt
       throw bad_request(path, "segment shorter than " + std::to_string(limits.min_length_m) + " m");
     try {
       if (s.contains("cov")) {
-        observation.segments.push_back({fusion::LineSegment::from_points(p0, p1, covariance(s["cov"], field(path, "cov")))});
+        observation.segments.push_back(
+            {fusion::LineSegment::from_points(p0, p1, covariance(s["cov"], field(path, "cov")))});
       } else {
         auto segment = fusion::LineSegment::from_points(p0, p1, Eigen::Matrix2d::Identity());
-        segment.line.cov = world::midpoint_line_cov(segment, options.default_offset_sigma_m, options.default_angle_sigma_rad);
+        segment.line.cov =
+            world::midpoint_line_cov(segment, options.default_offset_sigma_m, options.default_angle_sigma_rad);
         observation.segments.push_back({segment});
       }
     } catch (const std::invalid_argument& e) {
@@ -172,10 +175,12 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
   if (!sensor_it->is_string() || (*sensor_it != "laser" && *sensor_it != "sonar"))
     throw bad_request("sensor", "expected \"laser\" or \"sonar\"");
   const bool laser = *sensor_it == "laser";
-  static const std::vector<std::string> kLaserKeys = {"sensor", "source", "stamp", "pose", "angle_min", "angle_increment",
-                                                      "ranges", "range_min", "range_max", "sigma_range", "pose_cov"};
-  static const std::vector<std::string> kSonarKeys = {"sensor", "source", "stamp", "pose", "angles", "ranges",
-                                                      "beam_width", "range_min", "range_max", "sigma_range", "pose_cov"};
+  static const std::vector<std::string> kLaserKeys = {"sensor",    "source",          "stamp",   "pose",
+                                                      "angle_min", "angle_increment", "ranges",  "range_min",
+                                                      "range_max", "sigma_range",     "pose_cov"};
+  static const std::vector<std::string> kSonarKeys = {"sensor",    "source",      "stamp",      "pose",
+                                                      "angles",    "ranges",      "beam_width", "range_min",
+                                                      "range_max", "sigma_range", "pose_cov"};
   const auto& known = laser ? kLaserKeys : kSonarKeys;
   for (const auto& [key, value] : doc.items())
     if (std::find(known.begin(), known.end(), key) == known.end())
@@ -200,12 +205,14 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
     if (!it->is_array() || it->size() != 3) throw bad_request("pose_cov", "expected a 3x3 matrix over x, y, theta");
     for (int r = 0; r < 3; ++r) {
       if (!(*it)[r].is_array() || (*it)[r].size() != 3) throw bad_request(item("pose_cov", r), "expected 3 numbers");
-      for (int c = 0; c < 3; ++c) request.pose_cov(r, c) = finite_number((*it)[r][c], item(item("pose_cov", r), c), 1e6);
+      for (int c = 0; c < 3; ++c)
+        request.pose_cov(r, c) = finite_number((*it)[r][c], item(item("pose_cov", r), c), 1e6);
     }
     if (!request.pose_cov.isApprox(request.pose_cov.transpose(), 1e-12) || request.pose_cov.diagonal().minCoeff() < 0)
       throw bad_request("pose_cov", "not a symmetric covariance");
   }
-  const double range_min = doc.contains("range_min") ? finite_number(doc["range_min"], "range_min", limits.max_range_m) : 0.0;
+  const double range_min =
+      doc.contains("range_min") ? finite_number(doc["range_min"], "range_min", limits.max_range_m) : 0.0;
   const double range_max = required_number(doc, "range_max", limits.max_range_m);
   if (range_min < 0) throw bad_request("range_min", "must be >= 0");
   if (range_max <= range_min) throw bad_request("range_max", "must be greater than range_min");
@@ -286,7 +293,10 @@ json map_json(const world::WorldState& state, const world::WorldOptions& options
   for (const auto& o : state.objects) objects.push_back(object_json(o, options));
   json elements = json::array();
   for (const auto& [number, e] : state.elements) elements.push_back(element_json(e));
-  return {{"version", state.version}, {"plan", state.plan_name}, {"objects", std::move(objects)}, {"elements", std::move(elements)}};
+  return {{"version", state.version},
+          {"plan", state.plan_name},
+          {"objects", std::move(objects)},
+          {"elements", std::move(elements)}};
 }
 
 namespace {
@@ -324,7 +334,10 @@ json decision_json(const world::DecisionRecord& d) {
             {"origin", d.origin},
             {"sensor", d.sensor},
             {"observed",
-             {{"p0", point_json(d.p0)}, {"p1", point_json(d.p1)}, {"rho", d.rho_m}, {"phi", d.phi_rad},
+             {{"p0", point_json(d.p0)},
+              {"p1", point_json(d.p1)},
+              {"rho", d.rho_m},
+              {"phi", d.phi_rad},
               {"cov", matrix_json(d.observed_cov)}}}};
   if (!d.before.empty()) j["before"] = state_numbers_json(d.before);
   if (!d.after.empty()) j["after"] = state_numbers_json(d.after);
@@ -344,12 +357,14 @@ json rules_status_json(const rules::RulesStatus& status) {
   }
   const auto relative = [&prefix](std::string text) {
     if (prefix.empty()) return text;
-    for (auto at = text.find(prefix); at != std::string::npos; at = text.find(prefix, at)) text.erase(at, prefix.size());
+    for (auto at = text.find(prefix); at != std::string::npos; at = text.find(prefix, at))
+      text.erase(at, prefix.size());
     return text;
   };
   json files = json::array();
   for (const auto& f : status.files)
-    files.push_back({{"path", relative(f.path)}, {"checksum", f.sha256_or_checksum}, {"loaded_at", f.loaded_at_unix_s}});
+    files.push_back(
+        {{"path", relative(f.path)}, {"checksum", f.sha256_or_checksum}, {"loaded_at", f.loaded_at_unix_s}});
   return {{"files", files}, {"generation", status.generation}, {"last_error", relative(status.last_error)}};
 }
 
@@ -372,14 +387,20 @@ json query_value_json(const rules::QueryValue& v, std::size_t depth, AnswerBudge
   };
   // What each value adds to the text, its comma included (escapes aside: the dumped size is checked again).
   switch (v.kind) {
-    case Kind::unbound: spend(5); return nullptr;
+    case Kind::unbound:
+      spend(5);
+      return nullptr;
     case Kind::atom:
     case Kind::string:
     case Kind::compound:
       spend(v.text.size() + 3);
       return v.text;
-    case Kind::integer: spend(std::to_string(v.integer).size() + 1); return v.integer;
-    case Kind::floating: spend(25); return std::isfinite(v.floating) ? json(v.floating) : json(nullptr);
+    case Kind::integer:
+      spend(std::to_string(v.integer).size() + 1);
+      return v.integer;
+    case Kind::floating:
+      spend(25);
+      return std::isfinite(v.floating) ? json(v.floating) : json(nullptr);
     case Kind::list: {
       if (depth >= apriori::kMaxJsonDepth)
         throw CodecError(CodecError::Kind::answer_too_large, "",
@@ -404,7 +425,9 @@ json query_result_json(const rules::QueryResult& result, std::size_t max_bytes) 
       solution[result.variables[i]] = query_value_json(row[i], 1, budget);
     solutions.push_back(std::move(solution));
   }
-  return {{"variables", result.variables}, {"solutions", solutions}, {"count", result.solutions.size()},
+  return {{"variables", result.variables},
+          {"solutions", solutions},
+          {"count", result.solutions.size()},
           {"truncated", result.truncated}};
 }
 

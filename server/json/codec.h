@@ -1,11 +1,9 @@
 #pragma once
 
+#include <limits>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string_view>
-
-#include <nlohmann/json.hpp>
-
-#include <limits>
 #include <variant>
 
 #include "fusion/grid/scan.h"
@@ -36,7 +34,8 @@ struct PrimitiveLimits {
 };
 
 /// Parses and validates POST /api/v1/primitives. @throw CodecError (bad_request) naming the bad field.
-world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options, const PrimitiveLimits& limits);
+world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options,
+                                    const PrimitiveLimits& limits);
 
 /// A posted scan (POST /api/v1/scans): the robot, its clock, and a laser or a sonar scan.
 struct ScanRequest {

@@ -23,8 +23,8 @@ namespace wm::service {
 
 /// What an applied (or replayed) observation answered.
 struct PrimitivesOutcome {
-  std::int64_t seq = 0;      // the observation's journal sequence
-  std::int64_t version = 0;  // the map version after it
+  std::int64_t seq = 0;                          // the observation's journal sequence
+  std::int64_t version = 0;                      // the map version after it
   std::vector<world::DecisionRecord> decisions;  // one per segment, in order
   bool replayed = false;  // the answer of an earlier request with the same request id; nothing applied now
 };
@@ -49,8 +49,8 @@ struct DryRunOutcome {
 
 /// The cells of one grid layer over a region, with the grid revision they were read at.
 struct GridLayerValues {
-  std::vector<float> values;       // row-major from the lower-left cell; NaN = unknown
-  std::int64_t revision = 0;       // scans in the grid when it was read
+  std::vector<float> values;  // row-major from the lower-left cell; NaN = unknown
+  std::int64_t revision = 0;  // scans in the grid when it was read
 };
 
 /// The world-model service as the HTTP handlers see it. Every call is safe from any thread. Writes are applied

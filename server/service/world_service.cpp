@@ -19,14 +19,8 @@ double now_unix_s() {
 }
 
 rules::ElementFacts element_facts(const world::Element& e) {
-  return {e.id(),
-          e.source,
-          e.observer,
-          e.segment.line.rho_m,
-          e.segment.line.phi_rad,
-          e.segment.length_m(),
-          e.support,
-          e.updated_at_unix_s};
+  return {e.id(),    e.source,           e.observer, e.segment.line.rho_m, e.segment.line.phi_rad, e.segment.length_m(),
+          e.support, e.updated_at_unix_s};
 }
 
 rules::DecisionFacts decision_facts(const world::DecisionRecord& d, double at) {
@@ -88,7 +82,8 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
   // revision, to the last journaled scan.
   const auto replay = store_.scans_after(flushed_scan_seq_);
-  for (const auto& record : replay) insert_scan(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}), record.seq);
+  for (const auto& record : replay)
+    insert_scan(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}), record.seq);
   if (last_scan_seq_ != store_.last_scan_seq())
     throw storage::StorageError("the scan journal ends at " + std::to_string(store_.last_scan_seq()) +
                                 " but the grid was rebuilt to " + std::to_string(last_scan_seq_));
@@ -181,23 +176,24 @@ void WorldService::flush_grid(bool force) {
 }
 
 ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json,
-                                   std::optional<std::string> request_id) {
-  return writer_->run([this, scan = std::move(scan), payload = std::move(payload_json), request_id = std::move(request_id)] {
-    const auto hash = body_hash(payload);
-    if (auto replayed = replayed_scan(request_id, hash)) return std::move(*replayed);
-    const std::int64_t seq = last_scan_seq_ + 1;
-    // Decide the lines first (nothing is stored yet), then commit the scan and its lines together: a crash
-    // leaves either both or neither, never a scan in the grid whose line decisions are gone.
-    auto lines = prepare_scan_lines(scan);
-    commit_scan(scan, seq, payload, lines, request_id, hash);
-    // Committed: from here on nothing may fail the request (its retry would apply it twice).
-    insert_committed_scan(scan, seq);
-    ScanOutcome outcome{seq, seq, std::nullopt, false};
-    emit_scan_event(scan, seq);
-    if (lines) outcome.lines = finish_update(std::move(*lines));
-    extract_grid_lines_if_due(seq);
-    return outcome;
-  });
+                                    std::optional<std::string> request_id) {
+  return writer_->run(
+      [this, scan = std::move(scan), payload = std::move(payload_json), request_id = std::move(request_id)] {
+        const auto hash = body_hash(payload);
+        if (auto replayed = replayed_scan(request_id, hash)) return std::move(*replayed);
+        const std::int64_t seq = last_scan_seq_ + 1;
+        // Decide the lines first (nothing is stored yet), then commit the scan and its lines together: a crash
+        // leaves either both or neither, never a scan in the grid whose line decisions are gone.
+        auto lines = prepare_scan_lines(scan);
+        commit_scan(scan, seq, payload, lines, request_id, hash);
+        // Committed: from here on nothing may fail the request (its retry would apply it twice).
+        insert_committed_scan(scan, seq);
+        ScanOutcome outcome{seq, seq, std::nullopt, false};
+        emit_scan_event(scan, seq);
+        if (lines) outcome.lines = finish_update(std::move(*lines));
+        extract_grid_lines_if_due(seq);
+        return outcome;
+      });
 }
 
 std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::string>& request_id,
@@ -207,7 +203,8 @@ std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::
   if (!known) return std::nullopt;
   ScanOutcome outcome{known->seq, known->grid_revision, std::nullopt, true};
   if (known->lines_seq)
-    outcome.lines = PrimitivesOutcome{*known->lines_seq, known->version, store_.observation_decisions(*known->lines_seq), true};
+    outcome.lines =
+        PrimitivesOutcome{*known->lines_seq, known->version, store_.observation_decisions(*known->lines_seq), true};
   return outcome;
 }
 
@@ -239,7 +236,12 @@ void WorldService::commit_scan(const json_codec::ScanRequest& scan, std::int64_t
                                std::int64_t hash) {
   std::optional<storage::RequestRecord> record;
   if (request_id) {
-    record = storage::RequestRecord{*request_id, "scan", hash, seq, lines ? lines->update.state.version : 0, seq,
+    record = storage::RequestRecord{*request_id,
+                                    "scan",
+                                    hash,
+                                    seq,
+                                    lines ? lines->update.state.version : 0,
+                                    seq,
                                     lines ? std::optional<std::int64_t>(lines->seq) : std::nullopt};
   }
   const std::string lines_payload = "{\"scan\": " + std::to_string(seq) + "}";
@@ -292,7 +294,8 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
 void WorldService::extract_grid_lines_if_due(std::int64_t scan_seq) {
   // The extraction is its own observation, not part of the scan: a crash before it skips one extraction, the
   // scan stays whole.
-  if (options_.grid_extract_every == 0 || scan_seq % static_cast<std::int64_t>(options_.grid_extract_every) != 0) return;
+  if (options_.grid_extract_every == 0 || scan_seq % static_cast<std::int64_t>(options_.grid_extract_every) != 0)
+    return;
   try {
     extract_grid_lines_on_writer();
   } catch (const std::exception& e) {
@@ -318,8 +321,7 @@ std::optional<PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
   observation.source = "grid";
   observation.sensor = "grid";
   for (const auto& segment : segments) observation.segments.push_back({segment});
-  return apply_on_writer(std::move(observation),
-                         "{\"grid_revision\": " + std::to_string(grid_revision_.load()) + "}");
+  return apply_on_writer(std::move(observation), "{\"grid_revision\": " + std::to_string(grid_revision_.load()) + "}");
 }
 
 std::shared_ptr<const world::WorldState> WorldService::snapshot() const {
@@ -359,7 +361,7 @@ void WorldService::sync_all_facts(const world::WorldState& state) {
 }
 
 PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
-                                                              std::optional<std::string> request_id) {
+                                                std::optional<std::string> request_id) {
   return writer_->run([this, observation = std::move(observation), payload = std::move(payload_json),
                        request_id = std::move(request_id)]() mutable {
     if (!request_id) return apply_on_writer(std::move(observation), payload);
@@ -367,9 +369,10 @@ PrimitivesOutcome WorldService::post_primitives(world::Observation observation, 
     if (const auto known = known_request(*request_id, "primitives", hash))
       return PrimitivesOutcome{known->seq, known->version, store_.observation_decisions(known->seq), true};
     auto prepared = prepare_update(std::move(observation));
-    const storage::RequestRecord record{*request_id, "primitives", hash, prepared.seq, prepared.update.state.version, 0,
-                                        std::nullopt};
-    commit_prepared(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload, record); });
+    const storage::RequestRecord record{*request_id, "primitives", hash, prepared.seq, prepared.update.state.version,
+                                        0,           std::nullopt};
+    commit_prepared(prepared,
+                    [&] { store_.commit_observation(prepared.update, prepared.observation, payload, record); });
     return finish_update(std::move(prepared));
   });
 }
@@ -433,12 +436,19 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
     nlohmann::json decisions = nlohmann::json::array(), elements = nlohmann::json::array(),
                    removed = nlohmann::json::array(), objects = nlohmann::json::array();
     for (const auto& d : update.decisions) decisions.push_back(json_codec::decision_json(d));
-    for (auto number : update.changed_elements) elements.push_back(json_codec::element_json(update.state.elements.at(number)));
+    for (auto number : update.changed_elements)
+      elements.push_back(json_codec::element_json(update.state.elements.at(number)));
     for (auto number : update.removed_elements) removed.push_back("e" + std::to_string(number));
     for (auto index : update.changed_objects)
       objects.push_back(json_codec::object_json(update.state.objects.at(index), options_.world));
-    emit({{"type", "update"}, {"observation", seq}, {"version", update.state.version}, {"origin", observation.source},
-          {"decisions", decisions}, {"elements", elements}, {"removed", removed}, {"objects", objects}});
+    emit({{"type", "update"},
+          {"observation", seq},
+          {"version", update.state.version},
+          {"origin", observation.source},
+          {"decisions", decisions},
+          {"elements", elements},
+          {"removed", removed},
+          {"objects", objects}});
   }
   publish(std::move(update.state));
   engine_.add_decisions(logged, options_.decision_facts_kept);
@@ -511,7 +521,7 @@ DryRunOutcome WorldService::dry_run(const rules::RuleText& candidate, std::size_
 }
 
 std::vector<world::DecisionRecord> WorldService::decisions(std::int64_t since_seq, std::size_t limit,
-                                                         const std::optional<std::string>& element) {
+                                                           const std::optional<std::string>& element) {
   return store_.decisions(since_seq, limit, element);
 }
 

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <pthread.h>
+
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -10,17 +12,15 @@
 #include <stdexcept>
 #include <string_view>
 
-#include <pthread.h>
-
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
 #include "fusion/lines/scan_lines.h"
+#include "rules/engine.h"
 #include "server/events/event_hub.h"
 #include "server/json/codec.h"
-#include "rules/engine.h"
 #include "server/service/prolog_worker.h"
-#include "server/service/world_port.h"
 #include "server/service/rules_watcher.h"
+#include "server/service/world_port.h"
 #include "server/storage/store.h"
 #include "server/world/update.h"
 

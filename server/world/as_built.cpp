@@ -46,9 +46,12 @@ AsBuiltReport as_built_report(const WorldState& state) {
 
 const char* to_string(AsBuiltStatus status) {
   switch (status) {
-    case AsBuiltStatus::moved: return "moved";
-    case AsBuiltStatus::confirmed: return "confirmed";
-    case AsBuiltStatus::never_observed: return "never_observed";
+    case AsBuiltStatus::moved:
+      return "moved";
+    case AsBuiltStatus::confirmed:
+      return "confirmed";
+    case AsBuiltStatus::never_observed:
+      return "never_observed";
   }
   return "never_observed";
 }

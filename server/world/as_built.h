@@ -1,12 +1,11 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "server/world/world_state.h"
 
@@ -36,8 +35,8 @@ struct ObjectAsBuilt {
 /// Where the building differs from its drawing: per CAD object confirmed / moved / never observed, and the
 /// observed elements that belong to no object. Refers into the state it was made from, which must outlive it.
 struct AsBuiltReport {
-  std::vector<ObjectAsBuilt> objects;         // in plan order
-  std::vector<const Element*> not_in_plan;    // by element number
+  std::vector<ObjectAsBuilt> objects;       // in plan order
+  std::vector<const Element*> not_in_plan;  // by element number
   std::size_t confirmed = 0, moved = 0, never_observed = 0;
 };
 

@@ -6,8 +6,9 @@
 namespace wm::api {
 
 Response get_events_without_upgrade(const Call& call) {
-  auto response = error_response(call.request.version(), call.request.keep_alive(), 426, "upgrade_required",
-                                 "GET /api/v1/events is a WebSocket: send 'Connection: Upgrade' and 'Upgrade: websocket'");
+  auto response =
+      error_response(call.request.version(), call.request.keep_alive(), 426, "upgrade_required",
+                     "GET /api/v1/events is a WebSocket: send 'Connection: Upgrade' and 'Upgrade: websocket'");
   response.set(boost::beast::http::field::upgrade, "websocket");
   return response;
 }

@@ -39,7 +39,8 @@ apriori::ImportResult import_plan(const std::string& format, std::string_view da
     o.limits = api.plan_limits;
     if (options.units) o.units_to_m = units_to_metres(*options.units, "import.units");
     if (options.name) o.name = *options.name;
-    const auto mapping = options.mapping_json ? apriori::parse_layer_mapping_json(*options.mapping_json) : api.layer_mapping;
+    const auto mapping =
+        options.mapping_json ? apriori::parse_layer_mapping_json(*options.mapping_json) : api.layer_mapping;
     return apriori::import_dxf(data, mapping, o);
   }
   if (format == "rmf") {
@@ -64,11 +65,13 @@ apriori::ImportResult import_envelope(const nlohmann::ordered_json& spec, const 
   for (const auto& [key, value] : spec.items())
     if (key != "format" && key != "data" && key != "mapping" && key != "units" && key != "level" && key != "name")
       throw bad_request("import." + key, "unknown field");
-  if (!spec.contains("format") || !spec["format"].is_string()) throw bad_request("import.format", "expected dxf, rmf or amrl");
+  if (!spec.contains("format") || !spec["format"].is_string())
+    throw bad_request("import.format", "expected dxf, rmf or amrl");
   if (!spec.contains("data") || !spec["data"].is_string()) throw bad_request("import.data", "expected the file's text");
   ImportOptions options;
   using Field = std::pair<const char*, std::optional<std::string>*>;
-  for (const auto& [key, field] : std::array<Field, 3>{{{"units", &options.units}, {"level", &options.level}, {"name", &options.name}}}) {
+  for (const auto& [key, field] :
+       std::array<Field, 3>{{{"units", &options.units}, {"level", &options.level}, {"name", &options.name}}}) {
     if (!spec.contains(key)) continue;
     if (!spec[key].is_string()) throw bad_request(std::string("import.") + key, "expected a string");
     *field = spec[key].get<std::string>();

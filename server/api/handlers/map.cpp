@@ -13,9 +13,11 @@ Response get_map(const Call& call) {
   const auto& options = call.world.world_options();
   const auto format = call.target.param("format").value_or("json");
   if (format == "json") return json_response(call.request, json_codec::map_json(*snap, options));
-  if (format == "dxf") return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options)), "image/vnd.dxf");
+  if (format == "dxf")
+    return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options)), "image/vnd.dxf");
   if (format == "geojson")
-    return raw_response(call.request, apriori::write_geojson(world::map_layers(*snap, options)), "application/geo+json");
+    return raw_response(call.request, apriori::write_geojson(world::map_layers(*snap, options)),
+                        "application/geo+json");
   throw bad_request("format", "expected json, dxf or geojson");
 }
 

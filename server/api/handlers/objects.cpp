@@ -12,7 +12,8 @@ constexpr std::size_t kMaxHistory = 10000;
 
 Response history(const Call& call, std::vector<world::DecisionRecord> rows, bool exists) {
   const auto& id = call.param;
-  if (rows.empty() && !exists) throw ApiError(404, "not_found", "no element or object '" + id + "' and no decision about it");
+  if (rows.empty() && !exists)
+    throw ApiError(404, "not_found", "no element or object '" + id + "' and no decision about it");
   return json_response(call.request, {{"id", id}, {"exists", exists}, {"decisions", json_codec::decisions_json(rows)}});
 }
 

@@ -31,7 +31,8 @@ Response post_rules_dry_run(const Call& call) {
   const auto outcome = call.world.dry_run(candidate, last);
   nlohmann::json changes = nlohmann::json::array();
   for (const auto& c : outcome.changes)
-    changes.push_back({{"recorded", json_codec::decision_json(c.recorded)}, {"candidate", json_codec::decision_json(c.candidate)}});
+    changes.push_back(
+        {{"recorded", json_codec::decision_json(c.recorded)}, {"candidate", json_codec::decision_json(c.candidate)}});
   return json_response(call.request, {{"file", candidate.name},
                                       {"redecided", outcome.redecided},
                                       {"changed", outcome.changes.size()},

@@ -13,10 +13,14 @@ namespace {
 
 // The types the viewer uses; anything else is sent as bytes.
 const std::string& content_type_of(const std::filesystem::path& file) {
-  static const std::map<std::string, std::string> kTypes = {
-      {".html", "text/html; charset=utf-8"}, {".js", "text/javascript; charset=utf-8"},
-      {".mjs", "text/javascript; charset=utf-8"}, {".css", "text/css; charset=utf-8"},
-      {".svg", "image/svg+xml"}, {".png", "image/png"}, {".json", "application/json"}, {".ico", "image/x-icon"}};
+  static const std::map<std::string, std::string> kTypes = {{".html", "text/html; charset=utf-8"},
+                                                            {".js", "text/javascript; charset=utf-8"},
+                                                            {".mjs", "text/javascript; charset=utf-8"},
+                                                            {".css", "text/css; charset=utf-8"},
+                                                            {".svg", "image/svg+xml"},
+                                                            {".png", "image/png"},
+                                                            {".json", "application/json"},
+                                                            {".ico", "image/x-icon"}};
   static const std::string kBytes = "application/octet-stream";
   const auto type = kTypes.find(file.extension().string());
   return type == kTypes.end() ? kBytes : type->second;

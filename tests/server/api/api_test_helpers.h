@@ -1,10 +1,10 @@
 #pragma once
 
 // Requests in, responses out, through the api's router: no sockets, a FakeWorldPort behind it.
-#include <string>
-
 #include <gtest/gtest.h>
+
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "server/api/router.h"
 #include "tests/server/api/fake_world_port.h"

@@ -27,7 +27,8 @@ TEST(ErrorMappingTest, EveryModulesErrorHasItsStatusAndCode) {
   const Case cases[] = {
       {mapped(ApiError(421, "misdirected_request", "x")), 421, "misdirected_request"},
       {mapped(json_codec::bad_request("segments[0]", "x")), 400, "bad_request"},
-      {mapped(json_codec::CodecError(json_codec::CodecError::Kind::answer_too_large, "", "x")), 422, "answer_too_large"},
+      {mapped(json_codec::CodecError(json_codec::CodecError::Kind::answer_too_large, "", "x")), 422,
+       "answer_too_large"},
       {mapped(apriori::FloorPlanError("objects[0]", "x")), 400, "bad_floor_plan"},
       {mapped(QE(QE::Reason::syntax, "x")), 400, "bad_query"},
       {mapped(QE(QE::Reason::unsafe, "x")), 403, "forbidden_goal"},

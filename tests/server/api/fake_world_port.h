@@ -29,7 +29,7 @@ class FakeWorldPort final : public service::WorldPort {
   std::vector<world::DecisionRecord> logged;  // what decisions() and object_decisions() answer
   rules::QueryResult query_answer;
   service::DryRunOutcome dry_run_answer;
-  bool replay = false;                     // posts answer as replays
+  bool replay = false;                        // posts answer as replays
   std::optional<fusion::OccupancyGrid> grid;  // nullopt: an empty grid of 0.05 m cells
 
   // --- what the handlers did ---
@@ -109,7 +109,8 @@ class FakeWorldPort final : public service::WorldPort {
   }
   double grid_resolution_m() const override { return the_grid().resolution_m(); }
   std::optional<fusion::GridGeometry> grid_bounds() const override { return the_grid().bounds(); }
-  service::GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const override {
+  service::GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer,
+                                      const fusion::GridGeometry& region) const override {
     return {the_grid().export_layer(layer, region), 4};
   }
 

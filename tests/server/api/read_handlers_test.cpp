@@ -1,14 +1,13 @@
 // The handlers that read: each route's success and its documented refusals, through the router, against a fake
 // of the service port.
-#include "server/api/handlers.h"
+#include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include <gtest/gtest.h>
-
-#include "tests/server/api/api_test_helpers.h"
+#include "server/api/handlers.h"
 #include "server/storage/sqlite.h"
+#include "tests/server/api/api_test_helpers.h"
 #include "tests/support/temp_dir.h"
 
 namespace wm::testing {
@@ -217,9 +216,9 @@ TEST_F(ReadHandlersTest, GridLayersComeAsJsonOrPgmWithTheMapServerYaml) {
   ASSERT_EQ(status_of(response), 200);
   EXPECT_NE(response.body().find("image: map.pgm\n"), std::string::npos);
   EXPECT_NE(response.body().find("origin: [0, 0, 0.0]\n"), std::string::npos);
-  for (const std::string target : {"/api/v1/grid?layer=heat", "/api/v1/grid?format=png", "/api/v1/grid?bbox=1,1,0,0",
-                                   "/api/v1/grid?bbox=0,0,1", "/api/v1/grid?bbox=0,0,1e9,1e9",
-                                   "/api/v1/grid/map.yaml?bbox=a,b,c,d"}) {
+  for (const std::string target :
+       {"/api/v1/grid?layer=heat", "/api/v1/grid?format=png", "/api/v1/grid?bbox=1,1,0,0", "/api/v1/grid?bbox=0,0,1",
+        "/api/v1/grid?bbox=0,0,1e9,1e9", "/api/v1/grid/map.yaml?bbox=a,b,c,d"}) {
     response = send(verb::get, target);
     EXPECT_EQ(status_of(response), 400) << target;
   }

@@ -1,10 +1,10 @@
 #include "server/api/routes.h"
 
+#include <gtest/gtest.h>
+
 #include <fstream>
 #include <set>
 #include <sstream>
-
-#include <gtest/gtest.h>
 
 #include "tests/server/api/api_test_helpers.h"
 
@@ -146,9 +146,7 @@ TEST_F(RouteTableTest, TheIndexListsEveryRouteOfTheTableTheEventsWebSocketInclud
   EXPECT_EQ(body["endpoints"].size(), api::routes().size());
 }
 
-TEST_F(RouteTableTest, TheReadmeApiReferenceListsTheRoutesOfTheTable) {
-  EXPECT_EQ(readme_routes(), table_routes());
-}
+TEST_F(RouteTableTest, TheReadmeApiReferenceListsTheRoutesOfTheTable) { EXPECT_EQ(readme_routes(), table_routes()); }
 
 }  // namespace
 }  // namespace wm::testing

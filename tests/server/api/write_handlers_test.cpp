@@ -1,9 +1,8 @@
 // The handlers that change state, plus queries and dry runs: each route's success and its documented refusals
 // (400, 401, 403, 409, 415, 422, 503), through the router, against a fake of the service port.
-#include "server/api/handlers.h"
-
 #include <gtest/gtest.h>
 
+#include "server/api/handlers.h"
 #include "tests/server/api/api_test_helpers.h"
 
 namespace wm::testing {
@@ -61,10 +60,11 @@ TEST_F(WriteHandlersTest, PrimitivesRefusals) {
 
 TEST_F(WriteHandlersTest, WritesNeedTheTokenWhenOneIsConfigured) {
   options_.token = "s3cret";
-  for (const auto& [method, target, body] :
-       {std::tuple{verb::post, "/api/v1/primitives", kPrimitives}, {verb::post, "/api/v1/scans", kScan},
-        {verb::put, "/api/v1/floorplan", kPlan}, {verb::post, "/api/v1/rules/reload", ""},
-        {verb::post, "/api/v1/grid/extract", ""}}) {
+  for (const auto& [method, target, body] : {std::tuple{verb::post, "/api/v1/primitives", kPrimitives},
+                                             {verb::post, "/api/v1/scans", kScan},
+                                             {verb::put, "/api/v1/floorplan", kPlan},
+                                             {verb::post, "/api/v1/rules/reload", ""},
+                                             {verb::post, "/api/v1/grid/extract", ""}}) {
     auto request = make_request(method, target, body);
     EXPECT_EQ(status_of(send(request)), 401) << target;
     request.set(http::field::authorization, "bearer   s3cret");
@@ -103,8 +103,9 @@ TEST_F(WriteHandlersTest, FloorPlansLoadFromJsonOrTheImportEnvelope) {
   EXPECT_EQ(body["edges"], 1);
   EXPECT_EQ(body["version"], 9);
   EXPECT_FALSE(body.contains("report"));
-  response = send(verb::put, "/api/v1/floorplan",
-                  R"({"import": {"format": "amrl", "data": "[{\"p0\": {\"x\": 0, \"y\": 0}, \"p1\": {\"x\": 3, \"y\": 0}}]", "name": "vm"}})");
+  response = send(
+      verb::put, "/api/v1/floorplan",
+      R"({"import": {"format": "amrl", "data": "[{\"p0\": {\"x\": 0, \"y\": 0}, \"p1\": {\"x\": 3, \"y\": 0}}]", "name": "vm"}})");
   ASSERT_EQ(status_of(response), 200) << response.body();
   EXPECT_EQ(json_of(response)["name"], "vm");
   EXPECT_TRUE(json_of(response).contains("report"));
@@ -152,7 +153,8 @@ TEST_F(WriteHandlersTest, DryRunsNeedATokenOrTheExplicitFlag) {
   EXPECT_EQ(error_of(response), "forbidden");
   options_.allow_dry_run_without_token = true;
   world_.dry_run_answer.redecided = 10;
-  world_.dry_run_answer.changes.push_back({FakeWorldPort::decision(rules::Action::add, "e1"), {"merge", "r", "x", false}});
+  world_.dry_run_answer.changes.push_back(
+      {FakeWorldPort::decision(rules::Action::add, "e1"), {"merge", "r", "x", false}});
   response = send(verb::post, "/api/v1/rules/dry-run", dry_run);
   ASSERT_EQ(status_of(response), 200) << response.body();
   const auto body = json_of(response);

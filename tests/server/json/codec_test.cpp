@@ -38,7 +38,8 @@ TEST(CodecTest, RefusalsNameTheField) {
   EXPECT_NE(refusal(R"({"segments": [{"p0": [1, 2], "p1": [4, 2], "cov": [[1, 2], [3, 4]]}]})").find("not symmetric"),
             std::string::npos);
   EXPECT_NE(refusal(R"({"source": 7, "segments": [{"p0": [1, 2], "p1": [4, 2]}]})").find("source"), std::string::npos);
-  EXPECT_NE(refusal(R"({"stamp": "now", "segments": [{"p0": [1, 2], "p1": [4, 2]}]})").find("stamp"), std::string::npos);
+  EXPECT_NE(refusal(R"({"stamp": "now", "segments": [{"p0": [1, 2], "p1": [4, 2]}]})").find("stamp"),
+            std::string::npos);
   EXPECT_NE(refusal("{}").find("segments: missing"), std::string::npos);
 }
 
@@ -68,8 +69,9 @@ TEST(CodecTest, ParseJsonRefusesNestingBeyond64LevelsBeforeParsing) {
   EXPECT_EQ(message(nested(100000)), "JSON nested deeper than 64 levels at byte 64");
   // Brackets inside strings, escaped quotes included, do not count.
   EXPECT_NO_THROW(parse_json("{\"a\": \"" + std::string(1000, '[') + "\\\"" + std::string(1000, '{') + "\"}"));
-  EXPECT_EQ(message("[1,"), "malformed JSON: [json.exception.parse_error.101] parse error at line 1, column 4: syntax "
-                            "error while parsing value - unexpected end of input; expected '[', '{', or a literal");
+  EXPECT_EQ(message("[1,"),
+            "malformed JSON: [json.exception.parse_error.101] parse error at line 1, column 4: syntax "
+            "error while parsing value - unexpected end of input; expected '[', '{', or a literal");
   EXPECT_THROW(parse_ordered_json(nested(65)), CodecError);
 }
 
@@ -77,12 +79,12 @@ TEST(CodecTest, InvalidUtf8IsFoundAtItsByte) {
   EXPECT_EQ(invalid_utf8_offset("plain ascii"), std::nullopt);
   EXPECT_EQ(invalid_utf8_offset("pavill\xc3\xb3n \xe2\x82\xac \xf0\x9f\xa4\x96"), std::nullopt);  // ó € 🤖
   EXPECT_EQ(invalid_utf8_offset("main_d\xff\xfeoor"), 6u);
-  EXPECT_EQ(invalid_utf8_offset("ab\xc3"), 2u);              // truncated sequence
-  EXPECT_EQ(invalid_utf8_offset("\xc0\xaf"), 0u);            // overlong '/'
-  EXPECT_EQ(invalid_utf8_offset("x\xe0\x80\xaf"), 1u);       // overlong, 3 bytes
-  EXPECT_EQ(invalid_utf8_offset("\xed\xa0\x80"), 0u);        // UTF-16 surrogate D800
-  EXPECT_EQ(invalid_utf8_offset("\xf4\x90\x80\x80"), 0u);    // above U+10FFFF
-  EXPECT_EQ(invalid_utf8_offset("ok\xe2\x28\xa1"), 2u);      // bad continuation byte
+  EXPECT_EQ(invalid_utf8_offset("ab\xc3"), 2u);            // truncated sequence
+  EXPECT_EQ(invalid_utf8_offset("\xc0\xaf"), 0u);          // overlong '/'
+  EXPECT_EQ(invalid_utf8_offset("x\xe0\x80\xaf"), 1u);     // overlong, 3 bytes
+  EXPECT_EQ(invalid_utf8_offset("\xed\xa0\x80"), 0u);      // UTF-16 surrogate D800
+  EXPECT_EQ(invalid_utf8_offset("\xf4\x90\x80\x80"), 0u);  // above U+10FFFF
+  EXPECT_EQ(invalid_utf8_offset("ok\xe2\x28\xa1"), 2u);    // bad continuation byte
   EXPECT_EQ(invalid_utf8_offset(std::string("a\0b", 3)), std::nullopt);
 }
 
@@ -104,7 +106,8 @@ TEST(CodecTest, QueryAnswersAreBoundedInBytesAndNesting) {
     ADD_FAILURE() << "a 100 kB answer passed a 50 kB limit";
   } catch (const CodecError& e) {
     EXPECT_EQ(e.kind(), CodecError::Kind::answer_too_large);
-    EXPECT_EQ(std::string(e.what()), "the answer is larger than 50000 bytes; ask for fewer solutions (max_solutions) or smaller terms");
+    EXPECT_EQ(std::string(e.what()),
+              "the answer is larger than 50000 bytes; ask for fewer solutions (max_solutions) or smaller terms");
   }
 
   rules::QueryValue deep = atom("x");
@@ -128,9 +131,10 @@ TEST(CodecTest, QueryAnswersAreBoundedInBytesAndNesting) {
 
 // Issue 10: /api/v1/health showed the absolute path of the rules directory.
 TEST(CodecTest, RulesStatusShowsPathsRelativeToTheRulesDirectorysParent) {
-  rules::RulesStatus status{{{"/home/robot/wm/rules/prolog/world_model.pl", "ab", 1}, {"/home/robot/wm/rules/prolog/glass.pl", "cd", 2}},
-                            "/home/robot/wm/rules/prolog/glass.pl:3: Syntax error: Operator expected",
-                            4};
+  rules::RulesStatus status{
+      {{"/home/robot/wm/rules/prolog/world_model.pl", "ab", 1}, {"/home/robot/wm/rules/prolog/glass.pl", "cd", 2}},
+      "/home/robot/wm/rules/prolog/glass.pl:3: Syntax error: Operator expected",
+      4};
   const auto j = rules_status_json(status);
   EXPECT_EQ(j["files"][0]["path"], "prolog/world_model.pl");
   EXPECT_EQ(j["files"][1]["path"], "prolog/glass.pl");
