@@ -88,6 +88,7 @@ unbounded_in(Context, Call, Why) :-
     compound(Call),
     unbounded(Call, Context, Why).
 
+unbounded(format(F), _, Why) :- format_unbounded(F, Why).
 unbounded(format(F, _), _, Why) :- format_unbounded(F, Why).
 unbounded(format(_, F, _), _, Why) :- format_unbounded(F, Why).
 unbounded(sformat(_, F, _), _, Why) :- format_unbounded(F, Why).

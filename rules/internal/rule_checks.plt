@@ -108,6 +108,9 @@ test(refuses_a_column_above_1000) :-
 test(refuses_a_fill_character_with_a_large_column) :-
     unbounded((true, format("~`-t~5000|~n", [])), rule).
 
+test(refuses_a_large_column_in_format_1) :-
+    unbounded(format("~100000000|x"), rule).
+
 test(accepts_a_column_of_1000, [fail]) :-
     unbounded(format("~1000|x"), rule).
 

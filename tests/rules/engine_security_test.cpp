@@ -109,6 +109,9 @@ TEST_F(RuleTextSecurityTest, RuleBodiesThatActAreRefusedBeforeAnyRuleRuns) {
                        "may not make"));
   EXPECT_TRUE(contains(refused_dry_run("override(_, _, add, big, E) :- format(string(E), \"~t~1000000000|\", []).\n"),
                        "zz.pl:1: format(string(_"));
+  // format/1 writes to the current output the same way.
+  EXPECT_TRUE(contains(refused_dry_run("override(_, _, add, big, \"x\") :- format(\"~t~1000000000|\").\n"),
+                       "format directive argument"));
   expect_knowledge_base_intact();
 }
 
