@@ -18,7 +18,7 @@ std::optional<TextProblem> text_problem(std::string_view text) {
     at = *bad;
     what = "not UTF-8";
   }
-  if (at == std::string_view::npos) return std::nullopt;
+  if (at == std::string_view::npos) return quoted_number_problem(text);
   const auto newlines = std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n');
   return TextProblem{1 + static_cast<std::size_t>(newlines), at, what};
 }
@@ -36,9 +36,16 @@ void check_rule_file_text(const std::string& path) {
   check_rule_text(path, text.str());
 }
 
-bool nesting_exceeds(std::string_view text, int max, int& line) {
-  int depth = 0;
-  line = 1;
+namespace {
+
+bool continues_name(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }
+
+// Walks `text` as SWI-Prolog's tokenizer sees its structure: comments, quoted atoms, strings, back-quoted texts
+// and character literals (0'c) are stepped over; visit(i, line) sees every other byte and stops the walk by
+// returning true. Returns whether it was stopped.
+template <typename Visit>
+bool walk_code(std::string_view text, const Visit& visit) {
+  int line = 1;
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
     if (c == '\n') {
@@ -48,8 +55,9 @@ bool nesting_exceeds(std::string_view text, int max, int& line) {
     } else if (c == '/' && i + 1 < text.size() && text[i + 1] == '*') {
       for (i += 2; i + 1 < text.size() && !(text[i] == '*' && text[i + 1] == '/'); ++i) line += text[i] == '\n';
       ++i;
-    } else if (c == '0' && i + 1 < text.size() && text[i + 1] == '\'' &&
-               (i == 0 || !(std::isalnum(static_cast<unsigned char>(text[i - 1])) || text[i - 1] == '_'))) {
+    } else if (visit(i, line)) {
+      return true;
+    } else if (c == '0' && i + 1 < text.size() && text[i + 1] == '\'' && (i == 0 || !continues_name(text[i - 1]))) {
       i += 2;  // 0'c: skip the character, an escape's backslash or a doubled quote with it
       if (i < text.size() && (text[i] == '\\' || (text[i] == '\'' && i + 1 < text.size() && text[i + 1] == '\''))) ++i;
     } else if (c == '\'' || c == '"' || c == '`') {
@@ -65,13 +73,41 @@ bool nesting_exceeds(std::string_view text, int max, int& line) {
           ++line;
         }
       }
-    } else if (c == '(' || c == '[' || c == '{') {
-      if (++depth > max) return true;
-    } else if (c == ')' || c == ']' || c == '}') {
-      depth = std::max(0, depth - 1);
     }
   }
   return false;
+}
+
+}  // namespace
+
+std::optional<TextProblem> quoted_number_problem(std::string_view text) {
+  std::optional<TextProblem> problem;
+  walk_code(text, [&](std::size_t i, int line) {
+    if (!std::isdigit(static_cast<unsigned char>(text[i])) || (i > 0 && continues_name(text[i - 1]))) return false;
+    std::size_t end = i;
+    while (end < text.size() && std::isdigit(static_cast<unsigned char>(text[end]))) ++end;
+    if (end >= text.size() || text[end] != '\'') return false;
+    problem = TextProblem{static_cast<std::size_t>(line), i,
+                          "a character code or radix number (" + std::string(text.substr(i, end + 1 - i)) +
+                              "...): SWI-Prolog 9.0.4's reader can read freed memory on these; write the number "
+                              "itself (0'a is 97, 16'FF is 255) or use char_code/2"};
+    return true;
+  });
+  return problem;
+}
+
+bool nesting_exceeds(std::string_view text, int max, int& line) {
+  int depth = 0;
+  line = 1;
+  return walk_code(text, [&](std::size_t i, int at) {
+    const char c = text[i];
+    if (c == '(' || c == '[' || c == '{') {
+      line = at;
+      return ++depth > max;
+    }
+    if (c == ')' || c == ']' || c == '}') depth = std::max(0, depth - 1);
+    return false;
+  });
 }
 
 foreign_t pl_text_nesting_exceeds(term_t text, term_t max, term_t line) {

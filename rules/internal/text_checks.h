@@ -12,19 +12,25 @@
 
 namespace wm::rules::internal {
 
-/// Where a text stops being well-formed UTF-8 without NUL bytes. SWI-Prolog's reader misbehaves on
-/// malformed UTF-8 (a heap use-after-free found by fuzzing), so no text reaches it unchecked.
+/// What SWI-Prolog's reader must not see in a text. Found by fuzzing under AddressSanitizer, SWI-Prolog 9.0.4's
+/// reader reads a freed buffer (strtol on the term's raw text after the buffer grew) on malformed UTF-8, and on a
+/// number followed by a quote (0'c character codes, 16'FF radix numbers) that lies where the term's raw text
+/// crosses 512, 1024, 2048, ... bytes; so no text reaches it unchecked.
 struct TextProblem {
   std::size_t line = 0;  // 1-based
   std::size_t byte = 0;  // offset in the text
-  std::string what;      // "not UTF-8" | "a NUL byte"
+  std::string what;      // "not UTF-8" | "a NUL byte" | "a character code or radix number (0'...): ..."
 
   /// "byte <n>: <what>"
   std::string where() const { return "byte " + std::to_string(byte) + ": " + what; }
 };
 
-/// The first problem of `text`; nullopt when it is UTF-8 without NUL.
+/// The first problem of `text`; nullopt when it is UTF-8 without NUL and quoted_number_problem() finds nothing.
 std::optional<TextProblem> text_problem(std::string_view text);
+
+/// The first number followed by a quote (0'c, 16'FF) outside comments and quoted texts, refused wherever it lies:
+/// where the reader's buffer boundary falls depends on layout and comments the check cannot predict exactly.
+std::optional<TextProblem> quoted_number_problem(std::string_view text);
 
 /// @throw RuleError("<name>:<line>: rule text with byte <n>: ...") when text_problem() finds one, in the
 ///        "file:line: message" form of every load problem.

@@ -1,7 +1,7 @@
 // Issue 10's reproducers against the knowledge base: rule texts (dry-run candidates and rule files)
 // that try to run code, and queries that tried to crash the process or outrun the time limit. Each
 // test asserts what was refused, that nothing ran, and that the knowledge base still answers.
-#include "rules/engine.h"
+#include <gtest/gtest.h>
 
 #include <chrono>
 #include <filesystem>
@@ -9,8 +9,7 @@
 #include <thread>
 #include <vector>
 
-#include <gtest/gtest.h>
-
+#include "rules/engine.h"
 #include "tests/rules/rules_test_helpers.h"
 
 namespace wm::rules {
@@ -75,10 +74,9 @@ TEST_F(RuleTextSecurityTest, EndlessDirectiveIsRefusedWithoutRunning) {
 }
 
 TEST_F(RuleTextSecurityTest, DirectivesHiddenInConditionalsAndInitializationAreRefused) {
-  for (const std::string text : {":- if(shell('true')).\n:- endif.\n", ":- initialization(halt).\n",
-                                 "?- halt.\n", ":- set_prolog_flag(double_quotes, atom).\n",
-                                 ":- op(700, xfx, ===>).\n", ":- use_module(library(process)).\n",
-                                 ":- set_module(wm_kb:class(system)).\n",
+  for (const std::string text : {":- if(shell('true')).\n:- endif.\n", ":- initialization(halt).\n", "?- halt.\n",
+                                 ":- set_prolog_flag(double_quotes, atom).\n", ":- op(700, xfx, ===>).\n",
+                                 ":- use_module(library(process)).\n", ":- set_module(wm_kb:class(system)).\n",
                                  ":- compile_predicates([wm_kb:attribute/2]).\n", ":- dynamic(user:foo/1).\n"}) {
     EXPECT_TRUE(contains(refused_dry_run(text), "is not allowed in a rule file")) << text;
   }
@@ -100,8 +98,8 @@ TEST_F(RuleTextSecurityTest, ClausesForOtherModulesAndPrologHooksAreRefused) {
 }
 
 TEST_F(RuleTextSecurityTest, RuleBodiesThatActAreRefusedBeforeAnyRuleRuns) {
-  const auto message = refused_dry_run(
-      "override(_, _, add, evil, \"x\") :- shell('touch " + marker().string() + "').\n");
+  const auto message =
+      refused_dry_run("override(_, _, add, evil, \"x\") :- shell('touch " + marker().string() + "').\n");
   EXPECT_TRUE(contains(message, "decide/5 can reach a call that rules may not make")) << message;
   EXPECT_TRUE(contains(message, "shell")) << message;
   EXPECT_FALSE(std::filesystem::exists(marker())) << "the self-check ran the rule";
@@ -140,11 +138,33 @@ TEST_F(RuleTextSecurityTest, TextThatIsNotUtf8IsRefusedBeforeTheReaderSeesIt) {
   expect_knowledge_base_intact();
 }
 
+TEST_F(RuleTextSecurityTest, CharacterCodesAndRadixNumbersAreRefusedBeforeTheReaderSeesThem) {
+  // The fuzzer's reproducers (fuzz/regressions/fuzz_rules_text/, first byte: which file): SWI-Prolog 9.0.4's
+  // reader read freed memory when a 0'c or R'digits literal lay where the term's raw text crossed 512 bytes.
+  for (const char* name :
+       {"read-term-use-after-free-char-code-at-512.pl", "read-term-use-after-free-0quote-at-byte-511.pl"}) {
+    const std::string reproducer =
+        read_text(std::filesystem::path(WM_SOURCE_DIR) / "fuzz" / "regressions" / "fuzz_rules_text" / name);
+    ASSERT_GT(reproducer.size(), 512u) << name;
+    const auto message = refused_dry_run(reproducer.substr(1));
+    EXPECT_TRUE(contains(message, "a character code or radix number (")) << name << ": " << message;
+  }
+  // Wherever it lies, and with the line it is on; inside quotes and comments it is text, not a number.
+  const auto message = refused_dry_run("ok(1).\n% 0'a in a comment is fine\nbad(X) :- X = 16'FF.\n");
+  EXPECT_TRUE(contains(message, "zz.pl:3: rule text with byte ")) << message;
+  EXPECT_TRUE(contains(message, "(16'...)")) << message;
+  EXPECT_TRUE(contains(refused_dry_run("bad(0'a).\n"), "(0'...)"));
+  EXPECT_TRUE(contains(refused_dry_run("bad(0' ).\n"), "(0'...)"));
+  EXPECT_EQ(refused_dry_run("ok('it''s 5''').\nok(\"0'a\").\n"), "");
+  expect_knowledge_base_intact();
+}
+
 TEST_F(RuleTextSecurityTest, ACandidateThatBlocksIsStoppedPerDecision) {
   const auto start = Clock::now();
   // It passes the self-check (source self_check) and blocks in the cases asked (source lidar).
-  const auto answers = engine_.dry_run({"zz.pl", "override(observation(lidar, _, _, _), _, add, slow, \"z\") :- sleep(30).\n"},
-                                       {matched("w1_e0", "w1"), unmatched()});
+  const auto answers =
+      engine_.dry_run({"zz.pl", "override(observation(lidar, _, _, _), _, add, slow, \"z\") :- sleep(30).\n"},
+                      {matched("w1_e0", "w1"), unmatched()});
   EXPECT_LT(Clock::now() - start, std::chrono::seconds(6)) << "sleep/1 was not interrupted";
   ASSERT_EQ(answers.size(), 2u);
   EXPECT_TRUE(answers[0].fallback);
@@ -212,8 +232,11 @@ TEST_F(QuerySecurityTest, DeepTermsBuiltAtRunTimeCannotCrashTheProcess) {
   // an overflow in its C code into an error; the depths straddle where 8 MiB of C stack runs out.
   for (const int depth : {20000, 40000}) {
     const std::string n = std::to_string(depth);
-    const std::string build = "length(L, " + n + "), maplist(=(\"f(\"), L), atomics_to_string(L, Open), "
-                              "length(R, " + n + "), maplist(=(\")\"), R), atomics_to_string(R, Close), "
+    const std::string build = "length(L, " + n +
+                              "), maplist(=(\"f(\"), L), atomics_to_string(L, Open), "
+                              "length(R, " +
+                              n +
+                              "), maplist(=(\")\"), R), atomics_to_string(R, Close), "
                               "string_concat(Open, x, S0), string_concat(S0, Close, S), term_string(T, S)";
     std::string message;
     if (refusal(build + ", format(string(W), \"~w\", [T]), string_length(W, N)", &message)) {
@@ -228,8 +251,8 @@ TEST_F(QuerySecurityTest, DeepTermsBuiltAtRunTimeCannotCrashTheProcess) {
 
 TEST_F(QuerySecurityTest, QueryTextThatIsNotUtf8IsRefused) {
   std::string message;
-  const std::string reproducer = read_text(std::filesystem::path(WM_SOURCE_DIR) / "fuzz" / "regressions" / "fuzz_query" /
-                                           "read-term-use-after-free-invalid-utf8.pl");
+  const std::string reproducer = read_text(std::filesystem::path(WM_SOURCE_DIR) / "fuzz" / "regressions" /
+                                           "fuzz_query" / "read-term-use-after-free-invalid-utf8.pl");
   EXPECT_EQ(refusal(reproducer, &message), QueryError::Reason::syntax);
   EXPECT_TRUE(contains(message, "query text with byte")) << message;
   EXPECT_EQ(refusal("X = 'caf\xe9'", &message), QueryError::Reason::syntax);
@@ -237,9 +260,17 @@ TEST_F(QuerySecurityTest, QueryTextThatIsNotUtf8IsRefused) {
   EXPECT_EQ(engine_.query("X = 'caf\xc3\xa9'", 1).solutions.size(), 1u) << "well-formed UTF-8 still answers";
 }
 
+TEST_F(QuerySecurityTest, CharacterCodesAndRadixNumbersAreRefused) {
+  std::string message;
+  EXPECT_EQ(refusal("X = 0'a", &message), QueryError::Reason::syntax);
+  EXPECT_TRUE(contains(message, "character code or radix number (0'...)")) << message;
+  EXPECT_EQ(refusal("X is 2'101", &message), QueryError::Reason::syntax);
+  EXPECT_EQ(engine_.query("atom_codes(A, [97]), X = \"0'a\"", 1).solutions.size(), 1u) << "inside a string it is text";
+}
+
 TEST_F(QuerySecurityTest, BlockingAndRunawayBuiltinsStopWithinTheLimit) {
-  for (const std::string goal : {"sleep(30)", "X is 7**100000000", "length(L, 10000000)",
-                                 "numlist(1, 100000000, L)", "between(1, inf, _), fail"}) {
+  for (const std::string goal : {"sleep(30)", "X is 7**100000000", "length(L, 10000000)", "numlist(1, 100000000, L)",
+                                 "between(1, inf, _), fail"}) {
     const auto start = Clock::now();
     std::string message;
     EXPECT_EQ(refusal(goal, &message), QueryError::Reason::limit) << goal << ": " << message;
@@ -252,7 +283,7 @@ TEST_F(QuerySecurityTest, FormatDirectivesThatWriteWithoutLimitAreRefused) {
   EXPECT_EQ(refusal("format(atom(A), \"~t~1000000000|\", [])", &message), QueryError::Reason::unsafe);
   EXPECT_EQ(refusal("format(string(A), \"~99999999999999999999f\", [1.0])", &message), QueryError::Reason::unsafe);
   EXPECT_TRUE(contains(message, "format directive argument")) << message;
-  EXPECT_EQ(refusal("format(string(A), \"~*c\", [100000000, 0'x])"), QueryError::Reason::unsafe);
+  EXPECT_EQ(refusal("format(string(A), \"~*c\", [100000000, 120])"), QueryError::Reason::unsafe);
   EXPECT_EQ(refusal("X = a, atom_concat(X, X, Y)", &message), QueryError::Reason::unsafe);
   EXPECT_TRUE(contains(message, "use strings")) << message;
   // Ordinary formatting still works.
