@@ -48,7 +48,7 @@ std::vector<DecisionQuery> query_mix(std::size_t n) {
   std::uniform_real_distribution<double> d2(0.0, 5.0);
   for (std::size_t i = 0; i < n; ++i) {
     DecisionQuery q;
-    q.source = "robot-1";
+    q.observer = "robot-1";
     q.rho_m = 2.0 + 0.01 * static_cast<double>(i % 100);
     q.phi_rad = 0.3;
     q.length_m = 1.5;
@@ -116,25 +116,25 @@ Decision cpp_rules(const DecisionQuery& q, const wm::world::WorldState& state) {
   if (!q.element_id) {
     std::snprintf(text, sizeof text,
                   "%s observed a line (rho = %.4f m, phi = %.4f rad, length = %.4f m) that matches nothing: added as a new element",
-                  q.source.c_str(), q.rho_m, q.phi_rad, q.length_m);
+                  q.observer.c_str(), q.rho_m, q.phi_rad, q.length_m);
     return {"add", "unmatched_added", text, false};
   }
   if (!q.object_id) {
     std::snprintf(text, sizeof text, "%s matched element %s, which is not in the floor plan (d2 = %.4f): merged by Kalman fusion",
-                  q.source.c_str(), q.element_id->c_str(), q.mahalanobis_sq);
+                  q.observer.c_str(), q.element_id->c_str(), q.mahalanobis_sq);
     return {"merge", "unknown_element_merged", text, false};
   }
   const auto* object = state.find_object(*q.object_id);
   if (object && object->plan->has_attribute("solid")) {
     std::snprintf(text, sizeof text,
                   "%s matched element %s of solid object %s (d2 = %.4f): the plan is confirmed, the observation is deleted",
-                  q.source.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
+                  q.observer.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
     return {"delete", "solid_confirmed", text, false};
   }
   if (object && object->plan->has_attribute("not_deformable")) {
     std::snprintf(text, sizeof text,
                   "%s matched element %s of not_deformable object %s (d2 = %.4f): the object's pose is adjusted, its shape kept",
-                  q.source.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
+                  q.observer.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
     return {"rigid_adjust", "not_deformable_rigid", text, false};
   }
   return {"delete", "apriori_confirmed", "confirmed", false};

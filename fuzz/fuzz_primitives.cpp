@@ -1,10 +1,10 @@
-// POST /api/v1/primitives bodies with the server's default options and limits. Expected: an observation or an
-// api::ApiError (400 naming the field).
+// POST /api/v1/primitives bodies with the server's default options and limits. Expected: an observation or a
+// json_codec::CodecError (bad_request, naming the field).
 #include <cstddef>
 #include <cstdint>
 
 #include "fuzz/fuzz_support.h"
-#include "server/api/api_error.h"
+#include "server/json/codec_error.h"
 #include "server/json/codec.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -13,7 +13,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   static const json_codec::PrimitiveLimits limits;
   try {
     json_codec::parse_primitives(fuzz::as_text(data, size), options, limits);
-  } catch (const api::ApiError&) {
+  } catch (const json_codec::CodecError&) {
   }
   return 0;
 }

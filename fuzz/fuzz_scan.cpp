@@ -1,10 +1,10 @@
-// POST /api/v1/scans bodies (laser and sonar) with the server's default limits. Expected: a scan request or an
-// api::ApiError (400 naming the field).
+// POST /api/v1/scans bodies (laser and sonar) with the server's default limits. Expected: a scan request or a
+// json_codec::CodecError (bad_request, naming the field).
 #include <cstddef>
 #include <cstdint>
 
 #include "fuzz/fuzz_support.h"
-#include "server/api/api_error.h"
+#include "server/json/codec_error.h"
 #include "server/json/codec.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -12,7 +12,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   static const json_codec::ScanLimits limits;
   try {
     json_codec::parse_scan(fuzz::as_text(data, size), limits);
-  } catch (const api::ApiError&) {
+  } catch (const json_codec::CodecError&) {
   }
   return 0;
 }

@@ -36,7 +36,7 @@ struct ObjectFacts {
 
 /// One observed line primitive and what the numeric matcher found for it.
 struct DecisionQuery {
-  std::string source;  // who observed it
+  std::string observer;  // the robot (or client) that observed it
   double rho_m = 0, phi_rad = 0, length_m = 0;
   std::optional<std::string> element_id;  // matched element (nullopt = unmatched)
   std::optional<std::string> object_id;   // a-priori object of that element (nullopt = not in the plan)
@@ -47,10 +47,10 @@ struct DecisionQuery {
 };
 
 /// One observed map element (not in the plan), as the rules see it (wm_kb:element/8):
-/// element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt).
+/// element(Id, Origin, Observer, Rho, Phi, Length, Support, UpdatedAt).
 struct ElementFacts {
   std::string id;        // e.g. "e12"
-  std::string source;    // client | scan | grid
+  std::string origin;    // client | scan | grid: how the element was observed
   std::string observer;  // e.g. "robot-1"
   double rho_m = 0, phi_rad = 0, length_m = 0;
   std::int64_t support = 1;        // observations fused into it

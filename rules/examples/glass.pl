@@ -9,7 +9,7 @@
     Give glass walls the attribute in the floor plan: "attributes": ["solid", "glass"].
 */
 
-override(observation(Source, _, _, _), element(Element, Object, D2), ignore, glass_ignored,
+override(observation(Observer, _, _, _), element(Element, Object, D2), ignore, glass_ignored,
          Explanation) :-
     Object \== none,
     attribute(Object, glass),
@@ -17,4 +17,4 @@ override(observation(Source, _, _, _), element(Element, Object, D2), ignore, gla
     format(string(Explanation),
            "~w: a laser line matched element ~w of glass object ~w (d2 = ~4f): lasers do not see \c
             glass reliably, the observation is ignored",
-           [Source, Element, Object, D2]).
+           [Observer, Element, Object, D2]).

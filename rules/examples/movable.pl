@@ -8,11 +8,11 @@
     To use it, copy this file into the rules directory; mark doors "attributes": ["movable"].
 */
 
-override(observation(Source, _, _, _), element(Element, Object, D2), merge, movable_merged,
+override(observation(Observer, _, _, _), element(Element, Object, D2), merge, movable_merged,
          Explanation) :-
     Object \== none,
     attribute(Object, movable),
     format(string(Explanation),
            "~w matched element ~w of movable object ~w (d2 = ~4f): merged as its observed state, \c
             the drawing is kept",
-           [Source, Element, Object, D2]).
+           [Observer, Element, Object, D2]).

@@ -12,11 +12,11 @@ prune_after_s(600).
 prune(Element, unconfirmed_pruned, Explanation) :-
     prune_after_s(MaxAge),
     get_time(Now),
-    element(Element, Source, Observer, _, _, Length, Support, UpdatedAt),
+    element(Element, Origin, Observer, _, _, Length, Support, UpdatedAt),
     Support < 2,
     Age is Now - UpdatedAt,
     Age > MaxAge,
     format(string(Explanation),
            "element ~w (~2f m, ~w from ~w) was seen ~d time(s) and not confirmed for ~0f s \c
             (limit ~w s): removed as unreliable",
-           [Element, Length, Source, Observer, Support, Age, MaxAge]).
+           [Element, Length, Origin, Observer, Support, Age, MaxAge]).

@@ -36,7 +36,7 @@ void put_element_fact(term_t t, const ElementFacts& e, const Vocabulary& v) {
   require_finite(e.updated_at_unix_s, kWhere, "updated_at_unix_s");
   term_t a = PL_new_term_refs(8);
   put_atom(a, e.id);
-  put_atom(a + 1, e.source);
+  put_atom(a + 1, e.origin);
   put_atom(a + 2, e.observer);
   put_float(a + 3, e.rho_m);
   put_float(a + 4, e.phi_rad);
@@ -195,7 +195,7 @@ void validate_query(const DecisionQuery& query) {
 void put_case(term_t observation, term_t match, term_t context, const DecisionQuery& query, const Vocabulary& v) {
   constexpr const char* kWhere = "decide";
   term_t fields = PL_new_term_refs(4);
-  put_atom(fields, query.source);
+  put_atom(fields, query.observer);
   put_float(fields + 1, query.rho_m);
   put_float(fields + 2, query.phi_rad);
   put_float(fields + 3, query.length_m);

@@ -61,7 +61,7 @@ clear_facts :-
     retractall(wm_kb:edge(_, _, _, _, _)).
 
 %!  set_elements(+Elements) is det.
-%   Replaces every element/8 fact. Elements: list of element(Id, Source, Observer, Rho, Phi, Length,
+%   Replaces every element/8 fact. Elements: list of element(Id, Origin, Observer, Rho, Phi, Length,
 %   Support, UpdatedAt).
 set_elements(Elements) :-
     must_be(list, Elements),

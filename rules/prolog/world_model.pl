@@ -35,7 +35,7 @@
     The decision predicate a rule set must define:
 
         % decide(+Observation, +Match, -Action, -Rule, -Explanation)
-        % Observation = observation(Source, Rho, Phi, Length)   Source atom; Rho [m], Phi [rad],
+        % Observation = observation(Observer, Rho, Phi, Length)   Observer atom (the robot); Rho [m], Phi [rad],
         %                                                       Length [m] (floats)
         % Match = none                                  nothing in the map matched
         %       | element(ElementId, ObjectId, D2)      matched an a-priori edge of ObjectId
@@ -48,8 +48,8 @@
 
     More facts and context the rules may read:
 
-        element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt)
-                                     % observed map elements not in the plan; Source = client | scan
+        element(Id, Origin, Observer, Rho, Phi, Length, Support, UpdatedAt)
+                                     % observed map elements not in the plan; Origin = client | scan
                                      % | grid; Support = observations fused; UpdatedAt [unix s]
         decision(Seq, Action, Rule, Element, Object, Observer, At)
                                      % the most recent decisions (Element/Object `none` if absent)
@@ -84,7 +84,7 @@ decide(Observation, Match, Action, Rule, Explanation) :-
     override(Observation, Match, Action, Rule, Explanation),
     !.
 %   1. A match on a solid a-priori object (a wall) confirms the plan: the observation is dropped.
-decide(observation(Source, _, _, _), element(Element, Object, D2), delete, solid_confirmed,
+decide(observation(Observer, _, _, _), element(Element, Object, D2), delete, solid_confirmed,
        Explanation) :-
     Object \== none,
     attribute(Object, solid),
@@ -92,37 +92,37 @@ decide(observation(Source, _, _, _), element(Element, Object, D2), delete, solid
     format(string(Explanation),
            "~w matched element ~w of solid object ~w (d2 = ~4f): the plan is confirmed, \c
             the observation is deleted",
-           [Source, Element, Object, D2]).
+           [Observer, Element, Object, D2]).
 %   2. A match on an element that is not in the plan (e.g. a temporary wall of boxes): fuse both.
-decide(observation(Source, _, _, _), element(Element, none, D2), merge, unknown_element_merged,
+decide(observation(Observer, _, _, _), element(Element, none, D2), merge, unknown_element_merged,
        Explanation) :-
     !,
     format(string(Explanation),
            "~w matched element ~w, which is not in the floor plan (d2 = ~4f): merged by \c
             Kalman fusion",
-           [Source, Element, D2]).
+           [Observer, Element, D2]).
 %   3. A match on a not_deformable object (a table, a wardrobe): move the object, keep its shape.
-decide(observation(Source, _, _, _), element(Element, Object, D2), rigid_adjust,
+decide(observation(Observer, _, _, _), element(Element, Object, D2), rigid_adjust,
        not_deformable_rigid, Explanation) :-
     attribute(Object, not_deformable),
     !,
     format(string(Explanation),
            "~w matched element ~w of not_deformable object ~w (d2 = ~4f): the object's pose \c
             is adjusted, its shape kept",
-           [Source, Element, Object, D2]).
+           [Observer, Element, Object, D2]).
 %   4. Nothing matched: a new element.
-decide(observation(Source, Rho, Phi, Length), none, add, unmatched_added, Explanation) :-
+decide(observation(Observer, Rho, Phi, Length), none, add, unmatched_added, Explanation) :-
     !,
     format(string(Explanation),
            "~w observed a line (rho = ~4f m, phi = ~4f rad, length = ~4f m) that matches \c
             nothing: added as a new element",
-           [Source, Rho, Phi, Length]).
+           [Observer, Rho, Phi, Length]).
 %   5. A match on any other a-priori object: the plan element is confirmed, nothing changes.
-decide(observation(Source, _, _, _), element(Element, Object, D2), delete, apriori_confirmed,
+decide(observation(Observer, _, _, _), element(Element, Object, D2), delete, apriori_confirmed,
        Explanation) :-
     object(Object, Kind),
     !,
     format(string(Explanation),
            "~w matched element ~w of a-priori ~w ~w (d2 = ~4f): the plan element is confirmed, \c
             the observation is deleted",
-           [Source, Element, Kind, Object, D2]).
+           [Observer, Element, Kind, Object, D2]).

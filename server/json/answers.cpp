@@ -39,7 +39,8 @@ json as_built_json(const world::WorldState& state, const world::AsBuiltReport& r
                      {"p1", json::array({s.p1().x(), s.p1().y()})},
                      {"length", s.length_m()},
                      {"support", element->support},
-                     {"source", element->source}});
+                     {"origin", element->origin},
+                     {"source", element->origin}});  // "source": the name before "origin", kept for clients
   }
   return {{"plan", state.plan_name},
           {"version", state.version},

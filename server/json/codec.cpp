@@ -281,7 +281,8 @@ json element_json(const world::Element& element) {
   json j = segment_json(element.segment);
   j["id"] = element.id();
   j["support"] = element.support;
-  j["source"] = element.source;
+  j["origin"] = element.origin;
+  j["source"] = element.origin;  // the name before "origin", kept for clients
   j["observer"] = element.observer;
   j["created_version"] = element.created_version;
   j["updated_version"] = element.updated_version;
@@ -330,7 +331,8 @@ json decision_json(const world::DecisionRecord& d) {
             {"matched", {{"element", optional_text(d.matched_element)}, {"object", optional_text(d.matched_object)}}},
             {"mahalanobis_sq", d.mahalanobis_sq ? json(*d.mahalanobis_sq) : json(nullptr)},
             {"fallback", d.fallback},
-            {"source", d.observer},
+            {"observer", d.observer},
+            {"source", d.observer},  // the name before "observer", kept for clients
             {"origin", d.origin},
             {"sensor", d.sensor},
             {"observed",

@@ -19,7 +19,7 @@ double now_unix_s() {
 }
 
 rules::ElementFacts element_facts(const world::Element& e) {
-  return {e.id(),    e.source,           e.observer, e.segment.line.rho_m, e.segment.line.phi_rad, e.segment.length_m(),
+  return {e.id(),    e.origin,           e.observer, e.segment.line.rho_m, e.segment.line.phi_rad, e.segment.length_m(),
           e.support, e.updated_at_unix_s};
 }
 
@@ -224,7 +224,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   if (segments.empty()) return std::nullopt;
   world::Observation observation;
   observation.observer = scan.observer;
-  observation.source = "scan";
+  observation.origin = "scan";
   observation.sensor = "laser";
   observation.stamp_s = scan.stamp_s;
   for (const auto& segment : segments) observation.segments.push_back({segment});
@@ -318,7 +318,7 @@ std::optional<PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
   if (segments.empty()) return std::nullopt;
   world::Observation observation;
   observation.observer = "grid-extractor";
-  observation.source = "grid";
+  observation.origin = "grid";
   observation.sensor = "grid";
   for (const auto& segment : segments) observation.segments.push_back({segment});
   return apply_on_writer(std::move(observation), "{\"grid_revision\": " + std::to_string(grid_revision_.load()) + "}");
@@ -444,7 +444,7 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
     emit({{"type", "update"},
           {"observation", seq},
           {"version", update.state.version},
-          {"origin", observation.source},
+          {"origin", observation.origin},
           {"decisions", decisions},
           {"elements", elements},
           {"removed", removed},

@@ -191,7 +191,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
       e.segment.t0_m = s.column_double(4);
       e.segment.t1_m = s.column_double(5);
       e.support = s.column_int(6);
-      e.source = s.column_text(7);
+      e.origin = s.column_text(7);  // column "source"
       e.observer = s.column_text(8);
       e.created_version = s.column_int(9);
       e.updated_version = s.column_int(10);
@@ -242,7 +242,7 @@ void Store::commit_observation(const world::UpdateResult& update, const world::O
 
 void Store::write_observation(const ObservationEntry& entry) {
   const auto& update = entry.update;
-  insert_observation(update.state.last_observation_seq, entry.observation.source, entry.observation.observer,
+  insert_observation(update.state.last_observation_seq, entry.observation.origin, entry.observation.observer,
                      entry.observation.stamp_s, entry.payload);
   {
     Statement s(writer_,
@@ -256,7 +256,7 @@ void Store::write_observation(const ObservationEntry& entry) {
       s.bind(1, e.number).bind(2, e.segment.line.rho_m).bind(3, e.segment.line.phi_rad);
       bind_matrix(s, 4, e.segment.line.cov);
       s.bind(5, e.segment.t0_m).bind(6, e.segment.t1_m).bind(7, e.support);
-      s.bind(8, std::string_view(e.source)).bind(9, std::string_view(e.observer));
+      s.bind(8, std::string_view(e.origin)).bind(9, std::string_view(e.observer));
       s.bind(10, e.created_version).bind(11, e.updated_version).bind(12, e.updated_at_unix_s).run();
     }
   }

@@ -38,8 +38,8 @@ Candidates collect_candidates(const WorldState& state, const WorldOptions& optio
 rules::DecisionQuery make_query(const WorldState& state, const Observation& observation, const fusion::LineSegment& seen,
                                 const std::optional<fusion::MatchResult>& match, const Candidates& candidates) {
   rules::DecisionQuery q;
-  q.source = observation.observer;
-  q.origin = observation.source;
+  q.observer = observation.observer;
+  q.origin = observation.origin;
   q.sensor = observation.sensor;
   q.rho_m = seen.line.rho_m;
   q.phi_rad = seen.line.phi_rad;
@@ -109,7 +109,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     record.matched_object = query.object_id;
     if (match) record.mahalanobis_sq = match->mahalanobis_sq;
     record.observer = observation.observer;
-    record.origin = observation.source;
+    record.origin = observation.origin;
     record.sensor = observation.sensor;
     record.p0 = seen.p0();
     record.p1 = seen.p1();
@@ -158,7 +158,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       element.number = state.next_element_number++;
       element.segment = fusion::fuse(drawn, seen);
       element.support = 2;
-      element.source = observation.source;
+      element.origin = observation.origin;
       element.observer = observation.observer;
       element.created_version = element.updated_version = state.version;
       element.updated_at_unix_s = observation.received_at_unix_s;
@@ -184,7 +184,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       Element element;
       element.number = state.next_element_number++;
       element.segment = seen;
-      element.source = observation.source;
+      element.origin = observation.origin;
       element.observer = observation.observer;
       element.created_version = state.version;
       element.updated_version = state.version;
@@ -216,7 +216,7 @@ void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& ord
     record.explanation = order.explanation;
     record.element = order.element_id;
     record.observer = observer;
-    record.origin = it->second.source;
+    record.origin = it->second.origin;
     record.p0 = it->second.segment.p0();
     record.p1 = it->second.segment.p1();
     record.rho_m = it->second.segment.line.rho_m;
@@ -232,7 +232,7 @@ void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& ord
 
 rules::DecisionQuery DecisionRecord::query() const {
   rules::DecisionQuery q;
-  q.source = observer;
+  q.observer = observer;
   q.rho_m = rho_m;
   q.phi_rad = phi_rad;
   q.length_m = (p1 - p0).norm();

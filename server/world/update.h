@@ -17,10 +17,12 @@ struct ObservedSegment {
   fusion::LineSegment segment;
 };
 
-/// A batch of segments from one request.
+/// A batch of segments from one request. Naming throughout world/ and storage/: `observer` is the robot (or
+/// client) that saw it, `origin` how the segments were made: posted by a client, extracted from a scan or from
+/// the grid. (The JSON field "source" that clients send is the observer; the codec maps it.)
 struct Observation {
   std::string observer;           // e.g. robot-1
-  std::string source = "client";  // client | scan | grid
+  std::string origin = "client";  // client | scan | grid
   std::string sensor = "unknown"; // laser | sonar | ... (what observation_sensor/1 tells the rules)
   double stamp_s = 0.0;
   double received_at_unix_s = 0.0;  // server wall clock

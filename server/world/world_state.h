@@ -47,7 +47,7 @@ struct Element {
   std::int64_t number = 0;  // id is "e<number>"
   fusion::LineSegment segment;
   std::int64_t support = 1;  // observations fused into it (including the first)
-  std::string source;        // origin of the first observation: client | scan | grid
+  std::string origin;        // of the first observation: client | scan | grid (SQL column and JSON "source")
   std::string observer;      // who sent it first, e.g. robot-1
   std::int64_t created_version = 0;
   std::int64_t updated_version = 0;

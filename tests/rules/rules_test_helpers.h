@@ -91,7 +91,7 @@ inline std::vector<ObjectFacts> demo_floor_plan() {
 inline DecisionQuery matched(std::string element, std::optional<std::string> object, double d2 = 0.5,
                              std::string source = "lidar") {
   DecisionQuery query;
-  query.source = std::move(source);
+  query.observer = std::move(source);
   query.rho_m = 2.0;
   query.phi_rad = 0.0;
   query.length_m = 3.5;
@@ -103,7 +103,7 @@ inline DecisionQuery matched(std::string element, std::optional<std::string> obj
 
 inline DecisionQuery unmatched(std::string source = "lidar") {
   DecisionQuery query;
-  query.source = std::move(source);
+  query.observer = std::move(source);
   query.rho_m = 1.25;
   query.phi_rad = -0.5;
   query.length_m = 2.0;

@@ -24,7 +24,7 @@ class ReadHandlersTest : public ApiTest {
     e.number = number;
     e.segment = fusion::LineSegment::from_points({1, 2}, {4, 2}, Eigen::Matrix2d::Identity() * 1e-4);
     e.support = support;
-    e.source = "client";
+    e.origin = "client";
     e.observer = "robot-1";
     world_.state().elements[number] = e;
   }

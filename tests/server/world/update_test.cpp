@@ -154,7 +154,7 @@ TEST(UpdateTest, RecordedQueryAsksTheOriginalQuestionAgain) {
   FixedRules add{"add", {}};
   auto obs = observe({{{4, 10.01}, {9, 10.0}}}, options);
   obs.sensor = "laser";
-  obs.source = "scan";
+  obs.origin = "scan";
   const auto result = apply_observation(start, obs, 1, options, std::ref(add));
   const auto again = result.decisions[0].query();
   EXPECT_EQ(again.element_id, add.asked[0].element_id);
