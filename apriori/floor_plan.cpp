@@ -1,11 +1,10 @@
 #include "apriori/floor_plan.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <set>
-
-#include <Eigen/Eigenvalues>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "apriori/import/json_limits.h"
 
@@ -51,19 +50,21 @@ std::string text(const json& value, const std::string& path, std::size_t max_len
 // Attributes become Prolog atoms in rules; a lower-case identifier keeps rule files readable (solid, glass).
 std::string attribute(const json& value, const std::string& path) {
   auto s = text(value, path, 64);
-  const bool ok = std::islower(static_cast<unsigned char>(s[0])) &&
-                  std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::islower(c) || std::isdigit(c) || c == '_'; });
+  const bool ok =
+      std::islower(static_cast<unsigned char>(s[0])) &&
+      std::all_of(s.begin(), s.end(), [](unsigned char c) { return std::islower(c) || std::isdigit(c) || c == '_'; });
   if (!ok) throw FloorPlanError(path, "attribute must match [a-z][a-z0-9_]*, got '" + s + "'");
   return s;
 }
 
 Eigen::Vector2d point(const json& value, const std::string& path, double scale, double limit) {
   if (!value.is_array() || value.size() != 2) throw FloorPlanError(path, "expected a point [x, y]");
-  return {number(value[0], index(path, 0), limit / scale) * scale, number(value[1], index(path, 1), limit / scale) * scale};
+  return {number(value[0], index(path, 0), limit / scale) * scale,
+          number(value[1], index(path, 1), limit / scale) * scale};
 }
 
-std::vector<Eigen::Vector2d> points(const json& value, const std::string& path, double scale, const FloorPlanLimits& limits,
-                                    std::size_t min_count) {
+std::vector<Eigen::Vector2d> points(const json& value, const std::string& path, double scale,
+                                    const FloorPlanLimits& limits, std::size_t min_count) {
   if (!value.is_array()) throw FloorPlanError(path, "expected an array of points");
   if (value.size() < min_count) throw FloorPlanError(path, "needs at least " + std::to_string(min_count) + " points");
   if (value.size() > limits.max_points_per_object) throw FloorPlanError(path, "too many points");
@@ -105,7 +106,8 @@ double unit_scale(const json& doc) {
 
 PlanObject parse_object(const json& value, const std::string& path, double scale, const FloorPlanLimits& limits) {
   if (!value.is_object()) throw FloorPlanError(path, "expected an object");
-  require_known_keys(value, path, {"id", "kind", "attributes", "pose", "pose_cov", "segments", "polygon", "description"});
+  require_known_keys(value, path,
+                     {"id", "kind", "attributes", "pose", "pose_cov", "segments", "polygon", "description"});
   PlanObject object;
   object.id = text(require(value, path, "id"), join(path, "id"), limits.max_id_length);
   if (object.id.find('/') != std::string::npos)
@@ -131,7 +133,8 @@ PlanObject parse_object(const json& value, const std::string& path, double scale
   if (auto it = value.find("segments"); it != value.end()) {
     const auto spath = join(path, "segments");
     if (!it->is_array()) throw FloorPlanError(spath, "expected an array of polylines");
-    for (std::size_t i = 0; i < it->size(); ++i) object.polylines.push_back(points((*it)[i], index(spath, i), scale, limits, 2));
+    for (std::size_t i = 0; i < it->size(); ++i)
+      object.polylines.push_back(points((*it)[i], index(spath, i), scale, limits, 2));
   }
   if (auto it = value.find("polygon"); it != value.end()) {
     object.polygon = points(*it, join(path, "polygon"), scale, limits, 3);
@@ -181,7 +184,8 @@ FloorPlan parse_floor_plan_json(std::string_view text_in, const FloorPlanLimits&
   std::set<std::string> ids;
   for (std::size_t i = 0; i < objects.size(); ++i) {
     auto object = parse_object(objects[i], index("objects", i), scale, limits);
-    if (!ids.insert(object.id).second) throw FloorPlanError(index("objects", i) + ".id", "duplicate id '" + object.id + "'");
+    if (!ids.insert(object.id).second)
+      throw FloorPlanError(index("objects", i) + ".id", "duplicate id '" + object.id + "'");
     plan.objects.push_back(std::move(object));
   }
   return plan;
@@ -190,7 +194,9 @@ FloorPlan parse_floor_plan_json(std::string_view text_in, const FloorPlanLimits&
 std::string to_json_text(const FloorPlan& plan) {
   json objects = json::array();
   for (const auto& o : plan.objects) {
-    json j = {{"id", o.id}, {"kind", o.kind}, {"attributes", o.attributes},
+    json j = {{"id", o.id},
+              {"kind", o.kind},
+              {"attributes", o.attributes},
               {"pose", {{"x", o.pose.x_m}, {"y", o.pose.y_m}, {"theta", o.pose.theta_rad}}}};
     if (o.pose_cov) {
       json rows = json::array();

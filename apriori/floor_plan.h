@@ -1,12 +1,11 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "fusion/geometry/pose2d.h"
 #include "fusion/kalman/rigid_object.h"
@@ -31,7 +30,7 @@ struct PlanObject {
   std::string kind;
   std::vector<std::string> attributes;  // free atoms; the shipped rules know `solid`, `not_deformable`
   fusion::Pose2D pose;
-  std::optional<Eigen::Matrix3d> pose_cov;            // over (x [m], y [m], θ [rad]); nullopt = server default
+  std::optional<Eigen::Matrix3d> pose_cov;              // over (x [m], y [m], θ [rad]); nullopt = server default
   std::vector<std::vector<Eigen::Vector2d>> polylines;  // open polylines [m], object frame
   std::vector<Eigen::Vector2d> polygon;                 // closed outline [m], object frame (may be empty)
 

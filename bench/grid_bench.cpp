@@ -163,8 +163,8 @@ int main(int argc, char** argv) {
   }
   benchmark::RegisterBenchmark("octomap", bm_octomap)->Unit(benchmark::kMillisecond);
 
-  wm::bench::RatioReporter reporter({{"vs OctoMap", "octomap"}, {"vs raw walk (2deg)", "raw_walk/2deg"},
-                                     {"vs Bayes (2deg)", "bayes/2deg"}});
+  wm::bench::RatioReporter reporter(
+      {{"vs OctoMap", "octomap"}, {"vs raw walk (2deg)", "raw_walk/2deg"}, {"vs Bayes (2deg)", "bayes/2deg"}});
   benchmark::RunSpecifiedBenchmarks(&reporter);
   benchmark::Shutdown();
 

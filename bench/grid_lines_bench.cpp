@@ -14,15 +14,14 @@
 //    wall's length), `spurious` = segments longer than 0.3 m on no wall.
 #include <benchmark/benchmark.h>
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
-#include <opencv2/ximgproc.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <map>
 #include <numbers>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/ximgproc.hpp>
 #include <vector>
 
 #include "bench/support/ratio_reporter.h"
@@ -154,8 +153,8 @@ std::vector<LineFeature> our_hough(const SyntheticMap& map, const std::vector<st
 // where near-duplicates of one wall cost places (recall at K: OpenCV's HoughLines has no suppression).
 void report_lines(benchmark::State& state, const SyntheticMap& map, const std::vector<LineFeature>& lines) {
   const std::vector<TrueWall> walls = long_walls(map);
-  const std::vector<LineFeature> top(lines.begin(), lines.begin() + static_cast<std::ptrdiff_t>(
-                                                                        std::min(lines.size(), 2 * walls.size())));
+  const std::vector<LineFeature> top(
+      lines.begin(), lines.begin() + static_cast<std::ptrdiff_t>(std::min(lines.size(), 2 * walls.size())));
   state.counters["recall"] = line_recall(walls, lines);
   state.counters["precision"] = line_precision(walls, lines);
   state.counters["lines"] = static_cast<double>(lines.size());
@@ -249,7 +248,8 @@ BENCHMARK(BM_OpenCvThinningHoughP) WM_SIZES;
 }  // namespace
 
 int main(int argc, char** argv) {
-  return wm::bench::run_with_ratios(argc, argv,
-                                    {{"400 x 400 against OpenCV thinning + HoughLines", "BM_OpenCvThinningHough/400"},
-                                     {"2000 x 2000 against OpenCV thinning + HoughLines", "BM_OpenCvThinningHough/2000"}});
+  return wm::bench::run_with_ratios(
+      argc, argv,
+      {{"400 x 400 against OpenCV thinning + HoughLines", "BM_OpenCvThinningHough/400"},
+       {"2000 x 2000 against OpenCV thinning + HoughLines", "BM_OpenCvThinningHough/2000"}});
 }

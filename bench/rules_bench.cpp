@@ -56,12 +56,16 @@ std::vector<DecisionQuery> query_mix(std::size_t n) {
     q.sensor = "laser";
     const auto room = std::to_string(i % 50);
     switch (i % 8) {
-      case 0: case 1: case 2: case 3:
+      case 0:
+      case 1:
+      case 2:
+      case 3:
         q.element_id = "wall-" + room + "/1";
         q.object_id = "wall-" + room;
         q.mahalanobis_sq = d2(rng);
         break;
-      case 4: case 5:
+      case 4:
+      case 5:
         q.element_id = "e" + room;
         q.mahalanobis_sq = d2(rng);
         break;
@@ -78,7 +82,8 @@ std::vector<DecisionQuery> query_mix(std::size_t n) {
   return queries;
 }
 
-std::vector<wm::rules::ObjectFacts> facts_of(const wm::world::WorldState& state, const wm::world::WorldOptions& options) {
+std::vector<wm::rules::ObjectFacts> facts_of(const wm::world::WorldState& state,
+                                             const wm::world::WorldOptions& options) {
   std::vector<wm::rules::ObjectFacts> result;
   for (const auto& object : state.objects) {
     wm::rules::ObjectFacts f{object.plan->id, object.plan->kind, object.plan->attributes, {}};
@@ -115,26 +120,30 @@ Decision cpp_rules(const DecisionQuery& q, const wm::world::WorldState& state) {
   char text[256];
   if (!q.element_id) {
     std::snprintf(text, sizeof text,
-                  "%s observed a line (rho = %.4f m, phi = %.4f rad, length = %.4f m) that matches nothing: added as a new element",
+                  "%s observed a line (rho = %.4f m, phi = %.4f rad, length = %.4f m) that matches nothing: added as a "
+                  "new element",
                   q.observer.c_str(), q.rho_m, q.phi_rad, q.length_m);
     return {"add", "unmatched_added", text, false};
   }
   if (!q.object_id) {
-    std::snprintf(text, sizeof text, "%s matched element %s, which is not in the floor plan (d2 = %.4f): merged by Kalman fusion",
+    std::snprintf(text, sizeof text,
+                  "%s matched element %s, which is not in the floor plan (d2 = %.4f): merged by Kalman fusion",
                   q.observer.c_str(), q.element_id->c_str(), q.mahalanobis_sq);
     return {"merge", "unknown_element_merged", text, false};
   }
   const auto* object = state.find_object(*q.object_id);
   if (object && object->plan->has_attribute("solid")) {
-    std::snprintf(text, sizeof text,
-                  "%s matched element %s of solid object %s (d2 = %.4f): the plan is confirmed, the observation is deleted",
-                  q.observer.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
+    std::snprintf(
+        text, sizeof text,
+        "%s matched element %s of solid object %s (d2 = %.4f): the plan is confirmed, the observation is deleted",
+        q.observer.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
     return {"delete", "solid_confirmed", text, false};
   }
   if (object && object->plan->has_attribute("not_deformable")) {
-    std::snprintf(text, sizeof text,
-                  "%s matched element %s of not_deformable object %s (d2 = %.4f): the object's pose is adjusted, its shape kept",
-                  q.observer.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
+    std::snprintf(
+        text, sizeof text,
+        "%s matched element %s of not_deformable object %s (d2 = %.4f): the object's pose is adjusted, its shape kept",
+        q.observer.c_str(), q.element_id->c_str(), q.object_id->c_str(), q.mahalanobis_sq);
     return {"rigid_adjust", "not_deformable_rigid", text, false};
   }
   return {"delete", "apriori_confirmed", "confirmed", false};
@@ -202,8 +211,8 @@ void BM_FullUpdatePerPrimitive(benchmark::State& state) {
   const wm::world::Decide decide = [&](const DecisionQuery& q) { return cpp_rules(q, f.state); };
   std::size_t i = 0;
   for (auto _ : state) {
-    auto r = wm::world::apply_observation(f.state, observations[i % observations.size()], static_cast<std::int64_t>(i + 1),
-                                          f.options, decide);
+    auto r = wm::world::apply_observation(f.state, observations[i % observations.size()],
+                                          static_cast<std::int64_t>(i + 1), f.options, decide);
     ++i;
     benchmark::DoNotOptimize(r);
   }

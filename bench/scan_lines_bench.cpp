@@ -43,7 +43,8 @@ void BM_ScanLineExtraction(benchmark::State& state) {
   std::size_t i = 0, segments = 0;
   for (auto _ : state) {
     const auto k = i++ % all.size();
-    const auto lines = wm::fusion::extract_scan_lines(prepared[k], all[k].sensor_pose, pose_cov, wm::fusion::ScanLineOptions{});
+    const auto lines =
+        wm::fusion::extract_scan_lines(prepared[k], all[k].sensor_pose, pose_cov, wm::fusion::ScanLineOptions{});
     segments += lines.size();
     benchmark::DoNotOptimize(lines);
   }
@@ -66,5 +67,6 @@ BENCHMARK(BM_BayesGridInsertSameScan);
 }  // namespace
 
 int main(int argc, char** argv) {
-  return wm::bench::run_with_ratios(argc, argv, {{"against a Bayes grid insert of the same scan", "BM_BayesGridInsertSameScan"}});
+  return wm::bench::run_with_ratios(argc, argv,
+                                    {{"against a Bayes grid insert of the same scan", "BM_BayesGridInsertSameScan"}});
 }

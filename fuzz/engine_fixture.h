@@ -33,10 +33,12 @@ class EngineFixture {
     options.inference_limit = 50000;
     options.time_limit_s = 0.25;
     engine_ = std::make_unique<rules::Engine>(options);
-    engine_->set_floor_plan({{"w1", "wall", {"solid"}, {{"w1_e0", 2.0, 0.0, 4.0}}},
-                             {"t1", "table", {"not_deformable"}, {{"t1_e0", 1.0, 1.5708, 1.2}, {"t1_e1", 3.0, 0.0, 0.8}}},
-                             {"d1", "door", {"movable"}, {{"d1_e0", 5.0, 3.1416, 0.9}}}});
-    engine_->set_elements({{"e1", "client", "robot-1", 4.0, 0.5, 2.0, 3, 1.7e9}, {"e2", "scan", "robot-2", 1.0, -1.0, 0.5, 1, 1.7e9}});
+    engine_->set_floor_plan(
+        {{"w1", "wall", {"solid"}, {{"w1_e0", 2.0, 0.0, 4.0}}},
+         {"t1", "table", {"not_deformable"}, {{"t1_e0", 1.0, 1.5708, 1.2}, {"t1_e1", 3.0, 0.0, 0.8}}},
+         {"d1", "door", {"movable"}, {{"d1_e0", 5.0, 3.1416, 0.9}}}});
+    engine_->set_elements(
+        {{"e1", "client", "robot-1", 4.0, 0.5, 2.0, 3, 1.7e9}, {"e2", "scan", "robot-2", 1.0, -1.0, 0.5, 1, 1.7e9}});
     engine_->add_decisions({{1, "delete", "solid_confirmed", "w1_e0", "w1", "robot-1", 1.7e9},
                             {2, "add", "unmatched", "e1", std::nullopt, "robot-1", 1.7e9}},
                            10000);

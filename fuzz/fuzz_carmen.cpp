@@ -30,7 +30,8 @@ struct InputFile {
   ~InputFile() { std::remove(path.c_str()); }
   void write(const std::uint8_t* data, std::size_t size) const {
     std::FILE* f = std::fopen(path.c_str(), "wb");
-    if (f == nullptr || std::fwrite(data, 1, size, f) != size || std::fclose(f) != 0) wm::fuzz::fail("cannot write " + path);
+    if (f == nullptr || std::fwrite(data, 1, size, f) != size || std::fclose(f) != 0)
+      wm::fuzz::fail("cannot write " + path);
   }
 };
 

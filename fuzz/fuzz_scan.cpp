@@ -4,8 +4,8 @@
 #include <cstdint>
 
 #include "fuzz/fuzz_support.h"
-#include "server/json/codec_error.h"
 #include "server/json/codec.h"
+#include "server/json/codec_error.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace wm;

@@ -18,11 +18,10 @@ class RuleError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-
 /// One a-priori object of the floor plan, as the rules see it (wm_kb:object/2, attribute/2, edge/5).
 struct ObjectFacts {
-  std::string id;    // unique, non-empty, not "none" (that atom means "not in the plan")
-  std::string kind;  // e.g. "wall", "table"
+  std::string id;                       // unique, non-empty, not "none" (that atom means "not in the plan")
+  std::string kind;                     // e.g. "wall", "table"
   std::vector<std::string> attributes;  // e.g. "solid", "not_deformable"
   /// An edge in the world frame, Hesse normal form x cos φ + y sin φ = ρ.
   struct Edge {
@@ -42,8 +41,8 @@ struct DecisionQuery {
   std::optional<std::string> object_id;   // a-priori object of that element (nullopt = not in the plan)
   double mahalanobis_sq = 0;              // squared Mahalanobis distance of the match, >= 0
   /// Context the rules read with observation_origin/1 and observation_sensor/1.
-  std::string origin = "client";  // client | scan | grid
-  std::string sensor = "unknown"; // laser | sonar | ... | unknown
+  std::string origin = "client";   // client | scan | grid
+  std::string sensor = "unknown";  // laser | sonar | ... | unknown
 };
 
 /// One observed map element (not in the plan), as the rules see it (wm_kb:element/8):
@@ -53,8 +52,8 @@ struct ElementFacts {
   std::string origin;    // client | scan | grid: how the element was observed
   std::string observer;  // e.g. "robot-1"
   double rho_m = 0, phi_rad = 0, length_m = 0;
-  std::int64_t support = 1;        // observations fused into it
-  double updated_at_unix_s = 0;    // wall-clock time of its last change [s]
+  std::int64_t support = 1;      // observations fused into it
+  double updated_at_unix_s = 0;  // wall-clock time of its last change [s]
 };
 
 /// One logged decision, as the rules see it (wm_kb:decision/7):
@@ -78,16 +77,16 @@ struct PruneOrder {
 struct QueryValue {
   enum class Kind { unbound, atom, string, integer, floating, list, compound };
   Kind kind = Kind::unbound;
-  std::string text;            // atom/string text; compound: the term as writeq/1 prints it
-  std::int64_t integer = 0;    // Kind::integer (integers beyond 64 bits come as Kind::compound text)
-  double floating = 0;         // Kind::floating
+  std::string text;               // atom/string text; compound: the term as writeq/1 prints it
+  std::int64_t integer = 0;       // Kind::integer (integers beyond 64 bits come as Kind::compound text)
+  double floating = 0;            // Kind::floating
   std::vector<QueryValue> items;  // Kind::list
 };
 
 struct QueryResult {
-  std::vector<std::string> variables;                 // named variables of the goal, in order
-  std::vector<std::vector<QueryValue>> solutions;     // one row per solution, values by variable
-  bool truncated = false;                             // more solutions than asked for exist
+  std::vector<std::string> variables;              // named variables of the goal, in order
+  std::vector<std::vector<QueryValue>> solutions;  // one row per solution, values by variable
+  bool truncated = false;                          // more solutions than asked for exist
 };
 
 /// A query the knowledge base refuses or cannot finish.

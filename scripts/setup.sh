@@ -2,7 +2,7 @@
 # Installs the Debian packages worldmodel needs (idempotent; runs apt-get only when something is missing).
 set -euo pipefail
 packages=(
-  build-essential cmake ninja-build pkg-config
+  build-essential cmake ninja-build pkg-config clang-format
   libeigen3-dev libboost-dev libboost-system-dev nlohmann-json3-dev libsqlite3-dev sqlite3
   swi-prolog-core swi-prolog-core-packages
   libgtest-dev libgmock-dev googletest libbenchmark-dev

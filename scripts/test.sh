@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs what is missing, builds everything with -Werror, proves fusion builds with Eigen alone, and runs
-# every test (GoogleTest suites, plunit rule tests, end-to-end tests against the real wmd) through ctest.
+# Installs what is missing, checks that every C++ file is clang-formatted (scripts/check_format.sh), builds
+# everything with -Werror, proves fusion builds with Eigen alone, and runs every test (GoogleTest suites, plunit
+# rule tests, end-to-end tests against the real wmd) through ctest.
 # Then, in a second build directory (clang, -DWM_SANITIZE=ON -DWM_FUZZ=ON), runs the suite under
 # AddressSanitizer + UndefinedBehaviorSanitizer (tests/sanitizer/: run-time options and suppressions) and each
 # libFuzzer harness for WM_FUZZ_SECONDS (default 30). Any sanitizer report, leak outside SWI-Prolog or fuzzer
@@ -41,6 +42,9 @@ report() {
   printf '%s\n' "${timings[@]}"
 }
 trap report EXIT
+
+phase "format (clang-format)"
+bash scripts/check_format.sh
 
 phase "fusion alone (Eigen only)"
 cmake -S . -B build/fusion-only -G Ninja -DWM_FUSION_ONLY=ON -DWM_BUILD_TESTS=OFF -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" >/dev/null

@@ -113,8 +113,7 @@ std::vector<Token> tokenize(std::string_view text) {
     const std::size_t code_line_number = line;
     int code = 0;
     auto [ptr, ec] = std::from_chars(code_text.data(), code_text.data() + code_text.size(), code);
-    if (code_text.empty() || ec != std::errc() || ptr != code_text.data() + code_text.size() || code < 0 ||
-        code > 1071)
+    if (code_text.empty() || ec != std::errc() || ptr != code_text.data() + code_text.size() || code < 0 || code > 1071)
       throw FloorPlanError(line_path(code_line_number),
                            "expected a group code (an integer 0..1071), got '" + shorten(code_text) + "'");
     auto value = next_line();
@@ -190,7 +189,8 @@ std::string describe(std::string_view type, const std::string& handle, std::size
 
 double required(const Record& r, int code, const Entity& e, const char* what) {
   const auto* t = r.find(code);
-  if (!t) throw FloorPlanError(e.describe(), std::string("missing ") + what + " (group code " + std::to_string(code) + ")");
+  if (!t)
+    throw FloorPlanError(e.describe(), std::string("missing ") + what + " (group code " + std::to_string(code) + ")");
   return parse_double(*t);
 }
 
@@ -219,7 +219,8 @@ Polyline parse_lwpolyline(const Record& r, const Entity& e) {
   bool have_y = true;
   for (const auto& t : r.body()) {
     if (t.code == 10) {
-      if (!have_y) throw FloorPlanError(e.describe(), "vertex without y (group code 20) at line " + std::to_string(t.line));
+      if (!have_y)
+        throw FloorPlanError(e.describe(), "vertex without y (group code 20) at line " + std::to_string(t.line));
       p.vertices.push_back({{parse_double(t), 0.0}, 0.0});
       have_y = false;
     } else if (t.code == 20) {
@@ -250,8 +251,8 @@ class Parser {
         continue;
       }
       if (tok.code != 0)
-        throw FloorPlanError(line_path(tok.line), "expected '0' starting SECTION or EOF, got group code " +
-                                                      std::to_string(tok.code));
+        throw FloorPlanError(line_path(tok.line),
+                             "expected '0' starting SECTION or EOF, got group code " + std::to_string(tok.code));
       const auto what = trim(tok.value);
       if (what == "EOF") break;
       if (what != "SECTION")
@@ -311,8 +312,8 @@ class Parser {
     if (at_end()) truncated(section, section_line);
     const Token& head = t_[i_];
     if (head.code != 0)
-      throw FloorPlanError(line_path(head.line), "expected '0' starting an entity, got group code " +
-                                                     std::to_string(head.code));
+      throw FloorPlanError(line_path(head.line),
+                           "expected '0' starting an entity, got group code " + std::to_string(head.code));
     const std::size_t begin = ++i_;
     while (!at_end() && t_[i_].code != 0) ++i_;
     if (at_end()) truncated(section, section_line);
@@ -418,8 +419,7 @@ class Parser {
     ins.row_spacing = r.number(45, 0.0);
     if (ins.columns == 0) ins.columns = 1;  // some writers store 0 for "no grid"
     if (ins.rows == 0) ins.rows = 1;
-    if (ins.columns < 0 || ins.rows < 0 ||
-        static_cast<long long>(ins.columns) * ins.rows > kMaxMinsertCells)
+    if (ins.columns < 0 || ins.rows < 0 || static_cast<long long>(ins.columns) * ins.rows > kMaxMinsertCells)
       throw FloorPlanError(e.describe(), "MINSERT grid " + std::to_string(ins.columns) + " x " +
                                              std::to_string(ins.rows) + " is out of range (at most " +
                                              std::to_string(kMaxMinsertCells) + " cells)");
@@ -469,8 +469,8 @@ class Parser {
           break;
         }
         if (at_endsec())
-          throw FloorPlanError(line_path(t_[i_].line), where + " (line " + std::to_string(block.line) +
-                                                           ") has no ENDBLK");
+          throw FloorPlanError(line_path(t_[i_].line),
+                               where + " (line " + std::to_string(block.line) + ") has no ENDBLK");
         std::size_t paper = 0;
         if (auto e = parse_entity("BLOCKS", section_line, nullptr, block.skipped_entities, &paper))
           block.entities.push_back(std::move(*e));
@@ -499,41 +499,84 @@ Document read_dxf(std::string_view text) { return Parser(tokenize(text)).parse()
 
 std::optional<double> insunits_to_metres(int insunits) {
   switch (insunits) {
-    case 1: return 0.0254;                 // inch
-    case 2: return 0.3048;                 // foot
-    case 3: return 1609.344;               // mile
-    case 4: return 1e-3;                   // millimetre
-    case 5: return 1e-2;                   // centimetre
-    case 6: return 1.0;                    // metre
-    case 7: return 1e3;                    // kilometre
-    case 8: return 0.0254e-6;              // microinch
-    case 9: return 0.0254e-3;              // mil
-    case 10: return 0.9144;                // yard
-    case 11: return 1e-10;                 // angstrom
-    case 12: return 1e-9;                  // nanometre
-    case 13: return 1e-6;                  // micron
-    case 14: return 1e-1;                  // decimetre
-    case 15: return 1e1;                   // decametre
-    case 16: return 1e2;                   // hectometre
-    case 17: return 1e9;                   // gigametre
-    case 18: return 149597870700.0;        // astronomical unit
-    case 19: return 9460730472580800.0;    // light year
-    case 20: return 3.0856775814913673e16; // parsec
-    case 21: return 1200.0 / 3937.0;       // US survey foot
-    case 22: return 100.0 / 3937.0;        // US survey inch
-    case 23: return 3600.0 / 3937.0;       // US survey yard
-    case 24: return 6336000.0 / 3937.0;    // US survey mile
-    default: return std::nullopt;
+    case 1:
+      return 0.0254;  // inch
+    case 2:
+      return 0.3048;  // foot
+    case 3:
+      return 1609.344;  // mile
+    case 4:
+      return 1e-3;  // millimetre
+    case 5:
+      return 1e-2;  // centimetre
+    case 6:
+      return 1.0;  // metre
+    case 7:
+      return 1e3;  // kilometre
+    case 8:
+      return 0.0254e-6;  // microinch
+    case 9:
+      return 0.0254e-3;  // mil
+    case 10:
+      return 0.9144;  // yard
+    case 11:
+      return 1e-10;  // angstrom
+    case 12:
+      return 1e-9;  // nanometre
+    case 13:
+      return 1e-6;  // micron
+    case 14:
+      return 1e-1;  // decimetre
+    case 15:
+      return 1e1;  // decametre
+    case 16:
+      return 1e2;  // hectometre
+    case 17:
+      return 1e9;  // gigametre
+    case 18:
+      return 149597870700.0;  // astronomical unit
+    case 19:
+      return 9460730472580800.0;  // light year
+    case 20:
+      return 3.0856775814913673e16;  // parsec
+    case 21:
+      return 1200.0 / 3937.0;  // US survey foot
+    case 22:
+      return 100.0 / 3937.0;  // US survey inch
+    case 23:
+      return 3600.0 / 3937.0;  // US survey yard
+    case 24:
+      return 6336000.0 / 3937.0;  // US survey mile
+    default:
+      return std::nullopt;
   }
 }
 
 std::string insunits_name(int insunits) {
-  static const char* const kNames[] = {"unitless",    "inches",         "feet",          "miles",
-                                       "millimetres", "centimetres",    "metres",        "kilometres",
-                                       "microinches", "mils",           "yards",         "angstroms",
-                                       "nanometres",  "microns",        "decimetres",    "decametres",
-                                       "hectometres", "gigametres",     "astronomical units", "light years",
-                                       "parsecs",     "US survey feet", "US survey inches", "US survey yards",
+  static const char* const kNames[] = {"unitless",
+                                       "inches",
+                                       "feet",
+                                       "miles",
+                                       "millimetres",
+                                       "centimetres",
+                                       "metres",
+                                       "kilometres",
+                                       "microinches",
+                                       "mils",
+                                       "yards",
+                                       "angstroms",
+                                       "nanometres",
+                                       "microns",
+                                       "decimetres",
+                                       "decametres",
+                                       "hectometres",
+                                       "gigametres",
+                                       "astronomical units",
+                                       "light years",
+                                       "parsecs",
+                                       "US survey feet",
+                                       "US survey inches",
+                                       "US survey yards",
                                        "US survey miles"};
   if (insunits < 0 || insunits > 24) return "unknown";
   return kNames[insunits];

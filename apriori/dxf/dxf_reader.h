@@ -1,5 +1,6 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <map>
 #include <optional>
@@ -7,8 +8,6 @@
 #include <string_view>
 #include <variant>
 #include <vector>
-
-#include <Eigen/Core>
 
 namespace wm::apriori::dxf {
 
@@ -83,10 +82,10 @@ struct Insert {
 /// of the DXF Reference gives the OCS → WCS rotation (the identity for (0, 0, 1); a mirror x → −x for (0, 0, −1),
 /// which real drawings use for mirrored arcs).
 struct Entity {
-  std::string type;       // "LINE", "ARC", "CIRCLE", "ELLIPSE", "LWPOLYLINE", "POLYLINE", "INSERT"
+  std::string type;  // "LINE", "ARC", "CIRCLE", "ELLIPSE", "LWPOLYLINE", "POLYLINE", "INSERT"
   std::string layer = "0";
-  std::string handle;     // group 5; empty when the file has none (R12 without handles)
-  std::size_t line = 0;   // 1-based line of the entity's "0" group code in the file
+  std::string handle;                                    // group 5; empty when the file has none (R12 without handles)
+  std::size_t line = 0;                                  // 1-based line of the entity's "0" group code in the file
   Eigen::Vector3d extrusion = Eigen::Vector3d::UnitZ();  // unit length
   std::variant<Line, Arc, Circle, Ellipse, Polyline, Insert> shape;
 
@@ -105,10 +104,10 @@ struct Block {
 
 /// A parsed drawing.
 struct Document {
-  std::string version;            // $ACADVER, e.g. "AC1009" (R12), "AC1027" (R2013); empty when absent
-  std::optional<int> insunits;    // $INSUNITS (0 = unitless, 4 = mm, 6 = m, ...; see insunits_to_metres)
-  std::vector<Entity> entities;   // model space, in file order (paper-space entities are left out)
-  std::map<std::string, Block> blocks;                  // key: block name in upper case
+  std::string version;                  // $ACADVER, e.g. "AC1009" (R12), "AC1027" (R2013); empty when absent
+  std::optional<int> insunits;          // $INSUNITS (0 = unitless, 4 = mm, 6 = m, ...; see insunits_to_metres)
+  std::vector<Entity> entities;         // model space, in file order (paper-space entities are left out)
+  std::map<std::string, Block> blocks;  // key: block name in upper case
   std::map<std::string, std::size_t> entity_counts;     // every model-space entity by type, supported or not
   std::map<std::string, std::size_t> skipped_entities;  // model-space entities of unsupported types, by type
   std::size_t paper_space_entities = 0;

@@ -1,8 +1,8 @@
 #include "apriori/export/dxf_writer.h"
 
 #include <charconv>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <set>
 #include <stdexcept>
@@ -68,8 +68,8 @@ void validate(const std::vector<LayerLines>& layers, const char* function) {
 std::string dxf_layer_name(const std::string& layer) {
   std::string name;
   for (char c : layer.substr(0, kMaxR12NameLength)) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
-                    c == '-' || c == '$';
+    const bool ok =
+        (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '$';
     name += ok ? c : '_';
   }
   return name;

@@ -1,8 +1,7 @@
 #include "apriori/export/geojson_writer.h"
 
-#include <stdexcept>
-
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 namespace wm::apriori {
 

@@ -4,9 +4,8 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <stdexcept>
-
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "apriori/import/json_limits.h"
 #include "apriori/internal/plan_builder.h"
@@ -14,8 +13,8 @@
 namespace wm::apriori {
 namespace {
 
-using nlohmann::json;
 using internal::WorldShape;
+using nlohmann::json;
 
 double number(const json& value, const std::string& path) {
   if (!value.is_number()) throw FloorPlanError(path, "expected a number");

@@ -1,13 +1,12 @@
 #include "apriori/import/dxf_import.h"
 
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <set>
 #include <stdexcept>
-
-#include <Eigen/Geometry>
-#include <Eigen/SVD>
 
 #include "apriori/dxf/dxf_reader.h"
 #include "apriori/internal/clustering.h"
@@ -19,15 +18,16 @@ namespace {
 using internal::WorldShape;
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr std::size_t kMaxNesting = 64;              // deeper block nesting is a corrupt or hostile file
-constexpr std::size_t kMaxArcSegments = 4096;        // per arc; the report warns when the tolerance is not met
+constexpr std::size_t kMaxNesting = 64;        // deeper block nesting is a corrupt or hostile file
+constexpr std::size_t kMaxArcSegments = 4096;  // per arc; the report warns when the tolerance is not met
 constexpr std::size_t kMaxInsertExpansions = 1'000'000;
 
 /// OCS → WCS rotation for extrusion direction n (unit): the "arbitrary axis algorithm" of the DXF Reference.
 Eigen::Matrix3d ocs_to_wcs(const Eigen::Vector3d& n) {
   if (n.x() == 0.0 && n.y() == 0.0 && n.z() > 0.0) return Eigen::Matrix3d::Identity();
   const bool near_z = std::abs(n.x()) < 1.0 / 64.0 && std::abs(n.y()) < 1.0 / 64.0;
-  const Eigen::Vector3d ax = (near_z ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitZ().cross(n)).normalized();
+  const Eigen::Vector3d ax =
+      (near_z ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitZ().cross(n)).normalized();
   const Eigen::Vector3d ay = n.cross(ax).normalized();
   Eigen::Matrix3d m;
   m.col(0) = ax;
@@ -39,10 +39,10 @@ Eigen::Matrix3d ocs_to_wcs(const Eigen::Vector3d& n) {
 /// How a block (or model space) maps into the world.
 struct Frame {
   Eigen::Affine3d to_world = Eigen::Affine3d::Identity();  // block coordinates → world [m]
-  std::string layer;                // inherited by entities on layer "0"; empty in model space
-  std::string id;                   // handle chain of the enclosing INSERTs, each followed by '.'
-  std::string where;                // error path prefix, e.g. "entity INSERT handle 2A > "
-  std::vector<std::string> stack;   // upper-case names of the blocks being expanded
+  std::string layer;                                       // inherited by entities on layer "0"; empty in model space
+  std::string id;                  // handle chain of the enclosing INSERTs, each followed by '.'
+  std::string where;               // error path prefix, e.g. "entity INSERT handle 2A > "
+  std::vector<std::string> stack;  // upper-case names of the blocks being expanded
 };
 
 std::string entity_key(const dxf::Entity& e) { return e.handle.empty() ? "L" + std::to_string(e.line) : e.handle; }
@@ -82,7 +82,8 @@ class Tessellator {
       const std::size_t n = span == 0.0 ? 0 : segments(arc->radius, sweep, tol);
       WorldShape s;
       for (std::size_t i = 0; i <= n; ++i) {
-        const double a = i == n ? (arc->start_angle_deg + span) * kPi / 180.0 : a0 + sweep * static_cast<double>(i) / static_cast<double>(n);
+        const double a = i == n ? (arc->start_angle_deg + span) * kPi / 180.0
+                                : a0 + sweep * static_cast<double>(i) / static_cast<double>(n);
         s.points.push_back(world(ocs_to_world, arc->center.x() + arc->radius * std::cos(a),
                                  arc->center.y() + arc->radius * std::sin(a), arc->center.z()));
       }
@@ -109,7 +110,8 @@ class Tessellator {
       WorldShape s;
       s.closed = whole;
       for (std::size_t i = 0; i < (whole ? n : n + 1); ++i) {
-        const double t = i == n ? el->start_param + span : el->start_param + span * static_cast<double>(i) / static_cast<double>(n);
+        const double t =
+            i == n ? el->start_param + span : el->start_param + span * static_cast<double>(i) / static_cast<double>(n);
         const Eigen::Vector3d p = el->center + std::cos(t) * el->major_axis + std::sin(t) * minor;
         s.points.push_back(world(to_world, p.x(), p.y(), p.z()));
       }
@@ -155,8 +157,9 @@ class Tessellator {
     if (tol < radius) step = std::min(step, 2.0 * std::acos(1.0 - tol / radius));
     const double n = std::ceil(std::abs(sweep) / step - 1e-9);
     if (n > static_cast<double>(kMaxArcSegments)) {
-      if (!warned_) report_.warnings.push_back("some arcs are so large that " + std::to_string(kMaxArcSegments) +
-                                               " chords do not meet the arc tolerance");
+      if (!warned_)
+        report_.warnings.push_back("some arcs are so large that " + std::to_string(kMaxArcSegments) +
+                                   " chords do not meet the arc tolerance");
       warned_ = true;
       return kMaxArcSegments;
     }
@@ -249,8 +252,9 @@ class DxfImporter {
     if (!state.rule) {
       state.report->status = "unknown";
       if (mapping_.unknown_layers == UnknownLayerPolicy::kError)
-        throw FloorPlanError("layer " + name, "no rule of the layer mapping matches this layer "
-                                              "(unknown_layers is \"error\")");
+        throw FloorPlanError("layer " + name,
+                             "no rule of the layer mapping matches this layer "
+                             "(unknown_layers is \"error\")");
     } else {
       state.report->rule = state.rule->pattern;
       state.report->status = state.rule->ignore ? "ignored" : state.rule->cluster ? "clustered" : "mapped";
@@ -319,7 +323,7 @@ class DxfImporter {
 
   /// The frames of an INSERT's block (one per MINSERT cell) and the id suffix of each cell.
   std::vector<std::pair<Frame, std::string>> insert_frames(const dxf::Entity& e, const Frame& parent,
-                                                            const dxf::Block& block, const std::string& layer_name) {
+                                                           const dxf::Block& block, const std::string& layer_name) {
     const auto& ins = std::get<dxf::Insert>(e.shape);
     if (parent.stack.size() >= kMaxNesting)
       throw FloorPlanError(parent.where + e.describe(), "blocks nested deeper than " + std::to_string(kMaxNesting));
@@ -333,15 +337,14 @@ class DxfImporter {
     for (int row = 0; row < ins.rows; ++row) {
       for (int col = 0; col < ins.columns; ++col) {
         if (++expansions_ > kMaxInsertExpansions)
-          throw FloorPlanError(parent.where + e.describe(), "the drawing expands to more than " +
-                                                                std::to_string(kMaxInsertExpansions) +
-                                                                " block references");
+          throw FloorPlanError(
+              parent.where + e.describe(),
+              "the drawing expands to more than " + std::to_string(kMaxInsertExpansions) + " block references");
         Frame f;
         const Eigen::Vector3d offset(col * ins.column_spacing, row * ins.row_spacing, 0.0);
         f.to_world = before * Eigen::Translation3d(offset) * after;
-        const std::string cell = ins.rows * ins.columns > 1
-                                     ? "_r" + std::to_string(row + 1) + "c" + std::to_string(col + 1)
-                                     : std::string();
+        const std::string cell =
+            ins.rows * ins.columns > 1 ? "_r" + std::to_string(row + 1) + "c" + std::to_string(col + 1) : std::string();
         f.layer = layer_name;
         f.id = parent.id + entity_key(e) + cell + ".";
         f.where = parent.where + e.describe() + " > ";
@@ -432,8 +435,8 @@ class DxfImporter {
       std::vector<std::vector<std::vector<Eigen::Vector2d>>> fine;
       fine.reserve(pool.items.size());
       for (const auto& item : pool.items) fine.push_back(item.fine);
-      const auto cluster = internal::cluster_items(fine, mapping_.cluster_tolerance_m,
-                                                   mapping_.merge_enclosed_clusters, budget);
+      const auto cluster =
+          internal::cluster_items(fine, mapping_.cluster_tolerance_m, mapping_.merge_enclosed_clusters, budget);
       const std::size_t count = cluster.empty() ? 0 : *std::max_element(cluster.begin(), cluster.end()) + 1;
       std::vector<std::vector<std::size_t>> members(count);
       for (std::size_t i = 0; i < cluster.size(); ++i) members[cluster[i]].push_back(i);
@@ -443,8 +446,7 @@ class DxfImporter {
         for (std::size_t i : m)
           for (const auto& s : pool.items[i].shapes) shapes.push_back(s);
         const auto& first = pool.items[m.front()];
-        if (builder_.add(rule.kind + "-" + first.key, rule.kind, rule.attributes, shapes, std::nullopt,
-                         first.where)) {
+        if (builder_.add(rule.kind + "-" + first.key, rule.kind, rule.attributes, shapes, std::nullopt, first.where)) {
           ++report_.clustered_objects;
           ++pool.layer->report->objects;
         } else {

@@ -8,8 +8,8 @@ std::string to_json_text(const ImportReport& report) {
   using nlohmann::json;
   json layers = json::object();
   for (const auto& [name, layer] : report.layers)
-    layers[name] = {{"entities", layer.entities}, {"objects", layer.objects}, {"rule", layer.rule},
-                    {"status", layer.status}};
+    layers[name] = {
+        {"entities", layer.entities}, {"objects", layer.objects}, {"rule", layer.rule}, {"status", layer.status}};
   json extent = nullptr;
   if (report.extent)
     extent = {{"min", {report.extent->min_m.x(), report.extent->min_m.y()}},

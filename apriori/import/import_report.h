@@ -1,12 +1,11 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <map>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "apriori/floor_plan.h"
 
@@ -29,10 +28,10 @@ struct Extent {
 /// What an import read, made and left out: shown to the user who loads a plan, so that a wrong mapping or unit
 /// is visible at once.
 struct ImportReport {
-  std::string format;               // "dxf", "rmf-building", "amrl-vectormap"
-  std::string version;              // DXF $ACADVER ("AC1027"); RMF level name; empty otherwise
-  double units_to_m = 1.0;          // metres per source unit that was applied
-  std::string units_source;         // how it was chosen, e.g. "$INSUNITS 6 (metres)", "override", "measurements"
+  std::string format;        // "dxf", "rmf-building", "amrl-vectormap"
+  std::string version;       // DXF $ACADVER ("AC1027"); RMF level name; empty otherwise
+  double units_to_m = 1.0;   // metres per source unit that was applied
+  std::string units_source;  // how it was chosen, e.g. "$INSUNITS 6 (metres)", "override", "measurements"
   std::map<std::string, std::size_t> entity_counts;  // source entities by type (DXF: model space, every type)
   std::map<std::string, LayerReport> layers;         // by layer name as first seen
   std::vector<std::string> unknown_layers;           // layers no rule matched (policy "report"), sorted

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <nlohmann/json.hpp>
 
 #include "apriori/floor_plan.h"
@@ -17,8 +16,9 @@ using Json = nlohmann::ordered_json;
 char lower(char c) { return (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c; }
 
 bool is_attribute(std::string_view s) {
-  return !s.empty() && s.size() <= 64 && s[0] >= 'a' && s[0] <= 'z' &&
-         std::all_of(s.begin(), s.end(), [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_'; });
+  return !s.empty() && s.size() <= 64 && s[0] >= 'a' && s[0] <= 'z' && std::all_of(s.begin(), s.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+  });
 }
 
 bool has_control_characters(std::string_view s) {
@@ -75,7 +75,8 @@ LayerRule parse_rule(const std::string& pattern, const Json& value, const std::s
 std::vector<LayerRule> parse_rules(const Json& value, const std::string& path, bool is_block) {
   if (!value.is_object()) throw FloorPlanError(path, "expected an object of pattern → rule");
   std::vector<LayerRule> rules;
-  for (const auto& [pattern, rule] : value.items()) rules.push_back(parse_rule(pattern, rule, join(path, pattern), is_block));
+  for (const auto& [pattern, rule] : value.items())
+    rules.push_back(parse_rule(pattern, rule, join(path, pattern), is_block));
   return rules;
 }
 
@@ -137,7 +138,9 @@ bool glob_match(std::string_view pattern, std::string_view text) {
 }
 
 const LayerRule* LayerMapping::match_layer(std::string_view layer) const { return first_match(layers, layer); }
-const LayerRule* LayerMapping::match_block(std::string_view block_name) const { return first_match(blocks, block_name); }
+const LayerRule* LayerMapping::match_block(std::string_view block_name) const {
+  return first_match(blocks, block_name);
+}
 
 LayerMapping parse_layer_mapping_json(std::string_view text) {
   if (auto error = json_nesting_error(text)) throw FloorPlanError("", *error);
@@ -157,8 +160,7 @@ LayerMapping parse_layer_mapping_json(std::string_view text) {
     } else if (key == "cluster_tolerance_m") {
       if (!v.is_number()) throw FloorPlanError(key, "expected a number");
       const double tol = v.get<double>();
-      if (!(std::isfinite(tol) && tol > 0.0 && tol <= 10.0))
-        throw FloorPlanError(key, "must be in (0, 10] metres");
+      if (!(std::isfinite(tol) && tol > 0.0 && tol <= 10.0)) throw FloorPlanError(key, "must be in (0, 10] metres");
       mapping.cluster_tolerance_m = tol;
     } else if (key == "merge_enclosed_clusters") {
       if (!v.is_boolean()) throw FloorPlanError(key, "expected true or false");
@@ -177,8 +179,9 @@ LayerMapping parse_layer_mapping_json(std::string_view text) {
     } else if (key == "description") {
       if (!v.is_string()) throw FloorPlanError(key, "expected a string");
     } else {
-      throw FloorPlanError(key, "unknown field (expected layers, blocks, cluster_tolerance_m, "
-                                "merge_enclosed_clusters, unknown_layers, description)");
+      throw FloorPlanError(key,
+                           "unknown field (expected layers, blocks, cluster_tolerance_m, "
+                           "merge_enclosed_clusters, unknown_layers, description)");
     }
   }
   return mapping;

@@ -1,12 +1,12 @@
 #include "apriori/import/rmf_import.h"
 
+#include <yaml-cpp/yaml.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <stdexcept>
-
-#include <yaml-cpp/yaml.h>
 
 #include "apriori/internal/plan_builder.h"
 #include "common/utf8.h"
@@ -59,8 +59,8 @@ class RmfImporter {
     } else if (system == "cartesian_meters") {
       flip_ = 1.0;
     } else {
-      throw FloorPlanError("coordinate_system", "'" + system +
-                                                    "' is not supported (reference_image or cartesian_meters)");
+      throw FloorPlanError("coordinate_system",
+                           "'" + system + "' is not supported (reference_image or cartesian_meters)");
     }
     const YAML::Node levels = root_["levels"];
     if (!levels || !levels.IsMap() || levels.size() == 0) throw FloorPlanError("levels", "no levels in the building");
@@ -189,9 +189,9 @@ class RmfImporter {
       auto attributes = options_.wall_attributes;
       // traffic-editor draws glass partitions as translucent walls (alpha < 1).
       if (w.size() > 2)
-        if (const auto alpha = param(w[2], "alpha"); alpha && number(*alpha, wpath + ".alpha") < 1.0 &&
-                                                     std::find(attributes.begin(), attributes.end(), "glass") ==
-                                                         attributes.end())
+        if (const auto alpha = param(w[2], "alpha");
+            alpha && number(*alpha, wpath + ".alpha") < 1.0 &&
+            std::find(attributes.begin(), attributes.end(), "glass") == attributes.end())
           attributes.push_back("glass");
       if (builder_.add("wall-" + std::to_string(i), "wall", attributes, {s}, std::nullopt, wpath)) {
         ++l.objects;
@@ -291,7 +291,8 @@ ImportResult import_rmf_building(std::string_view yaml_text, const RmfImportOpti
   if (!valid_size(options.default_model_size_m))
     throw std::invalid_argument("import_rmf_building: default_model_size_m must be finite and > 0");
   for (const auto& [pattern, size] : options.model_sizes)
-    if (!valid_size(size)) throw std::invalid_argument("import_rmf_building: model size for '" + pattern + "' must be > 0");
+    if (!valid_size(size))
+      throw std::invalid_argument("import_rmf_building: model size for '" + pattern + "' must be > 0");
   // YAML is Unicode text, and names end up in the plan's JSON: bytes that are not UTF-8 are refused here,
   // with where, rather than by the JSON writer later.
   if (const auto bad = common::invalid_utf8_offset(yaml_text)) {

@@ -1,11 +1,10 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "apriori/floor_plan.h"
 #include "apriori/import/import_report.h"

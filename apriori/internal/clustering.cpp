@@ -85,8 +85,9 @@ bool items_near(const Polylines& a, const Polylines& b, const Box& box_b, double
 
 void WorkBudget::spend(std::size_t steps) {
   if (steps > remaining)
-    throw FloorPlanError("", "the drawing is too complex to cluster (too many entities close together on a "
-                             "clustered layer); map that layer without \"cluster\"");
+    throw FloorPlanError("",
+                         "the drawing is too complex to cluster (too many entities close together on a "
+                         "clustered layer); map that layer without \"cluster\"");
   remaining -= steps;
 }
 
@@ -110,7 +111,8 @@ std::vector<std::size_t> cluster_items(const std::vector<Polylines>& items, doub
   UnionFind uf(n);
   std::vector<std::size_t> order(n);
   std::iota(order.begin(), order.end(), std::size_t{0});
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return boxes[a].min.x() < boxes[b].min.x(); });
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return boxes[a].min.x() < boxes[b].min.x(); });
   for (std::size_t k = 0; k < n; ++k) {
     const std::size_t i = order[k];
     for (std::size_t m = k + 1; m < n && boxes[order[m]].min.x() <= boxes[i].max.x() + tol; ++m) {
@@ -142,7 +144,7 @@ std::vector<std::size_t> cluster_items(const std::vector<Polylines>& items, doub
     std::vector<std::size_t> by_area(groups);
     std::iota(by_area.begin(), by_area.end(), std::size_t{0});
     std::stable_sort(by_area.begin(), by_area.end(),
-              [&](std::size_t a, std::size_t b) { return group_box[a].area() < group_box[b].area(); });
+                     [&](std::size_t a, std::size_t b) { return group_box[a].area() < group_box[b].area(); });
     for (std::size_t a = 0; a < groups; ++a) {
       const double area_a = group_box[a].area();
       // Candidates have a larger area: start at the first group in by_area with area > area_a.

@@ -21,8 +21,8 @@ std::optional<std::vector<Eigen::Vector2d>> clean(const WorldShape& shape, const
   std::vector<Eigen::Vector2d> out;
   out.reserve(shape.points.size() + 1);
   for (const auto& w : shape.points) {
-    Eigen::Vector2d local = pose.theta_rad == 0.0 ? Eigen::Vector2d(w.x() - pose.x_m, w.y() - pose.y_m)
-                                                  : pose.inverse_transform_point(w);
+    Eigen::Vector2d local =
+        pose.theta_rad == 0.0 ? Eigen::Vector2d(w.x() - pose.x_m, w.y() - pose.y_m) : pose.inverse_transform_point(w);
     if (!out.empty() && (local - out.back()).norm() < kMinEdgeM) continue;
     out.push_back(local);
   }
@@ -35,8 +35,7 @@ std::optional<std::vector<Eigen::Vector2d>> clean(const WorldShape& shape, const
 }  // namespace
 
 void check_world_point(const Eigen::Vector2d& p, double limit_m, const std::string& where) {
-  if (!std::isfinite(p.x()) || !std::isfinite(p.y()))
-    throw FloorPlanError(where, "coordinate is not a finite number");
+  if (!std::isfinite(p.x()) || !std::isfinite(p.y())) throw FloorPlanError(where, "coordinate is not a finite number");
   if (std::abs(p.x()) > limit_m || std::abs(p.y()) > limit_m)
     throw FloorPlanError(where, "absurd coordinate (" + format_number(p.x()) + ", " + format_number(p.y()) +
                                     ") m: beyond ±" + format_number(limit_m) +

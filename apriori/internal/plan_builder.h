@@ -1,12 +1,11 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <optional>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "apriori/floor_plan.h"
 #include "apriori/import/import_report.h"

@@ -15,7 +15,8 @@ namespace wm::bench {
 class RatioReporter : public benchmark::ConsoleReporter {
  public:
   /// `baselines`: (title, baseline benchmark name); every benchmark is reported against each baseline.
-  explicit RatioReporter(std::vector<std::pair<std::string, std::string>> baselines) : baselines_(std::move(baselines)) {}
+  explicit RatioReporter(std::vector<std::pair<std::string, std::string>> baselines)
+      : baselines_(std::move(baselines)) {}
 
   void ReportRuns(const std::vector<Run>& runs) override {
     for (const auto& run : runs) {
@@ -42,7 +43,9 @@ class RatioReporter : public benchmark::ConsoleReporter {
       const auto slash = baseline.find('/');
       const std::string suffix = slash == std::string::npos ? "" : baseline.substr(slash);
       for (const auto& [name, rate] : rates_) {
-        if (!suffix.empty() && (name.size() < suffix.size() || name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0)) continue;
+        if (!suffix.empty() &&
+            (name.size() < suffix.size() || name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0))
+          continue;
         std::printf("  %-40s %10.3fx\n", name.c_str(), rate / base->second);
       }
     }

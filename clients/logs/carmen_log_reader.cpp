@@ -30,7 +30,7 @@ struct CarmenLogReader::Impl {
   CarmenReaderOptions options;
   std::unique_ptr<gzFile_s, GzClose> file;
   std::uintmax_t file_size = 0;
-  std::string buffer;        // bytes read but not yet consumed
+  std::string buffer;  // bytes read but not yet consumed
   std::size_t buffer_pos = 0;
   bool eof = false;
   std::size_t lines = 0;

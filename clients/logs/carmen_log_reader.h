@@ -37,8 +37,8 @@ struct CarmenReaderOptions {
   /// ../shared/data/carmen (81.83–81.91 m, 50–51.25 m); orebro-corrected writes 32.767 m and needs 32.7.
   /// ROBOTLASER1 lines carry their own maximum_range and ignore this.
   double flaser_range_max_m = 50.0;
-  double range_min_m = 0.02;     // readings below are ignored [m]
-  double sigma_range_m = 0.01;   // range standard deviation given to every scan [m] (SICK LMS, docs/fusion.md §5)
+  double range_min_m = 0.02;    // readings below are ignored [m]
+  double sigma_range_m = 0.01;  // range standard deviation given to every scan [m] (SICK LMS, docs/fusion.md §5)
 };
 
 /// Reads a CARMEN log, plain or gzip-compressed (detected from the content), line by line in file order, and

@@ -98,9 +98,10 @@ std::string optional_text(const json& v) { return v.is_null() ? "-" : v.get<std:
 
 void print_decision(const json& d) {
   std::cout << "#" << d["seq"].get<long long>() << "  " << std::left << std::setw(13) << d["action"].get<std::string>()
-            << std::setw(24) << d["rule"].get<std::string>() << " element " << std::setw(12) << optional_text(d["element"])
-            << " object " << std::setw(12) << optional_text(d["object"]) << (d["fallback"].get<bool>() ? " FALLBACK" : "")
-            << "\n      " << d["explanation"].get<std::string>() << "\n";
+            << std::setw(24) << d["rule"].get<std::string>() << " element " << std::setw(12)
+            << optional_text(d["element"]) << " object " << std::setw(12) << optional_text(d["object"])
+            << (d["fallback"].get<bool>() ? " FALLBACK" : "") << "\n      " << d["explanation"].get<std::string>()
+            << "\n";
 }
 
 }  // namespace wm::wmctl

@@ -4,14 +4,13 @@
 // choose the exit code, and the server-answer helpers.
 #include <cstdint>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <utility>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "clients/wmctl/http_client.h"
 
@@ -51,8 +50,10 @@ struct Invocation {
   /// Prints `body` as JSON with --json, else through `readable`; returns kExitOk.
   template <typename Readable>
   int emit(const json& body, Readable&& readable) const {
-    if (raw_json) std::cout << body.dump(2) << "\n";
-    else readable(body);
+    if (raw_json)
+      std::cout << body.dump(2) << "\n";
+    else
+      readable(body);
     return kExitOk;
   }
 };

@@ -13,10 +13,12 @@ namespace net = boost::asio;
 
 HttpClient::HttpClient(const std::string& base_url, std::chrono::seconds timeout) : timeout_(timeout) {
   const std::string scheme = "http://";
-  if (base_url.rfind(scheme, 0) != 0) throw ConnectionError("server URL must start with http:// (got '" + base_url + "')");
+  if (base_url.rfind(scheme, 0) != 0)
+    throw ConnectionError("server URL must start with http:// (got '" + base_url + "')");
   std::string rest = base_url.substr(scheme.size());
   while (!rest.empty() && rest.back() == '/') rest.pop_back();
-  if (rest.find('/') != std::string::npos) throw ConnectionError("server URL must not have a path (got '" + base_url + "')");
+  if (rest.find('/') != std::string::npos)
+    throw ConnectionError("server URL must not have a path (got '" + base_url + "')");
   const auto colon = rest.rfind(':');
   host_ = colon == std::string::npos ? rest : rest.substr(0, colon);
   port_ = colon == std::string::npos ? "80" : rest.substr(colon + 1);

@@ -14,19 +14,21 @@ namespace {
 std::string point(const json& p) { return "(" + fixed(p[0].get<double>()) + ", " + fixed(p[1].get<double>()) + ")"; }
 
 void print_map(const json& m) {
-  std::cout << "map version " << m["version"] << ", plan '" << m["plan"].get<std::string>() << "': " << m["objects"].size()
-            << " objects, " << m["elements"].size() << " observed elements\n";
+  std::cout << "map version " << m["version"] << ", plan '" << m["plan"].get<std::string>()
+            << "': " << m["objects"].size() << " objects, " << m["elements"].size() << " observed elements\n";
   for (const auto& o : m["objects"]) {
     std::string attributes;
     for (const auto& a : o["attributes"]) attributes += (attributes.empty() ? "" : ",") + a.get<std::string>();
     std::cout << "  object " << std::left << std::setw(14) << o["id"].get<std::string>() << std::setw(10)
-              << o["kind"].get<std::string>() << " [" << attributes << "] pose (" << fixed(o["pose"]["x"].get<double>()) << ", "
-              << fixed(o["pose"]["y"].get<double>()) << ", " << fixed(o["pose"]["theta"].get<double>(), 4) << ") edges "
-              << o["edges"].size() << ", confirmed " << o["confirmations"] << ", adjusted " << o["adjustments"] << "\n";
+              << o["kind"].get<std::string>() << " [" << attributes << "] pose (" << fixed(o["pose"]["x"].get<double>())
+              << ", " << fixed(o["pose"]["y"].get<double>()) << ", " << fixed(o["pose"]["theta"].get<double>(), 4)
+              << ") edges " << o["edges"].size() << ", confirmed " << o["confirmations"] << ", adjusted "
+              << o["adjustments"] << "\n";
   }
   for (const auto& e : m["elements"])
     std::cout << "  element " << std::left << std::setw(8) << e["id"].get<std::string>() << point(e["p0"]) << " -> "
-              << point(e["p1"]) << "  support " << e["support"] << ", source " << e["source"].get<std::string>() << "\n";
+              << point(e["p1"]) << "  support " << e["support"] << ", source " << e["source"].get<std::string>()
+              << "\n";
 }
 
 // Writes the answer's body to `path` (the body is not JSON: an image or a drawing).
@@ -40,7 +42,8 @@ void save(const client::HttpResult& answer, const std::string& path) {
 int health(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/health")), [](const json& h) {
     std::cout << "status " << h["status"].get<std::string>() << ", map version " << h["version"] << ", plan '"
-              << h["plan"].get<std::string>() << "', " << h["objects"] << " objects, " << h["elements"] << " elements\n";
+              << h["plan"].get<std::string>() << "', " << h["objects"] << " objects, " << h["elements"]
+              << " elements\n";
     for (const auto& f : h["rules"]["files"]) std::cout << "rules: " << f["path"].get<std::string>() << "\n";
     if (!h["rules"]["last_error"].get<std::string>().empty())
       std::cout << "last rules error: " << h["rules"]["last_error"].get<std::string>() << "\n";
@@ -54,11 +57,13 @@ int floorplan_load(const Invocation& in) {
   const std::string level = in.flag("--level").value_or("");
   const std::string& file = in.operands[0];
   auto extension = std::filesystem::path(file).extension().string();
-  std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   std::string body = read_file(file);
   if (extension == ".dxf" || extension == ".yaml" || extension == ".yml") {
     // Ordered: the mapping's rules apply in file order.
-    nlohmann::ordered_json spec = {{"format", extension == ".dxf" ? "dxf" : "rmf"}, {"data", body},
+    nlohmann::ordered_json spec = {{"format", extension == ".dxf" ? "dxf" : "rmf"},
+                                   {"data", body},
                                    {"name", std::filesystem::path(file).stem().string()}};
     if (!mapping_file.empty()) {
       const auto mapping = nlohmann::ordered_json::parse(read_file(mapping_file), nullptr, false);
@@ -136,7 +141,8 @@ int grid(const Invocation& in) {
   std::cout << "wrote " << *out << " (" << image.body.size() << " bytes)\n";
   if (layer == "bayes") {
     // map_server reads the image path relative to the YAML file.
-    const auto yaml = in.client.request("GET", "/api/v1/grid/map.yaml" + (bbox.empty() ? std::string() : "?bbox=" + bbox));
+    const auto yaml =
+        in.client.request("GET", "/api/v1/grid/map.yaml" + (bbox.empty() ? std::string() : "?bbox=" + bbox));
     if (yaml.status != 200) parse_answer(yaml);
     std::string text = yaml.body;
     const auto at = text.find("image: map.pgm");

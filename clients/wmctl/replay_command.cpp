@@ -50,7 +50,7 @@ struct ReplayOptions {
   std::size_t every = 1;  // post every K-th scan
   double rate_hz = 0;     // scans per second at most; 0: as fast as the server takes them
   double offset_x_m = 0, offset_y_m = 0;
-  std::string source;                            // the robot name the scans are posted under
+  std::string source;                                  // the robot name the scans are posted under
   double sigma_xy_m = 0.03, sigma_theta_rad = 0.0087;  // 3 cm, 0.5°
   logs::CarmenReaderOptions reader;
 };

@@ -23,8 +23,8 @@ std::string numbers(const json& state) {
   out << std::setprecision(4);
   if (state.contains("rho")) {
     out << "rho " << state["rho"].get<double>() << " m, phi " << state["phi"].get<double>() << " rad, sigma_rho "
-        << std::sqrt(state["cov"][0][0].get<double>()) << " m, sigma_phi " << std::sqrt(state["cov"][1][1].get<double>())
-        << " rad";
+        << std::sqrt(state["cov"][0][0].get<double>()) << " m, sigma_phi "
+        << std::sqrt(state["cov"][1][1].get<double>()) << " rad";
   } else if (state.contains("pose")) {
     out << "pose (" << state["pose"]["x"].get<double>() << ", " << state["pose"]["y"].get<double>() << ", "
         << state["pose"]["theta"].get<double>() << "), sigma_xy " << std::sqrt(state["pose_cov"][0][0].get<double>())
@@ -50,8 +50,10 @@ void print_history(const json& r) {
 void print_rules(const json& r) {
   std::cout << "generation " << r["generation"] << "\n";
   for (const auto& f : r["files"])
-    std::cout << "  " << f["path"].get<std::string>() << "  sha256 " << f["checksum"].get<std::string>().substr(0, 12) << "\n";
-  if (!r["last_error"].get<std::string>().empty()) std::cout << "last error:\n" << r["last_error"].get<std::string>() << "\n";
+    std::cout << "  " << f["path"].get<std::string>() << "  sha256 " << f["checksum"].get<std::string>().substr(0, 12)
+              << "\n";
+  if (!r["last_error"].get<std::string>().empty())
+    std::cout << "last error:\n" << r["last_error"].get<std::string>() << "\n";
 }
 
 void print_dry_run(const json& r) {
@@ -60,9 +62,9 @@ void print_dry_run(const json& r) {
   for (const auto& c : r["changes"]) {
     const auto& old = c["recorded"];
     const auto& now = c["candidate"];
-    std::cout << "  #" << old["seq"] << " " << old["action"].get<std::string>() << " by " << old["rule"].get<std::string>()
-              << "  ->  " << now["action"].get<std::string>() << " by " << now["rule"].get<std::string>() << "\n      "
-              << now["explanation"].get<std::string>() << "\n";
+    std::cout << "  #" << old["seq"] << " " << old["action"].get<std::string>() << " by "
+              << old["rule"].get<std::string>() << "  ->  " << now["action"].get<std::string>() << " by "
+              << now["rule"].get<std::string>() << "\n      " << now["explanation"].get<std::string>() << "\n";
   }
 }
 
@@ -97,7 +99,9 @@ int explain(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", history_target(in.operands[0]))), print_history);
 }
 
-int rules(const Invocation& in) { return in.emit(parse_answer(in.client.request("GET", "/api/v1/rules")), print_rules); }
+int rules(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/rules")), print_rules);
+}
 
 int rules_reload(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("POST", "/api/v1/rules/reload", "{}", "application/json", in.token)),

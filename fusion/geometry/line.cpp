@@ -66,8 +66,7 @@ LineFeature transform_line(const LineFeature& local, const Pose2D& pose, const E
 
   const internal::TransformedLine w = internal::transform_line_raw(local.rho_m, local.phi_rad, pose);
   // Line and pose errors are independent, so their first-order contributions add (docs/fusion.md §4).
-  const Eigen::Matrix2d cov =
-      w.d_line * local.cov * w.d_line.transpose() + w.d_pose * pose_cov * w.d_pose.transpose();
+  const Eigen::Matrix2d cov = w.d_line * local.cov * w.d_line.transpose() + w.d_pose * pose_cov * w.d_pose.transpose();
   return LineFeature{w.rho_m, w.phi_rad, cov}.normalized();
 }
 

@@ -146,9 +146,9 @@ void OccupancyGrid::insert_scan(const ScanT& scan, std::size_t beams, const Make
     throw std::invalid_argument("OccupancyGrid::insert: sensor position is more than 10000 km from the origin");
   }
   // Everything the scan can touch lies within this radius of the sensor; refuse before changing anything.
-  const double reach_m = std::min(scan.range_max_m, options_.sensor.max_usable_range_m) *
-                             (1.0 + options_.sensor.sonar_sigma_per_range) +
-                         scan.sigma_range_m + 2.0 * options_.resolution_m;
+  const double reach_m =
+      std::min(scan.range_max_m, options_.sensor.max_usable_range_m) * (1.0 + options_.sensor.sonar_sigma_per_range) +
+      scan.sigma_range_m + 2.0 * options_.resolution_m;
   const double tile_m = options_.resolution_m * static_cast<double>(options_.tile_size_cells);
   check_growth(static_cast<std::int64_t>(std::floor((pose.x_m - reach_m) / tile_m)),
                static_cast<std::int64_t>(std::floor((pose.y_m - reach_m) / tile_m)),
@@ -268,8 +268,8 @@ void OccupancyGrid::walk(const internal::PreparedBeam& b) {
     }
     if (ds) {
       DsCell& c = tile->ds[idx];
-      const internal::CellMasses m = hit || g > 0.0 ? internal::ds_masses(b, g, d, w)
-                                                    : internal::CellMasses{0.0, w * b.k};
+      const internal::CellMasses m =
+          hit || g > 0.0 ? internal::ds_masses(b, g, d, w) : internal::CellMasses{0.0, w * b.k};
       double so = m.occupied;
       double se = m.empty;
       if (c.stamp != stamp_) {
@@ -376,9 +376,7 @@ std::optional<OccupancyGrid::TileData> OccupancyGrid::tile(TileIndex t) const {
 
 void OccupancyGrid::set_tile(TileIndex t, TileData data) {
   const auto n = static_cast<std::size_t>(options_.tile_size_cells * options_.tile_size_cells);
-  const auto fail = [](const std::string& what) {
-    throw std::invalid_argument("OccupancyGrid::set_tile: " + what);
-  };
+  const auto fail = [](const std::string& what) { throw std::invalid_argument("OccupancyGrid::set_tile: " + what); };
   if (data.log_odds.size() != n || data.m_occupied.size() != n || data.m_empty.size() != n ||
       data.conflict.size() != n) {
     fail("every layer must hold tile_size_cells^2 = " + std::to_string(n) + " values");
@@ -417,8 +415,8 @@ std::vector<TileIndex> OccupancyGrid::tiles() const {
 
 std::vector<float> OccupancyGrid::export_layer(Layer layer, const GridGeometry& region) const {
   if (region.width() > kMaxExportCells / region.height()) {
-    throw std::invalid_argument("OccupancyGrid::export_layer: region has more than " +
-                                std::to_string(kMaxExportCells) + " cells");
+    throw std::invalid_argument("OccupancyGrid::export_layer: region has more than " + std::to_string(kMaxExportCells) +
+                                " cells");
   }
   const auto w = static_cast<std::size_t>(region.width());
   const auto h = static_cast<std::size_t>(region.height());
@@ -429,8 +427,7 @@ std::vector<float> OccupancyGrid::export_layer(Layer layer, const GridGeometry& 
   std::int64_t cur_y = 0;
   for (std::size_t row = 0; row < h; ++row) {
     for (std::size_t col = 0; col < w; ++col) {
-      const Eigen::Vector2d p =
-          region.center_of({static_cast<std::int64_t>(col), static_cast<std::int64_t>(row)});
+      const Eigen::Vector2d p = region.center_of({static_cast<std::int64_t>(col), static_cast<std::int64_t>(row)});
       CellIndex c;
       try {
         c = own.cell_of(p);

@@ -25,7 +25,7 @@ struct TileIndex {
 };
 
 struct GridOptions {
-  double resolution_m = 0.05;        // cell size [m], [0.001, 100]
+  double resolution_m = 0.05;         // cell size [m], [0.001, 100]
   std::int64_t tile_size_cells = 64;  // tile side [cells], a power of two in [4, 1024]
   double log_odds_min = -2.0;         // Bayes clamping (OctoMap: p 0.1192), < 0
   double log_odds_max = 3.5;          // Bayes clamping (OctoMap: p 0.971), > 0
@@ -157,7 +157,7 @@ class OccupancyGrid {
   std::int64_t mask_ = 63;
   std::map<TileIndex, std::unique_ptr<Tile>> tiles_;
   std::optional<std::array<std::int64_t, 4>> tile_bounds_;  // min x, min y, max x, max y
-  std::array<CacheEntry, 64> cache_{};  // direct-mapped: slot (x & 7) | (y & 7) << 3
+  std::array<CacheEntry, 64> cache_{};                      // direct-mapped: slot (x & 7) | (y & 7) << 3
   std::uint32_t stamp_ = 0;
   std::vector<TileIndex> dirty_;
 };

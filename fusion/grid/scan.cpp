@@ -32,8 +32,8 @@ void validate(const SonarScan& scan) {
   check_common("validate(SonarScan)", scan.sensor_pose, scan.range_min_m, scan.range_max_m, scan.sigma_range_m);
   if (scan.angles_rad.size() != scan.ranges_m.size()) {
     throw std::invalid_argument("validate(SonarScan): angles_rad and ranges_m differ in size (" +
-                                std::to_string(scan.angles_rad.size()) + " vs " +
-                                std::to_string(scan.ranges_m.size()) + ")");
+                                std::to_string(scan.angles_rad.size()) + " vs " + std::to_string(scan.ranges_m.size()) +
+                                ")");
   }
   for (const double a : scan.angles_rad) {
     if (!std::isfinite(a)) throw std::invalid_argument("validate(SonarScan): angles_rad must be finite");

@@ -95,21 +95,20 @@ std::vector<BeamCell> beam_cells(const Beam& beam, double resolution_m) {
   }
   const internal::PreparedBeam b = internal::prepare(beam, resolution_m);
   std::vector<BeamCell> cells;
-  internal::for_each_beam_cell(b,
-                      [&](std::int64_t x, std::int64_t y, double d2, internal::CellClass cls) {
-                        const double d = std::sqrt(d2);
-                        const double g = internal::range_factor(b, cls, x, y, d);
-                        const double w = internal::angular_weight(b, x, y, d2);
-                        const internal::CellMasses m = internal::ds_masses(b, g, d, w);
-                        BeamCell cell;
-                        cell.cell = {x, y};
-                        cell.hit = cls == internal::CellClass::hit;
-                        cell.distance_m = d * resolution_m;
-                        cell.bayes_log_odds = w * (cell.hit ? internal::bayes_hit_log_odds(b, g) : b.log_odds_miss);
-                        cell.m_occupied = m.occupied;
-                        cell.m_empty = m.empty;
-                        cells.push_back(cell);
-                      });
+  internal::for_each_beam_cell(b, [&](std::int64_t x, std::int64_t y, double d2, internal::CellClass cls) {
+    const double d = std::sqrt(d2);
+    const double g = internal::range_factor(b, cls, x, y, d);
+    const double w = internal::angular_weight(b, x, y, d2);
+    const internal::CellMasses m = internal::ds_masses(b, g, d, w);
+    BeamCell cell;
+    cell.cell = {x, y};
+    cell.hit = cls == internal::CellClass::hit;
+    cell.distance_m = d * resolution_m;
+    cell.bayes_log_odds = w * (cell.hit ? internal::bayes_hit_log_odds(b, g) : b.log_odds_miss);
+    cell.m_occupied = m.occupied;
+    cell.m_empty = m.empty;
+    cells.push_back(cell);
+  });
   return cells;
 }
 

@@ -1,11 +1,10 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <numbers>
 #include <optional>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "fusion/grid/grid_geometry.h"
 #include "fusion/grid/scan.h"
@@ -39,11 +38,11 @@ namespace wm::fusion {
 ///    of the reading (d <= r, or no return) and 0 behind it, m(Θ) = 1 − m(O) − m(E).
 struct SensorModelOptions {
   double laser_beam_width_rad = 2.0 * std::numbers::pi / 180.0;  // laser aperture, 2° (paper) [rad], [0, π/2)
-  double p_hit = 0.7;   // Bayes, laser: occupied evidence at the return (OctoMap default), (0.5, 1)
-  double p_miss = 0.4;  // Bayes, laser: free evidence along the beam (OctoMap default), (0, 0.5)
-  double sonar_p_hit = 0.6;    // Bayes, sonar: weaker than the laser (the arc only says "somewhere here"), (0.5, 1)
-  double sonar_p_miss = 0.45;  // Bayes, sonar: specular reflections make free space less certain, (0, 0.5)
-  double ds_empty_factor_k = 0.9;       // DS: P_e = k·(1 − P_o) along the beam, [0, 1)
+  double p_hit = 0.7;              // Bayes, laser: occupied evidence at the return (OctoMap default), (0.5, 1)
+  double p_miss = 0.4;             // Bayes, laser: free evidence along the beam (OctoMap default), (0, 0.5)
+  double sonar_p_hit = 0.6;        // Bayes, sonar: weaker than the laser (the arc only says "somewhere here"), (0.5, 1)
+  double sonar_p_miss = 0.45;      // Bayes, sonar: specular reflections make free space less certain, (0, 0.5)
+  double ds_empty_factor_k = 0.9;  // DS: P_e = k·(1 − P_o) along the beam, [0, 1)
   double ds_laser_occupied_mass = 0.9;  // DS: peak m(O) of a laser return; the rest stays unknown, (0, 1)
   double ds_sonar_occupied_mass = 0.5;  // DS: peak m(O) of a sonar arc cell, (0, 1)
   double sonar_sigma_per_range = 0.01;  // sonar σ = scan σ + this × reading (docs/fusion.md §5: ±1 %) [m/m], >= 0
@@ -59,17 +58,17 @@ void validate(const SensorModelOptions& options);
 /// One beam of a scan resolved into the world frame with its model parameters.
 struct Beam {
   Eigen::Vector2d origin_m = Eigen::Vector2d::Zero();  // sensor position, world [m]
-  double angle_rad = 0.0;       // direction of the cone's axis, world [rad]
-  double half_width_rad = 0.0;  // half the aperture [rad], [0, π/4)
+  double angle_rad = 0.0;                              // direction of the cone's axis, world [rad]
+  double half_width_rad = 0.0;                         // half the aperture [rad], [0, π/4)
   double angular_sigma_rad = 0.0;  // σ of a Gaussian beam profile in angle [rad]; 0: uniform over the cone
   bool free_on_axis_only = false;  // free space only on the axis line; the cone only marks the return
-  double range_m = 0.0;         // the reading when has_return, else the distance cleared [m]
-  bool has_return = false;      // false: free space up to range_m, no hit
-  double sigma_m = 0.0;         // range standard deviation of this reading [m]
-  double p_hit = 0.7;           // Bayes inverse model at the return
-  double p_miss = 0.4;          // Bayes inverse model along the beam
-  double occupied_mass = 0.9;   // DS peak m(O)
-  double empty_factor_k = 0.9;  // DS k
+  double range_m = 0.0;            // the reading when has_return, else the distance cleared [m]
+  bool has_return = false;         // false: free space up to range_m, no hit
+  double sigma_m = 0.0;            // range standard deviation of this reading [m]
+  double p_hit = 0.7;              // Bayes inverse model at the return
+  double p_miss = 0.4;             // Bayes inverse model along the beam
+  double occupied_mass = 0.9;      // DS peak m(O)
+  double empty_factor_k = 0.9;     // DS k
 };
 
 /// Beam i of a laser scan (its axis at sensor θ + angle_min + i·increment), or nullopt when the reading is
@@ -82,9 +81,9 @@ std::optional<Beam> sonar_beam(const SonarScan& scan, std::size_t i, const Senso
 
 /// What one beam says about one cell.
 struct BeamCell {
-  CellIndex cell;            // in a grid whose cell (0, 0) has its lower-left corner at the world origin
-  bool hit = false;          // in the return band (or the return cell) rather than free space
-  double distance_m = 0.0;   // sensor to cell centre [m]
+  CellIndex cell;               // in a grid whose cell (0, 0) has its lower-left corner at the world origin
+  bool hit = false;             // in the return band (or the return cell) rather than free space
+  double distance_m = 0.0;      // sensor to cell centre [m]
   double bayes_log_odds = 0.0;  // Bayes increment w·logit(p)
   double m_occupied = 0.0;      // DS masses of eq. (1); m(Θ) = 1 − m_occupied − m_empty
   double m_empty = 0.0;

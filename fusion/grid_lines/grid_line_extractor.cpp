@@ -110,9 +110,8 @@ class Extractor {
         queue.push({votes, top.index, top.bin});
         continue;
       }
-      const HoughBin chosen = internal::resolve_ambiguity(acc_, top.bin, window, options_.hough.ambiguous_ratio,
-                                                          retired, grey)
-                                  .bin;
+      const HoughBin chosen =
+          internal::resolve_ambiguity(acc_, top.bin, window, options_.hough.ambiguous_ratio, retired, grey).bin;
       retired[acc_.index(chosen)] = 1;
       if (!take_line(acc_.line(chosen))) continue;
       // What is left of this line (collinear pieces the first collection missed, a wall the NMS window hid)
@@ -194,9 +193,10 @@ class Extractor {
       // Settled when neither the run nor the line moves any more (a Hough line can start a few degrees off when
       // it passes through two parallel walls; each round brings the band closer to the wall).
       const bool same_run = std::abs(best->t_lo - lo) <= 0.5 && std::abs(best->t_hi - hi) <= 0.5;
-      const bool same_line = std::abs(f->cell.cos_theta - line.cos_theta) + std::abs(f->cell.sin_theta - line.sin_theta) <
-                                 kSettledAngleRad &&
-                             std::abs(f->cell.rho - line.rho) < kSettledRhoCells;
+      const bool same_line =
+          std::abs(f->cell.cos_theta - line.cos_theta) + std::abs(f->cell.sin_theta - line.sin_theta) <
+              kSettledAngleRad &&
+          std::abs(f->cell.rho - line.rho) < kSettledRhoCells;
       line = f->cell;
       t_lo = best->t_lo;
       t_hi = best->t_hi;
@@ -245,16 +245,16 @@ class Extractor {
     const double half_w = 0.5 * static_cast<double>(width_);
     const double half_h = 0.5 * static_cast<double>(height_);
     std::vector<Cell> cells;
-    internal::for_each_cell_near_line(width_, height_, line, band, first - 0.5 - band - 1.0, stop + kLook + 0.5 + band + 1.0,
-                                      [&](std::int64_t x, std::int64_t y, double d, double) {
-                                        if (occupied_[cell_index(x, y)] == 0) return;
-                                        const double t = line.along_by_row(static_cast<double>(x) + 0.5 - half_w,
-                                                                           static_cast<double>(y) + 0.5 - half_h);
-                                        if (t < first - 0.5 || t > stop + kLook + 0.5) return;
-                                        const double k = std::clamp(std::floor(t - first + 0.5), 0.0,
-                                                                    static_cast<double>(slices - 1));
-                                        cells.push_back({x, y, d, t, static_cast<std::size_t>(k)});
-                                      });
+    internal::for_each_cell_near_line(
+        width_, height_, line, band, first - 0.5 - band - 1.0, stop + kLook + 0.5 + band + 1.0,
+        [&](std::int64_t x, std::int64_t y, double d, double) {
+          if (occupied_[cell_index(x, y)] == 0) return;
+          const double t =
+              line.along_by_row(static_cast<double>(x) + 0.5 - half_w, static_cast<double>(y) + 0.5 - half_h);
+          if (t < first - 0.5 || t > stop + kLook + 0.5) return;
+          const double k = std::clamp(std::floor(t - first + 0.5), 0.0, static_cast<double>(slices - 1));
+          cells.push_back({x, y, d, t, static_cast<std::size_t>(k)});
+        });
     constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
     std::vector<double> lo(slices, kNone), hi(slices, kNone);
     for (const Cell& c : cells) {
@@ -314,17 +314,17 @@ class Extractor {
     return result;
   }
 
-  // Removes the skeleton cells a segment explains (within the fit band over its run, plus the fit's reach) from the skeleton and
-  // their votes from the accumulator.
+  // Removes the skeleton cells a segment explains (within the fit band over its run, plus the fit's reach) from the
+  // skeleton and their votes from the accumulator.
   void claim(const CellLine& line, double a, double b) {
-    internal::for_each_cell_near_line(width_, height_, line, options_.fit_band_cells,
-                                      std::min(a, b) - options_.fit_band_cells,
-                                      std::max(a, b) + options_.fit_band_cells, [&](std::int64_t x, std::int64_t y, double, double) {
-                                        std::uint8_t& s = skeleton_[cell_index(x, y)];
-                                        if (s == 0) return;
-                                        s = 0;
-                                        acc_.add(x, y, -1.0f);
-                                      });
+    internal::for_each_cell_near_line(
+        width_, height_, line, options_.fit_band_cells, std::min(a, b) - options_.fit_band_cells,
+        std::max(a, b) + options_.fit_band_cells, [&](std::int64_t x, std::int64_t y, double, double) {
+          std::uint8_t& s = skeleton_[cell_index(x, y)];
+          if (s == 0) return;
+          s = 0;
+          acc_.add(x, y, -1.0f);
+        });
   }
 
   const ProbabilityRaster& raster_;

@@ -15,7 +15,7 @@ struct GridLineOptions {
   float p_occupied = 0.65f;  // cells with p >= this are occupied (threshold before thinning), (0, 1]
   /// Enclosed background specks of up to this many cells are filled before thinning (fill_small_holes), >= 0.
   int max_hole_cells = 4;
-  HoughOptions hough;        // transform on the skeleton, NMS and grey-grid fallback
+  HoughOptions hough;  // transform on the skeleton, NMS and grey-grid fallback
   /// Skeleton cells within this distance of a line belong to it [cells], [0.5, 10].
   double member_band_cells = 1.5;
   /// Occupied cells within this distance of a segment's line enter its fit [cells], [member_band_cells, 10]:
@@ -27,10 +27,10 @@ struct GridLineOptions {
   /// neighbours, when enough clean slices remain: a wall joining at a corner or a T, or a speck, would pull the
   /// line there [cells], [0, 10].
   double slice_tolerance_cells = 0.75;
-  double max_gap_m = 0.25;      // skeleton cells farther apart along a line start a new segment [m], > 0
-  double min_length_m = 0.3;    // shorter segments are dropped [m], >= 0
-  std::size_t min_cells = 6;    // segments with fewer skeleton cells are dropped, >= 2
-  int refine_iterations = 8;    // at most this many rounds of fit → re-collect along the fitted line, [1, 100]
+  double max_gap_m = 0.25;    // skeleton cells farther apart along a line start a new segment [m], > 0
+  double min_length_m = 0.3;  // shorter segments are dropped [m], >= 0
+  std::size_t min_cells = 6;  // segments with fewer skeleton cells are dropped, >= 2
+  int refine_iterations = 8;  // at most this many rounds of fit → re-collect along the fitted line, [1, 100]
 };
 
 /// @throw std::invalid_argument for a field outside the ranges documented in GridLineOptions or HoughOptions.

@@ -59,7 +59,9 @@ constexpr auto kSimple = make_simple_table();
 class PaddedImage {
  public:
   PaddedImage(std::span<const std::uint8_t> image, std::int64_t width, std::int64_t height)
-      : width_(width), height_(height), stride_(static_cast<std::int32_t>(width + 2)),
+      : width_(width),
+        height_(height),
+        stride_(static_cast<std::int32_t>(width + 2)),
         pixels_(static_cast<std::size_t>((width + 2) * (height + 2)), 0) {
     for (std::int64_t y = 0; y < height; ++y) {
       for (std::int64_t x = 0; x < width; ++x) {
@@ -69,7 +71,9 @@ class PaddedImage {
     offsets_ = {stride_, stride_ + 1, 1, 1 - stride_, -stride_, -stride_ - 1, -1, stride_ - 1};
   }
 
-  std::int32_t index(std::int64_t x, std::int64_t y) const { return static_cast<std::int32_t>((y + 1) * stride_ + x + 1); }
+  std::int32_t index(std::int64_t x, std::int64_t y) const {
+    return static_cast<std::int32_t>((y + 1) * stride_ + x + 1);
+  }
   bool at(std::int32_t i) const { return pixels_[static_cast<std::size_t>(i)] != 0; }
   void clear(std::int32_t i) { pixels_[static_cast<std::size_t>(i)] = 0; }
   std::int32_t neighbour(std::int32_t i, int k) const { return i + offsets_[static_cast<std::size_t>(k)]; }

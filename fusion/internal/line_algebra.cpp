@@ -1,12 +1,11 @@
 #include "fusion/internal/line_algebra.h"
 
+#include <Eigen/Cholesky>
 #include <cmath>
 #include <initializer_list>
 #include <numbers>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Cholesky>
 
 #include "fusion/geometry/angle.h"
 

@@ -1,8 +1,7 @@
 #pragma once
 
-#include <string_view>
-
 #include <Eigen/Core>
+#include <string_view>
 
 #include "fusion/geometry/line.h"
 #include "fusion/geometry/pose2d.h"

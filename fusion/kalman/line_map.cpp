@@ -1,11 +1,10 @@
 #include "fusion/kalman/line_map.h"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <iterator>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Cholesky>
 
 #include "fusion/internal/line_algebra.h"
 
@@ -61,8 +60,8 @@ LineSegment fuse(const LineSegment& element, const LineSegment& observed) {
 
   // A sum of two positive definite information matrices is positive definite, so Cholesky cannot fail here.
   const Eigen::Matrix2d p = Eigen::LLT<Eigen::Matrix2d>(info_a + info_b).solve(Eigen::Matrix2d::Identity());
-  const Eigen::Vector2d l = p * (info_a * Eigen::Vector2d(a.rho_m, a.phi_rad) +
-                                 info_b * Eigen::Vector2d(b.rho_m, b.phi_rad));
+  const Eigen::Vector2d l =
+      p * (info_a * Eigen::Vector2d(a.rho_m, a.phi_rad) + info_b * Eigen::Vector2d(b.rho_m, b.phi_rad));
   LineSegment fused;
   fused.line = LineFeature{l.x(), l.y(), 0.5 * (p + p.transpose())}.normalized();
   // Projected after normalizing, so t is measured along the fused line's final direction.

@@ -1,13 +1,12 @@
 #include "fusion/kalman/rigid_object.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 #include <utility>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 
 #include "fusion/geometry/angle.h"
 #include "fusion/internal/line_algebra.h"

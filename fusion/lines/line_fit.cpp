@@ -14,7 +14,9 @@ constexpr const char* kCaller = "fit_line";
 constexpr int kReweightPasses = 2;
 constexpr double kMinSpread = 1e-9;  // [m] rms distance from the centroid below which the points coincide
 
-[[noreturn]] void fail(const std::string& message) { throw std::invalid_argument(std::string(kCaller) + ": " + message); }
+[[noreturn]] void fail(const std::string& message) {
+  throw std::invalid_argument(std::string(kCaller) + ": " + message);
+}
 
 // Weighted TLS solution in the representation the closed form yields (α in (−π/2, π/2], r of either sign),
 // with the moments the Jacobians need.

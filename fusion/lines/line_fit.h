@@ -1,8 +1,7 @@
 #pragma once
 
-#include <span>
-
 #include <Eigen/Core>
+#include <span>
 
 #include "fusion/geometry/line.h"
 

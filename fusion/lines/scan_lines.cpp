@@ -1,13 +1,12 @@
 #include "fusion/lines/scan_lines.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
-
-#include <Eigen/Eigenvalues>
 
 #include "fusion/kalman/line_map.h"
 #include "fusion/lines/line_fit.h"
@@ -21,7 +20,9 @@ struct Piece {
 };
 
 // σ of point i perpendicular to the direction `normal` [m].
-double normal_sigma(const Eigen::Matrix2d& q, const Eigen::Vector2d& normal) { return std::sqrt(normal.dot(q * normal)); }
+double normal_sigma(const Eigen::Matrix2d& q, const Eigen::Vector2d& normal) {
+  return std::sqrt(normal.dot(q * normal));
+}
 
 // Splits [first, last) while some point lies farther than the threshold from the piece's least-squares line,
 // at the interior point farthest from the chord between the end points (the corner, for an L). Testing
@@ -44,7 +45,8 @@ void split(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::
   bool straight = true;
   for (std::size_t i = piece.first; i < piece.last && straight; ++i) {
     // 4σ: with a few hundred points per wall, 3σ would cut a straight wall at random.
-    straight = std::abs(normal.dot(points[i] - mean)) <= std::max(options.split_distance_m, 4.0 * normal_sigma(covs[i], normal));
+    straight = std::abs(normal.dot(points[i] - mean)) <=
+               std::max(options.split_distance_m, 4.0 * normal_sigma(covs[i], normal));
   }
   if (straight) {
     out.push_back(piece);
@@ -75,8 +77,9 @@ struct LocalSegment {
   LineSegment segment;  // sensor frame
 };
 
-std::optional<LocalSegment> fit_piece(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
-                                      Piece piece, const ScanLineOptions& options) {
+std::optional<LocalSegment> fit_piece(const std::vector<Eigen::Vector2d>& points,
+                                      const std::vector<Eigen::Matrix2d>& covs, Piece piece,
+                                      const ScanLineOptions& options) {
   const std::size_t n = piece.last - piece.first;
   if (n < options.min_points || n < 2) return std::nullopt;
   const std::span<const Eigen::Vector2d> p(points.data() + piece.first, n);
@@ -118,7 +121,8 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
   points.reserve(readings.size());
   covs.reserve(readings.size());
   for (const auto& r : readings) {
-    require(std::isfinite(r.range_m) && r.range_m > 0 && std::isfinite(r.bearing_rad), "a reading is not finite and > 0");
+    require(std::isfinite(r.range_m) && r.range_m > 0 && std::isfinite(r.bearing_rad),
+            "a reading is not finite and > 0");
     const double c = std::cos(r.bearing_rad), s = std::sin(r.bearing_rad);
     const double sigma_r = options.sigma_range_m + options.sigma_range_relative * r.range_m;
     // The bearing noise must not vanish entirely: a zero-variance direction makes Q singular.

@@ -1,9 +1,8 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "fusion/geometry/line.h"
 #include "fusion/geometry/pose2d.h"
@@ -12,14 +11,14 @@ namespace wm::fusion {
 
 /// Settings of the scan line extractor (split-and-merge, docs/fusion.md §2 for the fit).
 struct ScanLineOptions {
-  std::size_t min_points = 6;        // fewer points: no segment
-  double min_length_m = 0.3;         // shorter: no segment
-  double max_gap_m = 0.25;           // consecutive points farther apart start a new segment
-  double split_distance_m = 0.03;    // split where a point is farther than max(this, 3σ) from the chord
-  double merge_chi2 = 5.991;         // χ², 2 dof (95 %): adjacent segments whose lines agree are merged
-  double sigma_range_m = 0.01;       // range noise per reading, plus sigma_range_relative · range
+  std::size_t min_points = 6;      // fewer points: no segment
+  double min_length_m = 0.3;       // shorter: no segment
+  double max_gap_m = 0.25;         // consecutive points farther apart start a new segment
+  double split_distance_m = 0.03;  // split where a point is farther than max(this, 3σ) from the chord
+  double merge_chi2 = 5.991;       // χ², 2 dof (95 %): adjacent segments whose lines agree are merged
+  double sigma_range_m = 0.01;     // range noise per reading, plus sigma_range_relative · range
   double sigma_range_relative = 0.0;
-  double sigma_bearing_rad = 0.0005; // bearing noise per beam (angular jitter of the scanner)
+  double sigma_bearing_rad = 0.0005;  // bearing noise per beam (angular jitter of the scanner)
 };
 
 /// One range reading: its range [m] and bearing in the sensor frame [rad].

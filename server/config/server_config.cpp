@@ -1,13 +1,12 @@
 #include "server/config/server_config.h"
 
 #include <algorithm>
+#include <boost/asio/ip/address.hpp>
 #include <charconv>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <sstream>
-
-#include <boost/asio/ip/address.hpp>
 
 namespace wm::config {
 namespace {
@@ -17,7 +16,8 @@ T parse_number(const std::string& flag, const std::string& text, T min, T max) {
   T value{};
   auto [p, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
   if (ec != std::errc() || p != text.data() + text.size() || !(value >= min && value <= max))
-    throw ConfigError(flag + ": expected a number in [" + std::to_string(min) + ", " + std::to_string(max) + "], got '" + text + "'");
+    throw ConfigError(flag + ": expected a number in [" + std::to_string(min) + ", " + std::to_string(max) +
+                      "], got '" + text + "'");
   return value;
 }
 
@@ -47,7 +47,8 @@ std::string usage() {
          "  --floorplan FILE       load this JSON floor plan at start (replaces the stored one)\n"
          "  --token TOKEN          require 'Authorization: Bearer TOKEN' for requests that change state, dry runs\n"
          "                         and the events WebSocket (which also takes ?token=TOKEN)\n"
-         "  --insecure-no-token    allow a non-loopback --bind without --token (anyone who reaches the port can write)\n"
+         "  --insecure-no-token    allow a non-loopback --bind without --token (anyone who reaches the port can "
+         "write)\n"
          "  --allow-dry-run-without-token  allow POST /api/v1/rules/dry-run when no --token is set (default: 403)\n"
          "  --allowed-hosts LIST   comma-separated host names accepted in the Host header besides localhost,\n"
          "                         127.0.0.1, [::1] and the bind address (IP addresses always pass; '*': no check)\n"
@@ -60,12 +61,14 @@ std::string usage() {
          "  --gate-chi2 X          χ² gate (2 dof) for matching segments (default 5.991, 95 %)\n"
          "  --max-gap M            largest gap [m] between collinear extents still matched (default 0.10)\n"
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
-         "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at once)\n"
+         "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at "
+         "once)\n"
          "  --grid-extract-every N run the grid line extractor every N scans (default 0: POST /api/v1/grid/extract)\n"
          "  --no-scan-lines        laser scans update the grids only, without the scan line extractor\n"
          "  --layer-mapping FILE   DXF layer/block mapping (JSON) for uploads that bring none (default: built in)\n"
          "  --web DIR              the web viewer's files (default: the shipped clients/web; '' disables)\n"
-         "  --no-watch-rules       do not reload the rules when their files change (POST /api/v1/rules/reload still does)\n"
+         "  --no-watch-rules       do not reload the rules when their files change (POST /api/v1/rules/reload still "
+         "does)\n"
          "  --rule-inferences N    inference limit per decision and query (default 200000)\n"
          "  --rule-time-limit S    time limit per decision and query [s] (default 1)\n"
          "  --sync normal|full     SQLite synchronous mode (default full: durable across power loss)\n"
@@ -102,14 +105,21 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.api.allow_dry_run_without_token = true;
       continue;
     }
-    if (i + 1 >= args.size()) throw ConfigError(flag.rfind("--", 0) == 0 ? flag + ": missing value" : "unexpected argument '" + flag + "'");
+    if (i + 1 >= args.size())
+      throw ConfigError(flag.rfind("--", 0) == 0 ? flag + ": missing value" : "unexpected argument '" + flag + "'");
     const std::string& value = args[++i];
-    if (flag == "--db") c.store.path = value;
-    else if (flag == "--port") c.http.port = parse_number<unsigned short>(flag, value, 0, 65535);
-    else if (flag == "--bind") c.http.bind_address = value;
-    else if (flag == "--rules") c.rules.rules_dir = value;
-    else if (flag == "--floorplan") c.floor_plan_file = value;
-    else if (flag == "--web") c.api.web_dir = value;
+    if (flag == "--db")
+      c.store.path = value;
+    else if (flag == "--port")
+      c.http.port = parse_number<unsigned short>(flag, value, 0, 65535);
+    else if (flag == "--bind")
+      c.http.bind_address = value;
+    else if (flag == "--rules")
+      c.rules.rules_dir = value;
+    else if (flag == "--floorplan")
+      c.floor_plan_file = value;
+    else if (flag == "--web")
+      c.api.web_dir = value;
     else if (flag == "--layer-mapping") {
       std::ifstream in(value);
       if (!in) throw ConfigError("--layer-mapping: cannot read '" + value + "'");
@@ -120,15 +130,20 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       } catch (const std::exception& e) {
         throw ConfigError("--layer-mapping: " + std::string(e.what()));
       }
-    }
-    else if (flag == "--token") c.api.token = value;
-    else if (flag == "--max-body-bytes") c.http.max_body_bytes = parse_number<std::size_t>(flag, value, 1024, std::size_t{1} << 31);
-    else if (flag == "--threads") c.http.threads = parse_number<int>(flag, value, 1, 64);
-    else if (flag == "--handler-threads") c.http.handler_threads = parse_number<int>(flag, value, 1, 256);
-    else if (flag == "--handler-queue") c.http.handler_queue = parse_number<std::size_t>(flag, value, 1, 100000);
+    } else if (flag == "--token")
+      c.api.token = value;
+    else if (flag == "--max-body-bytes")
+      c.http.max_body_bytes = parse_number<std::size_t>(flag, value, 1024, std::size_t{1} << 31);
+    else if (flag == "--threads")
+      c.http.threads = parse_number<int>(flag, value, 1, 64);
+    else if (flag == "--handler-threads")
+      c.http.handler_threads = parse_number<int>(flag, value, 1, 256);
+    else if (flag == "--handler-queue")
+      c.http.handler_queue = parse_number<std::size_t>(flag, value, 1, 100000);
     else if (flag == "--allowed-hosts") {
       for (auto& host : comma_list(value)) {
-        if (host.find('/') != std::string::npos) throw ConfigError("--allowed-hosts: '" + host + "' is not a host name");
+        if (host.find('/') != std::string::npos)
+          throw ConfigError("--allowed-hosts: '" + host + "' is not a host name");
         if (host.front() != '[') host = host.substr(0, host.find(':'));  // a port, if given, is not compared
         extra_hosts.push_back(std::move(host));
       }
@@ -139,16 +154,20 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
           throw ConfigError("--allowed-origins: '" + origin + "' is not an origin like http://host:port");
         c.api.allowed_origins.push_back(std::move(origin));
       }
-    }
-    else if (flag == "--gate-chi2") c.service.world.match.gate_chi2 = parse_number<double>(flag, value, 0.01, 1e4);
-    else if (flag == "--max-gap") c.service.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
-    else if (flag == "--rule-inferences") c.rules.inference_limit = parse_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
-    else if (flag == "--rule-time-limit") c.rules.time_limit_s = parse_number<double>(flag, value, 0.001, 60.0);
+    } else if (flag == "--gate-chi2")
+      c.service.world.match.gate_chi2 = parse_number<double>(flag, value, 0.01, 1e4);
+    else if (flag == "--max-gap")
+      c.service.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
+    else if (flag == "--rule-inferences")
+      c.rules.inference_limit = parse_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
+    else if (flag == "--rule-time-limit")
+      c.rules.time_limit_s = parse_number<double>(flag, value, 0.001, 60.0);
     else if (flag == "--grid-flush-ms")
       c.service.grid_flush_interval = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 0, 86'400'000));
     else if (flag == "--grid-extract-every")
       c.service.grid_extract_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
-    else if (flag == "--grid-resolution") c.service.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
+    else if (flag == "--grid-resolution")
+      c.service.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";

@@ -53,7 +53,8 @@ void EventHub::publish(const std::string& event_json) {
     std::lock_guard lock(mutex_);
     seq = ++seq_;  // under the lock: every subscriber sees the events in seq order
     targets = subscribers_;
-    const std::string stamped = "{\"seq\":" + std::to_string(seq) + (event_json.size() > 2 ? "," : "") + event_json.substr(1);
+    const std::string stamped =
+        "{\"seq\":" + std::to_string(seq) + (event_json.size() > 2 ? "," : "") + event_json.substr(1);
     for (const auto& s : targets) s->push(stamped);
   }
 }

@@ -1,8 +1,8 @@
 #include "server/storage/sqlite.h"
 
-#include <cstring>
-
 #include <sqlite3.h>
+
+#include <cstring>
 
 namespace wm::storage {
 
@@ -39,7 +39,9 @@ Statement::Statement(Connection& connection, std::string_view sql) : db_(connect
 Statement::~Statement() { sqlite3_finalize(stmt_); }
 
 void Statement::check(int rc, const char* what) const {
-  if (rc != SQLITE_OK) throw StorageError(std::string("sqlite ") + what + ": " + sqlite3_errmsg(db_) + " (in: " + sql_.substr(0, 80) + ")");
+  if (rc != SQLITE_OK)
+    throw StorageError(std::string("sqlite ") + what + ": " + sqlite3_errmsg(db_) + " (in: " + sql_.substr(0, 80) +
+                       ")");
 }
 
 Statement& Statement::bind(int index, std::int64_t value) {
@@ -65,7 +67,9 @@ Statement& Statement::bind_null(int index) {
 Statement& Statement::bind(int index, const std::optional<std::string>& value) {
   return value ? bind(index, std::string_view(*value)) : bind_null(index);
 }
-Statement& Statement::bind(int index, const std::optional<double>& value) { return value ? bind(index, *value) : bind_null(index); }
+Statement& Statement::bind(int index, const std::optional<double>& value) {
+  return value ? bind(index, *value) : bind_null(index);
+}
 Statement& Statement::bind(int index, const std::optional<std::int64_t>& value) {
   return value ? bind(index, *value) : bind_null(index);
 }
@@ -91,7 +95,8 @@ std::int64_t Statement::column_int(int column) const { return sqlite3_column_int
 double Statement::column_double(int column) const { return sqlite3_column_double(stmt_, column); }
 std::string Statement::column_text(int column) const {
   const auto* text = sqlite3_column_text(stmt_, column);
-  return text ? std::string(reinterpret_cast<const char*>(text), static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column)))
+  return text ? std::string(reinterpret_cast<const char*>(text),
+                            static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column)))
               : std::string();
 }
 std::optional<std::string> Statement::column_optional_text(int column) const {

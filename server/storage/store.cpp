@@ -119,7 +119,8 @@ Matrix read_matrix(const Statement& s, int column) {
 
 }  // namespace
 
-Store::Store(const StoreOptions& options) : options_(options), writer_(options.path, true), reader_(options.path, false) {
+Store::Store(const StoreOptions& options)
+    : options_(options), writer_(options.path, true), reader_(options.path, false) {
   writer_.exec("PRAGMA journal_mode=WAL");
   writer_.exec(options_.synchronous_full ? "PRAGMA synchronous=FULL" : "PRAGMA synchronous=NORMAL");
   writer_.exec("PRAGMA foreign_keys=ON");
@@ -148,10 +149,14 @@ world::WorldState Store::load(const world::WorldOptions& options) {
     while (s.step()) {
       const auto key = s.column_text(0);
       const auto value = s.column_int(1);
-      if (key == "version") state.version = value;
-      else if (key == "next_element_number") state.next_element_number = value;
-      else if (key == "last_observation_seq") state.last_observation_seq = value;
-      else if (key == "last_decision_seq") state.last_decision_seq = value;
+      if (key == "version")
+        state.version = value;
+      else if (key == "next_element_number")
+        state.next_element_number = value;
+      else if (key == "last_observation_seq")
+        state.last_observation_seq = value;
+      else if (key == "last_decision_seq")
+        state.last_decision_seq = value;
     }
   }
   {
@@ -164,8 +169,9 @@ world::WorldState Store::load(const world::WorldOptions& options) {
     }
   }
   {
-    Statement s(writer_,
-                "SELECT ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version FROM objects ORDER BY ord");
+    Statement s(
+        writer_,
+        "SELECT ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version FROM objects ORDER BY ord");
     while (s.step()) {
       const auto ord = static_cast<std::size_t>(s.column_int(0));
       if (ord >= state.objects.size() || state.objects[ord].plan->id != s.column_text(1))
@@ -203,7 +209,8 @@ world::WorldState Store::load(const world::WorldOptions& options) {
 }
 
 void Store::write_counters(const world::WorldState& state) {
-  Statement s(writer_, "INSERT INTO meta(key, value) VALUES (?1, ?2) ON CONFLICT(key) DO UPDATE SET value = excluded.value");
+  Statement s(writer_,
+              "INSERT INTO meta(key, value) VALUES (?1, ?2) ON CONFLICT(key) DO UPDATE SET value = excluded.value");
   s.bind(1, std::string_view("version")).bind(2, state.version).run();
   s.bind(1, std::string_view("next_element_number")).bind(2, state.next_element_number).run();
   s.bind(1, std::string_view("last_observation_seq")).bind(2, state.last_observation_seq).run();
@@ -211,11 +218,12 @@ void Store::write_counters(const world::WorldState& state) {
 }
 
 void Store::write_objects(const world::UpdateResult& update) {
-  Statement s(writer_,
-              "INSERT INTO objects(ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version) "
-              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9) ON CONFLICT(ord) DO UPDATE SET id = excluded.id, x = excluded.x, "
-              "y = excluded.y, theta = excluded.theta, pose_cov = excluded.pose_cov, confirmations = excluded.confirmations, "
-              "adjustments = excluded.adjustments, updated_version = excluded.updated_version");
+  Statement s(
+      writer_,
+      "INSERT INTO objects(ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version) "
+      "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9) ON CONFLICT(ord) DO UPDATE SET id = excluded.id, x = excluded.x, "
+      "y = excluded.y, theta = excluded.theta, pose_cov = excluded.pose_cov, confirmations = excluded.confirmations, "
+      "adjustments = excluded.adjustments, updated_version = excluded.updated_version");
   for (auto index : update.changed_objects) {
     const auto& o = update.state.objects.at(index);
     const auto& pose = o.body.pose();
@@ -228,8 +236,9 @@ void Store::write_objects(const world::UpdateResult& update) {
 
 void Store::insert_observation(std::int64_t seq, std::string_view kind, const std::string& observer, double stamp,
                                std::string_view payload) {
-  run(writer_, "INSERT INTO observations(seq, kind, observer, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-      seq, kind, std::string_view(observer), stamp, now_unix_s(), payload);
+  run(writer_,
+      "INSERT INTO observations(seq, kind, observer, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5, ?6)", seq,
+      kind, std::string_view(observer), stamp, now_unix_s(), payload);
 }
 
 void Store::commit_observation(const world::UpdateResult& update, const world::Observation& observation,
@@ -245,12 +254,13 @@ void Store::write_observation(const ObservationEntry& entry) {
   insert_observation(update.state.last_observation_seq, entry.observation.origin, entry.observation.observer,
                      entry.observation.stamp_s, entry.payload);
   {
-    Statement s(writer_,
-                "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
-                "updated_version, updated_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12) "
-                "ON CONFLICT(number) DO UPDATE SET "
-                "rho = excluded.rho, phi = excluded.phi, cov = excluded.cov, t0 = excluded.t0, t1 = excluded.t1, "
-                "support = excluded.support, updated_version = excluded.updated_version, updated_at = excluded.updated_at");
+    Statement s(
+        writer_,
+        "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
+        "updated_version, updated_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12) "
+        "ON CONFLICT(number) DO UPDATE SET "
+        "rho = excluded.rho, phi = excluded.phi, cov = excluded.cov, t0 = excluded.t0, t1 = excluded.t1, "
+        "support = excluded.support, updated_version = excluded.updated_version, updated_at = excluded.updated_at");
     for (auto number : update.changed_elements) {
       const auto& e = update.state.elements.at(number);
       s.bind(1, e.number).bind(2, e.segment.line.rho_m).bind(3, e.segment.line.phi_rad);
@@ -266,11 +276,12 @@ void Store::write_observation(const ObservationEntry& entry) {
   }
   write_objects(update);
   {
-    Statement s(writer_,
-                "INSERT INTO decisions(seq, observation_seq, idx, action, rule, explanation, element, object, "
-                "mahalanobis_sq, fallback, observer, p0x, p0y, p1x, p1y, origin, sensor, matched_element, matched_object, "
-                "observed, before, after) "
-                "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22)");
+    Statement s(
+        writer_,
+        "INSERT INTO decisions(seq, observation_seq, idx, action, rule, explanation, element, object, "
+        "mahalanobis_sq, fallback, observer, p0x, p0y, p1x, p1y, origin, sensor, matched_element, matched_object, "
+        "observed, before, after) "
+        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22)");
     for (const auto& d : update.decisions) {
       s.bind(1, d.seq).bind(2, d.observation_seq).bind(3, d.index);
       s.bind(4, rules::wire_name(d.action)).bind(5, std::string_view(d.rule)).bind(6, std::string_view(d.explanation));
@@ -279,8 +290,8 @@ void Store::write_observation(const ObservationEntry& entry) {
       s.bind(12, d.p0.x()).bind(13, d.p0.y()).bind(14, d.p1.x()).bind(15, d.p1.y());
       s.bind(16, std::string_view(d.origin)).bind(17, std::string_view(d.sensor));
       s.bind(18, d.matched_element).bind(19, d.matched_object);
-      const std::vector<double> observed{d.rho_m, d.phi_rad, d.observed_cov(0, 0), d.observed_cov(0, 1),
-                                         d.observed_cov(1, 0), d.observed_cov(1, 1)};
+      const std::vector<double> observed{
+          d.rho_m, d.phi_rad, d.observed_cov(0, 0), d.observed_cov(0, 1), d.observed_cov(1, 0), d.observed_cov(1, 1)};
       bind_doubles(s, 20, observed);
       bind_doubles(s, 21, d.before);
       bind_doubles(s, 22, d.after);
@@ -344,7 +355,8 @@ world::DecisionRecord read_decision(const Statement& s) {
   d.index = s.column_int(2);
   const std::string action = s.column_text(3);
   const auto parsed = rules::parse_action(action);
-  if (!parsed) throw std::runtime_error("decision log: unknown action '" + action + "' (database written by a newer server?)");
+  if (!parsed)
+    throw std::runtime_error("decision log: unknown action '" + action + "' (database written by a newer server?)");
   d.action = *parsed;
   d.rule = s.column_text(4);
   d.explanation = s.column_text(5);
@@ -390,9 +402,9 @@ std::vector<world::DecisionRecord> select_decisions(Connection& db, std::string_
 std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std::size_t limit,
                                                     const std::optional<std::string>& element) {
   std::lock_guard lock(reader_mutex_);
-  return select_decisions(reader_,
-                          "WHERE seq > ?1 AND (?2 IS NULL OR element = ?2 OR matched_element = ?2) ORDER BY seq LIMIT ?3",
-                          since_seq, element, static_cast<std::int64_t>(limit));
+  return select_decisions(
+      reader_, "WHERE seq > ?1 AND (?2 IS NULL OR element = ?2 OR matched_element = ?2) ORDER BY seq LIMIT ?3",
+      since_seq, element, static_cast<std::int64_t>(limit));
 }
 
 void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines,
@@ -404,8 +416,10 @@ void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEn
               "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)");
   s.bind(1, scan.seq).bind(2, scan.observer).bind(3, scan.sensor).bind(4, scan.stamp_s).bind(5, now_unix_s());
   s.bind(6, scan.payload);
-  if (lines) s.bind(7, lines->update.state.last_observation_seq);
-  else s.bind_null(7);
+  if (lines)
+    s.bind(7, lines->update.state.last_observation_seq);
+  else
+    s.bind_null(7);
   s.run();
   if (request) write_request(*request);
   tx.commit();
@@ -500,7 +514,8 @@ std::vector<world::DecisionRecord> Store::object_decisions(const std::string& ob
 
 std::vector<world::DecisionRecord> Store::latest_decisions(std::size_t count) {
   std::lock_guard lock(reader_mutex_);
-  auto result = select_decisions(reader_, "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1", static_cast<std::int64_t>(count));
+  auto result =
+      select_decisions(reader_, "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1", static_cast<std::int64_t>(count));
   std::reverse(result.begin(), result.end());
   return result;
 }

@@ -7,8 +7,8 @@
 #include <string_view>
 #include <vector>
 
-#include "server/storage/sqlite.h"
 #include "fusion/grid/occupancy_grid.h"
+#include "server/storage/sqlite.h"
 #include "server/world/update.h"
 
 namespace wm::storage {
@@ -27,12 +27,12 @@ struct StoreOptions {
 /// effect) so that a retry is answered the same without being applied again.
 struct RequestRecord {
   std::string request_id;
-  std::string kind;            // "primitives" or "scan"
-  std::int64_t body_hash = 0;  // of the request body, to refuse the same id with another body
-  std::int64_t seq = 0;        // primitives: the observation; scan: the scan's journal sequence
-  std::int64_t version = 0;    // the map version after the observation (a scan: after its lines; 0 without)
-  std::int64_t grid_revision = 0;           // scan only
-  std::optional<std::int64_t> lines_seq;    // scan only: the observation of its extracted lines, if any
+  std::string kind;                       // "primitives" or "scan"
+  std::int64_t body_hash = 0;             // of the request body, to refuse the same id with another body
+  std::int64_t seq = 0;                   // primitives: the observation; scan: the scan's journal sequence
+  std::int64_t version = 0;               // the map version after the observation (a scan: after its lines; 0 without)
+  std::int64_t grid_revision = 0;         // scan only
+  std::optional<std::int64_t> lines_seq;  // scan only: the observation of its extracted lines, if any
 };
 
 /// One scan for the journal: its request body is what is replayed into the grid at start.

@@ -35,8 +35,9 @@ Candidates collect_candidates(const WorldState& state, const WorldOptions& optio
   return c;
 }
 
-rules::DecisionQuery make_query(const WorldState& state, const Observation& observation, const fusion::LineSegment& seen,
-                                const std::optional<fusion::MatchResult>& match, const Candidates& candidates) {
+rules::DecisionQuery make_query(const WorldState& state, const Observation& observation,
+                                const fusion::LineSegment& seen, const std::optional<fusion::MatchResult>& match,
+                                const Candidates& candidates) {
   rules::DecisionQuery q;
   q.observer = observation.observer;
   q.origin = observation.origin;

@@ -21,9 +21,9 @@ struct ObservedSegment {
 /// client) that saw it, `origin` how the segments were made: posted by a client, extracted from a scan or from
 /// the grid. (The JSON field "source" that clients send is the observer; the codec maps it.)
 struct Observation {
-  std::string observer;           // e.g. robot-1
-  std::string origin = "client";  // client | scan | grid
-  std::string sensor = "unknown"; // laser | sonar | ... (what observation_sensor/1 tells the rules)
+  std::string observer;            // e.g. robot-1
+  std::string origin = "client";   // client | scan | grid
+  std::string sensor = "unknown";  // laser | sonar | ... (what observation_sensor/1 tells the rules)
   double stamp_s = 0.0;
   double received_at_unix_s = 0.0;  // server wall clock
   std::vector<ObservedSegment> segments;
@@ -31,9 +31,9 @@ struct Observation {
 
 /// What the knowledge base decided for one segment and what the server did with it.
 struct DecisionRecord {
-  std::int64_t seq = 0;              // global decision sequence number
-  std::int64_t observation_seq = 0;  // the request it belongs to
-  std::int64_t index = 0;            // position of the segment in the request
+  std::int64_t seq = 0;                       // global decision sequence number
+  std::int64_t observation_seq = 0;           // the request it belongs to
+  std::int64_t index = 0;                     // position of the segment in the request
   rules::Action action = rules::Action::add;  // what the server did (after any fallback)
   std::string rule;
   std::string explanation;
@@ -49,7 +49,7 @@ struct DecisionRecord {
   std::string sensor = "unknown";
   Eigen::Vector2d p0 = Eigen::Vector2d::Zero();  // the observed segment [m]
   Eigen::Vector2d p1 = Eigen::Vector2d::Zero();
-  double rho_m = 0, phi_rad = 0;                  // the observed line and its covariance
+  double rho_m = 0, phi_rad = 0;  // the observed line and its covariance
   Eigen::Matrix2d observed_cov = Eigen::Matrix2d::Zero();
   /// What the action changed, for explanations: merge → the element's [ρ, φ, C(2×2 row-major)];
   /// rigid_adjust → the object's [x, y, θ, C(3×3 row-major)]; empty otherwise.
@@ -71,8 +71,8 @@ struct UpdateResult {
 using Decide = std::function<rules::Decision(const rules::DecisionQuery&)>;
 
 /// Matches each segment in order against the current map (a-priori edges and elements), asks `decide`,
-/// and applies the action: confirm (wire name "delete": count a confirmation), merge (Kalman fusion into an element; into a CAD
-/// edge: a new element starting from the fusion of the edge and the observation, the drawing unchanged),
+/// and applies the action: confirm (wire name "delete": count a confirmation), merge (Kalman fusion into an element;
+/// into a CAD edge: a new element starting from the fusion of the edge and the observation, the drawing unchanged),
 /// rigid_adjust (EKF on the object's pose), add (new element), ignore (nothing changes). An action the
 /// server cannot apply to the match (merge or rigid_adjust without a match, rigid_adjust on an element,
 /// an unknown action) becomes the documented fallback: add, with fallback = true. `current` is not changed.

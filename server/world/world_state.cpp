@@ -24,7 +24,8 @@ const Element* WorldState::find_element(const std::string& id) const {
   return it == elements.end() ? nullptr : &it->second;
 }
 
-std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options, std::int64_t version) {
+std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
+                                      std::int64_t version) {
   std::vector<ObjectState> objects;
   objects.reserve(plan.objects.size());
   for (const auto& drawn : plan.objects) {

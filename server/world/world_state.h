@@ -1,5 +1,6 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -7,8 +8,6 @@
 #include <string>
 #include <unordered_map>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "apriori/floor_plan.h"
 #include "fusion/geometry/line.h"
@@ -75,7 +74,8 @@ struct WorldState {
 };
 
 /// Builds the object states of a plan (poses as drawn). @throw std::invalid_argument from fusion on bad geometry.
-std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options, std::int64_t version);
+std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
+                                      std::int64_t version);
 void rebuild_object_index(WorldState& state);
 
 /// (ρ, φ) covariance of a line known to σ_offset [m] across the segment's midpoint and σ_angle [rad] in

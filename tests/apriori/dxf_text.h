@@ -32,8 +32,8 @@ inline std::string dxf_circle(const std::string& handle, const std::string& laye
          num(r) + "\n";
 }
 
-inline std::string dxf_insert(const std::string& handle, const std::string& layer, const std::string& block,
-                              double x, double y, double scale = 1.0, double rotation_deg = 0.0) {
+inline std::string dxf_insert(const std::string& handle, const std::string& layer, const std::string& block, double x,
+                              double y, double scale = 1.0, double rotation_deg = 0.0) {
   return "  0\nINSERT\n  5\n" + handle + "\n  8\n" + layer + "\n  2\n" + block + "\n 10\n" + num(x) + "\n 20\n" +
          num(y) + "\n 41\n" + num(scale) + "\n 42\n" + num(scale) + "\n 50\n" + num(rotation_deg) + "\n";
 }

@@ -1,8 +1,8 @@
 #include "apriori/floor_plan.h"
 
-#include <cmath>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 
 namespace wm::apriori {
 namespace {
@@ -60,21 +60,29 @@ TEST(FloorPlanTest, CanonicalJsonRoundTripsExactly) {
 
 TEST(FloorPlanTest, ErrorsNameTheBadField) {
   EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "pose": {"x": 0, "y": "1", "theta": 0},
-                          "segments": [[[0,0],[1,0]]]}]})"), "objects[0].pose.y");
+                          "segments": [[[0,0],[1,0]]]}]})"),
+            "objects[0].pose.y");
   EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0,0],[1e300,0]]]}]})"),
             "objects[0].segments[0][1][0]");
-  EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0,0]]]}]})"), "objects[0].segments[0]");
+  EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0,0]]]}]})"),
+            "objects[0].segments[0]");
   EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0,0],[1,0]]]},
-                                        {"id": "a", "kind": "wall", "segments": [[[0,0],[1,0]]]}]})"), "objects[1].id");
+                                        {"id": "a", "kind": "wall", "segments": [[[0,0],[1,0]]]}]})"),
+            "objects[1].id");
   EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall"}]})"), "objects[0]");
-  EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "attributes": ["Solid!"], "segments": [[[0,0],[1,0]]]}]})"),
+  EXPECT_EQ(error_path(
+                R"({"objects": [{"id": "a", "kind": "wall", "attributes": ["Solid!"], "segments": [[[0,0],[1,0]]]}]})"),
             "objects[0].attributes[0]");
-  EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segmnets": [[[0,0],[1,0]]]}]})"), "objects[0].segmnets");
-  EXPECT_EQ(error_path(R"({"objects": [{"id": "a/b", "kind": "wall", "segments": [[[0,0],[1,0]]]}]})"), "objects[0].id");
-  EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0,0],[0,0]]]}]})"), "objects[0].segments[0][1]");
+  EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segmnets": [[[0,0],[1,0]]]}]})"),
+            "objects[0].segmnets");
+  EXPECT_EQ(error_path(R"({"objects": [{"id": "a/b", "kind": "wall", "segments": [[[0,0],[1,0]]]}]})"),
+            "objects[0].id");
+  EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0,0],[0,0]]]}]})"),
+            "objects[0].segments[0][1]");
   EXPECT_EQ(error_path(R"({"units": "ft", "objects": []})"), "units");
   EXPECT_EQ(error_path(R"({"objects": [{"id": "a", "kind": "t", "pose_cov": [[1,0,0],[0,1,0],[0,0,-1]],
-                          "polygon": [[0,0],[1,0],[1,1]]}]})"), "objects[0].pose_cov");
+                          "polygon": [[0,0],[1,0],[1,1]]}]})"),
+            "objects[0].pose_cov");
   EXPECT_EQ(error_path(R"({"objects": {}})"), "objects");
   EXPECT_EQ(error_path(R"({"objects": [)"), "");  // malformed JSON: no field to name
   EXPECT_EQ(error_path(R"([1, 2])"), "");

@@ -2,13 +2,12 @@
 
 // Helpers for the apriori import tests: files, and world-frame views of imported objects.
 
+#include <Eigen/Core>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "apriori/floor_plan.h"
 

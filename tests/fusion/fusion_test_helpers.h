@@ -1,10 +1,9 @@
 #pragma once
 
-#include <cmath>
-#include <numbers>
-
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <cmath>
+#include <numbers>
 
 #include "fusion/geometry/angle.h"
 
@@ -36,12 +35,15 @@ inline Eigen::Vector2d line_through(const Eigen::Vector2d& a, const Eigen::Vecto
 
 template <typename Matrix>
 double min_eigenvalue(const Matrix& m) {
-  return Eigen::SelfAdjointEigenSolver<Matrix>(0.5 * (m + m.transpose()), Eigen::EigenvaluesOnly).eigenvalues().minCoeff();
+  return Eigen::SelfAdjointEigenSolver<Matrix>(0.5 * (m + m.transpose()), Eigen::EigenvaluesOnly)
+      .eigenvalues()
+      .minCoeff();
 }
 
 /// Rotation of the diagonal covariance diag(a, b) by angle [rad].
 inline Eigen::Matrix2d rotated_cov(double a, double b, double angle) {
-  const Eigen::Matrix2d r = (Eigen::Matrix2d() << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle)).finished();
+  const Eigen::Matrix2d r =
+      (Eigen::Matrix2d() << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle)).finished();
   return r * Eigen::Vector2d(a, b).asDiagonal() * r.transpose();
 }
 

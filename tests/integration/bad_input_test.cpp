@@ -37,12 +37,12 @@ TEST_F(BadInputTest, EveryKindOfBadInputIsRefusedAndChangesNothing) {
   const std::vector<BadRequestCase> cases = {
       {"malformed JSON", "POST", "/api/v1/primitives", R"({"segments": [)", "application/json", 400, "malformed JSON"},
       {"not an object", "POST", "/api/v1/primitives", "[1, 2, 3]", "application/json", 400, "expected an object"},
-      {"wrong type", "POST", "/api/v1/primitives", R"({"segments": [{"p0": ["1", 1], "p1": [2, 1]}]})", "application/json",
-       400, "segments[0].p0[0]"},
+      {"wrong type", "POST", "/api/v1/primitives", R"({"segments": [{"p0": ["1", 1], "p1": [2, 1]}]})",
+       "application/json", 400, "segments[0].p0[0]"},
       {"missing field", "POST", "/api/v1/primitives", R"({"segments": [{"p0": [1, 1]}]})", "application/json", 400,
        "segments[0].p1"},
-      {"NaN literal", "POST", "/api/v1/primitives", R"({"segments": [{"p0": [NaN, 1], "p1": [2, 1]}]})", "application/json",
-       400, "malformed JSON"},
+      {"NaN literal", "POST", "/api/v1/primitives", R"({"segments": [{"p0": [NaN, 1], "p1": [2, 1]}]})",
+       "application/json", 400, "malformed JSON"},
       {"infinity by overflow", "POST", "/api/v1/primitives", R"({"segments": [{"p0": [1e999, 1], "p1": [2, 1]}]})",
        "application/json", 400, "number overflow parsing '1e999'"},
       {"absurd coordinate", "POST", "/api/v1/primitives", R"({"segments": [{"p0": [1e12, 1], "p1": [2, 1]}]})",
@@ -62,11 +62,13 @@ TEST_F(BadInputTest, EveryKindOfBadInputIsRefusedAndChangesNothing) {
       {"wrong content type", "POST", "/api/v1/primitives", std::string(R"({"segments": [)") + ok_segment + "]}",
        "text/plain", 415, "application/json"},
       {"truncated DXF", "PUT", "/api/v1/floorplan", "0\nSECTION\n", "image/vnd.dxf", 400, ""},
-      {"binary DXF", "PUT", "/api/v1/floorplan", std::string("AutoCAD Binary DXF\r\n\x1a\0", 22), "image/vnd.dxf", 400, "inary"},
-      {"bad import envelope", "PUT", "/api/v1/floorplan", R"({"import": {"format": "dwg", "data": "x"}})", "application/json",
-       400, "import.format"},
-      {"bad floor plan", "PUT", "/api/v1/floorplan", R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0, 0]]]}]})",
-       "application/json", 400, "objects[0].segments[0]"},
+      {"binary DXF", "PUT", "/api/v1/floorplan", std::string("AutoCAD Binary DXF\r\n\x1a\0", 22), "image/vnd.dxf", 400,
+       "inary"},
+      {"bad import envelope", "PUT", "/api/v1/floorplan", R"({"import": {"format": "dwg", "data": "x"}})",
+       "application/json", 400, "import.format"},
+      {"bad floor plan", "PUT", "/api/v1/floorplan",
+       R"({"objects": [{"id": "a", "kind": "wall", "segments": [[[0, 0]]]}]})", "application/json", 400,
+       "objects[0].segments[0]"},
       {"floor plan NaN pose", "PUT", "/api/v1/floorplan",
        R"({"objects": [{"id": "a", "kind": "wall", "pose": {"x": 1e400, "y": 0, "theta": 0}, "segments": [[[0, 0], [1, 0]]]}]})",
        "application/json", 400, "number overflow parsing '1e400'"},
@@ -117,8 +119,8 @@ TEST_F(BadInputTest, GarbageOnTheSocketGets400AndTheServerKeepsServing) {
 
 TEST_F(ServerFixture, TokenGuardsStateChanges) {
   server_->stop();
-  server_ = std::make_unique<WmdProcess>(std::vector<std::string>{
-      "--db", (dir_.path() / "token.db").string(), "--port", "0", "--rules", WM_RULES_DIR, "--token", "s3cret"});
+  server_ = std::make_unique<WmdProcess>(std::vector<std::string>{"--db", (dir_.path() / "token.db").string(), "--port",
+                                                                  "0", "--rules", WM_RULES_DIR, "--token", "s3cret"});
   client::HttpClient http(server_->url());
   EXPECT_EQ(http.request("PUT", "/api/v1/floorplan", lab_plan().dump()).status, 401);
   EXPECT_EQ(http.request("PUT", "/api/v1/floorplan", lab_plan().dump(), "application/json", "wrong").status, 401);

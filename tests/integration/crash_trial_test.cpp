@@ -5,6 +5,7 @@
 //
 // WM_CRASH_TRIALS=N sets the number of trials (default 20, what CI runs); scripts/crash_trials.sh N runs more.
 // WM_CRASH_SEED=S replays a run (the seed is printed).
+#include <gtest/gtest.h>
 #include <sqlite3.h>
 
 #include <algorithm>
@@ -15,15 +16,13 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
 #include <set>
 #include <string>
 #include <thread>
 #include <vector>
-
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include "clients/logs/carmen_log_reader.h"
 #include "e2e_fixture.h"
@@ -98,10 +97,16 @@ json scan_body(const fusion::LaserScan& scan, double stamp) {
   json ranges = json::array();
   for (const double r : scan.ranges_m) ranges.push_back(std::isfinite(r) ? json(r) : json(nullptr));
   const double sxy = 0.03, sth = 0.5 * M_PI / 180;  // as wmctl replay: corrected poses, good but not exact
-  return {{"sensor", "laser"}, {"source", "crash-robot"}, {"stamp", stamp},
+  return {{"sensor", "laser"},
+          {"source", "crash-robot"},
+          {"stamp", stamp},
           {"pose", {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
-          {"angle_min", scan.angle_min_rad}, {"angle_increment", scan.angle_increment_rad}, {"ranges", ranges},
-          {"range_min", scan.range_min_m}, {"range_max", scan.range_max_m}, {"sigma_range", scan.sigma_range_m},
+          {"angle_min", scan.angle_min_rad},
+          {"angle_increment", scan.angle_increment_rad},
+          {"ranges", ranges},
+          {"range_min", scan.range_min_m},
+          {"range_max", scan.range_max_m},
+          {"sigma_range", scan.sigma_range_m},
           {"pose_cov", {{sxy * sxy, 0, 0}, {0, sxy * sxy, 0}, {0, 0, sth * sth}}}};
 }
 
@@ -117,7 +122,8 @@ std::optional<json> primitives_body(const fusion::LaserScan& scan, double stamp)
   if (hits.size() < 4) return std::nullopt;
   json segments = json::array();
   for (std::size_t k = 0; k < 2; ++k)
-    segments.push_back({{"p0", {hits[2 * k].x(), hits[2 * k].y()}}, {"p1", {hits[2 * k + 1].x(), hits[2 * k + 1].y()}}});
+    segments.push_back(
+        {{"p0", {hits[2 * k].x(), hits[2 * k].y()}}, {"p1", {hits[2 * k + 1].x(), hits[2 * k + 1].y()}}});
   return json{{"source", "crash-robot"}, {"stamp", stamp}, {"sensor", "laser"}, {"segments", segments}};
 }
 
@@ -145,7 +151,10 @@ class CrashTrialTest : public ::testing::Test {
   }
 
   std::filesystem::path db() const { return dir_.path() / "wm.db"; }
-  void start() { server_ = std::make_unique<WmdProcess>(std::vector<std::string>{"--db", db().string(), "--port", "0", "--rules", WM_RULES_DIR}); }
+  void start() {
+    server_ = std::make_unique<WmdProcess>(
+        std::vector<std::string>{"--db", db().string(), "--port", "0", "--rules", WM_RULES_DIR});
+  }
   int port() const { return server_->port(); }
   const std::string& pool(Kind kind, std::size_t i) const { return kind == Kind::scan ? scans_[i] : primitives_[i]; }
   static const char* target(Kind kind) { return kind == Kind::scan ? "/api/v1/scans" : "/api/v1/primitives"; }
@@ -222,8 +231,9 @@ TEST_F(CrashTrialTest, TheGridRevisionNeverGoesBackAcrossRestarts) {
 
 TEST_F(CrashTrialTest, KillNineDuringConcurrentIngestLosesNothingAndAppliesNothingTwiceOrByHalf) {
   const int trials = std::getenv("WM_CRASH_TRIALS") ? std::atoi(std::getenv("WM_CRASH_TRIALS")) : 20;
-  const auto seed = std::getenv("WM_CRASH_SEED") ? static_cast<unsigned>(std::strtoul(std::getenv("WM_CRASH_SEED"), nullptr, 10))
-                                                 : std::random_device{}();
+  const auto seed = std::getenv("WM_CRASH_SEED")
+                        ? static_cast<unsigned>(std::strtoul(std::getenv("WM_CRASH_SEED"), nullptr, 10))
+                        : std::random_device{}();
   std::cout << "crash trials: " << trials << ", WM_CRASH_SEED=" << seed << "\n";
   std::mt19937 rng(seed);
 
@@ -293,7 +303,8 @@ TEST_F(CrashTrialTest, KillNineDuringConcurrentIngestLosesNothingAndAppliesNothi
       for (auto& row : file.rows("SELECT request_id, kind, seq, grid_revision, lines_seq FROM requests"))
         stored[row[0]] = {row[1], row[2], row[3], row[4]};
       // Every scan and every client observation came from one of our requests, once.
-      ASSERT_EQ(file.number("SELECT COUNT(*) FROM scans"), file.number("SELECT COUNT(*) FROM requests WHERE kind = 'scan'"));
+      ASSERT_EQ(file.number("SELECT COUNT(*) FROM scans"),
+                file.number("SELECT COUNT(*) FROM requests WHERE kind = 'scan'"));
       ASSERT_EQ(file.number("SELECT COUNT(*) FROM observations WHERE kind = 'client'"),
                 file.number("SELECT COUNT(*) FROM requests WHERE kind = 'primitives'"));
       ASSERT_EQ(file.number("SELECT COUNT(*) FROM observations WHERE kind = 'scan'"),
@@ -302,8 +313,10 @@ TEST_F(CrashTrialTest, KillNineDuringConcurrentIngestLosesNothingAndAppliesNothi
       // Nothing half applied: each stored request has its journal entry and exactly the decisions its body
       // yields (a scan: its line observation iff its body has lines).
       std::map<std::string, std::int64_t> scan_lines, decisions_of;
-      for (auto& row : file.rows("SELECT seq, COALESCE(lines_seq, 'NULL') FROM scans")) scan_lines[row[0]] = row[1] == "NULL" ? 0 : std::stoll(row[1]);
-      for (auto& row : file.rows("SELECT observation_seq, COUNT(*) FROM decisions WHERE idx >= 0 GROUP BY observation_seq"))
+      for (auto& row : file.rows("SELECT seq, COALESCE(lines_seq, 'NULL') FROM scans"))
+        scan_lines[row[0]] = row[1] == "NULL" ? 0 : std::stoll(row[1]);
+      for (auto& row :
+           file.rows("SELECT observation_seq, COUNT(*) FROM decisions WHERE idx >= 0 GROUP BY observation_seq"))
         decisions_of[row[0]] = std::stoll(row[1]);
       for (const auto& [id, row] : stored) {
         const auto it = sent.find(id);
@@ -358,7 +371,8 @@ TEST_F(CrashTrialTest, KillNineDuringConcurrentIngestLosesNothingAndAppliesNothi
         s.acknowledged = answer;
       }
       if (s.kind == Kind::scan) {
-        ASSERT_EQ(answer["lines"].is_null() ? 0 : segments_of(answer["lines"]["decisions"]), scan_segments[s.body]) << id;
+        ASSERT_EQ(answer["lines"].is_null() ? 0 : segments_of(answer["lines"]["decisions"]), scan_segments[s.body])
+            << id;
         max_revision = std::max(max_revision, answer["grid_revision"].get<std::int64_t>());
       }
     }
@@ -367,9 +381,9 @@ TEST_F(CrashTrialTest, KillNineDuringConcurrentIngestLosesNothingAndAppliesNothi
   server_->stop();
   const auto seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   std::cout << "crash trials: " << trials << " kills in " << seconds << " s; " << acknowledged_total
-            << " acknowledged requests retried and answered the same, " << unknown_total
-            << " cut off by the kill (" << committed_unknown << " had committed, the rest applied on retry), "
-            << retried << " retries, grid revision " << max_revision << "\n";
+            << " acknowledged requests retried and answered the same, " << unknown_total << " cut off by the kill ("
+            << committed_unknown << " had committed, the rest applied on retry), " << retried
+            << " retries, grid revision " << max_revision << "\n";
 }
 
 }  // namespace

@@ -16,7 +16,8 @@ TEST_F(ServerFixture, TheBarcelonaPavilionLoadsWithItsLayersMapped) {
                                             "Furniture": {"kind": "furniture", "attributes": ["not_deformable"], "cluster": true},
                                             "*": {"ignore": true}}})";
   const auto plan = real_data("barcelona-pavilion/plan.dxf", "plans/barcelona-pavilion.dxf");
-  const auto r = run_command(wmctl(server_->url(), "--json floorplan load " + plan.string() + " --mapping " + mapping.string()));
+  const auto r =
+      run_command(wmctl(server_->url(), "--json floorplan load " + plan.string() + " --mapping " + mapping.string()));
   ASSERT_EQ(r.status, 0) << r.output;
   const auto answer = json::parse(r.output);
   const auto& report = answer["report"];
@@ -88,7 +89,8 @@ TEST_F(ServerFixture, ABadDrawingChangesNothing) {
   send_json("PUT", "/api/v1/floorplan", lab_plan());
   const auto before = get_json("/api/v1/map");
   const auto dxf = slurp(real_data("barcelona-pavilion/plan.dxf", "plans/barcelona-pavilion.dxf"));
-  for (const auto& body : {dxf.substr(0, dxf.size() / 2), std::string("AutoCAD Binary DXF\r\n\x1a", 21) + std::string(40, '\0')}) {
+  for (const auto& body :
+       {dxf.substr(0, dxf.size() / 2), std::string("AutoCAD Binary DXF\r\n\x1a", 21) + std::string(40, '\0')}) {
     const auto r = call("PUT", "/api/v1/floorplan", body, "image/vnd.dxf");
     EXPECT_EQ(r.status, 400) << r.body.substr(0, 200);
   }

@@ -1,15 +1,14 @@
 // Scans through the running wmd: both grids, the map_server export, persistence, scan lines, live events.
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/websocket.hpp>
 #include <chrono>
 #include <cmath>
 #include <numbers>
 #include <optional>
 #include <sstream>
 #include <thread>
-
-#include <boost/asio/connect.hpp>
-#include <boost/asio/ip/tcp.hpp>
-#include <boost/beast/core.hpp>
-#include <boost/beast/websocket.hpp>
 
 #include "e2e_fixture.h"
 
@@ -41,9 +40,15 @@ std::optional<double> cast(double px, double py, double angle) {
 json room_scan(double x, double y, double theta) {
   json ranges = json::array();
   for (int i = 0; i < 720; ++i) ranges.push_back(*cast(x, y, theta - std::numbers::pi + i * std::numbers::pi / 360));
-  return {{"sensor", "laser"}, {"source", "robot-1"}, {"pose", {{"x", x}, {"y", y}, {"theta", theta}}},
-          {"angle_min", -std::numbers::pi}, {"angle_increment", std::numbers::pi / 360}, {"ranges", ranges},
-          {"range_min", 0.05}, {"range_max", 20.0}, {"sigma_range", 0.01}};
+  return {{"sensor", "laser"},
+          {"source", "robot-1"},
+          {"pose", {{"x", x}, {"y", y}, {"theta", theta}}},
+          {"angle_min", -std::numbers::pi},
+          {"angle_increment", std::numbers::pi / 360},
+          {"ranges", ranges},
+          {"range_min", 0.05},
+          {"range_max", 20.0},
+          {"sigma_range", 0.01}};
 }
 
 struct Pgm {
@@ -332,7 +337,8 @@ TEST_F(GridTest, BadScansAreRefusedAndChangeNothing) {
 
 TEST_F(GridTest, ASonarConeMarksItsArcAndFreesInside) {
   json sonar = {{"sensor", "sonar"}, {"source", "robot-2"}, {"pose", {{"x", 4}, {"y", 3}, {"theta", 0}}},
-                {"angles", {0.0}}, {"ranges", {2.0}}, {"beam_width", 0.4363}, {"range_max", 5.0}, {"sigma_range", 0.02}};
+                {"angles", {0.0}},   {"ranges", {2.0}},     {"beam_width", 0.4363},
+                {"range_max", 5.0},  {"sigma_range", 0.02}};
   for (int i = 0; i < 5; ++i) post_scan(sonar);
   // The arc at 2 m, ±12.5°, is occupied; the cone at 1 m is free.
   const auto arc = get_json("/api/v1/grid?bbox=5.95,2.95,6.05,3.05");

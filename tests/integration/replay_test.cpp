@@ -28,11 +28,16 @@ struct LoadedMap {
       if (colon == std::string::npos) continue;
       const auto key = line.substr(0, colon);
       const auto value = line.substr(colon + 2);
-      if (key == "image") image = value;
-      else if (key == "resolution") m.resolution = std::stod(value);
-      else if (key == "origin") std::sscanf(value.c_str(), "[%lf, %lf", &m.origin_x, &m.origin_y);
-      else if (key == "occupied_thresh") m.occupied_thresh = std::stod(value);
-      else if (key == "free_thresh") m.free_thresh = std::stod(value);
+      if (key == "image")
+        image = value;
+      else if (key == "resolution")
+        m.resolution = std::stod(value);
+      else if (key == "origin")
+        std::sscanf(value.c_str(), "[%lf, %lf", &m.origin_x, &m.origin_y);
+      else if (key == "occupied_thresh")
+        m.occupied_thresh = std::stod(value);
+      else if (key == "free_thresh")
+        m.free_thresh = std::stod(value);
       else if (key == "negate") {
         EXPECT_EQ(value, "0");
       }
@@ -112,8 +117,14 @@ double naive_grid_score(const std::vector<Beam>& beams) {
       auto& l = cells[key(x0, y0)];
       l = std::max(-2.0, l + kMiss);
       const long e2 = 2 * err;
-      if (e2 >= dy) { err += dy; x0 += sx; }
-      if (e2 <= dx) { err += dx; y0 += sy; }
+      if (e2 >= dy) {
+        err += dy;
+        x0 += sx;
+      }
+      if (e2 <= dx) {
+        err += dx;
+        y0 += sy;
+      }
     }
     auto& l = cells[key(x1, y1)];
     l = b.hit ? std::min(3.5, l + kHit) : std::max(-2.0, l + kMiss);
@@ -177,7 +188,8 @@ class ReplayTest : public ServerFixture {
         ++long_segments;
         const double x0 = e["p0"][0], y0 = e["p0"][1], x1 = e["p1"][0], y1 = e["p1"][1];
         int samples = 0, hits = 0;
-        for (double t = 0; t <= 1.0; t += 0.05, ++samples) hits += map.occupied_near(x0 + t * (x1 - x0), y0 + t * (y1 - y0));
+        for (double t = 0; t <= 1.0; t += 0.05, ++samples)
+          hits += map.occupied_near(x0 + t * (x1 - x0), y0 + t * (y1 - y0));
         on += hits >= 0.8 * samples;
       }
       return std::pair{on, long_segments};
@@ -187,7 +199,8 @@ class ReplayTest : public ServerFixture {
     const json elements = get_json("/api/v1/elements")["elements"];
     const auto [on_scan, long_scan] = on_walls(std::vector<json>(elements.begin(), elements.end()));
     ASSERT_GT(long_scan, 20u);
-    std::cout << log_name << ": " << on_scan << " of " << long_scan << " map elements longer than 1 m lie on occupied cells\n";
+    std::cout << log_name << ": " << on_scan << " of " << long_scan
+              << " map elements longer than 1 m lie on occupied cells\n";
     // Measured here: Intel 293 of 317, Freiburg-079 305 of 340 (every third scan).
     EXPECT_GE(static_cast<double>(on_scan), 0.85 * static_cast<double>(long_scan));
 

@@ -80,7 +80,8 @@ TEST_F(RulesLiveTest, ABrokenEditIsRejectedAndTheOldRulesKeepDeciding) {
   const auto map_before = get_json("/api/v1/map");
   const auto before = get_json("/api/v1/rules");
   // A syntax error in the clause of the solid-wall rule: plain consult would drop just that clause.
-  write_all(rules_file(), replaced(read_all(rules_file()), "attribute(Object, solid),", "attribute(Object, solid)) ,,"));
+  write_all(rules_file(),
+            replaced(read_all(rules_file()), "attribute(Object, solid),", "attribute(Object, solid)) ,,"));
   const auto rejected = wait_for_rules([](const json& r) { return !r["last_error"].get<std::string>().empty(); });
   const std::string error = rejected["last_error"];
   EXPECT_NE(error.find("world_model.pl:"), std::string::npos) << error;
@@ -130,8 +131,8 @@ TEST_F(RulesLiveTest, QueriesAnswerAndDangerousGoalsAreRefused) {
   EXPECT_TRUE(answer["truncated"].get<bool>());
 
   const auto map_before = get_json("/api/v1/map");
-  for (const std::string goal : {"shell('rm -rf /')", "assertz(object(evil, wall))", "retract(attribute('wall-n', solid))",
-                                  "open('/etc/passwd', read, S)", "halt"}) {
+  for (const std::string goal : {"shell('rm -rf /')", "assertz(object(evil, wall))",
+                                 "retract(attribute('wall-n', solid))", "open('/etc/passwd', read, S)", "halt"}) {
     const auto r = send_json("POST", "/api/v1/query", {{"goal", goal}}, 403);
     EXPECT_EQ(r["error"], "forbidden_goal") << goal;
   }
@@ -156,7 +157,9 @@ TEST_F(RulesLiveTest, DryRunShowsWhatAnEditWouldChangeWithoutApplyingIt) {
     EXPECT_EQ(change["candidate"]["rule"], "solid_merged");
     EXPECT_EQ(change["candidate"]["action"], "merge");
   }
-  EXPECT_EQ(send_json("POST", "/api/v1/rules/dry-run", {{"file", "world_model.pl"}, {"text", candidate}, {"last", 1}})["redecided"], 1);
+  EXPECT_EQ(send_json("POST", "/api/v1/rules/dry-run",
+                      {{"file", "world_model.pl"}, {"text", candidate}, {"last", 1}})["redecided"],
+            1);
   EXPECT_EQ(get_json("/api/v1/map"), map_before);
   EXPECT_EQ(post_wall()["decisions"][0]["rule"], "solid_confirmed");
   EXPECT_EQ(read_all(rules_file()).find("solid_merged"), std::string::npos);

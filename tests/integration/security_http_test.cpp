@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <boost/beast/websocket.hpp>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -14,8 +15,6 @@
 #include <thread>
 #include <utility>
 #include <vector>
-
-#include <boost/beast/websocket.hpp>
 
 #include "e2e_fixture.h"
 
@@ -105,10 +104,12 @@ TEST_F(SecurityHttpTest, DeeplyNestedJsonIsRefusedWith400Everywhere) {
         << c.target;
   }
   // JSON text inside the import envelope reaches the AMRL importer's own check.
-  const auto inner = call("PUT", "/api/v1/floorplan", json{{"import", {{"format", "amrl"}, {"data", deep_array}}}}.dump());
+  const auto inner =
+      call("PUT", "/api/v1/floorplan", json{{"import", {{"format", "amrl"}, {"data", deep_array}}}}.dump());
   EXPECT_EQ(inner.status, 400) << inner.body.substr(0, 300);
   EXPECT_EQ(body_of(inner.body).value("error", ""), "bad_floor_plan");
-  EXPECT_NE(body_of(inner.body).value("detail", "").find("JSON nested deeper than 64 levels at byte 64"), std::string::npos)
+  EXPECT_NE(body_of(inner.body).value("detail", "").find("JSON nested deeper than 64 levels at byte 64"),
+            std::string::npos)
       << inner.body;
   EXPECT_EQ(get_json("/api/v1/health")["status"], "ok");
   EXPECT_EQ(get_json("/api/v1/floorplan")["objects"].size(), 0u);
@@ -152,20 +153,24 @@ TEST_F(SecurityHttpTest, InvalidUtf8IsRefusedWith400NamingTheField) {
 TEST_F(SecurityHttpTest, HostHeaderIsCheckedOnEveryRequest) {
   const int port = server_->port();
   const auto p = ":" + std::to_string(port);
-  const auto rebound = raw_request(port, bhttp::verb::put, "/api/v1/floorplan", {{"Host", "attacker.example" + p}},
-                                   lab_plan().dump());
+  const auto rebound =
+      raw_request(port, bhttp::verb::put, "/api/v1/floorplan", {{"Host", "attacker.example" + p}}, lab_plan().dump());
   EXPECT_EQ(rebound.result_int(), 421) << rebound.body();
   EXPECT_EQ(body_of(rebound.body()).value("error", ""), "misdirected_request");
   EXPECT_EQ(raw_request(port, bhttp::verb::get, "/api/v1/map", {{"Host", "attacker.example" + p}}).result_int(), 421);
   EXPECT_EQ(raw_request(port, bhttp::verb::get, "/api/v1/health", {{"Host", "ATTACKER.example"}}).result_int(), 421);
   EXPECT_EQ(get_json("/api/v1/floorplan")["objects"].size(), 0u) << "nothing written";
-  for (const auto& host : std::vector<std::string>{"localhost" + p, "LocalHost", "127.0.0.1" + p, "[::1]" + p, "10.1.2.3" + p})
+  for (const auto& host :
+       std::vector<std::string>{"localhost" + p, "LocalHost", "127.0.0.1" + p, "[::1]" + p, "10.1.2.3" + p})
     EXPECT_EQ(raw_request(port, bhttp::verb::get, "/api/v1/health", {{"Host", host}}).result_int(), 200) << host;
 
   extra_args_ = {"--allowed-hosts", "wm.example,robots.lan"};
   restart();
-  EXPECT_EQ(raw_request(server_->port(), bhttp::verb::get, "/api/v1/health", {{"Host", "wm.example:8080"}}).result_int(), 200);
-  EXPECT_EQ(raw_request(server_->port(), bhttp::verb::get, "/api/v1/health", {{"Host", "robots.lan"}}).result_int(), 200);
+  EXPECT_EQ(
+      raw_request(server_->port(), bhttp::verb::get, "/api/v1/health", {{"Host", "wm.example:8080"}}).result_int(),
+      200);
+  EXPECT_EQ(raw_request(server_->port(), bhttp::verb::get, "/api/v1/health", {{"Host", "robots.lan"}}).result_int(),
+            200);
   EXPECT_EQ(raw_request(server_->port(), bhttp::verb::get, "/api/v1/health", {{"Host", "evil.lan"}}).result_int(), 421);
 }
 
@@ -179,8 +184,8 @@ TEST_F(SecurityHttpTest, WritesFromAnotherOriginAreRefused) {
   EXPECT_EQ(cross.result_int(), 403) << cross.body();
   EXPECT_EQ(body_of(cross.body()).value("error", ""), "forbidden_origin");
   EXPECT_EQ(get_json("/api/v1/health")["last_decision_seq"], 0);
-  const auto same = raw_request(port, bhttp::verb::post, "/api/v1/primitives", {{"Host", self}, {"Origin", "http://" + self}},
-                                primitive);
+  const auto same = raw_request(port, bhttp::verb::post, "/api/v1/primitives",
+                                {{"Host", self}, {"Origin", "http://" + self}}, primitive);
   EXPECT_EQ(same.result_int(), 200) << same.body();
   // Reading from another origin stays possible (the viewer's ?api= development mode).
   EXPECT_EQ(raw_request(port, bhttp::verb::get, "/api/v1/map", {{"Host", self}, {"Origin", "http://attacker.example"}})
@@ -327,8 +332,8 @@ TEST_F(SecurityHttpTest, ASlowQueryDoesNotHoldUpHealth) {
 
 // A full handler queue answers 503 with Retry-After at once instead of queueing without bound.
 TEST_F(SecurityHttpTest, AFullHandlerQueueAnswers503WithRetryAfter) {
-  extra_args_ = {"--handler-threads", "1", "--handler-queue", "1", "--rule-time-limit", "2", "--rule-inferences",
-                 "1000000000"};
+  extra_args_ = {"--handler-threads", "1", "--handler-queue",   "1",
+                 "--rule-time-limit", "2", "--rule-inferences", "1000000000"};
   restart();
   const auto slow_query = [this] {
     return client::HttpClient(server_->url()).request("POST", "/api/v1/query", R"({"goal": "repeat, fail"})").status;
@@ -378,7 +383,8 @@ TEST_F(SecurityHttpTest, AcceptBacksOffWhenFileDescriptorsRunOut) {
   const pid_t pid = pid_of_wmd(db);
   ASSERT_GT(pid, 0);
   std::size_t open_fds = 0;
-  for ([[maybe_unused]] const auto& fd : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/fd")) ++open_fds;
+  for ([[maybe_unused]] const auto& fd : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/fd"))
+    ++open_fds;
   const rlimit limit{open_fds + 8, open_fds + 8};
   ASSERT_EQ(::prlimit(pid, RLIMIT_NOFILE, &limit, nullptr), 0);
 

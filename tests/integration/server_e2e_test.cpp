@@ -1,6 +1,5 @@
-#include <cmath>
-
 #include <Eigen/Core>
+#include <cmath>
 
 #include "e2e_fixture.h"
 
@@ -53,9 +52,9 @@ TEST_F(ServerFixture, FourDecisionsApplyAndSurviveARestart) {
                           {{"source", "robot-1"},
                            {"stamp", 2.0},
                            {"segments",
-                            {segment({12, 3.015}, {16, 3.01}),      // merge into the element
-                             segment({4, 10.005}, {9, 9.998}),      // delete: confirms the solid wall
-                             segment(ta, tb)}}});                   // rigid_adjust of the table
+                            {segment({12, 3.015}, {16, 3.01}),  // merge into the element
+                             segment({4, 10.005}, {9, 9.998}),  // delete: confirms the solid wall
+                             segment(ta, tb)}}});               // rigid_adjust of the table
   ASSERT_EQ(second["decisions"].size(), 3u);
   EXPECT_EQ(second["decisions"][0]["action"], "merge");
   EXPECT_EQ(second["decisions"][0]["element"], element);

@@ -78,9 +78,15 @@ std::vector<CommandSpec> command_specs() {
       {"rules reload", "", {}},
       {"rules dry-run", "r.pl", {{"--last", "3"}}},
       {"query", "true", {{"--max", "2"}}},
-      {"replay", "x.log",
-       {{"--limit", "1"}, {"--every", "2"}, {"--rate", "10"}, {"--offset", "1,2"}, {"--source", "r"},
-        {"--range-max", "50"}, {"--pose-sigma", "0.03,0.01"}}},
+      {"replay",
+       "x.log",
+       {{"--limit", "1"},
+        {"--every", "2"},
+        {"--rate", "10"},
+        {"--offset", "1,2"},
+        {"--source", "r"},
+        {"--range-max", "50"},
+        {"--pose-sigma", "0.03,0.01"}}},
       {"grid", "--out g.pgm", {{"--out", "g.pgm"}, {"--layer", "bayes"}, {"--bbox", "0,0,1,1"}}},  // --out required
       {"grid extract", "", {}},
   };
@@ -96,7 +102,8 @@ TEST(WmctlUsageTest, HelpListsEveryCommandWithAllTheFlagsItTakes) {
   for (const auto& spec : command_specs()) {
     EXPECT_NE(all.output.find("  " + spec.name + (spec.operands.empty() && spec.flags.empty() ? "\n" : " ")),
               std::string::npos)
-        << spec.name << " missing from\n" << all.output;
+        << spec.name << " missing from\n"
+        << all.output;
     const auto one = run_command(offline("help " + spec.name));
     ASSERT_EQ(one.status, 0) << one.output;
     for (const auto& [flag, value] : spec.flags) {

@@ -1,20 +1,19 @@
 #include "clients/logs/carmen_log_reader.h"
 
+#include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <algorithm>
-#include <cstdio>
-#include <utility>
 #include <numbers>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "fusion/grid/occupancy_grid.h"
 #include "support/temp_dir.h"
@@ -228,8 +227,7 @@ TEST(CarmenLogReaderTest, MalformedKnownLinesThrowWithFileAndLine) {
   expect_error_on_line_2("FLASER", "without a reading count");
   expect_error_on_line_2("FLASER 1 1 0 0 0 0 0 0 5 host 6", "at least 2 readings");
   expect_error_on_line_2("ROBOTLASER1 0 -1.0 2.0 0.5 8.0 0.01 0 2 1 2 0 0 0 0 0 0 0 0 0 0 0 0 1 h", "fields");
-  expect_error_on_line_2("ROBOTLASER1 0 -1.0 2.0 0.5 -8.0 0.01 0 2 1 2 0 0 0 0 0 0 0 0 0 0 0 0 1 h 2",
-                         "maximum_range");
+  expect_error_on_line_2("ROBOTLASER1 0 -1.0 2.0 0.5 -8.0 0.01 0 2 1 2 0 0 0 0 0 0 0 0 0 0 0 0 1 h 2", "maximum_range");
   expect_error_on_line_2("ROBOTLASER1 0 -1.0", "too short");
   expect_error_on_line_2("PARAM robot_frontlaser_offset abc nohost 0", "not a number");
 }
@@ -310,7 +308,7 @@ class NaiveGrid {
   }
 
  private:
-  static constexpr double kHit = 0.8472978603872037;   // logit(0.7)
+  static constexpr double kHit = 0.8472978603872037;    // logit(0.7)
   static constexpr double kMiss = -0.4054651081081644;  // logit(0.4)
   void add(std::int64_t x, std::int64_t y, double v) {
     double& l = cells_[{x, y}];
@@ -338,7 +336,8 @@ TEST(CarmenLogReaderTest, IntelLogBuildsAGridWhoseWallsHoldTheReturns) {
     for (std::size_t i = 0; i < s.scan.ranges_m.size(); ++i) {
       const double r = s.scan.ranges_m[i];
       if (!(r >= s.scan.range_min_m && r < s.scan.range_max_m && r <= options.sensor.max_usable_range_m)) continue;
-      const double a = s.scan.sensor_pose.theta_rad + s.scan.angle_min_rad + static_cast<double>(i) * s.scan.angle_increment_rad;
+      const double a =
+          s.scan.sensor_pose.theta_rad + s.scan.angle_min_rad + static_cast<double>(i) * s.scan.angle_increment_rad;
       const fusion::CellIndex c =
           cells.cell_of({s.scan.sensor_pose.x_m + r * std::cos(a), s.scan.sensor_pose.y_m + r * std::sin(a)});
       bool bayes = false, ds = false, reference = false;

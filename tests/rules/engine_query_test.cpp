@@ -1,12 +1,11 @@
-#include "rules/engine.h"
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <filesystem>
 #include <string>
 #include <vector>
 
-#include <gtest/gtest.h>
-
+#include "rules/engine.h"
 #include "tests/rules/rules_test_helpers.h"
 
 namespace wm::rules {
@@ -23,7 +22,8 @@ std::filesystem::path examples_dir() { return std::filesystem::path(WM_RULES_PRO
 class KnowledgeBaseTest : public testing::ShippedRulesTest {
  protected:
   KnowledgeBaseTest() {
-    engine_.set_elements({{"e1", "scan", "robot-1", 1.0, 0.5, 2.0, 1, 100.0}, {"e2", "client", "robot-2", 3.0, 0.1, 0.7, 4, 200.0}});
+    engine_.set_elements(
+        {{"e1", "scan", "robot-1", 1.0, 0.5, 2.0, 1, 100.0}, {"e2", "client", "robot-2", 3.0, 0.1, 0.7, 4, 200.0}});
   }
 
   // The single value of variable `name` in the only solution of `goal`.
@@ -35,7 +35,6 @@ class KnowledgeBaseTest : public testing::ShippedRulesTest {
     if (result.solutions.size() != 1 || at == result.variables.end()) return {};
     return result.solutions[0][static_cast<std::size_t>(at - result.variables.begin())];
   }
-
 };
 
 TEST_F(KnowledgeBaseTest, QueriesSeeObjectsAttributesEdgesAndElements) {
@@ -68,7 +67,8 @@ TEST_F(KnowledgeBaseTest, QueriesCanAskTheActiveRulesWhatIf) {
 
 TEST_F(KnowledgeBaseTest, DecisionFactsKeepOnlyTheNewest) {
   std::vector<DecisionFacts> batch;
-  for (int i = 1; i <= 7; ++i) batch.push_back({i, "add", "unmatched_added", "e" + std::to_string(i), std::nullopt, "r", 1.0 * i});
+  for (int i = 1; i <= 7; ++i)
+    batch.push_back({i, "add", "unmatched_added", "e" + std::to_string(i), std::nullopt, "r", 1.0 * i});
   engine_.add_decisions(batch, 5);
   engine_.add_decisions({{8, "delete", "solid_confirmed", std::string("w1/0"), std::string("w1"), "r", 8.0}}, 5);
   const auto seqs = engine_.query("decision(S, _, _, _, _, _, _)", 100);
@@ -187,7 +187,8 @@ TEST_F(KnowledgeBaseTest, PruneWithoutRulesIsEmptyAndALoopingPruneIsContained) {
 }
 
 TEST_F(KnowledgeBaseTest, BatchDecisionsEqualSingleDecisions) {
-  std::vector<DecisionQuery> queries{matched("w1_e0", "w1"), matched("e5", std::nullopt), matched("t1_e0", "t1"), unmatched()};
+  std::vector<DecisionQuery> queries{matched("w1_e0", "w1"), matched("e5", std::nullopt), matched("t1_e0", "t1"),
+                                     unmatched()};
   const auto batch = engine_.decide_batch(queries);
   ASSERT_EQ(batch.size(), queries.size());
   for (std::size_t i = 0; i < queries.size(); ++i) {

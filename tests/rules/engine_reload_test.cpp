@@ -1,11 +1,10 @@
-#include "rules/engine.h"
+#include <gtest/gtest.h>
 
 #include <algorithm>
 #include <chrono>
 #include <string>
 
-#include <gtest/gtest.h>
-
+#include "rules/engine.h"
 #include "tests/rules/rules_test_helpers.h"
 
 namespace wm::rules {
@@ -50,14 +49,12 @@ class EngineReloadTest : public testing::ShippedRulesTest {
     EXPECT_EQ(engine_.decide(matched("e8", std::nullopt)).rule, "unknown_element_merged");
     EXPECT_EQ(engine_.decide(unmatched()).rule, "unmatched_added");
   }
-
 };
 
 TEST_F(EngineReloadTest, BrokenEditIsRejectedWithFileAndLineAndOldRulesStayActive) {
   // The trap of a plain consult: the broken solid clause would be dropped and walls merged.
   const std::string good = read_text(rules_file());
-  const std::string broken =
-      replace_once(good, "    attribute(Object, solid),\n", "    attribute(Object, solid\n");
+  const std::string broken = replace_once(good, "    attribute(Object, solid),\n", "    attribute(Object, solid\n");
   write_text(rules_file(), broken);
 
   const std::string message = rejected_reload();
@@ -72,7 +69,8 @@ TEST_F(EngineReloadTest, BrokenEditIsRejectedWithFileAndLineAndOldRulesStayActiv
 
 TEST_F(EngineReloadTest, SyntaxErrorMessageGivesTheLineOfTheError) {
   const std::string good = read_text(rules_file());
-  const std::string broken = replace_once(good, "unmatched_added, Explanation) :-", "unmatched_added, Explanation) :- )");
+  const std::string broken =
+      replace_once(good, "unmatched_added, Explanation) :-", "unmatched_added, Explanation) :- )");
   write_text(rules_file(), broken);
   const std::string message = rejected_reload();
   const int line = line_of(broken, "unmatched_added, Explanation) :- )");
@@ -202,8 +200,8 @@ TEST_F(EngineReloadTest, DeletedRulesDirectoryIsRejected) {
 }
 
 TEST_F(EngineReloadTest, LoopingRuleGivesTheFallbackAndFixedRulesWorkAfterReload) {
-  write_text(rules_file(), rules_with_first_clause("decide(observation(spin, _, _, _), _, _, _, _) :- !, spin.",
-                                                   "spin :- spin."));
+  write_text(rules_file(),
+             rules_with_first_clause("decide(observation(spin, _, _, _), _, _, _, _) :- !, spin.", "spin :- spin."));
   engine_.reload();
 
   const auto start = std::chrono::steady_clock::now();
@@ -216,7 +214,8 @@ TEST_F(EngineReloadTest, LoopingRuleGivesTheFallbackAndFixedRulesWorkAfterReload
   EXPECT_TRUE(contains(decision.explanation, "inference limit")) << decision.explanation;
   EXPECT_TRUE(contains(engine_.status().last_error, "inference limit")) << engine_.status().last_error;
 
-  write_text(rules_file(), rules_with_first_clause("decide(observation(spin, _, _, _), _, merge, fixed, \"ok\") :- !."));
+  write_text(rules_file(),
+             rules_with_first_clause("decide(observation(spin, _, _, _), _, merge, fixed, \"ok\") :- !."));
   engine_.reload();
   const Decision fixed = engine_.decide(unmatched("spin"));
   EXPECT_FALSE(fixed.fallback);
@@ -225,8 +224,8 @@ TEST_F(EngineReloadTest, LoopingRuleGivesTheFallbackAndFixedRulesWorkAfterReload
 
 TEST(EngineTimeLimitTest, RuleLoopingPastTheTimeLimitGivesTheFallback) {
   TempDir dir;
-  write_text(dir / "r.pl", rules_with_first_clause("decide(observation(spin, _, _, _), _, _, _, _) :- !, spin.",
-                                                   "spin :- spin."));
+  write_text(dir / "r.pl",
+             rules_with_first_clause("decide(observation(spin, _, _, _), _, _, _, _) :- !, spin.", "spin :- spin."));
   auto options = options_for(dir);
   options.inference_limit = 1'000'000'000'000;  // only the time limit can stop it
   options.time_limit_s = 0.2;
@@ -272,7 +271,8 @@ TEST_F(EngineReloadTest, ThrowingRuleGivesTheFallback) {
 }
 
 TEST_F(EngineReloadTest, RuleThrowingAnArbitraryTermGivesTheFallback) {
-  write_text(rules_file(), rules_with_first_clause("decide(observation(boom, _, _, _), _, _, _, _) :- !, throw(my_ball(1))."));
+  write_text(rules_file(),
+             rules_with_first_clause("decide(observation(boom, _, _, _), _, _, _, _) :- !, throw(my_ball(1))."));
   engine_.reload();
   const Decision decision = engine_.decide(unmatched("boom"));
   EXPECT_TRUE(decision.fallback);
@@ -297,7 +297,8 @@ TEST_F(EngineReloadTest, NonAtomActionGivesTheFallback) {
 }
 
 TEST_F(EngineReloadTest, OtherAtomActionsArePassedThrough) {
-  write_text(rules_file(), rules_with_first_clause("decide(observation(glass, _, _, _), _, ignore, glass_wall, \"g\") :- !."));
+  write_text(rules_file(),
+             rules_with_first_clause("decide(observation(glass, _, _, _), _, ignore, glass_wall, \"g\") :- !."));
   engine_.reload();
   const Decision decision = engine_.decide(unmatched("glass"));
   EXPECT_FALSE(decision.fallback);

@@ -1,12 +1,12 @@
 #include "rules/engine.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <regex>
 #include <stdexcept>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "tests/rules/rules_test_helpers.h"
 
@@ -101,8 +101,7 @@ TEST_F(WorldModelRulesTest, InvalidFloorPlanIsRejectedAndKeepsTheOldFacts) {
   EXPECT_THROW(engine_.set_floor_plan({{"a", "wall", {}, {}}, {"a", "wall", {}, {}}}), std::invalid_argument);
   EXPECT_THROW(engine_.set_floor_plan({{"none", "wall", {}, {}}}), std::invalid_argument);
   EXPECT_THROW(engine_.set_floor_plan({{"", "wall", {}, {}}}), std::invalid_argument);
-  EXPECT_THROW(engine_.set_floor_plan({{"b", "wall", {}, {{"e", std::nan(""), 0.0, 1.0}}}}),
-               std::invalid_argument);
+  EXPECT_THROW(engine_.set_floor_plan({{"b", "wall", {}, {{"e", std::nan(""), 0.0, 1.0}}}}), std::invalid_argument);
   EXPECT_EQ(engine_.decide(matched("e7", "w1")).rule, "solid_confirmed");
 }
 

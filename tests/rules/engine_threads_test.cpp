@@ -1,4 +1,4 @@
-#include "rules/engine.h"
+#include <gtest/gtest.h>
 
 #include <atomic>
 #include <optional>
@@ -6,8 +6,7 @@
 #include <thread>
 #include <vector>
 
-#include <gtest/gtest.h>
-
+#include "rules/engine.h"
 #include "tests/rules/rules_test_helpers.h"
 
 namespace wm::rules {

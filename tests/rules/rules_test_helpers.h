@@ -1,5 +1,8 @@
 #pragma once
 
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <filesystem>
 #include <fstream>
@@ -9,10 +12,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <unistd.h>
-
-#include <gtest/gtest.h>
 
 #include "rules/engine.h"
 
@@ -113,8 +112,7 @@ inline DecisionQuery unmatched(std::string source = "lidar") {
 /// A rule file answering `add`/`custom` for every case, except for the given source-specific clause
 /// placed first (e.g. a loop or an error for source `spin`); `helpers` go after decide/5.
 inline std::string rules_with_first_clause(const std::string& first_clause, const std::string& helpers = "") {
-  return first_clause + "\n" + "decide(observation(_, _, _, _), _, add, custom, \"custom rules\").\n" +
-         helpers + "\n";
+  return first_clause + "\n" + "decide(observation(_, _, _, _), _, add, custom, \"custom rules\").\n" + helpers + "\n";
 }
 
 /// An engine on a copy of the shipped rules (in dir_, for tests that edit them) with the demo floor plan.

@@ -28,13 +28,15 @@ inline std::filesystem::path real_data(const std::string& relative, const std::s
   if (!shipped_copy.empty()) {
     const auto copy = std::filesystem::path(WM_TEST_DATA_DIR) / shipped_copy;
     if (std::filesystem::exists(copy)) {
-      std::cerr << "[test data] " << shared.string() << " is missing; reading the shipped copy " << copy.string() << "\n";
+      std::cerr << "[test data] " << shared.string() << " is missing; reading the shipped copy " << copy.string()
+                << "\n";
       return copy;
     }
     throw std::runtime_error("missing real data: " + shared.string() + " and its shipped copy " + copy.string());
   }
-  throw std::runtime_error("missing real data: " + shared.string() +
-                           " (no copy in tests/data; set the CMake variable WM_SHARED_DATA_DIR to the real-data directory)");
+  throw std::runtime_error(
+      "missing real data: " + shared.string() +
+      " (no copy in tests/data; set the CMake variable WM_SHARED_DATA_DIR to the real-data directory)");
 }
 
 }  // namespace wm::testing

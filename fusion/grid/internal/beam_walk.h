@@ -18,22 +18,22 @@ inline std::int64_t floor_to_int(double x) {
 
 /// A Beam converted to cell units with its classification thresholds (see SensorModelOptions).
 struct PreparedBeam {
-  double ox = 0, oy = 0;       // origin [cells]
+  double ox = 0, oy = 0;  // origin [cells]
   double angle_rad = 0, half_width_rad = 0;
-  double r = 0;                // reading or clearing distance [cells]
+  double r = 0;  // reading or clearing distance [cells]
   bool has_return = false;
-  bool free_on_axis_only = false;  // free space only on the axis line, the cone only for the return
-  double free_limit2 = 0;      // d² < this: free [cells²]
-  double hit_limit2 = 0;       // d² <= this: hit [cells²]
-  double walk_limit = 0;       // cells with centres farther than this are not visited [cells]
-  double hit_min_distance = 0;  // no hit cell meets the wedge closer than this to the origin [cells]
+  bool free_on_axis_only = false;     // free space only on the axis line, the cone only for the return
+  double free_limit2 = 0;             // d² < this: free [cells²]
+  double hit_limit2 = 0;              // d² <= this: hit [cells²]
+  double walk_limit = 0;              // cells with centres farther than this are not visited [cells]
+  double hit_min_distance = 0;        // no hit cell meets the wedge closer than this to the origin [cells]
   std::int64_t end_x = 0, end_y = 0;  // the cell containing the return point
-  double inv_two_sigma_e2 = 0;  // 1 / (2σ_e²) [1/cells²]
-  double gaussian_reach = 0;    // beyond 4σ_e in front of the return g is taken as 0 [cells]
-  double tail_limit2 = -1;      // d² <= this: in front of the Gaussian's reach, g = 0 without a sqrt [cells²]
-  double ux = 1, uy = 0;        // axis direction
+  double inv_two_sigma_e2 = 0;        // 1 / (2σ_e²) [1/cells²]
+  double gaussian_reach = 0;          // beyond 4σ_e in front of the return g is taken as 0 [cells]
+  double tail_limit2 = -1;            // d² <= this: in front of the Gaussian's reach, g = 0 without a sqrt [cells²]
+  double ux = 1, uy = 0;              // axis direction
   double cos_half = 1, sin_half = 0;  // of half_width_rad
-  double inv_two_sigma_a2 = 0;  // 1 / (2σ_a²) of the angular profile [1/rad²]; 0: uniform in angle
+  double inv_two_sigma_a2 = 0;        // 1 / (2σ_a²) of the angular profile [1/rad²]; 0: uniform in angle
   double p_hit = 0, log_odds_miss = 0;
   double occupied_mass = 0, k = 0;
 };
@@ -281,7 +281,7 @@ void for_each_beam_cell(const PreparedBeam& b, Visit&& visit) {
   // Forward distance along the major axis of the nearest hit: distance times the smallest cosine in the wedge.
   const double cos_axis = std::max(std::abs(b.ux), std::abs(b.uy));  // cos of the axis' angle to the major axis
   const double cos_min = std::max(0.0, cos_axis * b.cos_half - std::sqrt(std::max(0.0, 1.0 - cos_axis * cos_axis)) *
-                                                                    b.sin_half);  // cos(angle + half width)
+                                                                   b.sin_half);  // cos(angle + half width)
   walk_cone(
       b,
       [&](std::int64_t x, std::int64_t y, double d2) {

@@ -59,8 +59,7 @@ int HoughAccumulator::rho_bin(int t, std::int64_t x, std::int64_t y) const {
   const std::int64_t hy = 2 * y + 1 - height_;
   const std::int64_t offset = (static_cast<std::int64_t>(r_center_) << kShift) + kOne / 2;
   return static_cast<int>(
-      (hx * cos_fixed_[static_cast<std::size_t>(t)] + hy * sin_fixed_[static_cast<std::size_t>(t)] + offset) >>
-      kShift);
+      (hx * cos_fixed_[static_cast<std::size_t>(t)] + hy * sin_fixed_[static_cast<std::size_t>(t)] + offset) >> kShift);
 }
 
 void HoughAccumulator::vote(std::span<const std::int32_t> xs, std::span<const std::int32_t> ys,
@@ -153,9 +152,11 @@ std::vector<HoughBin> nms_peaks(const HoughAccumulator& acc, float min_votes, Nm
 
 double GreyVotes::at(HoughBin b) {
   if (!votes_) {
-    votes_.emplace(raster_.geometry.width(), raster_.geometry.height(), shape_.rho_step_cells(), shape_.theta_step_rad());
+    votes_.emplace(raster_.geometry.width(), raster_.geometry.height(), shape_.rho_step_cells(),
+                   shape_.theta_step_rad());
     // Unknown (NaN) cells fail the comparison too.
-    votes_->vote_cells(raster_.p.size(), [&](std::size_t i) { return raster_.p[i] >= grey_min_p_ ? raster_.p[i] : 0.0f; });
+    votes_->vote_cells(raster_.p.size(),
+                       [&](std::size_t i) { return raster_.p[i] >= grey_min_p_ ? raster_.p[i] : 0.0f; });
   }
   return votes_->at(b);
 }

@@ -5,9 +5,9 @@
 namespace wm::fusion::internal {
 
 Eigen::Vector2d raster_center_m(const GridGeometry& geometry) {
-  return geometry.origin_m() + 0.5 * geometry.resolution_m() *
-                                   Eigen::Vector2d(static_cast<double>(geometry.width()),
-                                                   static_cast<double>(geometry.height()));
+  return geometry.origin_m() +
+         0.5 * geometry.resolution_m() *
+             Eigen::Vector2d(static_cast<double>(geometry.width()), static_cast<double>(geometry.height()));
 }
 
 Eigen::Vector2d world_point(const GridGeometry& geometry, double xc, double yc) {

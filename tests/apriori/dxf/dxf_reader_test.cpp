@@ -79,11 +79,11 @@ TEST(DxfReaderTest, ReadsLwpolylineVerticesBulgesAndClosedFlag) {
 
 TEST(DxfReaderTest, ReadsOldStylePolylinesAndSkipsMeshesAndControlPoints) {
   const std::string vertex = "  0\nVERTEX\n  8\nP\n";
-  const auto doc = read_dxf(dxf_file(
-      "  0\nPOLYLINE\n  5\nB\n  8\nP\n 66\n1\n 70\n0\n" + vertex + " 10\n0\n 20\n0\n 42\n0.25\n" + vertex +
-      " 70\n16\n 10\n5\n 20\n5\n" + vertex + " 10\n1\n 20\n0\n  0\nSEQEND\n  8\nP\n" +
-      "  0\nPOLYLINE\n  5\nC\n  8\nP\n 66\n1\n 70\n64\n" + vertex + " 10\n0\n 20\n0\n  0\nSEQEND\n" +
-      dxf_line("D", "P", 0, 0, 1, 1)));
+  const auto doc =
+      read_dxf(dxf_file("  0\nPOLYLINE\n  5\nB\n  8\nP\n 66\n1\n 70\n0\n" + vertex + " 10\n0\n 20\n0\n 42\n0.25\n" +
+                        vertex + " 70\n16\n 10\n5\n 20\n5\n" + vertex + " 10\n1\n 20\n0\n  0\nSEQEND\n  8\nP\n" +
+                        "  0\nPOLYLINE\n  5\nC\n  8\nP\n 66\n1\n 70\n64\n" + vertex + " 10\n0\n 20\n0\n  0\nSEQEND\n" +
+                        dxf_line("D", "P", 0, 0, 1, 1)));
   ASSERT_EQ(doc.entities.size(), 2u);
   const auto& p = std::get<Polyline>(doc.entities[0].shape);
   ASSERT_EQ(p.vertices.size(), 2u);  // the spline frame control point (flag 16) is not on the curve
@@ -95,7 +95,8 @@ TEST(DxfReaderTest, ReadsOldStylePolylinesAndSkipsMeshesAndControlPoints) {
 
 TEST(DxfReaderTest, CountsUnsupportedAndPaperSpaceEntitiesWithoutKeepingThem) {
   const auto doc = read_dxf(dxf_file("  0\nTEXT\n  5\n1\n  8\n0\n  1\nhello\n 10\n0\n 20\n0\n 40\n1\n" +
-                                     dxf_line("2", "0", 0, 0, 1, 0) + "  0\nLINE\n  5\n3\n 67\n1\n  8\n0\n 10\n0\n 20\n"
+                                     dxf_line("2", "0", 0, 0, 1, 0) +
+                                     "  0\nLINE\n  5\n3\n 67\n1\n  8\n0\n 10\n0\n 20\n"
                                      "0\n 11\n1\n 21\n1\n  0\nHATCH\n  5\n4\n  8\n0\n"));
   EXPECT_EQ(doc.entities.size(), 1u);
   EXPECT_EQ(doc.skipped_entities.at("TEXT"), 1u);
@@ -107,10 +108,10 @@ TEST(DxfReaderTest, CountsUnsupportedAndPaperSpaceEntitiesWithoutKeepingThem) {
 
 TEST(DxfReaderTest, ReadsBlocksAndSkipsInsertAttributes) {
   const std::string attrib = "  0\nATTRIB\n  8\n0\n  1\nvalue\n  2\nTAG\n 10\n0\n 20\n0\n";
-  const auto doc = read_dxf(dxf_file(
-      dxf_insert("10", "F", "chair", 5, 6, 2.0, 90.0).substr(0) + " 66\n1\n" + attrib + attrib +
-          "  0\nSEQEND\n  8\nF\n" + dxf_line("11", "W", 0, 0, 1, 0),
-      dxf_block("Chair", dxf_line("20", "0", 0, 0, 1, 1) + "  0\nTEXT\n  8\n0\n", 0.5, 0.25)));
+  const auto doc =
+      read_dxf(dxf_file(dxf_insert("10", "F", "chair", 5, 6, 2.0, 90.0).substr(0) + " 66\n1\n" + attrib + attrib +
+                            "  0\nSEQEND\n  8\nF\n" + dxf_line("11", "W", 0, 0, 1, 0),
+                        dxf_block("Chair", dxf_line("20", "0", 0, 0, 1, 1) + "  0\nTEXT\n  8\n0\n", 0.5, 0.25)));
   ASSERT_EQ(doc.entities.size(), 2u);
   const auto& ins = std::get<Insert>(doc.entities[0].shape);
   EXPECT_EQ(ins.block, "chair");
@@ -133,19 +134,22 @@ TEST(DxfReaderTest, SkipsCommentsAndUnknownSections) {
 }
 
 TEST(DxfReaderTest, DecodesNamesToUtf8) {
-  const auto doc = read_dxf(dxf_file(dxf_line("1", "M\xF6" "bel", 0, 0, 1, 0) +  // Latin-1 (pre-2007 file)
-                                     dxf_line("2", "M\\U+00F6bel", 0, 0, 1, 0) + dxf_line("3", "Möbel", 0, 0, 1, 0)));
+  const auto doc = read_dxf(dxf_file(dxf_line("1",
+                                              "M\xF6"
+                                              "bel",
+                                              0, 0, 1, 0) +  // Latin-1 (pre-2007 file)
+                                     dxf_line("2", "M\\U+00F6bel", 0, 0, 1, 0) +
+                                     dxf_line("3", "Möbel", 0, 0, 1, 0)));
   for (const auto& e : doc.entities) EXPECT_EQ(e.layer, "Möbel") << e.handle;
 }
 
 TEST(DxfReaderTest, SyntaxErrorsNameTheLine) {
-  EXPECT_EQ(error_path("  0\nSECTION\n  2\nENTITIES\nX\nLINE\n"), "line 5");            // not a group code
+  EXPECT_EQ(error_path("  0\nSECTION\n  2\nENTITIES\nX\nLINE\n"), "line 5");  // not a group code
   EXPECT_EQ(error_path(dxf_file("  0\nLINE\n  8\n0\n 10\n1.5.2\n 20\n0\n 11\n1\n 21\n1\n")), "line 30");
   EXPECT_EQ(error_path(dxf_file("  0\nLINE\n  8\n0\n 10\nnan\n 20\n0\n 11\n1\n 21\n1\n")), "line 30");
   EXPECT_EQ(error_path(dxf_file("  0\nLINE\n  8\n0\n 10\n1e999\n 20\n0\n 11\n1\n 21\n1\n")), "line 30");
   EXPECT_EQ(error_path("  0\nSECTION\n  2\nENTITIES\n  0\nLINE\n  8\n"), "line 7");  // code without value
-  EXPECT_NE(error_message("  0\nSECTION\n  2\nENTITIES\n  0\nENDSEC\n").find("EOF marker missing"),
-            std::string::npos);
+  EXPECT_NE(error_message("  0\nSECTION\n  2\nENTITIES\n  0\nENDSEC\n").find("EOF marker missing"), std::string::npos);
   EXPECT_NE(error_message("  0\nSECTION\n  2\nENTITIES\n" + dxf_line("1", "0", 0, 0, 1, 1)).find("no ENDSEC"),
             std::string::npos);
   EXPECT_NE(error_message("  0\nSECTION\n  2\nBLOCKS\n  0\nBLOCK\n  2\nA\n  0\nENDSEC\n  0\nEOF\n").find("no ENDBLK"),
@@ -166,7 +170,7 @@ TEST(DxfReaderTest, GeometryErrorsNameTheEntity) {
   EXPECT_EQ(error_path(dxf_file("  0\nLINE\n  8\n0\n 10\n0\n 20\n0\n")), "entity LINE at line 25");
   EXPECT_EQ(error_path(dxf_file(dxf_insert("31", "0", "A", 0, 0, 0.0))), "entity INSERT handle 31");
   EXPECT_EQ(error_path(dxf_file("  0\nARC\n  5\n32\n  8\n0\n 10\n0\n 20\n0\n 40\n1\n 50\n0\n 51\n90\n230\n0\n")),
-            "entity ARC handle 32");  // zero extrusion vector
+            "entity ARC handle 32");                                                        // zero extrusion vector
   EXPECT_EQ(error_path(dxf_file("", dxf_block("A", "") + dxf_block("a", ""))), "line 39");  // duplicate block
 }
 

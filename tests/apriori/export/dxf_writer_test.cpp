@@ -1,12 +1,12 @@
 #include "apriori/export/dxf_writer.h"
 
+#include <gtest/gtest.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <stdexcept>
-
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "apriori/dxf/dxf_reader.h"
 #include "apriori/import/dxf_import.h"
@@ -15,7 +15,8 @@ namespace wm::apriori {
 namespace {
 
 std::vector<LayerLines> sample() {
-  LayerLines confirmed{"confirmed", {{{0.0, 0.0}, {10.0, 0.0}}, {{0.1, 0.2}, {1.0 / 3.0, 2.0 / 3.0}, {-5e-7, 123456.789}}}};
+  LayerLines confirmed{"confirmed",
+                       {{{0.0, 0.0}, {10.0, 0.0}}, {{0.1, 0.2}, {1.0 / 3.0, 2.0 / 3.0}, {-5e-7, 123456.789}}}};
   confirmed.color = 3;
   LayerLines adjusted{"adjusted objects", {{{1, 1}, {2, 1}, {2, 2}, {1, 2}, {1, 1}}}};  // closed: first point repeated
   adjusted.ids = {"table-1"};
@@ -24,13 +25,14 @@ std::vector<LayerLines> sample() {
 
 /// Runs the ezdxf reader script on `dxf` and returns its JSON answer.
 nlohmann::json read_with_ezdxf(const std::string& dxf) {
-  const auto path = std::filesystem::temp_directory_path() / ("wm_dxf_writer_test_" + std::to_string(::getpid()) + ".dxf");
+  const auto path =
+      std::filesystem::temp_directory_path() / ("wm_dxf_writer_test_" + std::to_string(::getpid()) + ".dxf");
   {
     std::ofstream out(path, std::ios::binary);
     out << dxf;
   }
-  const std::string command = std::string(WM_APRIORI_PYTHON) + " " + WM_APRIORI_TOOLS_DIR + "/read_dxf_with_ezdxf.py " +
-                              path.string();
+  const std::string command =
+      std::string(WM_APRIORI_PYTHON) + " " + WM_APRIORI_TOOLS_DIR + "/read_dxf_with_ezdxf.py " + path.string();
   FILE* pipe = ::popen(command.c_str(), "r");
   if (!pipe) throw std::runtime_error("cannot run " + command);
   std::string output;
@@ -38,7 +40,8 @@ nlohmann::json read_with_ezdxf(const std::string& dxf) {
   while (std::size_t n = std::fread(buffer, 1, sizeof buffer, pipe)) output.append(buffer, n);
   const int status = ::pclose(pipe);
   std::filesystem::remove(path);
-  if (status != 0) throw std::runtime_error(command + " failed (status " + std::to_string(status) + "): is python3-ezdxf installed?");
+  if (status != 0)
+    throw std::runtime_error(command + " failed (status " + std::to_string(status) + "): is python3-ezdxf installed?");
   return nlohmann::json::parse(output);
 }
 

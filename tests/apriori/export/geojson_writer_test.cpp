@@ -1,10 +1,10 @@
 #include "apriori/export/geojson_writer.h"
 
-#include <cmath>
-#include <stdexcept>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 namespace wm::apriori {
 namespace {

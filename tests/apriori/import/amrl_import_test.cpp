@@ -1,8 +1,8 @@
 #include "apriori/import/amrl_import.h"
 
-#include <stdexcept>
-
 #include <gtest/gtest.h>
+
+#include <stdexcept>
 
 namespace wm::apriori {
 namespace {

@@ -1,13 +1,12 @@
-#include "apriori/import/dxf_import.h"
+#include <gtest/gtest.h>
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <set>
 #include <string>
 
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
-
+#include "apriori/import/dxf_import.h"
 #include "tests/apriori/plan_test_support.h"
 
 // Round trip against an independent DXF implementation: tools/make_ezdxf_plans.py writes drawings with ezdxf and,
@@ -183,16 +182,16 @@ TEST_P(EzdxfPlanTest, ImportsTheGeometryEzdxfReadsBack) {
 
 INSTANTIATE_TEST_SUITE_P(Ezdxf, EzdxfPlanTest,
                          ::testing::Values("geometry_r12", "geometry_r2000", "geometry_r2010", "geometry_r2018",
-                                           "units_in", "units_ft", "units_mm", "units_cm", "units_dm",
-                                           "units_override", "clusters", "unknown_entities"));
+                                           "units_in", "units_ft", "units_mm", "units_cm", "units_dm", "units_override",
+                                           "clusters", "unknown_entities"));
 
 TEST(EzdxfPlanTest, DegenerateAndIgnoredEntitiesAreCounted) {
   const auto c = import_case("geometry_r2010");
   const auto& r = c.result.report;
   EXPECT_EQ(r.skipped.at("degenerate LINE"), 1u);
-  EXPECT_EQ(r.skipped.at("on unknown layers"), 1u);           // the MYSTERY line
-  EXPECT_EQ(r.skipped.at("on ignored layers"), 1u);           // the TABLE_A insert on IGNORED
-  EXPECT_EQ(r.skipped.at("INSERT of ignored block"), 1u);     // SKIP_ME
+  EXPECT_EQ(r.skipped.at("on unknown layers"), 1u);        // the MYSTERY line
+  EXPECT_EQ(r.skipped.at("on ignored layers"), 1u);        // the TABLE_A insert on IGNORED
+  EXPECT_EQ(r.skipped.at("INSERT of ignored block"), 1u);  // SKIP_ME
   EXPECT_EQ(r.layers.at("MYSTERY").status, "unknown");
   EXPECT_EQ(r.layers.at("LINES").rule, "LINES");
   EXPECT_EQ(r.layers.at("LINES").entities, 3u);
@@ -261,9 +260,15 @@ TEST(EzdxfPlanTest, CorruptedFilesFailCleanly) {
     for (int k = 0; k < edits; ++k) {
       const std::size_t at = rng() % damaged.size();
       switch (rng() % 3) {
-        case 0: damaged[at] = alphabet[rng() % alphabet.size()]; break;
-        case 1: damaged.erase(at, 1 + rng() % 40); break;
-        default: damaged.insert(at, damaged.substr(rng() % damaged.size(), 1 + rng() % 40)); break;
+        case 0:
+          damaged[at] = alphabet[rng() % alphabet.size()];
+          break;
+        case 1:
+          damaged.erase(at, 1 + rng() % 40);
+          break;
+        default:
+          damaged.insert(at, damaged.substr(rng() % damaged.size(), 1 + rng() % 40));
+          break;
       }
       if (damaged.empty()) damaged = "0";
     }

@@ -1,10 +1,10 @@
 #include "apriori/import/dxf_import.h"
 
-#include <cmath>
-#include <stdexcept>
-
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "tests/apriori/dxf_text.h"
 #include "tests/apriori/plan_test_support.h"
@@ -39,8 +39,8 @@ FloorPlanError error_of(const std::string& text, const LayerMapping& m = mapping
 }
 
 TEST(DxfImportTest, OneObjectPerEntityPosedAtItsCentroid) {
-  const auto r = import_dxf(dxf_file(dxf_line("2F", "Walls", 0, 0, 4, 0) + dxf_circle("30", "Walls", 10, 10, 1)),
-                            mapping());
+  const auto r =
+      import_dxf(dxf_file(dxf_line("2F", "Walls", 0, 0, 4, 0) + dxf_circle("30", "Walls", 10, 10, 1)), mapping());
   ASSERT_EQ(r.plan.objects.size(), 2u);
   const auto& wall = r.plan.objects[0];
   EXPECT_EQ(wall.id, "wall-2F");
@@ -115,9 +115,8 @@ TEST(DxfImportTest, LooseEntitiesOfAClusterLayerBecomeOneObjectPerGroup) {
 TEST(DxfImportTest, ExpandedBlocksPassTheirLayerToLayerZeroEntities) {
   const auto block = dxf_block("PART", dxf_line("B1", "0", 0, 0, 1, 0) + dxf_line("B2", "Walls", 0, 1, 1, 1) +
                                            dxf_line("B3", "IGN", 0, 2, 1, 2));
-  const auto r = import_dxf(dxf_file(dxf_insert("50", "Walls2", "PART", 100, 0) + dxf_insert("51", "Other", "PART", 0, 0),
-                                     block),
-                            mapping());
+  const auto r = import_dxf(
+      dxf_file(dxf_insert("50", "Walls2", "PART", 100, 0) + dxf_insert("51", "Other", "PART", 0, 0), block), mapping());
   std::vector<std::string> ids;
   for (const auto& o : r.plan.objects) ids.push_back(o.id);
   EXPECT_EQ(ids, (std::vector<std::string>{"wall-50.B1", "wall-50.B2", "wall-51.B2"}));
@@ -138,7 +137,8 @@ TEST(DxfImportTest, ABlockThatInsertsItselfIsRefused) {
   EXPECT_EQ(e.path(), "block A > entity INSERT handle A2");
   EXPECT_NE(std::string(e.what()).find("inserts itself (A → A)"), std::string::npos) << e.what();
 
-  const auto indirect = dxf_block("A", dxf_insert("A1", "0", "B", 0, 0)) + dxf_block("B", dxf_insert("B1", "0", "C", 0, 0)) +
+  const auto indirect = dxf_block("A", dxf_insert("A1", "0", "B", 0, 0)) +
+                        dxf_block("B", dxf_insert("B1", "0", "C", 0, 0)) +
                         dxf_block("C", dxf_insert("C1", "0", "A", 0, 0));
   e = error_of(dxf_file(dxf_line("1", "Walls", 0, 0, 1, 0), indirect));  // even when no INSERT uses it
   EXPECT_EQ(e.path(), "block C > entity INSERT handle C1");
@@ -152,7 +152,8 @@ TEST(DxfImportTest, AbsurdCoordinatesAreRefusedWithTheEntity) {
   EXPECT_EQ(error_of(dxf_file(dxf_line("30", "Walls", 0, 0, 2e8, 0), "", mm)).path(), "entity LINE handle 30");
   EXPECT_NO_THROW(import_dxf(dxf_file(dxf_line("31", "Walls", 0, 0, 2e7, 0), "", mm), mapping()));
   // Absurd through a block's scale.
-  const auto e = error_of(dxf_file(dxf_insert("40", "Walls", "P", 0, 0, 1e6), dxf_block("P", dxf_line("P1", "0", 0, 0, 1, 0))));
+  const auto e =
+      error_of(dxf_file(dxf_insert("40", "Walls", "P", 0, 0, 1e6), dxf_block("P", dxf_line("P1", "0", 0, 0, 1, 0))));
   EXPECT_EQ(e.path(), "entity INSERT handle 40 > entity LINE handle P1");
   // The limit is the plan's (as for JSON plans).
   DxfImportOptions o;
@@ -183,10 +184,10 @@ TEST(DxfImportTest, DegenerateEntitiesAreSkippedAndCounted) {
   const std::string full = "  0\nARC\n  5\nA2\n  8\nWalls\n 10\n0\n 20\n0\n 40\n1\n 50\n0\n 51\n360\n";
   const std::string point = "  0\nLWPOLYLINE\n  5\nP1\n  8\nFurn\n 90\n1\n 10\n3\n 20\n3\n";
   const auto r = import_dxf(dxf_file(arc + full + point + dxf_line("L1", "Walls", 1, 1, 1, 1 + 1e-9)), mapping());
-  EXPECT_EQ(r.report.skipped.at("degenerate ARC"), 1u);        // equal angles: nothing (as ezdxf reads it)
+  EXPECT_EQ(r.report.skipped.at("degenerate ARC"), 1u);         // equal angles: nothing (as ezdxf reads it)
   EXPECT_EQ(r.report.skipped.at("degenerate LWPOLYLINE"), 1u);  // one vertex
   EXPECT_EQ(r.report.skipped.at("degenerate LINE"), 1u);        // shorter than 1e-6 m
-  ASSERT_EQ(r.plan.objects.size(), 1u);                          // 0° → 360°: the whole circle
+  ASSERT_EQ(r.plan.objects.size(), 1u);                         // 0° → 360°: the whole circle
   EXPECT_EQ(r.plan.objects[0].id, "wall-A2");
   EXPECT_GE(r.plan.objects[0].polylines.at(0).size(), 9u);
 }
@@ -206,7 +207,8 @@ TEST(DxfImportTest, DeeplyExpandingDrawingsAreRefused) {
   for (int level = 0; level < 7; ++level) {
     std::string inserts;
     for (int k = 0; k < 10; ++k)
-      inserts += dxf_insert("L" + std::to_string(level) + "K" + std::to_string(k), "0", "B" + std::to_string(level + 1), k, 0);
+      inserts +=
+          dxf_insert("L" + std::to_string(level) + "K" + std::to_string(k), "0", "B" + std::to_string(level + 1), k, 0);
     blocks += dxf_block("B" + std::to_string(level), inserts);
   }
   blocks += dxf_block("B7", dxf_line("X", "0", 0, 0, 0.001, 0));
@@ -226,7 +228,8 @@ TEST(DxfImportTest, OptionsOutOfRangeAreInvalidArguments) {
 }
 
 TEST(DxfImportTest, ReportIsJson) {
-  const auto r = import_dxf(dxf_file(dxf_line("1", "Walls", 0, 0, 1, 0) + dxf_line("2", "M\xF6", 0, 0, 1, 0)), mapping());
+  const auto r =
+      import_dxf(dxf_file(dxf_line("1", "Walls", 0, 0, 1, 0) + dxf_line("2", "M\xF6", 0, 0, 1, 0)), mapping());
   const auto j = nlohmann::json::parse(to_json_text(r.report));
   EXPECT_EQ(j["format"], "dxf");
   EXPECT_EQ(j["objects"], 1);

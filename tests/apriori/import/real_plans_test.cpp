@@ -1,11 +1,10 @@
-#include "apriori/import/dxf_import.h"
+#include <gtest/gtest.h>
 
 #include <cmath>
 #include <map>
 
-#include <gtest/gtest.h>
-
 #include "apriori/import/amrl_import.h"
+#include "apriori/import/dxf_import.h"
 #include "apriori/import/rmf_import.h"
 #include "tests/apriori/plan_test_support.h"
 
@@ -39,9 +38,9 @@ TEST(RealPlansTest, BarcelonaPavilionDxfLoadsWithTheDefaultMapping) {
   EXPECT_EQ(report.units_to_m, 1.0);
   EXPECT_EQ(report.units_source, "$INSUNITS 6 (metres)");
   EXPECT_EQ(report.entity_counts, (std::map<std::string, std::size_t>{{"LINE", 954}, {"CIRCLE", 188}, {"ARC", 69}}));
-  const std::map<std::string, std::size_t> layer_entities{{"Flooring", 260}, {"Walls", 60}, {"Furniture", 450},
+  const std::map<std::string, std::size_t> layer_entities{{"Flooring", 260}, {"Walls", 60},  {"Furniture", 450},
                                                           {"Projection", 8}, {"Doors", 118}, {"Crystal", 63},
-                                                          {"Cancel", 156}, {"Columns", 96}};
+                                                          {"Cancel", 156},   {"Columns", 96}};
   ASSERT_EQ(report.layers.size(), layer_entities.size());
   for (const auto& [layer, n] : layer_entities) EXPECT_EQ(report.layers.at(layer).entities, n) << layer;
   EXPECT_EQ(report.unknown_layers, (std::vector<std::string>{"Cancel", "Flooring", "Projection"}));
@@ -53,12 +52,12 @@ TEST(RealPlansTest, BarcelonaPavilionDxfLoadsWithTheDefaultMapping) {
   EXPECT_EQ(report.layers.at("Doors").objects, 7u);
   EXPECT_EQ(report.layers.at("Columns").objects, 8u);
   EXPECT_EQ(report.clustered_objects, 23u + 7u + 8u);
-  EXPECT_EQ(report.layers.at("Walls").objects, 60u);    // one per LINE
+  EXPECT_EQ(report.layers.at("Walls").objects, 60u);  // one per LINE
   EXPECT_EQ(report.layers.at("Crystal").objects, 63u);
   EXPECT_EQ(report.objects, 161u);
   EXPECT_EQ(r.plan.objects.size(), 161u);
-  EXPECT_EQ(count_by_kind(r.plan), (std::map<std::string, std::size_t>{
-                                       {"wall", 123}, {"furniture", 23}, {"door", 7}, {"column", 8}}));
+  EXPECT_EQ(count_by_kind(r.plan),
+            (std::map<std::string, std::size_t>{{"wall", 123}, {"furniture", 23}, {"door", 7}, {"column", 8}}));
   for (const auto& o : r.plan.objects) {
     if (o.kind == "furniture") {
       EXPECT_TRUE(o.has_attribute("not_deformable")) << o.id;
@@ -123,8 +122,7 @@ TEST(RealPlansTest, RmfOfficeBuildingLoads) {
   EXPECT_EQ(report.entity_counts.at("floors"), 4u);
   EXPECT_EQ(report.entity_counts.at("lanes"), 30u);
   EXPECT_EQ(report.skipped.at("model (not static)"), 1u);
-  EXPECT_EQ(count_by_kind(r.plan),
-            (std::map<std::string, std::size_t>{{"wall", 33}, {"door", 3}, {"furniture", 78}}));
+  EXPECT_EQ(count_by_kind(r.plan), (std::map<std::string, std::size_t>{{"wall", 33}, {"door", 3}, {"furniture", 78}}));
   std::size_t glass = 0;
   for (const auto& o : r.plan.objects) glass += o.has_attribute("glass") ? 1 : 0;
   EXPECT_EQ(glass, 7u);  // translucent walls (alpha < 1)

@@ -1,9 +1,9 @@
 #include "apriori/import/rmf_import.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 namespace wm::apriori {
 namespace {
@@ -88,7 +88,8 @@ TEST(RmfImportTest, ErrorsNameTheYamlPath) {
             "levels.L1.measurements");
   RmfImportOptions scale;
   scale.metres_per_pixel = 0.01;
-  EXPECT_EQ(error_path("levels: {L1: {vertices: [[0, 0, 0, a]], walls: [[0, 7, {}]]}}", scale), "levels.L1.walls[0][1]");
+  EXPECT_EQ(error_path("levels: {L1: {vertices: [[0, 0, 0, a]], walls: [[0, 7, {}]]}}", scale),
+            "levels.L1.walls[0][1]");
   EXPECT_EQ(error_path("levels: {L1: {vertices: [[0, x, 0, a]]}}", scale), "levels.L1.vertices[0][1]");
   EXPECT_EQ(error_path("levels: {L1: {vertices: [[0, 1e12, 0, a], [0, 0, 0, b]], walls: [[0, 1, {}]]}}", scale),
             "levels.L1.walls[0]");  // absurd coordinate
@@ -104,7 +105,8 @@ TEST(RmfImportTest, ErrorsNameTheYamlPath) {
 
 TEST(RmfImportTest, CartesianMetresAreUsedAsTheyAre) {
   const auto r = import_rmf_building(
-      "coordinate_system: cartesian_meters\nlevels: {L1: {vertices: [[1, 2, 0, a], [3, 2, 0, b]], walls: [[0, 1, {}]]}}");
+      "coordinate_system: cartesian_meters\nlevels: {L1: {vertices: [[1, 2, 0, a], [3, 2, 0, b]], walls: [[0, 1, "
+      "{}]]}}");
   EXPECT_EQ(r.report.units_to_m, 1.0);
   EXPECT_EQ(r.plan.objects[0].pose.y_m, 2.0);
 }

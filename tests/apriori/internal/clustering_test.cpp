@@ -20,7 +20,7 @@ TEST(ClusteringTest, SegmentDistanceIsZeroForCrossingAndTouchingSegments) {
   EXPECT_DOUBLE_EQ(segment_distance({0, 0}, {1, 0}, {0.5, 0.3}, {0.5, 2}), 0.3);
   EXPECT_DOUBLE_EQ(segment_distance({0, 0}, {1, 0}, {4, 4}, {5, 4}), 5.0);
   EXPECT_DOUBLE_EQ(segment_distance({0, 0}, {1, 0}, {2, 0}, {3, 0}), 1.0);  // collinear, apart
-  EXPECT_EQ(segment_distance({0, 0}, {2, 0}, {1, 0}, {3, 0}), 0.0);          // collinear, overlapping
+  EXPECT_EQ(segment_distance({0, 0}, {2, 0}, {1, 0}, {3, 0}), 0.0);         // collinear, overlapping
 }
 
 TEST(ClusteringTest, ItemsWithinToleranceJoinTransitively) {

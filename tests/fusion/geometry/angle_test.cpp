@@ -1,10 +1,10 @@
 #include "fusion/geometry/angle.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <numbers>
-
-#include <gtest/gtest.h>
 
 namespace wm::fusion {
 namespace {

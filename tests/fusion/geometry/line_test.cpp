@@ -1,12 +1,12 @@
 #include "fusion/geometry/line.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "tests/fusion/fusion_test_helpers.h"
 
@@ -137,12 +137,15 @@ void expect_transform_matches_numeric(const LineFeature& local, const Pose2D& po
   joint.bottomRightCorner<3, 3>() = pose_cov;
   const Eigen::Matrix2d expected = j * joint * j.transpose();
   EXPECT_NEAR((world.cov - expected).cwiseAbs().maxCoeff(), 0.0, 1e-9 * expected.cwiseAbs().maxCoeff())
-      << "analytic\n" << world.cov << "\nnumeric\n" << expected;
+      << "analytic\n"
+      << world.cov << "\nnumeric\n"
+      << expected;
 }
 
 TEST(TransformLineTest, CovarianceMatchesNumericJacobianOfTransformedPoints) {
   const LineFeature local{1.2, 0.4, cov2(1e-4, 3e-5, 4e-4)};
-  const Eigen::Matrix3d pose_cov = (Eigen::Matrix3d() << 4e-3, 1e-3, 5e-4, 1e-3, 2e-3, -3e-4, 5e-4, -3e-4, 1e-3).finished();
+  const Eigen::Matrix3d pose_cov =
+      (Eigen::Matrix3d() << 4e-3, 1e-3, 5e-4, 1e-3, 2e-3, -3e-4, 5e-4, -3e-4, 1e-3).finished();
   expect_transform_matches_numeric(local, Pose2D{3.0, -1.5, 0.7}, pose_cov);
 }
 

@@ -1,9 +1,9 @@
 #include "fusion/geometry/pose2d.h"
 
+#include <gtest/gtest.h>
+
 #include <numbers>
 #include <random>
-
-#include <gtest/gtest.h>
 
 namespace wm::fusion {
 namespace {

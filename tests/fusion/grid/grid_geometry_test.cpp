@@ -1,10 +1,10 @@
 #include "fusion/grid/grid_geometry.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 namespace wm::fusion {
 namespace {

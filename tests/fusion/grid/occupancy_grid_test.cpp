@@ -1,5 +1,7 @@
 #include "fusion/grid/occupancy_grid.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -7,8 +9,6 @@
 #include <random>
 #include <stdexcept>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace wm::fusion {
 namespace {
@@ -251,7 +251,8 @@ TEST(OccupancyGridTest, SyntheticRoomHasOccupiedWallsAndFreeInside) {
   std::mt19937 rng(42);
   std::normal_distribution<double> noise(0.0, 0.01);
   std::vector<Eigen::Vector2d> returns;
-  const std::vector<Pose2D> poses = {{1.5, 1.0, 0.3}, {3.0, 2.0, -1.0}, {4.7, 3.1, 2.0}, {2.2, 3.0, 0.0}, {5.1, 0.8, 1.2}};
+  const std::vector<Pose2D> poses = {
+      {1.5, 1.0, 0.3}, {3.0, 2.0, -1.0}, {4.7, 3.1, 2.0}, {2.2, 3.0, 0.0}, {5.1, 0.8, 1.2}};
   for (const Pose2D& pose : poses) {
     LaserScan s = scan_at(pose, {}, -std::numbers::pi, 1.0 * kDeg);
     for (int i = 0; i < 360; ++i) {
@@ -289,8 +290,8 @@ TEST(OccupancyGridTest, SyntheticRoomHasOccupiedWallsAndFreeInside) {
       if (!room.inside(q) || room.distance_to_walls(q) <= 1.5 * kRes) continue;
       ++inside;
       bayes_free += grid.probability({x, y}) < 0.5;
-      EXPECT_LT(grid.probability({x, y}), 0.5) << "cell " << x << "," << y << ", " << room.distance_to_walls(q)
-                                               << " m from a wall";
+      EXPECT_LT(grid.probability({x, y}), 0.5)
+          << "cell " << x << "," << y << ", " << room.distance_to_walls(q) << " m from a wall";
       const auto m = grid.masses({x, y});
       ds_free += m.empty > m.occupied && grid.plausibility({x, y}) < 0.5;
     }
@@ -385,8 +386,8 @@ TEST(OccupancyGridTest, TileRoundTripIsExact) {
 TEST(OccupancyGridTest, SetTileRejectsBadData) {
   OccupancyGrid grid{GridOptions{}};
   const std::size_t n = 64 * 64;
-  const OccupancyGrid::TileData good{std::vector<float>(n, 0.f), std::vector<float>(n, 0.f),
-                                     std::vector<float>(n, 0.f), std::vector<float>(n, 0.f)};
+  const OccupancyGrid::TileData good{std::vector<float>(n, 0.f), std::vector<float>(n, 0.f), std::vector<float>(n, 0.f),
+                                     std::vector<float>(n, 0.f)};
   auto bad = [&](auto mutate) {
     OccupancyGrid::TileData d = good;
     mutate(d);
@@ -399,9 +400,9 @@ TEST(OccupancyGridTest, SetTileRejectsBadData) {
   EXPECT_THROW(grid.set_tile({0, 0}, bad([](auto& d) { d.m_empty[7] = std::numeric_limits<float>::infinity(); })),
                std::invalid_argument);
   EXPECT_THROW(grid.set_tile({0, 0}, bad([](auto& d) {
-                 d.m_occupied[3] = 0.7f;
-                 d.m_empty[3] = 0.6f;
-               })),
+                               d.m_occupied[3] = 0.7f;
+                               d.m_empty[3] = 0.6f;
+                             })),
                std::invalid_argument);
   EXPECT_THROW(grid.set_tile({0, 0}, bad([](auto& d) { d.conflict[3] = 1.5f; })), std::invalid_argument);
   EXPECT_TRUE(grid.tiles().empty());

@@ -1,9 +1,9 @@
 #include "fusion/grid/scan.h"
 
+#include <gtest/gtest.h>
+
 #include <limits>
 #include <stdexcept>
-
-#include <gtest/gtest.h>
 
 namespace wm::fusion {
 namespace {
@@ -45,9 +45,11 @@ TEST(ScanTest, RejectsInconsistentLaserScans) {
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sensor_pose.x_m = nan; })), std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sensor_pose.theta_rad = nan; })), std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.angle_increment_rad = nan; })), std::invalid_argument);
-  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.angle_min_rad = std::numeric_limits<double>::infinity(); })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.angle_min_rad = std::numeric_limits<double>::infinity(); })),
+               std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.range_max_m = s.range_min_m; })), std::invalid_argument);
-  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.range_max_m = std::numeric_limits<double>::infinity(); })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.range_max_m = std::numeric_limits<double>::infinity(); })),
+               std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.range_min_m = -0.1; })), std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_m = -0.01; })), std::invalid_argument);
 }

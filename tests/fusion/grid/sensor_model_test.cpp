@@ -1,5 +1,7 @@
 #include "fusion/grid/sensor_model.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -9,8 +11,6 @@
 #include <stdexcept>
 #include <utility>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace wm::fusion {
 namespace {
@@ -321,8 +321,8 @@ TEST(SensorModelTest, SonarConeMarksTheArcAndFreesInside) {
     const double d = (center - Eigen::Vector2d(0.025, 0.025)).norm();
     if (c.hit) {
       EXPECT_NEAR(d, 2.0, 0.0401 + 1e-9);  // h = σ = 4 cm
-      EXPECT_NEAR(c.bayes_log_odds, logit(0.5 + 0.1 * std::exp(-std::pow(d - 2.0, 2) / (2 * (0.04 * 0.04 + 0.025 * 0.025)))),
-                  1e-6);
+      EXPECT_NEAR(c.bayes_log_odds,
+                  logit(0.5 + 0.1 * std::exp(-std::pow(d - 2.0, 2) / (2 * (0.04 * 0.04 + 0.025 * 0.025)))), 1e-6);
     } else {
       EXPECT_LT(d, 2.0 - 0.04);
       EXPECT_NEAR(c.bayes_log_odds, logit(0.45), 1e-12);

@@ -1,5 +1,7 @@
 #include "fusion/grid_lines/grid_line_extractor.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <iostream>
@@ -7,8 +9,6 @@
 #include <numbers>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "fusion/lines/line_fit.h"
 #include "tests/fusion/grid_lines/synthetic_raster.h"
@@ -25,8 +25,8 @@ constexpr double kDeg = std::numbers::pi / 180;
 
 std::string describe(const LineSegment& s) {
   return "rho " + std::to_string(s.line.rho_m) + " phi " + std::to_string(s.line.phi_rad / kDeg) + "deg from (" +
-         std::to_string(s.p0().x()) + ", " + std::to_string(s.p0().y()) + ") to (" + std::to_string(s.p1().x()) +
-         ", " + std::to_string(s.p1().y()) + ")";
+         std::to_string(s.p0().x()) + ", " + std::to_string(s.p0().y()) + ") to (" + std::to_string(s.p1().x()) + ", " +
+         std::to_string(s.p1().y()) + ")";
 }
 
 // No wall found twice over the same stretch (a failure), and the descriptions of the spurious segments
@@ -39,8 +39,8 @@ std::vector<std::string> duplicates_and_spurious(const testing::SyntheticMap& ma
     for (const LineSegment& s : segments) {
       if (testing::on_wall_line(w, s.line)) covered += testing::overlap_m(w, s.p0(), s.p1());
     }
-    EXPECT_LT(covered, 1.1 * w.length_m() + 0.1) << "wall (" << w.a.transpose() << ") - (" << w.b.transpose()
-                                                 << ") covered more than once";
+    EXPECT_LT(covered, 1.1 * w.length_m() + 0.1)
+        << "wall (" << w.a.transpose() << ") - (" << w.b.transpose() << ") covered more than once";
   }
   std::vector<std::string> spurious;
   for (const LineSegment* s : testing::spurious_segments(map, segments)) spurious.push_back(describe(*s));
@@ -60,7 +60,8 @@ TEST(GridLineExtractorTest, FindsEveryWallOfRoomsWithBoxesAndNothingElse) {
     const std::vector<TrueWall> walls = longer_than(map.walls, 0.5);
     std::vector<const TrueWall*> missed;
     EXPECT_EQ(count_found(walls, segments, 0.025, &missed), walls.size());
-    for (const TrueWall* w : missed) ADD_FAILURE() << "missed wall (" << w->a.transpose() << ") - (" << w->b.transpose() << ")";
+    for (const TrueWall* w : missed)
+      ADD_FAILURE() << "missed wall (" << w->a.transpose() << ") - (" << w->b.transpose() << ")";
     for (const std::string& s : duplicates_and_spurious(map, segments)) ADD_FAILURE() << "spurious segment " << s;
   }
 }
@@ -108,7 +109,8 @@ TEST(GridLineExtractorTest, FindsTheWallsOfABuildingSplitAtTheDoors) {
   ASSERT_GT(structure.size(), 10u);
   std::vector<const TrueWall*> missed;
   EXPECT_EQ(count_found(structure, segments, 0.05, &missed), structure.size());
-  for (const TrueWall* w : missed) ADD_FAILURE() << "missed wall (" << w->a.transpose() << ") - (" << w->b.transpose() << ")";
+  for (const TrueWall* w : missed)
+    ADD_FAILURE() << "missed wall (" << w->a.transpose() << ") - (" << w->b.transpose() << ")";
   const std::size_t found = count_found(furniture, segments, 0.05);
   const std::vector<std::string> spurious = duplicates_and_spurious(map, segments);
   for (const std::string& s : spurious) std::cout << "[ INFO     ] spurious: " << s << "\n";

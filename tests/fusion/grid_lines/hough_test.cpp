@@ -1,12 +1,12 @@
 #include "fusion/grid_lines/hough.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <numbers>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "tests/fusion/grid_lines/synthetic_raster.h"
 

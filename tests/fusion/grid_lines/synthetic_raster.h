@@ -2,6 +2,7 @@
 
 // Test-only: synthetic occupancy rasters with known walls (a room with boxes; a building of rooms with doors and
 // furniture), and the agreement measures the grid line tests and bench/grid_lines_bench share.
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -9,8 +10,6 @@
 #include <numbers>
 #include <random>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "fusion/geometry/angle.h"
 #include "fusion/geometry/line.h"
@@ -41,12 +40,12 @@ struct SyntheticMap {
 
 /// Occupancy noise of the synthetic rasters.
 struct NoiseOptions {
-  float wall_p_lo = 0.70f;     // wall cells: p uniform in [lo, hi]
+  float wall_p_lo = 0.70f;  // wall cells: p uniform in [lo, hi]
   float wall_p_hi = 0.98f;
-  double hole_fraction = 0.02; // wall cells that fall below the threshold (p uniform in [0.3, 0.6])
-  float free_p_lo = 0.05f;     // seen free cells
+  double hole_fraction = 0.02;  // wall cells that fall below the threshold (p uniform in [0.3, 0.6])
+  float free_p_lo = 0.05f;      // seen free cells
   float free_p_hi = 0.40f;
-  int speckles = 25;           // isolated occupied cells (half of them 2-cell clusters) in free space
+  int speckles = 25;  // isolated occupied cells (half of them 2-cell clusters) in free space
 };
 
 /// Paints walls, free space and unknown space into a raster.
@@ -135,7 +134,9 @@ class RasterPainter {
   }
 
   float uniform(float lo, float hi) { return std::uniform_real_distribution<float>(lo, hi)(rng_); }
-  bool hole(const NoiseOptions& noise) { return std::uniform_real_distribution<double>(0, 1)(rng_) < noise.hole_fraction; }
+  bool hole(const NoiseOptions& noise) {
+    return std::uniform_real_distribution<double>(0, 1)(rng_) < noise.hole_fraction;
+  }
 
   ProbabilityRaster raster_;
   std::mt19937 rng_;
@@ -144,15 +145,18 @@ class RasterPainter {
 /// Corners of a rectangle [0, size] in a frame at `origin` turned by `angle` [rad], counter-clockwise.
 inline std::vector<Eigen::Vector2d> rectangle(const Eigen::Vector2d& origin, double angle, const Eigen::Vector2d& lo,
                                               const Eigen::Vector2d& hi) {
-  const Eigen::Matrix2d r = (Eigen::Matrix2d() << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle)).finished();
+  const Eigen::Matrix2d r =
+      (Eigen::Matrix2d() << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle)).finished();
   return {origin + r * lo, origin + r * Eigen::Vector2d(hi.x(), lo.y()), origin + r * hi,
           origin + r * Eigen::Vector2d(lo.x(), hi.y())};
 }
 
 /// The four walls along a rectangle's corners.
-inline std::vector<TrueWall> outline(const std::vector<Eigen::Vector2d>& corners, const std::vector<double>& thickness) {
+inline std::vector<TrueWall> outline(const std::vector<Eigen::Vector2d>& corners,
+                                     const std::vector<double>& thickness) {
   std::vector<TrueWall> walls;
-  for (std::size_t k = 0; k < corners.size(); ++k) walls.push_back({corners[k], corners[(k + 1) % corners.size()], thickness[k]});
+  for (std::size_t k = 0; k < corners.size(); ++k)
+    walls.push_back({corners[k], corners[(k + 1) % corners.size()], thickness[k]});
   return walls;
 }
 
@@ -186,7 +190,8 @@ inline SyntheticMap room_with_boxes(std::uint32_t seed, double angle, double res
                                   {{4.6, 3.6}, {5.8, 4.6}, 20.0 * std::numbers::pi / 180}};
   for (const Box& b : boxes) {
     const Eigen::Vector2d mid = 0.5 * (b.lo + b.hi);
-    const Eigen::Matrix2d r = (Eigen::Matrix2d() << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle)).finished();
+    const Eigen::Matrix2d r =
+        (Eigen::Matrix2d() << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle)).finished();
     const auto corners = rectangle(origin + r * mid, angle + b.turn, b.lo - mid, b.hi - mid);
     painter.fill_polygon(corners, std::numeric_limits<float>::quiet_NaN(), 0.0f);  // inside a box: never seen
     for (const TrueWall& w : outline(corners, {thickness(), thickness(), thickness(), thickness()})) walls.push_back(w);
@@ -197,8 +202,8 @@ inline SyntheticMap room_with_boxes(std::uint32_t seed, double angle, double res
 }
 
 /// A building of rooms_x × rooms_y rooms of room_m × room_m, walls 3 cells thick with a door (0.9 m gap) in
-/// every inner wall, and two pieces of furniture per room (boxes 0.5–1 m, one turned; room_m >= 4.5), outlines 1–2 cells
-/// thick, at `resolution_m`. Collinear walls are separate true walls (split at the doors).
+/// every inner wall, and two pieces of furniture per room (boxes 0.5–1 m, one turned; room_m >= 4.5), outlines 1–2
+/// cells thick, at `resolution_m`. Collinear walls are separate true walls (split at the doors).
 inline SyntheticMap building(std::uint32_t seed, int rooms_x, int rooms_y, double room_m, double resolution_m = 0.05,
                              const NoiseOptions& noise = {}) {
   std::mt19937 pick(seed);
@@ -292,7 +297,8 @@ struct Tolerance {
 /// True when segment s lies on wall w within the tolerance.
 inline bool segment_matches(const TrueWall& w, const LineSegment& s, const Tolerance& tol) {
   const LineDifference diff = difference(w.line(), s.line);
-  return diff.rho_m < tol.rho_m && diff.phi_rad < tol.phi_rad && overlap_m(w, s.p0(), s.p1()) >= tol.overlap * w.length_m();
+  return diff.rho_m < tol.rho_m && diff.phi_rad < tol.phi_rad &&
+         overlap_m(w, s.p0(), s.p1()) >= tol.overlap * w.length_m();
 }
 
 /// True when the infinite line l is the wall's line within the tolerance.
@@ -335,8 +341,10 @@ inline std::size_t count_found(const std::vector<TrueWall>& walls, const std::ve
   for (const TrueWall& w : walls) {
     bool hit = false;
     for (const LineSegment& s : segments) hit = hit || found_within(w, s, digitisation_tolerance(w, resolution_m));
-    if (hit) ++found;
-    else if (missed != nullptr) missed->push_back(&w);
+    if (hit)
+      ++found;
+    else if (missed != nullptr)
+      missed->push_back(&w);
   }
   return found;
 }
@@ -358,7 +366,7 @@ inline bool on_wall_line(const TrueWall& w, const LineFeature& l) {
 /// that line (collinear true walls that meet, like an outer wall split where inner walls join it, count as one). A
 /// segment's end may pass the centreline's end by half the thickness of the wall met there plus half a cell.
 inline std::vector<const LineSegment*> spurious_segments(const SyntheticMap& map,
-                                                        const std::vector<LineSegment>& segments) {
+                                                         const std::vector<LineSegment>& segments) {
   double thickest = 0.0;
   for (const TrueWall& w : map.walls) thickest = std::max(thickest, w.thickness_m);
   const double slack = thickest + map.raster.geometry.resolution_m() + 0.02;

@@ -1,13 +1,13 @@
 #include "fusion/grid_lines/thinning.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace wm::fusion {
 namespace {
@@ -151,13 +151,7 @@ TEST(ThinningTest, TwoPixelDiagonalStrokeKeepsItsConnectivity) {
 }
 
 TEST(ThinningTest, OnePixelShapesAreAlreadySkeletons) {
-  const Image img = parse({".........",
-                           ".#.......",
-                           "...#####.",
-                           "...#.....",
-                           "...#...#.",
-                           "....#....",
-                           "........."});
+  const Image img = parse({".........", ".#.......", "...#####.", "...#.....", "...#...#.", "....#....", "........."});
   EXPECT_EQ(thin(img).pixels, img.pixels);
 }
 
@@ -174,26 +168,10 @@ TEST(ThinningTest, ThinsBlobsTouchingTheImageBorder) {
 TEST(ThinningTest, KnownSmallCase) {
   // A 3-pixel-thick horizontal bar thins to its middle row. Plain Zhang–Suen gives columns 2..7; with the Lü–Wang
   // end condition (B >= 3) one end keeps the pixel next to it, so columns 1..7 or 2..8 are also right.
-  const Image skeleton = thin(parse({"..........",
-                                     ".########.",
-                                     ".########.",
-                                     ".########.",
-                                     ".........."}));
-  const Image plain = parse({"..........",
-                             "..........",
-                             "..######..",
-                             "..........",
-                             ".........."});
-  const Image longer_left = parse({"..........",
-                                   "..........",
-                                   ".#######..",
-                                   "..........",
-                                   ".........."});
-  const Image longer_right = parse({"..........",
-                                    "..........",
-                                    "..#######.",
-                                    "..........",
-                                    ".........."});
+  const Image skeleton = thin(parse({"..........", ".########.", ".########.", ".########.", ".........."}));
+  const Image plain = parse({"..........", "..........", "..######..", "..........", ".........."});
+  const Image longer_left = parse({"..........", "..........", ".#######..", "..........", ".........."});
+  const Image longer_right = parse({"..........", "..........", "..#######.", "..........", ".........."});
   EXPECT_TRUE(skeleton.pixels == plain.pixels || skeleton.pixels == longer_left.pixels ||
               skeleton.pixels == longer_right.pixels);
 }

@@ -1,13 +1,13 @@
 #include "fusion/kalman/line_map.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/LU>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <vector>
-
-#include <Eigen/LU>
-#include <gtest/gtest.h>
 
 #include "fusion/geometry/angle.h"
 #include "tests/fusion/fusion_test_helpers.h"
@@ -84,7 +84,7 @@ TEST(LineMapTest, ExtentGapIsMeasuredOnTheElementsLine) {
   const LineSegment observed = seg({3.0, 1.2}, {2.3, 1.1});
   EXPECT_NEAR(extent_gap_m(element, observed), 0.3, 1e-14);
   EXPECT_NEAR(extent_gap_m(element, seg({-0.5, 1.0}, {-0.2, 1.0})), 0.2, 1e-14);
-  EXPECT_NEAR(extent_gap_m(element, seg({2.0, 1.0}, {3.0, 1.0})), 0.0, 1e-14);  // touching
+  EXPECT_NEAR(extent_gap_m(element, seg({2.0, 1.0}, {3.0, 1.0})), 0.0, 1e-14);   // touching
   EXPECT_NEAR(extent_gap_m(element, seg({-1.0, 1.0}, {5.0, 1.0})), 0.0, 1e-14);  // containing
 }
 

@@ -1,15 +1,15 @@
 #include "fusion/kalman/rigid_object.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <cmath>
 #include <limits>
 #include <numbers>
 #include <random>
 #include <stdexcept>
 #include <vector>
-
-#include <Eigen/Cholesky>
-#include <Eigen/LU>
-#include <gtest/gtest.h>
 
 #include "fusion/geometry/angle.h"
 #include "fusion/internal/line_algebra.h"
@@ -92,7 +92,9 @@ TEST(RigidObjectTest, WorldEdgeCovarianceIsPosePropagatedPlusEdgeNoise) {
     const Eigen::Matrix<double, 2, 3> j = testing::numeric_jacobian<2>(f, s);
     const Eigen::Matrix2d expected = j * pose_cov * j.transpose() + kEdgeNoise;
     EXPECT_NEAR((world.line.cov - expected).cwiseAbs().maxCoeff(), 0.0, 1e-9 * expected.cwiseAbs().maxCoeff())
-        << "edge " << k << "\n" << world.line.cov << "\nvs\n" << expected;
+        << "edge " << k << "\n"
+        << world.line.cov << "\nvs\n"
+        << expected;
     // The endpoints are the local endpoints moved by the pose.
     const Eigen::Vector2d q0 = table.pose().transform_point(table.edges()[k].p0);
     const Eigen::Vector2d q1 = table.pose().transform_point(table.edges()[k].p1);
@@ -142,9 +144,11 @@ TEST(RigidObjectTest, ShiftedEdgePullsThePoseAlongItsNormal) {
 TEST(RigidObjectTest, UpdateMatchesTheKalmanFormulasByHand) {
   const RigidObject table = rotated_table();
   const std::size_t k = 1;
-  const LineFeature local = LineSegment::from_points(table.edges()[k].p0, table.edges()[k].p1, Eigen::Matrix2d::Identity()).line;
+  const LineFeature local =
+      LineSegment::from_points(table.edges()[k].p0, table.edges()[k].p1, Eigen::Matrix2d::Identity()).line;
   const internal::TransformedLine h = internal::transform_line_raw(local.rho_m, local.phi_rad, table.pose());
-  const LineFeature observed{h.rho_m - 0.03, h.phi_rad + 0.02, (Eigen::Matrix2d() << 2e-4, 1e-5, 1e-5, 3e-4).finished()};
+  const LineFeature observed{h.rho_m - 0.03, h.phi_rad + 0.02,
+                             (Eigen::Matrix2d() << 2e-4, 1e-5, 1e-5, 3e-4).finished()};
   const RigidObject moved = table.updated(k, observed, kEdgeNoise);
 
   const Eigen::Matrix3d& p = table.pose_cov();

@@ -1,5 +1,8 @@
 #include "fusion/lines/line_fit.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -7,9 +10,6 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
-
-#include <Eigen/Cholesky>
-#include <gtest/gtest.h>
 
 #include "fusion/geometry/angle.h"
 #include "tests/fusion/fusion_test_helpers.h"
@@ -159,7 +159,9 @@ TEST(FitLineTest, CovarianceMatchesClosedFormForIsotropicPoints) {
     EXPECT_NEAR(normalize_angle(fit.phi_rad - phi), 0.0, 1e-12);
     const Eigen::Matrix2d expected = closed_form_cov(fit, points, sigmas);
     EXPECT_NEAR((fit.cov - expected).cwiseAbs().maxCoeff(), 0.0, 1e-12 * expected.cwiseAbs().maxCoeff())
-        << "phi " << phi << "\n" << fit.cov << "\nvs\n" << expected;
+        << "phi " << phi << "\n"
+        << fit.cov << "\nvs\n"
+        << expected;
     EXPECT_GT(std::abs(fit.cov(0, 1)), 0.5 * std::sqrt(fit.cov(0, 0) * fit.cov(1, 1)));
   }
 }

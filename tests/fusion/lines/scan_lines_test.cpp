@@ -1,16 +1,17 @@
 #include "fusion/lines/scan_lines.h"
-#include "fusion/kalman/line_map.h"
 
+#include <gtest/gtest.h>
+
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-#include <utility>
 #include <numbers>
 #include <optional>
 #include <random>
+#include <utility>
 #include <vector>
 
-#include <Eigen/LU>
-#include <gtest/gtest.h>
+#include "fusion/kalman/line_map.h"
 
 namespace wm::fusion {
 namespace {
@@ -51,7 +52,8 @@ std::optional<double> cast(const std::vector<Wall>& walls, const Eigen::Vector2d
 constexpr int kBeams = 1440;  // a full circle at 0.25°
 
 // A full-circle scan with Gaussian range and bearing noise, as the extractor's model assumes.
-std::vector<RangeReading> scan(const std::vector<Wall>& walls, const Pose2D& pose, const ScanLineOptions& o, std::mt19937& rng) {
+std::vector<RangeReading> scan(const std::vector<Wall>& walls, const Pose2D& pose, const ScanLineOptions& o,
+                               std::mt19937& rng) {
   std::normal_distribution<double> range_noise(0.0, o.sigma_range_m), bearing_noise(0.0, o.sigma_bearing_rad);
   std::vector<RangeReading> readings;
   for (int i = 0; i < kBeams; ++i) {
@@ -63,16 +65,15 @@ std::vector<RangeReading> scan(const std::vector<Wall>& walls, const Pose2D& pos
   return readings;
 }
 
-LineFeature line_of(const Wall& w) {
-  return LineSegment::from_points(w.a, w.b, Eigen::Matrix2d::Identity()).line;
-}
+LineFeature line_of(const Wall& w) { return LineSegment::from_points(w.a, w.b, Eigen::Matrix2d::Identity()).line; }
 
 double angle_diff(double a, double b) { return std::remainder(a - b, 2 * std::numbers::pi); }
 
 // |Δρ| and |Δφ| between two lines, over both representations ((ρ, φ) ≡ (−ρ, φ + π)).
 std::pair<double, double> line_error(const LineFeature& a, const LineFeature& b) {
   const std::pair<double, double> same{std::abs(a.rho_m - b.rho_m), std::abs(angle_diff(a.phi_rad, b.phi_rad))};
-  const std::pair<double, double> flipped{std::abs(a.rho_m + b.rho_m), std::abs(angle_diff(a.phi_rad + std::numbers::pi, b.phi_rad))};
+  const std::pair<double, double> flipped{std::abs(a.rho_m + b.rho_m),
+                                          std::abs(angle_diff(a.phi_rad + std::numbers::pi, b.phi_rad))};
   return same.first + same.second <= flipped.first + flipped.second ? same : flipped;
 }
 
@@ -180,7 +181,8 @@ TEST(ScanLinesTest, GapsSplitCollinearWallsAndShortPiecesAreDropped) {
   const std::vector<Wall> walls = {{{-3, 2}, {-0.5, 2}}, {{0.5, 2}, {3, 2}}, {{2, -1}, {2.2, -1}}};
   ScanLineOptions options;
   std::mt19937 rng(5);
-  const auto segments = extract_scan_lines(scan(walls, {0, 0, 0}, options, rng), {0, 0, 0}, Eigen::Matrix3d::Zero(), options);
+  const auto segments =
+      extract_scan_lines(scan(walls, {0, 0, 0}, options, rng), {0, 0, 0}, Eigen::Matrix3d::Zero(), options);
   ASSERT_EQ(segments.size(), 2u);
   for (const auto& s : segments) EXPECT_NEAR(s.line.rho_m, 2.0, 0.01);
   EXPECT_GT(std::min(segments[0].length_m(), segments[1].length_m()), 2.0);
@@ -188,7 +190,8 @@ TEST(ScanLinesTest, GapsSplitCollinearWallsAndShortPiecesAreDropped) {
 
 TEST(ScanLinesTest, BadInputIsRefused) {
   ScanLineOptions options;
-  EXPECT_THROW(extract_scan_lines({{std::nan(""), 0.0}}, {0, 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
+  EXPECT_THROW(extract_scan_lines({{std::nan(""), 0.0}}, {0, 0, 0}, Eigen::Matrix3d::Zero(), options),
+               std::invalid_argument);
   EXPECT_THROW(extract_scan_lines({}, {std::nan(""), 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
   options.min_points = 1;
   EXPECT_THROW(extract_scan_lines({}, {0, 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);

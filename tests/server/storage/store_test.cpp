@@ -1,8 +1,7 @@
 #include "server/storage/store.h"
 
-#include <sqlite3.h>
-
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include "support/temp_dir.h"
 
@@ -23,8 +22,9 @@ world::UpdateResult add_element(const world::WorldState& state, std::int64_t seq
   auto s = fusion::LineSegment::from_points({1.0 / 3.0, 2}, {4, 2.1}, Eigen::Matrix2d::Identity());
   s.line.cov = world::midpoint_line_cov(s, 0.01, 0.01);
   obs.segments.push_back({s});
-  return world::apply_observation(state, obs, seq, world::WorldOptions{},
-                                  [](const rules::DecisionQuery&) { return rules::Decision{"add", "r", "why", false}; });
+  return world::apply_observation(state, obs, seq, world::WorldOptions{}, [](const rules::DecisionQuery&) {
+    return rules::Decision{"add", "r", "why", false};
+  });
 }
 
 TEST(StoreTest, NewFileHasCurrentSchemaAndEmptyWorld) {
@@ -46,11 +46,12 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
     Store store({path, true});
     auto loaded = world::apply_floor_plan(world::WorldState{}, plan(), options);
     // Move the table as a rigid update would, so the stored pose differs from the drawn one.
-    loaded.state.objects[1].body = fusion::RigidObject({5.0 + 1e-3 / 7.0, 5.0, 0.3 + 1e-4}, Eigen::Matrix3d::Identity() * 1e-3,
-                                                       loaded.state.objects[1].body.edges());
+    loaded.state.objects[1].body = fusion::RigidObject(
+        {5.0 + 1e-3 / 7.0, 5.0, 0.3 + 1e-4}, Eigen::Matrix3d::Identity() * 1e-3, loaded.state.objects[1].body.edges());
     store.commit_floor_plan(loaded, plan());
     auto update = add_element(loaded.state, 1);
-    store.commit_observation(update, world::Observation{"robot-1", "client", "unknown", 3.25, 0.0, {}}, R"({"segments": []})");
+    store.commit_observation(update, world::Observation{"robot-1", "client", "unknown", 3.25, 0.0, {}},
+                             R"({"segments": []})");
     saved = update.state;
   }
   Store store({path, true});
@@ -86,7 +87,8 @@ TEST(StoreTest, FailedCommitLeavesNothingBehind) {
   store.commit_observation(update, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
   // The same observation sequence again violates the journal's primary key: the transaction rolls back.
   auto again = add_element(update.state, 1);
-  EXPECT_THROW(store.commit_observation(again, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}"), StorageError);
+  EXPECT_THROW(store.commit_observation(again, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}"),
+               StorageError);
   const auto state = store.load(world::WorldOptions{});
   EXPECT_EQ(state.elements.size(), 1u);
   EXPECT_EQ(state.version, update.state.version);
@@ -103,7 +105,8 @@ TEST(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
   const auto lines = add_element(world::WorldState{}, 1);
   const world::Observation observation{"r", "scan", "laser", 0, 0, {}};
   const RequestRecord record{"scan-1", "scan", -7, 1, lines.state.version, 1, 1};
-  store.commit_scan({1, "r", "laser", 2.5, R"({"ranges": []})"}, ObservationEntry{lines, observation, R"({"scan": 1})"}, record);
+  store.commit_scan({1, "r", "laser", 2.5, R"({"ranges": []})"}, ObservationEntry{lines, observation, R"({"scan": 1})"},
+                    record);
   EXPECT_EQ(store.last_scan_seq(), 1);
   ASSERT_EQ(store.scans_after(0).size(), 1u);
   EXPECT_EQ(store.scans_after(0)[0].payload, R"({"ranges": []})");
@@ -144,13 +147,15 @@ TEST(StoreTest, ARequestIdIsKeptOnlyWithItsEffectAndOnlyOnce) {
   store.commit_observation(update, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("a", 1));
   // The effect fails (seq taken): the id is not stored either.
   auto clash = add_element(update.state, 1);
-  EXPECT_THROW(store.commit_observation(clash, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("b", 1)),
-               StorageError);
+  EXPECT_THROW(
+      store.commit_observation(clash, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("b", 1)),
+      StorageError);
   EXPECT_FALSE(store.find_request("b"));
   // The id is taken: the effect rolls back with it.
   auto next = add_element(update.state, 2);
-  EXPECT_THROW(store.commit_observation(next, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("a", 2)),
-               StorageError);
+  EXPECT_THROW(
+      store.commit_observation(next, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("a", 2)),
+      StorageError);
   EXPECT_EQ(store.load(world::WorldOptions{}).last_observation_seq, 1);
   ASSERT_TRUE(store.find_request("a"));
   EXPECT_EQ(store.find_request("a")->seq, 1);

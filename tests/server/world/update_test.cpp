@@ -1,7 +1,8 @@
 #include "server/world/update.h"
 
-#include <Eigen/LU>
 #include <gtest/gtest.h>
+
+#include <Eigen/LU>
 
 namespace wm::world {
 namespace {
@@ -21,7 +22,8 @@ apriori::FloorPlan lab() {
   return {"lab", {wall, table}};
 }
 
-Observation observe(std::initializer_list<std::pair<Eigen::Vector2d, Eigen::Vector2d>> segments, const WorldOptions& o) {
+Observation observe(std::initializer_list<std::pair<Eigen::Vector2d, Eigen::Vector2d>> segments,
+                    const WorldOptions& o) {
   Observation obs;
   obs.observer = "robot";
   for (const auto& [a, b] : segments) {
@@ -46,7 +48,8 @@ TEST(UpdateTest, QueryNamesTheMatchedEdgeAndItsObject) {
   WorldOptions options;
   const auto start = apply_floor_plan(WorldState{}, lab(), options).state;
   FixedRules rules{"delete", {}};
-  const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
+  const auto result =
+      apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
   ASSERT_EQ(rules.asked.size(), 1u);
   EXPECT_EQ(rules.asked[0].element_id, "wall-n/0");
   EXPECT_EQ(rules.asked[0].object_id, "wall-n");
@@ -75,7 +78,8 @@ TEST(UpdateTest, ActionsThatDoNotFitTheMatchFallBackToAdd) {
   // "prune" is an action of prune/3 only: from decide/5 it is as unknown as any other atom.
   for (const std::string action : {"frobnicate", "prune"}) {
     FixedRules rules{action, {}};
-    const auto result = apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
+    const auto result =
+        apply_observation(start, observe({{{4, 10.01}, {9, 10.0}}}, options), 1, options, std::ref(rules));
     ASSERT_EQ(result.decisions.size(), 1u);
     EXPECT_EQ(result.decisions[0].action, rules::Action::add) << action;
     EXPECT_EQ(result.decisions[0].rule, "fallback");
@@ -85,7 +89,8 @@ TEST(UpdateTest, ActionsThatDoNotFitTheMatchFallBackToAdd) {
     EXPECT_EQ(result.state.objects[0].confirmations, 0);
   }
   FixedRules rigid{"rigid_adjust", {}};
-  const auto unmatched = apply_observation(start, observe({{{30, 30}, {31, 31}}}, options), 1, options, std::ref(rigid));
+  const auto unmatched =
+      apply_observation(start, observe({{{30, 30}, {31, 31}}}, options), 1, options, std::ref(rigid));
   EXPECT_TRUE(unmatched.decisions[0].fallback);
   FixedRules merge{"merge", {}};
   const auto nothing = apply_observation(start, observe({{{30, 30}, {31, 31}}}, options), 1, options, std::ref(merge));
