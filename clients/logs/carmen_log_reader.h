@@ -34,7 +34,8 @@ struct LogScan {
 /// What a CARMEN log does not say about its laser.
 struct CarmenReaderOptions {
   /// FLASER carries no maximum range: a reading >= this is "no return" [m]. 50 m covers the "no return" codes of
-  /// ../shared/data/carmen (81.83–81.91 m, 50–51.25 m); orebro-corrected writes 32.767 m and needs 32.7.
+  /// the 13 corrected CARMEN logs we test with (81.83–81.91 m, 50–51.25 m); orebro-corrected writes 32.767 m and
+  /// needs 32.7.
   /// ROBOTLASER1 lines carry their own maximum_range and ignore this.
   double flaser_range_max_m = 50.0;
   double range_min_m = 0.02;    // readings below are ignored [m]
