@@ -8,6 +8,7 @@
 
 #include "server/api/router.h"
 #include "tests/server/api/fake_world_port.h"
+#include "tests/support/lab_plan.h"
 
 namespace wm::testing {
 
@@ -48,20 +49,7 @@ class ApiTest : public ::testing::Test {
 
   /// A wall and a table, loaded as drawn.
   void load_demo_plan() {
-    apriori::FloorPlan plan;
-    plan.name = "lab";
-    apriori::PlanObject wall;
-    wall.id = "wall-n";
-    wall.kind = "wall";
-    wall.attributes = {"solid"};
-    wall.polylines = {{{0, 10}, {20, 10}}};
-    apriori::PlanObject table;
-    table.id = "table-1";
-    table.kind = "table";
-    table.attributes = {"not_deformable"};
-    table.pose = {5, 5, 0.3};
-    table.polygon = {{-0.6, -0.4}, {0.6, -0.4}, {0.6, 0.4}, {-0.6, 0.4}};
-    plan.objects = {wall, table};
+    const apriori::FloorPlan plan = lab_plan();
     world_.load_plan(plan);
   }
 

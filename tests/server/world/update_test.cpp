@@ -4,23 +4,12 @@
 
 #include <Eigen/LU>
 
+#include "tests/support/lab_plan.h"
+
 namespace wm::world {
 namespace {
 
-apriori::FloorPlan lab() {
-  apriori::PlanObject wall;
-  wall.id = "wall-n";
-  wall.kind = "wall";
-  wall.attributes = {"solid"};
-  wall.polylines = {{{0, 10}, {20, 10}}};
-  apriori::PlanObject table;
-  table.id = "table-1";
-  table.kind = "table";
-  table.attributes = {"not_deformable"};
-  table.pose = {5, 5, 0.3};
-  table.polygon = {{-0.6, -0.4}, {0.6, -0.4}, {0.6, 0.4}, {-0.6, 0.4}};
-  return {"lab", {wall, table}};
-}
+apriori::FloorPlan lab() { return testing::lab_plan(); }
 
 Observation observe(std::initializer_list<std::pair<Eigen::Vector2d, Eigen::Vector2d>> segments,
                     const WorldOptions& o) {
