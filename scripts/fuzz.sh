@@ -8,7 +8,8 @@
 # as <build>/fuzz-artifacts/<harness>/crash-* (minimise it with -minimize_crash=1 and commit it under
 # fuzz/regressions/<harness>/). Prints executions and coverage per harness.
 # Environment: WM_SANITIZE_BUILD_DIR (default build/sanitize, shared with the sanitizer suite of scripts/test.sh),
-# WM_FUZZ_JOBS (build parallelism, default nproc), WM_FUZZ_NO_BUILD=1 (use the binaries as they are).
+# WM_FUZZ_JOBS (build parallelism, default nproc), WM_FUZZ_NO_BUILD=1 (use the binaries as they are),
+# WM_FUZZ_FORK=N (libFuzzer's -fork=N: N worker processes share one corpus; -runs counts all of them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -64,11 +65,13 @@ for h in "${harnesses[@]}"; do
   fi
   # -timeout: one input taking longer is a finding (the server would hang on it too).
   # shellcheck disable=SC2086
-  if ! "$bin" $opts -max_total_time="$seconds" ${WM_FUZZ_RUNS:+-runs=$WM_FUZZ_RUNS} -timeout=25 -rss_limit_mb=2560 -print_final_stats=1 \
+  if ! "$bin" $opts -max_total_time="$seconds" ${WM_FUZZ_RUNS:+-runs=$WM_FUZZ_RUNS} ${WM_FUZZ_FORK:+-fork=$WM_FUZZ_FORK} -timeout=25 -rss_limit_mb=2560 -print_final_stats=1 \
       -artifact_prefix="$artifacts/" "$work" "fuzz/corpus/$h" >"$log" 2>&1; then
     if [ "$result" = ok ]; then result="CRASH (see $log)"; else result="$result, CRASH (see $log)"; fi
   fi
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+  # Fork mode prints no stat:: lines; its parent reports the total over all workers instead.
+  [ -n "$execs" ] || execs=$(sed -n 's/^INFO: fuzzed for \([0-9]*\) iterations.*/\1/p' "$log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)

@@ -65,6 +65,8 @@ class RmfImporter {
     const YAML::Node levels = root_["levels"];
     if (!levels || !levels.IsMap() || levels.size() == 0) throw FloorPlanError("levels", "no levels in the building");
     const auto [name, level] = choose_level(levels);
+    if (const auto bad = common::invalid_utf8_offset(name))
+      throw FloorPlanError("levels", "level name is not UTF-8 after unescaping (byte " + std::to_string(*bad) + ")");
     report_.version = name;
     const std::string path = "levels." + name;
     read_vertices(level["vertices"], path + ".vertices");

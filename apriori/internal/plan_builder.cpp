@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "common/utf8.h"
+
 namespace wm::apriori::internal {
 namespace {
 
@@ -142,6 +144,18 @@ std::optional<std::string> PlanBuilder::add(const std::string& id_hint, const st
 }
 
 FloorPlan PlanBuilder::finish() && {
+  // A parser may unescape text into bytes that are not UTF-8 (yaml-cpp turns some inputs into a lone 0xA0):
+  // refused here, with the object named, rather than failing later when the plan is written as JSON.
+  const auto require_utf8 = [](const std::string& text, const std::string& where) {
+    if (const auto bad = common::invalid_utf8_offset(text))
+      throw FloorPlanError(where, "not UTF-8 after unescaping (byte " + std::to_string(*bad) + ")");
+  };
+  require_utf8(plan_.name, "name");
+  for (const auto& object : plan_.objects) {
+    require_utf8(object.id, "object id");
+    require_utf8(object.kind, "object " + object.id + " kind");
+    for (const auto& attribute : object.attributes) require_utf8(attribute, "object " + object.id + " attribute");
+  }
   try {
     parse_floor_plan_json(to_json_text(plan_), limits_);
   } catch (const FloorPlanError& e) {

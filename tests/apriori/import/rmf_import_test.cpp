@@ -103,6 +103,23 @@ TEST(RmfImportTest, ErrorsNameTheYamlPath) {
   EXPECT_EQ(error_path("levels:\n  L1: {models: [{model_name: t\xff, name: t\xff}]}\n", scale), "line 2");
 }
 
+TEST(RmfImportTest, NamesThatAreNotUtf8AfterUnescapingAreRefused) {
+  // Found by fuzz_rmf: the text is UTF-8, but yaml-cpp reads the NUL in this flow-sequence scalar back as a lone
+  // byte 0xA0, which escaped as nlohmann's type_error 316 when the plan was written as JSON.
+  using namespace std::string_literals;
+  const std::string yaml =
+      "levels:\n  L1:\n    vertices: [[0, 0, 0, a], [100, 0, 0, b]]\n"
+      "    doors:\n      - [0, 1, {name: [1, ma \0_door], motion_axis: [1, start]}]\n"s;
+  RmfImportOptions scale;
+  scale.metres_per_pixel = 0.01;
+  try {
+    import_rmf_building(yaml, scale);
+    FAIL() << "accepted";
+  } catch (const FloorPlanError& e) {
+    EXPECT_NE(std::string(e.what()).find("not UTF-8 after unescaping"), std::string::npos) << e.what();
+  }
+}
+
 TEST(RmfImportTest, CartesianMetresAreUsedAsTheyAre) {
   const auto r = import_rmf_building(
       "coordinate_system: cartesian_meters\nlevels: {L1: {vertices: [[1, 2, 0, a], [3, 2, 0, b]], walls: [[0, 1, "
