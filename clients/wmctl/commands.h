@@ -11,6 +11,7 @@ int floorplan_load(const Invocation& in);
 int floorplan_show(const Invocation& in);
 int primitives_post(const Invocation& in);
 int map(const Invocation& in);
+int map_quality(const Invocation& in);
 int report(const Invocation& in);
 int grid(const Invocation& in);
 int grid_extract(const Invocation& in);

@@ -41,6 +41,12 @@ std::vector<Command> command_table() {
        {{"--format", "dxf|geojson"}, {"--out", "FILE"}},
        "objects and observed elements; with --format and --out, export them to FILE",
        map},
+      {"map quality",
+       {},
+       {},
+       "how good the vector map is against the Bayes grid: precision, recall,\n"
+       "redundancy, calibration of the elements' covariances",
+       map_quality},
       {"report", {}, {}, "as-built report: what was confirmed, moved, never observed", report},
       {"decisions", {}, {{"--since", "SEQ"}, {"--limit", "N"}, {"--element", "ID"}}, "the decision log", decisions},
       {"explain", {"ID"}, {}, "history of an element or object: observations, rules, numbers", explain},

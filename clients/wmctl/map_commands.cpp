@@ -117,6 +117,26 @@ int map(const Invocation& in) {
   return kExitOk;
 }
 
+int map_quality(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/map/quality")), [](const json& q) {
+    std::cout << "map version " << q["map_version"].get<std::int64_t>() << ", grid revision "
+              << q["grid_revision"].get<std::int64_t>() << "\n"
+              << "  elements      " << q["elements"] << " (" << fixed(q["total_length_m"].get<double>(), 1)
+              << " m, median " << fixed(q["median_length_m"].get<double>()) << " m, "
+              << fixed(q["elements_per_m"].get<double>(), 3) << " per m)\n"
+              << "  precision     " << fixed(q["precision"].get<double>(), 3)
+              << "  (element length on occupied cells)\n"
+              << "  recall        " << fixed(q["recall"].get<double>(), 3) << "  (occupied cells near an element, of "
+              << q["occupied_cells"] << ")\n"
+              << "  redundancy    " << fixed(q["redundancy"].get<double>(), 3)
+              << "  (element length lying on another element)\n"
+              << "  calibration   "
+              << (q["calibration"].is_null() ? std::string("-") : fixed(q["calibration"].get<double>(), 3))
+              << "  (scan lines inside the 95 % gate of their element, of " << q["calibration_samples"]
+              << "; honest about 0.95)\n";
+  });
+}
+
 int report(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/report/as-built")), [](const json& r) {
     const auto& s = r["summary"];

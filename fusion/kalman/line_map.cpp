@@ -2,7 +2,9 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <cmath>
 #include <iterator>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 
@@ -33,21 +35,60 @@ double extent_gap_m(const LineSegment& element, const LineSegment& observed) {
   return std::max({0.0, lo - element.t1_m, element.t0_m - hi});
 }
 
-std::optional<double> match_distance(const LineSegment& element, const LineSegment& observed,
-                                     const MatchOptions& options) {
-  const double d2 = mahalanobis_squared(element.line, observed.line);
-  if (!(d2 <= options.gate_chi2)) return std::nullopt;
-  if (!(extent_gap_m(element, observed) <= options.max_gap_m)) return std::nullopt;
-  return d2;
+double offset_variance_at(const LineFeature& line, double t_m) {
+  return line.cov(0, 0) - 2.0 * t_m * line.cov(0, 1) + t_m * t_m * line.cov(1, 1);
+}
+
+SegmentGate segment_gate(const LineSegment& element, const LineSegment& observed, const MatchOptions& options) {
+  internal::require_finite(element.line.cov, "segment_gate", "element covariance");
+  internal::require_finite(observed.line.cov, "segment_gate", "observed covariance");
+  SegmentGate g;
+  const LineFeature& e = element.line;
+  const LineFeature& o = observed.line;
+  // Undirected lines: the direction difference folded into [0, π/2].
+  const double dphi = std::remainder(o.phi_rad - e.phi_rad, std::numbers::pi);
+  g.angle_rad = std::abs(dphi);
+  g.angle_limit_rad =
+      std::max(options.min_angle_rad, options.gate_sigmas * std::sqrt(std::max(0.0, e.cov(1, 1) + o.cov(1, 1))));
+
+  // The observed segment's ends, projected on the element's line: the offset between two lines is largest at the
+  // ends of an interval, and a part of the observation beyond the element must lie on its extension too (a wall
+  // that bends by a few degrees is not the same element).
+  const double ta = e.coordinate_along(observed.p0());
+  const double tb = e.coordinate_along(observed.p1());
+  g.gap_m = std::max({0.0, std::min(ta, tb) - element.t1_m, element.t0_m - std::max(ta, tb)});
+  const double ends[2] = {std::min(ta, tb), std::max(ta, tb)};
+  g.cost = (g.angle_rad / g.angle_limit_rad) * (g.angle_rad / g.angle_limit_rad);
+  bool offsets_pass = true;
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Vector2d on_element = e.rho_m * e.normal() + ends[k] * e.direction();
+    g.offset_m[k] = std::abs(o.signed_distance(on_element));
+    const double variance = offset_variance_at(e, ends[k]) + offset_variance_at(o, o.coordinate_along(on_element));
+    g.offset_limit_m[k] = std::max(options.min_offset_m, options.gate_sigmas * std::sqrt(std::max(0.0, variance)));
+    offsets_pass = offsets_pass && g.offset_m[k] <= g.offset_limit_m[k];
+    g.cost += (g.offset_m[k] / g.offset_limit_m[k]) * (g.offset_m[k] / g.offset_limit_m[k]);
+  }
+  g.passes = g.angle_rad <= g.angle_limit_rad && offsets_pass && g.gap_m <= options.max_gap_m;
+  return g;
+}
+
+std::optional<MatchResult> match_segment(const LineSegment& element, const LineSegment& observed,
+                                         const MatchOptions& options) {
+  const SegmentGate gate = segment_gate(element, observed, options);
+  if (!gate.passes) return std::nullopt;
+  return MatchResult{0, mahalanobis_squared(element.line, observed.line), gate.cost};
 }
 
 std::optional<MatchResult> best_match(std::span<const LineSegment> candidates, const LineSegment& observed,
                                       const MatchOptions& options) {
   std::optional<MatchResult> best;
   for (std::size_t i = 0; i < candidates.size(); ++i) {
-    const auto d2 = match_distance(candidates[i], observed, options);
+    auto m = match_segment(candidates[i], observed, options);
     // Strictly smaller, so the lower index keeps a tie.
-    if (d2 && (!best || *d2 < best->mahalanobis_sq)) best = MatchResult{i, *d2};
+    if (m && (!best || m->cost < best->cost)) {
+      m->index = i;
+      best = m;
+    }
   }
   return best;
 }
@@ -69,6 +110,22 @@ LineSegment fuse(const LineSegment& element, const LineSegment& observed) {
                        fused.line.coordinate_along(observed.p0()), fused.line.coordinate_along(observed.p1())};
   fused.t0_m = *std::min_element(std::begin(t), std::end(t));
   fused.t1_m = *std::max_element(std::begin(t), std::end(t));
+  return fused;
+}
+
+LineSegment fuse(const LineSegment& element, const LineSegment& observed, const FusionOptions& options) {
+  LineSegment fused = fuse(element, observed);
+  // Midpoint form M = A C Aᵀ with A = [[1, −t_mid], [0, 1]] (the inverse of midpoint_line_cov's lever arm).
+  const double t_mid = 0.5 * (fused.t0_m + fused.t1_m);
+  Eigen::Matrix2d to_mid;
+  to_mid << 1.0, -t_mid, 0.0, 1.0;
+  Eigen::Matrix2d mid = to_mid * fused.line.cov * to_mid.transpose();
+  mid(0, 0) += std::max(0.0, options.min_offset_sigma_m * options.min_offset_sigma_m - mid(0, 0));
+  mid(1, 1) += std::max(0.0, options.min_angle_sigma_rad * options.min_angle_sigma_rad - mid(1, 1));
+  Eigen::Matrix2d from_mid;
+  from_mid << 1.0, t_mid, 0.0, 1.0;
+  const Eigen::Matrix2d cov = from_mid * mid * from_mid.transpose();
+  fused.line.cov = 0.5 * (cov + cov.transpose());
   return fused;
 }
 

@@ -90,6 +90,17 @@ std::optional<LocalSegment> fit_piece(const std::vector<Eigen::Vector2d>& points
   } catch (const std::invalid_argument&) {
     return std::nullopt;  // degenerate (coincident points): not a line
   }
+  if (options.scale_by_residuals && n > 2) {
+    // A posteriori variance factor: residuals larger than the point noise explains (a wall that is not quite
+    // straight, mixed pixels at an edge, the split tolerance) make the fit less certain than the noise model says.
+    double chi2 = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double d = line.signed_distance(p[i]);
+      chi2 += d * d / std::max(normal_sigma(q[i], line.normal()) * normal_sigma(q[i], line.normal()), 1e-12);
+    }
+    const double factor = chi2 / static_cast<double>(n - 2);
+    if (factor > 1.0) line.cov *= factor;
+  }
   LineSegment segment{line, line.coordinate_along(p.front()), line.coordinate_along(p.back())};
   if (segment.t0_m > segment.t1_m) std::swap(segment.t0_m, segment.t1_m);
   if (segment.length_m() < options.min_length_m) return std::nullopt;

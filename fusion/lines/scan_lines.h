@@ -19,6 +19,9 @@ struct ScanLineOptions {
   double sigma_range_m = 0.01;     // range noise per reading, plus sigma_range_relative · range
   double sigma_range_relative = 0.0;
   double sigma_bearing_rad = 0.0005;  // bearing noise per beam (angular jitter of the scanner)
+  /// Scale a fit's covariance by its reduced χ² (Σ residual²/σ² over n − 2) when that exceeds 1, so a segment whose
+  /// points scatter more than the noise model says is not trusted as if they did not.
+  bool scale_by_residuals = true;
 };
 
 /// One range reading: its range [m] and bearing in the sensor frame [rad].

@@ -40,7 +40,8 @@
         % Match = none                                  nothing in the map matched
         %       | element(ElementId, ObjectId, D2)      matched an a-priori edge of ObjectId
         %       | element(ElementId, none, D2)          matched an observed element not in the plan
-        %         (D2: squared Mahalanobis distance of the match, a float)
+        %         (D2: squared Mahalanobis distance of the match, a float; the match itself is
+        %          made in the segment's frame, so D2 may exceed the χ² 95 % bound 5.991)
         % Action = delete | merge | rigid_adjust | add  (atoms; rule sets may add others that the
         %                                                server knows)
         % Rule = atom naming the rule that fired (logged with the decision)
@@ -53,7 +54,9 @@
                                      % | grid; Support = observations fused; UpdatedAt [unix s]
         decision(Seq, Action, Rule, Element, Object, Observer, At)
                                      % the most recent decisions (Element/Object `none` if absent)
-        observation_origin(Origin)   % of the observation being decided: client | scan | grid
+        observation_origin(Origin)   % of the observation being decided: client | scan | grid, or
+                                     % element when an element is checked against a neighbour
+                                     % that grew (Observer is then the element's id)
         observation_sensor(Sensor)   % laser | sonar | unknown
 
     Extension points (any rule file may add clauses, in any file order; see rules/examples/):
@@ -71,8 +74,8 @@
     answer an atom action for a matched solid wall, a matched element not in the plan, a matched
     not_deformable object and an unmatched observation.
 
-    The rule names below (solid_confirmed, unknown_element_merged, not_deformable_rigid,
-    unmatched_added, apriori_confirmed) are part of the API: clients and logs refer to them.
+    The rule names below (solid_confirmed, elements_merged, unknown_element_merged,
+    not_deformable_rigid, unmatched_added, apriori_confirmed) are part of the API: clients and logs refer to them.
 */
 
 :- dynamic override/5, prune/3.
@@ -93,6 +96,16 @@ decide(observation(Observer, _, _, _), element(Element, Object, D2), delete, sol
            "~w matched element ~w of solid object ~w (d2 = ~4f): the plan is confirmed, \c
             the observation is deleted",
            [Observer, Element, Object, D2]).
+%   2a. Maintenance: after an element grew, another element not in the plan lies on it (within the
+%       match gate). Asked with observation_origin(element) and the other element's id as Observer:
+%       the two are views of one wall and are joined (fused line, union of extents, support summed).
+decide(observation(Other, _, _, Length), element(Element, none, D2), merge, elements_merged,
+       Explanation) :-
+    observation_origin(element),
+    !,
+    format(string(Explanation),
+           "element ~w (~3f m) lies on element ~w (d2 = ~4f): one wall, joined into ~w",
+           [Other, Length, Element, D2, Element]).
 %   2. A match on an element that is not in the plan (e.g. a temporary wall of boxes): fuse both.
 decide(observation(Observer, _, _, _), element(Element, none, D2), merge, unknown_element_merged,
        Explanation) :-

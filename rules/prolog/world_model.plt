@@ -10,7 +10,8 @@
 :- use_module(library(lists)).
 
 %   The test-facts module: the same dynamic facts the C++ engine asserts from the floor plan.
-:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7.
+:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7,
+           wm_kb:observation_origin/1.
 :- set_module(wm_kb:base(system)).
 
 :- prolog_load_context(directory, Dir),
@@ -50,6 +51,16 @@ test(solid_object_is_deleted_and_confirmed, [Action-Rule == delete-solid_confirm
 
 test(element_not_in_plan_is_merged, [Action-Rule == merge-unknown_element_merged]) :-
     decide(element(e8, none, 1.5), Action, Rule, _).
+
+test(element_lying_on_a_grown_element_is_joined, [Action-Rule == merge-elements_merged]) :-
+    setup_call_cleanup(assertz(wm_kb:observation_origin(element)),
+                       decide(element(e8, none, 12.0), Action, Rule, _),
+                       retractall(wm_kb:observation_origin(_))).
+
+test(scan_line_on_an_element_is_not_a_join, [Rule == unknown_element_merged]) :-
+    setup_call_cleanup(assertz(wm_kb:observation_origin(scan)),
+                       decide(element(e8, none, 1.5), _, Rule, _),
+                       retractall(wm_kb:observation_origin(_))).
 
 test(not_deformable_object_is_rigidly_adjusted, [Action-Rule == rigid_adjust-not_deformable_rigid]) :-
     decide(element(e9, t1, 0.5), Action, Rule, _).

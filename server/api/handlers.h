@@ -33,6 +33,7 @@ Response get_floor_plan(const Call& call);
 Response put_floor_plan(const Call& call);
 // handlers/map.cpp
 Response get_map(const Call& call);
+Response get_map_quality(const Call& call);  // GET /api/v1/map/quality
 // handlers/objects.cpp: CAD objects, observed elements and their decision histories
 Response get_objects(const Call& call);
 Response get_object(const Call& call);

@@ -58,7 +58,7 @@ std::string usage() {
          "  --threads N            HTTP I/O threads (default 4)\n"
          "  --handler-threads N    threads that run request handlers off the I/O threads (default 8)\n"
          "  --handler-queue N      requests waiting for a handler thread before 503 + Retry-After (default 256)\n"
-         "  --gate-chi2 X          χ² gate (2 dof) for matching segments (default 5.991, 95 %)\n"
+         "  --gate-sigmas N        a segment matches within N σ in direction and offset (default 3)\n"
          "  --max-gap M            largest gap [m] between collinear extents still matched (default 0.10)\n"
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
          "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at "
@@ -155,7 +155,9 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
         c.api.allowed_origins.push_back(std::move(origin));
       }
     } else if (flag == "--gate-chi2")
-      c.service.world.match.gate_chi2 = parse_number<double>(flag, value, 0.01, 1e4);
+      throw ConfigError("--gate-chi2: matching no longer uses a χ² gate on (ρ, φ); use --gate-sigmas N");
+    else if (flag == "--gate-sigmas")
+      c.service.world.match.gate_sigmas = parse_number<double>(flag, value, 0.5, 10.0);
     else if (flag == "--max-gap")
       c.service.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
     else if (flag == "--rule-inferences")

@@ -1,6 +1,7 @@
 #include "server/storage/store.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 
@@ -64,6 +65,11 @@ CREATE TABLE requests(ord INTEGER PRIMARY KEY, request_id TEXT NOT NULL UNIQUE, 
                       body_hash INTEGER NOT NULL, seq INTEGER NOT NULL, version INTEGER NOT NULL,
                       grid_revision INTEGER NOT NULL, lines_seq INTEGER, created_at REAL NOT NULL);
 CREATE INDEX decisions_by_observation ON decisions(observation_seq);
+)sql",
+    // v5: what an element was built from (fusion::SegmentMoments), for the straightness test of later merges;
+    // NULL for elements stored before, which are read as if seen once.
+    R"sql(
+ALTER TABLE elements ADD COLUMN moments BLOB;
 )sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
@@ -187,7 +193,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
   {
     Statement s(writer_,
                 "SELECT number, rho, phi, cov, t0, t1, support, source, observer, created_version, updated_version, "
-                "updated_at FROM elements ORDER BY number");
+                "updated_at, moments FROM elements ORDER BY number");
     while (s.step()) {
       world::Element e;
       e.number = s.column_int(0);
@@ -202,6 +208,16 @@ world::WorldState Store::load(const world::WorldOptions& options) {
       e.created_version = s.column_int(9);
       e.updated_version = s.column_int(10);
       e.updated_at_unix_s = s.column_double(11);
+      const auto moments = s.column_doubles(12);
+      if (moments.empty()) {
+        e.moments = fusion::SegmentMoments::of(e.segment);
+      } else if (moments.size() == 6) {
+        std::array<double, 6> values;
+        std::copy(moments.begin(), moments.end(), values.begin());
+        e.moments = fusion::SegmentMoments::from_array(values);
+      } else {
+        throw StorageError("corrupt element moments in database");
+      }
       state.elements.emplace(e.number, std::move(e));
     }
   }
@@ -257,16 +273,19 @@ void Store::write_observation(const ObservationEntry& entry) {
     Statement s(
         writer_,
         "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
-        "updated_version, updated_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12) "
+        "updated_version, updated_at, moments) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13) "
         "ON CONFLICT(number) DO UPDATE SET "
         "rho = excluded.rho, phi = excluded.phi, cov = excluded.cov, t0 = excluded.t0, t1 = excluded.t1, "
-        "support = excluded.support, updated_version = excluded.updated_version, updated_at = excluded.updated_at");
+        "support = excluded.support, updated_version = excluded.updated_version, updated_at = excluded.updated_at, "
+        "moments = excluded.moments");
     for (auto number : update.changed_elements) {
       const auto& e = update.state.elements.at(number);
       s.bind(1, e.number).bind(2, e.segment.line.rho_m).bind(3, e.segment.line.phi_rad);
       bind_matrix(s, 4, e.segment.line.cov);
       s.bind(5, e.segment.t0_m).bind(6, e.segment.t1_m).bind(7, e.support);
       s.bind(8, std::string_view(e.origin)).bind(9, std::string_view(e.observer));
+      const auto moments = e.moments.to_array();
+      bind_doubles(s, 13, std::vector<double>(moments.begin(), moments.end()));
       s.bind(10, e.created_version).bind(11, e.updated_version).bind(12, e.updated_at_unix_s).run();
     }
   }

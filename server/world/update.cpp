@@ -7,6 +7,10 @@
 namespace wm::world {
 namespace {
 
+// Candidates farther than this (box to box, plus the gap allowance) cannot pass the segment gate of any sane
+// tolerance; it only saves work.
+constexpr double kCandidateMarginM = 1.0;
+
 // Where a matching candidate came from: an edge of a CAD object or an observed element.
 struct CandidateRef {
   std::optional<std::size_t> object;  // index into state.objects
@@ -14,21 +18,39 @@ struct CandidateRef {
   std::int64_t element = 0;  // element number when object is empty
 };
 
+// Bounding boxes overlap once each is grown by `margin`: a cheap test before the segment gate.
+bool boxes_near(const fusion::LineSegment& a, const fusion::LineSegment& b, double margin) {
+  const Eigen::Vector2d a0 = a.p0(), a1 = a.p1(), b0 = b.p0(), b1 = b.p1();
+  return std::max(a0.x(), a1.x()) + margin >= std::min(b0.x(), b1.x()) &&
+         std::max(b0.x(), b1.x()) + margin >= std::min(a0.x(), a1.x()) &&
+         std::max(a0.y(), a1.y()) + margin >= std::min(b0.y(), b1.y()) &&
+         std::max(b0.y(), b1.y()) + margin >= std::min(a0.y(), a1.y());
+}
+
 struct Candidates {
   std::vector<fusion::LineSegment> segments;
   std::vector<CandidateRef> refs;
 };
 
-Candidates collect_candidates(const WorldState& state, const WorldOptions& options) {
+// What can match `seen`: the CAD edges and elements whose boxes come near it (the gate tolerances stay well
+// inside the margin).
+Candidates collect_candidates(const WorldState& state, const fusion::LineSegment& seen, const WorldOptions& options) {
+  const double margin = kCandidateMarginM + options.match.max_gap_m;
   Candidates c;
   for (std::size_t i = 0; i < state.objects.size(); ++i) {
     const auto& object = state.objects[i];
     for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
-      c.segments.push_back(apriori_edge(object, k, options));
+      auto edge = apriori_edge(object, k, options);
+      if (!boxes_near(edge, seen, margin)) continue;
+      c.segments.push_back(std::move(edge));
       c.refs.push_back({i, k, 0});
     }
   }
+  const auto seen_moments = fusion::SegmentMoments::of(seen);
   for (const auto& [number, element] : state.elements) {
+    if (!boxes_near(element.segment, seen, margin)) continue;
+    // Taking `seen` in would bend the element: not the same straight wall, whatever the gate says.
+    if ((element.moments + seen_moments).rms_offset_m() > options.max_straightness_rms_m) continue;
     c.segments.push_back(element.segment);
     c.refs.push_back({std::nullopt, 0, number});
   }
@@ -77,6 +99,81 @@ void make_fallback(DecisionRecord& record, std::string_view answered, const std:
   record.fallback = true;
 }
 
+// After element `number` grew, other elements may now lie on it: two views of one wall that no single observation
+// connected before. Each such neighbour (best first) is put to the rules as an observation of origin "element"
+// (observer: the neighbour's id) matched to the grown element; a merge answer joins them (fused line, union of
+// extents, support summed; the neighbour is removed), anything else leaves both. Only joins are logged.
+void join_neighbours(UpdateResult& result, std::int64_t number, const Observation& observation,
+                     std::int64_t observation_seq, const WorldOptions& options, const Decide& decide) {
+  WorldState& state = result.state;
+  std::set<std::int64_t> declined;
+  for (std::size_t joins = 0; joins < options.max_joins_per_change;) {
+    const Element& keeper = state.elements.at(number);
+    const double margin = kCandidateMarginM + options.match.max_gap_m;
+    std::optional<fusion::MatchResult> best;
+    std::int64_t best_number = 0;
+    for (const auto& [other_number, other] : state.elements) {
+      if (other_number == number || declined.count(other_number) || !boxes_near(keeper.segment, other.segment, margin))
+        continue;
+      const auto m = fusion::match_segment(keeper.segment, other.segment, options.match);
+      if (m && (!best || m->cost < best->cost)) {
+        best = m;
+        best_number = other_number;
+      }
+    }
+    if (!best) return;
+    const Element& other = state.elements.at(best_number);
+    rules::DecisionQuery q;
+    q.observer = other.id();
+    q.origin = "element";
+    q.sensor = observation.sensor;
+    q.rho_m = other.segment.line.rho_m;
+    q.phi_rad = other.segment.line.phi_rad;
+    q.length_m = other.segment.length_m();
+    q.element_id = keeper.id();
+    q.mahalanobis_sq = best->mahalanobis_sq;
+    const rules::Decision decision = decide(q);
+    if (rules::parse_action(decision.action) != rules::Action::merge) {
+      declined.insert(best_number);
+      continue;
+    }
+    DecisionRecord record;
+    record.seq = ++state.last_decision_seq;
+    record.observation_seq = observation_seq;
+    record.index = -1;  // not about a segment of the request
+    record.action = rules::Action::merge;
+    record.rule = decision.rule;
+    record.explanation = decision.explanation;
+    record.fallback = decision.fallback;
+    record.element = record.matched_element = keeper.id();
+    record.mahalanobis_sq = best->mahalanobis_sq;
+    record.observer = observation.observer;
+    record.origin = "element";
+    record.sensor = observation.sensor;
+    record.p0 = other.segment.p0();
+    record.p1 = other.segment.p1();
+    record.rho_m = other.segment.line.rho_m;
+    record.phi_rad = other.segment.line.phi_rad;
+    record.observed_cov = other.segment.line.cov;
+    record.before = line_numbers(keeper.segment.line);
+
+    Element joined = keeper;
+    joined.segment = fusion::fuse(keeper.segment, other.segment, options.fusion);
+    joined.support += other.support;
+    joined.moments += other.moments;
+    joined.updated_version = state.version;
+    joined.updated_at_unix_s = observation.received_at_unix_s;
+    record.after = line_numbers(joined.segment.line);
+    state.elements.erase(best_number);
+    result.changed_elements.erase(best_number);
+    result.removed_elements.insert(best_number);
+    state.elements.at(number) = std::move(joined);
+    result.changed_elements.insert(number);
+    result.decisions.push_back(std::move(record));
+    ++joins;
+  }
+}
+
 }  // namespace
 
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,
@@ -89,7 +186,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
   for (std::size_t i = 0; i < observation.segments.size(); ++i) {
     const auto& seen = observation.segments[i].segment;
     // Matching runs against the map as changed by the earlier segments of the same request.
-    const Candidates candidates = collect_candidates(state, options);
+    const Candidates candidates = collect_candidates(state, seen, options);
     const auto match = fusion::best_match(candidates.segments, seen, options.match);
     const auto query = make_query(state, observation, seen, match, candidates);
     const rules::Decision decision = decide(query);
@@ -119,6 +216,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     record.observed_cov = seen.line.cov;
 
     const CandidateRef* ref = match ? &candidates.refs[match->index] : nullptr;
+    std::optional<std::int64_t> grown;  // the element a merge changed, whose neighbours are checked next
     if (!action || *action == rules::Action::prune) {
       make_fallback(record, decision.action, "action '" + decision.action + "' is not known to the server");
     } else if (record.action == rules::Action::merge && !ref) {
@@ -143,12 +241,14 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     } else if (record.action == rules::Action::merge && !ref->object) {
       auto& element = state.elements.at(ref->element);
       record.before = line_numbers(element.segment.line);
-      element.segment = fusion::fuse(element.segment, seen);
+      element.segment = fusion::fuse(element.segment, seen, options.fusion);
+      element.moments += fusion::SegmentMoments::of(seen);
       record.after = line_numbers(element.segment.line);
       ++element.support;
       element.updated_version = state.version;
       element.updated_at_unix_s = observation.received_at_unix_s;
       result.changed_elements.insert(ref->element);
+      grown = ref->element;
     } else if (record.action == rules::Action::merge) {
       // Merged into a CAD edge (e.g. a door that moves): the drawing stays as drawn; the observed state
       // becomes an element that starts from the fusion of the drawn edge and the observation.
@@ -157,7 +257,8 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       record.before = line_numbers(drawn.line);
       Element element;
       element.number = state.next_element_number++;
-      element.segment = fusion::fuse(drawn, seen);
+      element.segment = fusion::fuse(drawn, seen, options.fusion);
+      element.moments = fusion::SegmentMoments::of(seen);
       element.support = 2;
       element.origin = observation.origin;
       element.observer = observation.observer;
@@ -166,6 +267,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       record.after = line_numbers(element.segment.line);
       record.element = element.id();
       result.changed_elements.insert(element.number);
+      grown = element.number;
       state.elements.emplace(element.number, std::move(element));
     } else if (record.action == rules::Action::rigid_adjust) {
       auto& object = state.objects[*ref->object];
@@ -185,6 +287,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       Element element;
       element.number = state.next_element_number++;
       element.segment = seen;
+      element.moments = fusion::SegmentMoments::of(seen);
       element.origin = observation.origin;
       element.observer = observation.observer;
       element.created_version = state.version;
@@ -196,6 +299,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       state.elements.emplace(element.number, std::move(element));
     }
     result.decisions.push_back(std::move(record));
+    if (grown) join_neighbours(result, *grown, observation, observation_seq, options, decide);
   }
   return result;
 }

@@ -13,12 +13,21 @@
 #include "fusion/geometry/line.h"
 #include "fusion/kalman/line_map.h"
 #include "fusion/kalman/rigid_object.h"
+#include "fusion/kalman/segment_moments.h"
 
 namespace wm::world {
 
 /// Numbers the world model uses when a request does not give them. Validated once by the config reader.
 struct WorldOptions {
   fusion::MatchOptions match;
+  /// The floor under a fused element's uncertainty (midpoint form): what a wall is known to after many views from
+  /// poses that share their error.
+  fusion::FusionOptions fusion{0.01, 0.0044};
+  /// Joins of two elements into one (asked of the rules) after one change of an element, at most.
+  std::size_t max_joins_per_change = 16;
+  /// An element may only take in an observation (or another element) while everything it was built from stays
+  /// this close to one straight line (RMS across it) [m]: what a wall seen with the poses' error spreads to.
+  double max_straightness_rms_m = 0.03;
   /// Uncertainty of a posted segment without "cov": σ across the line at the segment's midpoint [m] and σ of
   /// its direction [rad]. Stated at the midpoint because a plain diagonal (ρ, φ) covariance would be wrong for
   /// any segment far from the origin (ρ and φ are correlated through the lever arm); see midpoint_line_cov.
@@ -45,9 +54,10 @@ struct ObjectState {
 struct Element {
   std::int64_t number = 0;  // id is "e<number>"
   fusion::LineSegment segment;
-  std::int64_t support = 1;  // observations fused into it (including the first)
-  std::string origin;        // of the first observation: client | scan | grid (SQL column and JSON "source")
-  std::string observer;      // who sent it first, e.g. robot-1
+  fusion::SegmentMoments moments;  // of the observed segments it was built from (not of a CAD edge it began at)
+  std::int64_t support = 1;        // observations fused into it (including the first)
+  std::string origin;              // of the first observation: client | scan | grid (SQL column and JSON "source")
+  std::string observer;            // who sent it first, e.g. robot-1
   std::int64_t created_version = 0;
   std::int64_t updated_version = 0;
   double updated_at_unix_s = 0;  // wall-clock time of the last change (rules prune by age)

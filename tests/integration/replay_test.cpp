@@ -201,13 +201,16 @@ class ReplayTest : public ServerFixture {
     ASSERT_GT(long_scan, 20u);
     std::cout << log_name << ": " << on_scan << " of " << long_scan
               << " map elements longer than 1 m lie on occupied cells\n";
-    // Measured here: Intel 293 of 317, Freiburg-079 305 of 340 (every third scan).
+    // Measured here: Intel 154 of 173, Freiburg-079 144 of 168 (every third scan; 293 of 317 and 305 of 340
+    // before elements were joined and gated in their own frame: fewer, longer elements, a little less often on
+    // the walls).
     EXPECT_GE(static_cast<double>(on_scan), 0.85 * static_cast<double>(long_scan));
 
     // The grid line extractor on the same grid: what it observes lies on the walls it was extracted from.
     const json extracted = send_json("POST", "/api/v1/grid/extract", json::object());
     std::vector<json> observed;
     for (const auto& d : extracted["decisions"]) {
+      if (d["origin"] == "element") continue;  // two elements joined after a merge (maintenance), not a grid line
       EXPECT_EQ(d["origin"], "grid");
       json segment = d["observed"];
       const double dx = segment["p1"][0].get<double>() - segment["p0"][0].get<double>();

@@ -42,10 +42,10 @@ TEST(LineMapTest, DoorwayObservationMatchesOnlyTheWallItOverlaps) {
   const LineSegment seen = seg({1.0, 3.0}, {3.0, 3.0});
   EXPECT_NEAR(extent_gap_m(walls[0], seen), 0.0, 1e-15);
   EXPECT_NEAR(extent_gap_m(walls[1], seen), 2.0, 1e-14);
-  const auto first = match_distance(walls[0], seen, options);
+  const auto first = match_segment(walls[0], seen, options);
   ASSERT_TRUE(first.has_value());
-  EXPECT_NEAR(*first, 0.0, 1e-20);
-  EXPECT_FALSE(match_distance(walls[1], seen, options).has_value());
+  EXPECT_NEAR(first->mahalanobis_sq, 0.0, 1e-20);
+  EXPECT_FALSE(match_segment(walls[1], seen, options).has_value());
   const auto best = best_match(walls, seen, options);
   ASSERT_TRUE(best.has_value());
   EXPECT_EQ(best->index, 0u);
@@ -62,7 +62,9 @@ TEST(LineMapTest, DoorwayObservationInTheGapMatchesNeitherWall) {
   const auto best = best_match(walls, near_end, MatchOptions{});
   ASSERT_TRUE(best.has_value());
   EXPECT_EQ(best->index, 0u);
-  EXPECT_FALSE(match_distance(walls[0], near_end, MatchOptions{5.991, 0.04}).has_value());
+  MatchOptions small_gap;
+  small_gap.max_gap_m = 0.04;
+  EXPECT_FALSE(match_segment(walls[0], near_end, small_gap).has_value());
 }
 
 TEST(LineMapTest, DoorwayThroughTheOriginMatchesAReversedObservation) {
@@ -88,19 +90,59 @@ TEST(LineMapTest, ExtentGapIsMeasuredOnTheElementsLine) {
   EXPECT_NEAR(extent_gap_m(element, seg({-1.0, 1.0}, {5.0, 1.0})), 0.0, 1e-14);  // containing
 }
 
-TEST(LineMapTest, GateBoundaryIsInclusiveAtChiSquare) {
-  // Same φ, offset ρ: d² = Δρ² / (2σ²).
+// Covariances far below the floors, so the floors are the tolerances.
+const Eigen::Matrix2d kTight = Eigen::Vector2d(1e-8, 1e-10).asDiagonal();
+
+TEST(LineMapTest, OffsetGateIsInclusiveAtTheFloor) {
   const MatchOptions options;
-  const LineSegment element = seg({0.0, 2.0}, {4.0, 2.0});
-  const double limit = std::sqrt(options.gate_chi2 * 2e-4);
-  const LineSegment inside = seg({0.0, 2.0 + limit * (1.0 - 1e-6)}, {4.0, 2.0 + limit * (1.0 - 1e-6)});
-  const LineSegment outside = seg({0.0, 2.0 + limit * (1.0 + 1e-6)}, {4.0, 2.0 + limit * (1.0 + 1e-6)});
-  const auto d2 = match_distance(element, inside, options);
-  ASSERT_TRUE(d2.has_value());
-  EXPECT_NEAR(*d2, options.gate_chi2 * (1.0 - 1e-6) * (1.0 - 1e-6), 1e-9);
-  EXPECT_NEAR(mahalanobis_squared(element.line, outside.line), options.gate_chi2 * (1.0 + 1e-6) * (1.0 + 1e-6), 1e-9);
-  EXPECT_FALSE(match_distance(element, outside, options).has_value());
-  EXPECT_TRUE(match_distance(element, outside, MatchOptions{9.210, 0.10}).has_value());
+  const LineSegment element = seg({0.0, 2.0}, {4.0, 2.0}, kTight);
+  const double limit = options.min_offset_m;
+  const LineSegment inside = seg({1.0, 2.0 + limit * (1.0 - 1e-6)}, {3.0, 2.0 + limit * (1.0 - 1e-6)}, kTight);
+  const LineSegment outside = seg({1.0, 2.0 + limit * (1.0 + 1e-6)}, {3.0, 2.0 + limit * (1.0 + 1e-6)}, kTight);
+  const SegmentGate in = segment_gate(element, inside, options);
+  EXPECT_TRUE(in.passes);
+  EXPECT_NEAR(in.offset_m[0], limit * (1.0 - 1e-6), 1e-12);
+  EXPECT_NEAR(in.offset_limit_m[1], limit, 1e-12);
+  EXPECT_FALSE(segment_gate(element, outside, options).passes);
+  // The reported d² is the (ρ, φ) innovation, far above any χ² bound with these covariances: it is not the gate.
+  EXPECT_GT(match_segment(element, inside, options)->mahalanobis_sq, 1e3);
+}
+
+TEST(LineMapTest, OffsetToleranceGrowsWithTheCovarianceAtTheEnds) {
+  // σ across the line at the ends of a 4 m segment centred on the origin's foot: C_ρρ + t²·C_φφ.
+  MatchOptions options;
+  options.min_offset_m = 0.0;
+  const Eigen::Matrix2d cov = Eigen::Vector2d(1e-4, 1e-4).asDiagonal();  // σρ = 1 cm, σφ = 0.01 rad
+  const LineSegment element = seg({-2.0, 1.0}, {2.0, 1.0}, cov);
+  const LineSegment observed = seg({-2.0, 1.0}, {2.0, 1.0}, cov);
+  const SegmentGate g = segment_gate(element, observed, options);
+  const double sigma_end = std::sqrt(2.0 * (1e-4 + 4.0 * 1e-4));  // both lines, t = ±2 m
+  EXPECT_NEAR(g.offset_limit_m[0], options.gate_sigmas * sigma_end, 1e-12);
+  EXPECT_NEAR(g.offset_limit_m[1], options.gate_sigmas * sigma_end, 1e-12);
+  EXPECT_NEAR(offset_variance_at(element.line, 2.0), 1e-4 + 4e-4, 1e-15);
+}
+
+TEST(LineMapTest, ShortViewsAFewDegreesOffAreTheSameWallButABendIsNot) {
+  const MatchOptions options;  // 5° and 3 cm floors
+  const LineSegment wall = seg({0.0, 0.0}, {6.0, 0.0}, kTight);
+  const auto tilted = [&](double cx, double half, double degrees) {
+    const double a = degrees * kPi / 180.0;
+    const Eigen::Vector2d d(std::cos(a), std::sin(a));
+    return seg(Eigen::Vector2d(cx, 0.0) - half * d, Eigen::Vector2d(cx, 0.0) + half * d, kTight);
+  };
+  // 0.5 m seen 4° off: its ends are 1.7 cm from the wall, the direction within the floor.
+  EXPECT_TRUE(segment_gate(wall, tilted(3.0, 0.25, 4.0), options).passes);
+  // The same view 6° off fails on the direction alone.
+  const SegmentGate steep = segment_gate(wall, tilted(3.0, 0.25, 6.0), options);
+  EXPECT_FALSE(steep.passes);
+  EXPECT_LE(steep.offset_m[0], options.min_offset_m);
+  // A wall that bends by 2° past the element's end: inside the angle floor, but its far end is 7 cm off.
+  const Eigen::Vector2d d(std::cos(2.0 * kPi / 180.0), std::sin(2.0 * kPi / 180.0));
+  const LineSegment bend = seg({6.0, 0.0}, Eigen::Vector2d(6.0, 0.0) + 2.0 * d, kTight);
+  const SegmentGate g = segment_gate(wall, bend, options);
+  EXPECT_FALSE(g.passes);
+  EXPECT_NEAR(g.offset_m[1], 2.0 * d.x() * d.y(), 1e-9);  // across the bend's own line
+  EXPECT_LT(g.angle_rad, g.angle_limit_rad);
 }
 
 TEST(LineMapTest, MahalanobisWrapsTheAngleNearPi) {
@@ -220,6 +262,22 @@ TEST(LineMapTest, FusedExtentIsTheUnionOfAllFourEndpoints) {
   // Disjoint but close extents are bridged as well.
   const LineSegment g = fuse(a, seg({2.05, 2.0}, {3.0, 2.0}));
   EXPECT_NEAR(g.length_m(), 3.0, 1e-14);
+}
+
+TEST(LineMapTest, RepeatedFusionStopsAtTheFloor) {
+  // The same wall seen 200 times from one trajectory: without a floor the covariance would shrink 200-fold.
+  const FusionOptions floor{0.01, 0.0044};
+  LineSegment element = seg({1.0, 3.0}, {5.0, 3.0}, cov2(4e-4, 1e-5, 4e-5));
+  for (int i = 0; i < 200; ++i) element = fuse(element, seg({1.0, 3.0}, {5.0, 3.0}, cov2(4e-4, 1e-5, 4e-5)), floor);
+  // Midpoint form: σ across the line at the middle, σ of the direction.
+  const double t_mid = 0.5 * (element.t0_m + element.t1_m);
+  const Eigen::Matrix2d c = element.line.cov;
+  const double offset_var = c(0, 0) - 2.0 * t_mid * c(0, 1) + t_mid * t_mid * c(1, 1);
+  EXPECT_NEAR(offset_var, 0.01 * 0.01, 1e-10);
+  EXPECT_NEAR(c(1, 1), 0.0044 * 0.0044, 1e-12);
+  // A floor below the fused uncertainty changes nothing.
+  const LineSegment a = seg({1.0, 3.0}, {5.0, 3.0}), b = seg({1.0, 3.01}, {5.0, 3.01});
+  EXPECT_TRUE(fuse(a, b, FusionOptions{}).line.cov.isApprox(fuse(a, b).line.cov, 1e-12));
 }
 
 TEST(LineMapTest, FuseRejectsSingularCovariances) {

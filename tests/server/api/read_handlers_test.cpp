@@ -224,6 +224,49 @@ TEST_F(ReadHandlersTest, GridLayersComeAsJsonOrPgmWithTheMapServerYaml) {
   }
 }
 
+TEST_F(ReadHandlersTest, MapQualityScoresTheElementsAgainstTheBayesGrid) {
+  fill_grid();  // an arc of walls 2 m from the origin, bearings −0.5 … 0.5 rad
+  world_.state().elements.clear();
+  world::Element e;
+  e.number = 1;
+  e.segment = fusion::LineSegment::from_points({2.0, -0.1}, {2.0, 0.1}, Eigen::Matrix2d::Identity() * 1e-4);
+  world_.state().elements[1] = e;
+  // Scan lines matched to it: one inside the 95 % gate, one outside; a CAD-edge match and a client's do not count.
+  const auto logged = [](std::int64_t seq, const char* origin, double d2, bool cad) {
+    auto d = FakeWorldPort::decision(rules::Action::merge, "e1");
+    d.seq = seq;
+    d.origin = origin;
+    d.mahalanobis_sq = d2;
+    d.matched_element = cad ? "wall/0" : "e1";
+    if (cad) d.matched_object = "wall";
+    return d;
+  };
+  world_.logged = {logged(1, "scan", 1.0, false), logged(2, "scan", 9.0, false), logged(3, "scan", 1.0, true),
+                   logged(4, "client", 9.0, false)};
+  world_.state().last_decision_seq = 4;
+  auto body = json_of(send(verb::get, "/api/v1/map/quality"));
+  ASSERT_TRUE(body.is_object());
+  EXPECT_EQ(body["elements"], 1);
+  EXPECT_NEAR(body["total_length_m"].get<double>(), 0.2, 1e-12);
+  EXPECT_GE(body["precision"].get<double>(), 0.99);  // the element lies on the arc
+  EXPECT_GT(body["recall"].get<double>(), 0.05);     // ... but explains only the arc's middle
+  EXPECT_LT(body["recall"].get<double>(), 0.3);
+  EXPECT_EQ(body["redundancy"].get<double>(), 0.0);
+  EXPECT_EQ(body["calibration"].get<double>(), 0.5);
+  EXPECT_EQ(body["calibration_samples"], 2);
+  EXPECT_EQ(body["grid_revision"], 4);
+  EXPECT_EQ(body["definitions"]["occupied_probability"], 0.65);
+  // The same wall kept twice is all redundant.
+  e.number = 2;
+  world_.state().elements[2] = e;
+  body = json_of(send(verb::get, "/api/v1/map/quality"));
+  EXPECT_NEAR(body["redundancy"].get<double>(), 1.0, 1e-9);
+  // No scan line matched yet: calibration is null, not a number.
+  world_.logged.clear();
+  body = json_of(send(verb::get, "/api/v1/map/quality"));
+  EXPECT_TRUE(body["calibration"].is_null());
+}
+
 TEST_F(ReadHandlersTest, APlainGetOfTheEventsWebSocketIsToldToUpgrade) {
   const auto response = send(verb::get, "/api/v1/events");
   EXPECT_EQ(status_of(response), 426);

@@ -70,6 +70,10 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
   EXPECT_EQ(a.line.cov, b.line.cov);
   EXPECT_EQ(a.t0_m, b.t0_m);
   EXPECT_EQ(a.t1_m, b.t1_m);
+  const auto& ma = state.elements.at(1).moments;
+  const auto& mb = saved.elements.at(1).moments;
+  EXPECT_GT(mb.weight, 3.0);
+  EXPECT_EQ(ma.to_array(), mb.to_array());
   const auto log = store.decisions(0, 10);
   ASSERT_EQ(log.size(), 1u);
   EXPECT_EQ(log[0].action, rules::Action::add);
@@ -187,13 +191,13 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   // Back to schema 3 as version 3 wrote it: scan 1 with lines (observation 2), scan 2 without.
   const char* v3 = R"sql(
     DROP INDEX decisions_by_observation; DROP TABLE requests; ALTER TABLE scans DROP COLUMN lines_seq;
-    PRAGMA user_version = 3;
+    ALTER TABLE elements DROP COLUMN moments; PRAGMA user_version = 3;
     INSERT INTO observations VALUES (1, 'client', 'r', 0, 0, '{}'), (2, 'scan', 'r', 0, 0, '{"scan": 1}');
     INSERT INTO scans VALUES (1, 'r', 'laser', 0, 0, '{}'), (2, 'r', 'laser', 0, 0, '{}');)sql";
   ASSERT_EQ(sqlite3_exec(db, v3, nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
   sqlite3_close(db);
   Store store({path, true});
-  EXPECT_EQ(store.schema_version(), 4);
+  EXPECT_EQ(store.schema_version(), Store::kSchemaVersion);
   ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
   sqlite3_stmt* stmt = nullptr;
   ASSERT_EQ(sqlite3_prepare_v2(db, "SELECT seq, lines_seq FROM scans ORDER BY seq", -1, &stmt, nullptr), SQLITE_OK);

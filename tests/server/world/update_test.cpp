@@ -176,6 +176,80 @@ TEST(UpdateTest, CollinearWallsAcrossADoorwayStayApart) {
   EXPECT_EQ(result.state.elements.at(2).support, 1);
 }
 
+// Answers `merge` to scan lines and `join_action` to the maintenance question (origin "element").
+struct JoiningRules {
+  std::string join_action = "merge";
+  std::vector<rules::DecisionQuery> asked;
+  rules::Decision operator()(const rules::DecisionQuery& q) {
+    asked.push_back(q);
+    if (q.origin == "element") return {join_action, "elements_merged", "one wall", false};
+    return {q.element_id ? "merge" : "add", "test_rule", "because", false};
+  }
+};
+
+TEST(UpdateTest, AnObservationThatBridgesTwoElementsJoinsThemIntoOne) {
+  WorldOptions options;
+  JoiningRules rules;
+  // Two views of one wall with a 0.5 m gap between them (more than max_gap_m: two elements).
+  auto state = apply_observation(WorldState{}, observe({{{0, 2}, {2, 2}}, {{2.5, 2}, {4.5, 2}}}, options), 1, options,
+                                 std::ref(rules))
+                   .state;
+  ASSERT_EQ(state.elements.size(), 2u);
+  // A view across the gap merges into e1, which then lies on e2: the rules are asked, and the two become one.
+  const auto result =
+      apply_observation(state, observe({{{1.5, 2.005}, {3.0, 2.005}}}, options), 2, options, std::ref(rules));
+  ASSERT_EQ(result.state.elements.size(), 1u);
+  // The view matched one of the two (equally close); that one absorbed the other.
+  const auto& [kept_number, joined] = *result.state.elements.begin();
+  const std::int64_t other_number = 3 - kept_number;
+  EXPECT_NEAR(joined.segment.length_m(), 4.5, 1e-3);
+  EXPECT_EQ(joined.support, 3);
+  EXPECT_NEAR(joined.moments.weight, 2.0 + 2.0 + 1.5, 1e-12);
+  EXPECT_EQ(result.removed_elements, std::set<std::int64_t>{other_number});
+  EXPECT_EQ(result.changed_elements, std::set<std::int64_t>{kept_number});
+  ASSERT_EQ(result.decisions.size(), 2u);
+  const auto& join = result.decisions[1];
+  EXPECT_EQ(join.index, -1);
+  EXPECT_EQ(join.origin, "element");
+  EXPECT_EQ(join.rule, "elements_merged");
+  EXPECT_EQ(join.element, joined.id());
+  EXPECT_EQ(join.before.size(), 6u);
+  EXPECT_EQ(join.after.size(), 6u);
+  const auto& question = rules.asked.back();
+  EXPECT_EQ(question.origin, "element");
+  EXPECT_EQ(question.observer, "e" + std::to_string(other_number));
+  EXPECT_EQ(question.element_id, joined.id());
+  EXPECT_NEAR(question.length_m, 2.0, 1e-9);
+
+  // Rules that keep elements apart are obeyed: both stay, and nothing is logged for the refusal.
+  JoiningRules apart{"add", {}};
+  const auto kept =
+      apply_observation(state, observe({{{1.5, 2.005}, {3.0, 2.005}}}, options), 2, options, std::ref(apart));
+  EXPECT_EQ(kept.state.elements.size(), 2u);
+  EXPECT_EQ(kept.decisions.size(), 1u);
+}
+
+TEST(UpdateTest, AnElementBuiltFromABentWallTakesNoMoreObservations) {
+  WorldOptions options;
+  JoiningRules rules;
+  auto state =
+      apply_observation(WorldState{}, observe({{{0, 0}, {10, 0}}}, options), 1, options, std::ref(rules)).state;
+  // What it was built from bows 10 cm out at the middle (RMS ≈ 2.9 cm about the best line).
+  auto& element = state.elements.at(1);
+  element.moments =
+      fusion::SegmentMoments::of(fusion::LineSegment::from_points({0, 0}, {5, 0.1}, Eigen::Matrix2d::Identity())) +
+      fusion::SegmentMoments::of(fusion::LineSegment::from_points({5, 0.1}, {10, 0}, Eigen::Matrix2d::Identity()));
+  EXPECT_NEAR(element.moments.rms_offset_m(), 0.1 / std::sqrt(12.0), 2e-3);
+  options.max_straightness_rms_m = 0.02;
+  const auto result = apply_observation(state, observe({{{4, 0.0}, {6, 0.0}}}, options), 2, options, std::ref(rules));
+  EXPECT_FALSE(rules.asked.back().element_id.has_value()) << "the bent element is no candidate";
+  EXPECT_EQ(result.state.elements.size(), 2u);
+  options.max_straightness_rms_m = 0.05;
+  const auto taken = apply_observation(state, observe({{{4, 0.0}, {6, 0.0}}}, options), 2, options, std::ref(rules));
+  EXPECT_EQ(rules.asked.back().element_id, "e1");
+  EXPECT_EQ(taken.state.elements.size(), 1u);
+}
+
 TEST(UpdateTest, MidpointCovarianceCarriesTheLeverArm) {
   auto s = fusion::LineSegment::from_points({10, 3}, {14, 3}, Eigen::Matrix2d::Identity());
   const auto c = midpoint_line_cov(s, 0.01, 0.02);

@@ -1,0 +1,52 @@
+#include "fusion/kalman/segment_moments.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace wm::fusion {
+
+SegmentMoments SegmentMoments::of(const LineSegment& segment) {
+  const Eigen::Vector2d a = segment.p0();
+  const Eigen::Vector2d b = segment.p1();
+  const Eigen::Vector2d centre = 0.5 * (a + b);
+  const Eigen::Vector2d d = b - a;
+  const double length = d.norm();
+  SegmentMoments m;
+  m.weight = length;
+  m.first = length * centre;
+  // A uniform distribution along d has covariance d·dᵀ/12 about its centre.
+  m.second = length * (centre * centre.transpose() + d * d.transpose() / 12.0);
+  return m;
+}
+
+SegmentMoments& SegmentMoments::operator+=(const SegmentMoments& other) {
+  weight += other.weight;
+  first += other.first;
+  second += other.second;
+  return *this;
+}
+
+double SegmentMoments::rms_offset_m() const {
+  if (!(weight > 0.0)) return 0.0;
+  const Eigen::Vector2d mean = first / weight;
+  const Eigen::Matrix2d scatter = second / weight - mean * mean.transpose();
+  // Smaller eigenvalue of a symmetric 2×2 matrix, in closed form.
+  const double half_trace = 0.5 * (scatter(0, 0) + scatter(1, 1));
+  const double half_diff = 0.5 * (scatter(0, 0) - scatter(1, 1));
+  const double radius = std::hypot(half_diff, 0.5 * (scatter(0, 1) + scatter(1, 0)));
+  return std::sqrt(std::max(0.0, half_trace - radius));
+}
+
+std::array<double, 6> SegmentMoments::to_array() const {
+  return {weight, first.x(), first.y(), second(0, 0), second(0, 1), second(1, 1)};
+}
+
+SegmentMoments SegmentMoments::from_array(const std::array<double, 6>& v) {
+  SegmentMoments m;
+  m.weight = v[0];
+  m.first = Eigen::Vector2d(v[1], v[2]);
+  m.second << v[3], v[4], v[4], v[5];
+  return m;
+}
+
+}  // namespace wm::fusion

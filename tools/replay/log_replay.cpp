@@ -1,0 +1,71 @@
+#include "tools/replay/log_replay.h"
+
+#include <chrono>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "clients/logs/carmen_log_reader.h"
+#include "rules/engine.h"
+#include "server/storage/store.h"
+
+namespace wm::replay {
+namespace {
+
+// The request body as a client would post it: the journal keeps it to rebuild the grid at start.
+std::string scan_payload(const fusion::LaserScan& scan, const std::string& observer, double stamp) {
+  nlohmann::json ranges = nlohmann::json::array();
+  for (const double r : scan.ranges_m) ranges.push_back(std::isfinite(r) ? nlohmann::json(r) : nlohmann::json());
+  return nlohmann::json{{"sensor", "laser"},
+                        {"source", observer},
+                        {"stamp", stamp},
+                        {"pose",
+                         {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
+                        {"angle_min", scan.angle_min_rad},
+                        {"angle_increment", scan.angle_increment_rad},
+                        {"ranges", std::move(ranges)},
+                        {"range_min", scan.range_min_m},
+                        {"range_max", scan.range_max_m},
+                        {"sigma_range", scan.sigma_range_m}}
+      .dump();
+}
+
+}  // namespace
+
+LogReplayResult replay_log(const std::filesystem::path& log, const LogReplayOptions& options,
+                           const std::function<void(service::WorldService&)>& on_service) {
+  storage::StoreOptions store_options;
+  store_options.path = (options.work_dir / "replay.db").string();
+  store_options.synchronous_full = false;  // a replay can be run again; durability is tested elsewhere
+  storage::Store store(store_options);
+  rules::EngineOptions engine_options;
+  engine_options.rules_dir = options.rules_dir;
+  rules::Engine engine(engine_options);
+  service::WorldService world(options.service, store, engine, nullptr);
+
+  LogReplayResult result;
+  logs::CarmenLogReader reader(log);
+  const std::string observer = log.stem().stem().string();
+  const Eigen::Matrix3d pose_cov =
+      Eigen::Vector3d(options.sigma_xy_m * options.sigma_xy_m, options.sigma_xy_m * options.sigma_xy_m,
+                      options.sigma_theta_rad * options.sigma_theta_rad)
+          .asDiagonal();
+  const auto start = std::chrono::steady_clock::now();
+  std::size_t index = 0;
+  while (auto scan = reader.next()) {
+    if (index++ % std::max<std::size_t>(1, options.every) != 0) continue;
+    json_codec::ScanRequest request;
+    request.observer = observer;
+    request.stamp_s = scan->timestamp_s;
+    request.pose_cov = pose_cov;
+    auto payload = scan_payload(scan->scan, observer, scan->timestamp_s);
+    request.scan = std::move(scan->scan);
+    world.post_scan(std::move(request), std::move(payload), std::nullopt);
+    if (++result.scans == options.max_scans) break;
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.quality = service::measure_map_quality(world);
+  if (on_service) on_service(world);
+  return result;
+}
+
+}  // namespace wm::replay
