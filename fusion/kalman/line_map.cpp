@@ -48,8 +48,10 @@ SegmentGate segment_gate(const LineSegment& element, const LineSegment& observed
   // Undirected lines: the direction difference folded into [0, π/2].
   const double dphi = std::remainder(o.phi_rad - e.phi_rad, std::numbers::pi);
   g.angle_rad = std::abs(dphi);
-  g.angle_limit_rad =
-      std::max(options.min_angle_rad, options.gate_sigmas * std::sqrt(std::max(0.0, e.cov(1, 1) + o.cov(1, 1))));
+  const double length = std::max(observed.length_m(), 1e-9);
+  const double length_floor = options.angle_floor_from_length ? std::atan(options.min_offset_m / length) : 0.0;
+  g.angle_limit_rad = std::max(
+      {options.min_angle_rad, length_floor, options.gate_sigmas * std::sqrt(std::max(0.0, e.cov(1, 1) + o.cov(1, 1)))});
 
   // The observed segment's ends, projected on the element's line: the offset between two lines is largest at the
   // ends of an interval, and a part of the observation beyond the element must lie on its extension too (a wall

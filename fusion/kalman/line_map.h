@@ -17,8 +17,11 @@ namespace wm::fusion {
 struct MatchOptions {
   double gate_sigmas = 3.0;      // an offset or direction difference within this many σ passes, > 0
   double min_offset_m = 0.03;    // tolerance floor across the line [m]: no element is known better than this
-  double min_angle_rad = 0.087;  // tolerance floor on the direction (5°) [rad]: the offsets decide below it
+  double min_angle_rad = 0.035;  // tolerance floor on the direction (2°) [rad]
   double max_gap_m = 0.10;       // largest gap between the extents (projected on the element's line) still matched [m]
+  /// Also allow the direction to differ by atan(min_offset_m / observed length): a short view's direction is
+  /// only known to about that, a long one's much better, so a long view that turns away is another wall.
+  bool angle_floor_from_length = true;
 };
 
 /// Mahalanobis distance² between two lines: Δᵀ(Ca+Cb)⁻¹Δ, with Δφ wrapped and the better of b's two

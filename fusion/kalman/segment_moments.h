@@ -12,9 +12,9 @@ namespace wm::fusion {
 /// bend an element (a corridor wall bowed by pose drift, two walls meeting at a shallow angle) shows as mass far
 /// from its best line, whatever the covariances say. Sums, so joining two elements adds their moments.
 struct SegmentMoments {
-  double weight = 0.0;                                  // Σ length [m]
-  Eigen::Vector2d first = Eigen::Vector2d::Zero();      // Σ length·centre [m²]
-  Eigen::Matrix2d second = Eigen::Matrix2d::Zero();     // Σ length·(c·cᵀ + d·dᵀ/12), d = p1 − p0 [m³]
+  double weight = 0.0;                               // Σ length [m]
+  Eigen::Vector2d first = Eigen::Vector2d::Zero();   // Σ length·centre [m²]
+  Eigen::Matrix2d second = Eigen::Matrix2d::Zero();  // Σ length·(c·cᵀ + d·dᵀ/12), d = p1 − p0 [m³]
 
   /// The moments of one segment.
   static SegmentMoments of(const LineSegment& segment);

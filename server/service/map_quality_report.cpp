@@ -31,8 +31,8 @@ MapQualityReport measure_map_quality(WorldPort& port, const MapQualityReportOpti
     report.map = fusion::map_quality(elements, unknown, unknown_cell, options.map);
   }
 
-  const std::int64_t since = std::max<std::int64_t>(0, state->last_decision_seq -
-                                                           static_cast<std::int64_t>(options.calibration_window));
+  const std::int64_t since =
+      std::max<std::int64_t>(0, state->last_decision_seq - static_cast<std::int64_t>(options.calibration_window));
   std::size_t passed = 0;
   for (const auto& d : port.decisions(since, options.calibration_window, std::nullopt)) {
     // Scan lines against observed elements only: a CAD edge's covariance is the drawing's, not something fused.

@@ -113,9 +113,11 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
     std::optional<fusion::MatchResult> best;
     std::int64_t best_number = 0;
     for (const auto& [other_number, other] : state.elements) {
-      if (other_number == number || declined.count(other_number) || !boxes_near(keeper.segment, other.segment, margin))
+      if (other_number == number || declined.count(other_number) ||
+          !boxes_near(keeper.segment, other.segment, margin) ||
+          (keeper.moments + other.moments).rms_offset_m() > options.max_straightness_rms_m)
         continue;
-      const auto m = fusion::match_segment(keeper.segment, other.segment, options.match);
+      const auto m = fusion::match_segment(keeper.segment, other.segment, options.join);
       if (m && (!best || m->cost < best->cost)) {
         best = m;
         best_number = other_number;
@@ -296,6 +298,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       record.element = element.id();
       record.object.reset();
       result.changed_elements.insert(element.number);
+      grown = element.number;  // a view that missed the scan-line gate may still lie on an element
       state.elements.emplace(element.number, std::move(element));
     }
     result.decisions.push_back(std::move(record));

@@ -25,9 +25,12 @@ struct WorldOptions {
   fusion::FusionOptions fusion{0.01, 0.0044};
   /// Joins of two elements into one (asked of the rules) after one change of an element, at most.
   std::size_t max_joins_per_change = 16;
+  /// When an element lies on a grown one: both are fused estimates whose directions are known to the covariance
+  /// floor, so a fixed 5° floor on the direction and the same offsets as for scan lines.
+  fusion::MatchOptions join{3.0, 0.03, 0.087, 0.10, false};
   /// An element may only take in an observation (or another element) while everything it was built from stays
   /// this close to one straight line (RMS across it) [m]: what a wall seen with the poses' error spreads to.
-  double max_straightness_rms_m = 0.03;
+  double max_straightness_rms_m = 0.05;
   /// Uncertainty of a posted segment without "cov": σ across the line at the segment's midpoint [m] and σ of
   /// its direction [rad]. Stated at the midpoint because a plain diagonal (ρ, φ) covariance would be wrong for
   /// any segment far from the origin (ρ and φ are correlated through the lever arm); see midpoint_line_cov.

@@ -15,17 +15,17 @@ namespace {
 std::string scan_payload(const fusion::LaserScan& scan, const std::string& observer, double stamp) {
   nlohmann::json ranges = nlohmann::json::array();
   for (const double r : scan.ranges_m) ranges.push_back(std::isfinite(r) ? nlohmann::json(r) : nlohmann::json());
-  return nlohmann::json{{"sensor", "laser"},
-                        {"source", observer},
-                        {"stamp", stamp},
-                        {"pose",
-                         {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
-                        {"angle_min", scan.angle_min_rad},
-                        {"angle_increment", scan.angle_increment_rad},
-                        {"ranges", std::move(ranges)},
-                        {"range_min", scan.range_min_m},
-                        {"range_max", scan.range_max_m},
-                        {"sigma_range", scan.sigma_range_m}}
+  return nlohmann::json{
+      {"sensor", "laser"},
+      {"source", observer},
+      {"stamp", stamp},
+      {"pose", {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
+      {"angle_min", scan.angle_min_rad},
+      {"angle_increment", scan.angle_increment_rad},
+      {"ranges", std::move(ranges)},
+      {"range_min", scan.range_min_m},
+      {"range_max", scan.range_max_m},
+      {"sigma_range", scan.sigma_range_m}}
       .dump();
 }
 

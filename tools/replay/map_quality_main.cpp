@@ -1,17 +1,18 @@
 // wm-map-quality LOG...: replays each log into a fresh in-process world service (the shipped rules, default
 // settings) and prints one row of map-quality figures per log — the table in the README's "Map quality" section.
+#include <unistd.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
 #include <string>
-#include <unistd.h>
 
 #include "tools/replay/log_replay.h"
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: wm-map-quality [--every K] [--rules DIR] LOG...\n");
+    std::fprintf(stderr, "usage: wm-map-quality [--every K] [--rules DIR] [--pose-sigma XY,THETA] LOG...\n");
     return 2;
   }
   wm::replay::LogReplayOptions options;
@@ -23,6 +24,13 @@ int main(int argc, char** argv) {
     const std::string arg = argv[i];
     if (arg == "--every" && i + 1 < argc) {
       options.every = static_cast<std::size_t>(std::stoul(argv[++i]));
+      continue;
+    }
+    if (arg == "--pose-sigma" && i + 1 < argc) {
+      if (std::sscanf(argv[++i], "%lf,%lf", &options.sigma_xy_m, &options.sigma_theta_rad) != 2) {
+        std::fprintf(stderr, "--pose-sigma: expected XY,THETA (m, rad)\n");
+        return 2;
+      }
       continue;
     }
     if (arg == "--rules" && i + 1 < argc) {

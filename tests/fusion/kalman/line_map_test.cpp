@@ -123,21 +123,28 @@ TEST(LineMapTest, OffsetToleranceGrowsWithTheCovarianceAtTheEnds) {
 }
 
 TEST(LineMapTest, ShortViewsAFewDegreesOffAreTheSameWallButABendIsNot) {
-  const MatchOptions options;  // 5° and 3 cm floors
+  const MatchOptions options;  // 3 cm, 2° and atan(3 cm / length) floors
   const LineSegment wall = seg({0.0, 0.0}, {6.0, 0.0}, kTight);
   const auto tilted = [&](double cx, double half, double degrees) {
     const double a = degrees * kPi / 180.0;
     const Eigen::Vector2d d(std::cos(a), std::sin(a));
     return seg(Eigen::Vector2d(cx, 0.0) - half * d, Eigen::Vector2d(cx, 0.0) + half * d, kTight);
   };
-  // 0.5 m seen 4° off: its ends are 1.7 cm from the wall, the direction within the floor.
-  EXPECT_TRUE(segment_gate(wall, tilted(3.0, 0.25, 4.0), options).passes);
-  // The same view 6° off fails on the direction alone.
-  const SegmentGate steep = segment_gate(wall, tilted(3.0, 0.25, 6.0), options);
+  // 0.5 m seen 3° off: its direction is only known to atan(3 cm / 0.5 m) = 3.4°, its ends are 1.3 cm off.
+  const SegmentGate short_view = segment_gate(wall, tilted(3.0, 0.25, 3.0), options);
+  EXPECT_TRUE(short_view.passes);
+  EXPECT_NEAR(short_view.angle_limit_rad, std::atan(0.03 / 0.5), 1e-12);
+  // 4° is too much for 0.5 m, though its ends would pass; a 0.3 m view may turn 5°.
+  const SegmentGate steep = segment_gate(wall, tilted(3.0, 0.25, 4.0), options);
   EXPECT_FALSE(steep.passes);
   EXPECT_LE(steep.offset_m[0], options.min_offset_m);
-  // A wall that bends by 2° past the element's end: inside the angle floor, but its far end is 7 cm off.
-  const Eigen::Vector2d d(std::cos(2.0 * kPi / 180.0), std::sin(2.0 * kPi / 180.0));
+  EXPECT_TRUE(segment_gate(wall, tilted(3.0, 0.15, 5.0), options).passes);
+  // Without the length floor only min_angle_rad (2°) is left.
+  MatchOptions fixed = options;
+  fixed.angle_floor_from_length = false;
+  EXPECT_FALSE(segment_gate(wall, tilted(3.0, 0.25, 3.0), fixed).passes);
+  // A wall that bends by 1.5° past the element's end: inside the 2° floor, but its far end is 5 cm off.
+  const Eigen::Vector2d d(std::cos(1.5 * kPi / 180.0), std::sin(1.5 * kPi / 180.0));
   const LineSegment bend = seg({6.0, 0.0}, Eigen::Vector2d(6.0, 0.0) + 2.0 * d, kTight);
   const SegmentGate g = segment_gate(wall, bend, options);
   EXPECT_FALSE(g.passes);

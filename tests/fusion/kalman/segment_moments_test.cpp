@@ -7,7 +7,9 @@
 namespace wm::fusion {
 namespace {
 
-LineSegment seg(Eigen::Vector2d a, Eigen::Vector2d b) { return LineSegment::from_points(a, b, Eigen::Matrix2d::Identity()); }
+LineSegment seg(Eigen::Vector2d a, Eigen::Vector2d b) {
+  return LineSegment::from_points(a, b, Eigen::Matrix2d::Identity());
+}
 
 TEST(SegmentMomentsTest, CollinearPiecesLieOnOneLine) {
   const auto m = SegmentMoments::of(seg({0, 1}, {2, 1})) + SegmentMoments::of(seg({3, 1}, {7, 1}));

@@ -54,7 +54,9 @@ TEST(UpdateTest, LaterSegmentsOfARequestSeeTheEarlierOnes) {
   FixedRules rules{"add", {}};
   const auto obs = observe({{{10, 3}, {13, 3}}, {{12, 3.001}, {15, 3.0}}}, options);
   const auto first = apply_observation(WorldState{}, obs, 1, options, std::ref(rules));
-  ASSERT_EQ(rules.asked.size(), 2u);
+  // The second segment matched e1; the rules said add, and the element it became lies on e1: asked again (a join).
+  ASSERT_EQ(rules.asked.size(), 3u);
+  EXPECT_EQ(rules.asked[2].origin, "element");
   EXPECT_FALSE(rules.asked[0].element_id.has_value());
   EXPECT_EQ(rules.asked[1].element_id, "e1");  // the element the first segment added
   EXPECT_FALSE(rules.asked[1].object_id.has_value());
@@ -242,6 +244,7 @@ TEST(UpdateTest, AnElementBuiltFromABentWallTakesNoMoreObservations) {
   EXPECT_NEAR(element.moments.rms_offset_m(), 0.1 / std::sqrt(12.0), 2e-3);
   options.max_straightness_rms_m = 0.02;
   const auto result = apply_observation(state, observe({{{4, 0.0}, {6, 0.0}}}, options), 2, options, std::ref(rules));
+  // Neither a candidate for the view nor joined with the element the view became.
   EXPECT_FALSE(rules.asked.back().element_id.has_value()) << "the bent element is no candidate";
   EXPECT_EQ(result.state.elements.size(), 2u);
   options.max_straightness_rms_m = 0.05;
