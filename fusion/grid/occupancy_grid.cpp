@@ -146,9 +146,9 @@ void OccupancyGrid::insert_scan(const ScanT& scan, std::size_t beams, const Make
     throw std::invalid_argument("OccupancyGrid::insert: sensor position is more than 10000 km from the origin");
   }
   // Everything the scan can touch lies within this radius of the sensor; refuse before changing anything.
-  const double reach_m =
-      std::min(scan.range_max_m, options_.sensor.max_usable_range_m) * (1.0 + options_.sensor.sonar_sigma_per_range) +
-      scan.sigma_range_m + 2.0 * options_.resolution_m;
+  const double reach_m = std::min(scan.range_max_m, usable_range_m(scan, options_.sensor)) *
+                             (1.0 + range_sigma_per_m(scan, options_.sensor)) +
+                         scan.sigma_range_m + 2.0 * options_.resolution_m;
   const double tile_m = options_.resolution_m * static_cast<double>(options_.tile_size_cells);
   check_growth(static_cast<std::int64_t>(std::floor((pose.x_m - reach_m) / tile_m)),
                static_cast<std::int64_t>(std::floor((pose.y_m - reach_m) / tile_m)),

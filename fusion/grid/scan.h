@@ -18,6 +18,11 @@ struct LaserScan {
   double range_min_m = 0;        // [m]
   double range_max_m = 0;        // [m]
   double sigma_range_m = 0.01;   // standard deviation of a reading [m]
+  /// The reading's σ grows by this per metre of range [m/m], >= 0: far walls marked with their real spread.
+  double sigma_range_per_m = 0.0;
+  /// Returns up to this range mark cells [m]; 0: the grid's SensorModelOptions::max_usable_range_m. A sensor that
+  /// is good at 40 m says so here instead of having every return beyond the grid's default only clear space.
+  double usable_range_m = 0.0;
 };
 
 /// A sonar ring: one transducer per entry of angles_rad (sensor frame, counter-clockwise from the sensor's x),

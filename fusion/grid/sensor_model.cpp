@@ -15,12 +15,12 @@ void require(bool ok, const char* field, const char* range) {
 }
 
 // Shared by laser and sonar: ignore, clear or return.
-std::optional<Beam> make_beam(double reading, double range_min, double range_max, const SensorModelOptions& o) {
+std::optional<Beam> make_beam(double reading, double range_min, double range_max, double usable_range) {
   // Negated comparison so NaN is ignored as well.
   if (!(reading >= 0.0 && reading >= range_min)) return std::nullopt;
   Beam beam;
-  const double clear_to = std::min(range_max, o.max_usable_range_m);
-  if (reading >= range_max || reading > o.max_usable_range_m) {
+  const double clear_to = std::min(range_max, usable_range);
+  if (reading >= range_max || reading > usable_range) {
     beam.has_return = false;
     beam.range_m = clear_to;
   } else {
@@ -47,16 +47,23 @@ void validate(const SensorModelOptions& o) {
   require(o.max_usable_range_m > 0.0 && std::isfinite(o.max_usable_range_m), "max_usable_range_m", "finite and > 0");
 }
 
+double usable_range_m(const LaserScan& scan, const SensorModelOptions& options) {
+  return scan.usable_range_m > 0.0 ? scan.usable_range_m : options.max_usable_range_m;
+}
+double usable_range_m(const SonarScan&, const SensorModelOptions& options) { return options.max_usable_range_m; }
+double range_sigma_per_m(const LaserScan& scan, const SensorModelOptions&) { return scan.sigma_range_per_m; }
+double range_sigma_per_m(const SonarScan&, const SensorModelOptions& options) { return options.sonar_sigma_per_range; }
+
 std::optional<Beam> laser_beam(const LaserScan& scan, std::size_t i, const SensorModelOptions& options) {
   if (i >= scan.ranges_m.size()) throw std::out_of_range("laser_beam: beam index out of range");
-  auto beam = make_beam(scan.ranges_m[i], scan.range_min_m, scan.range_max_m, options);
+  auto beam = make_beam(scan.ranges_m[i], scan.range_min_m, scan.range_max_m, usable_range_m(scan, options));
   if (!beam) return beam;
   beam->origin_m = {scan.sensor_pose.x_m, scan.sensor_pose.y_m};
   beam->angle_rad = scan.sensor_pose.theta_rad + scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
   beam->half_width_rad = 0.5 * options.laser_beam_width_rad;
   beam->angular_sigma_rad = 0.25 * options.laser_beam_width_rad;  // the aperture is ±2σ_a
   beam->free_on_axis_only = true;
-  beam->sigma_m = scan.sigma_range_m;
+  beam->sigma_m = scan.sigma_range_m + scan.sigma_range_per_m * beam->range_m;
   beam->p_hit = options.p_hit;
   beam->p_miss = options.p_miss;
   beam->occupied_mass = options.ds_laser_occupied_mass;
@@ -68,7 +75,7 @@ std::optional<Beam> sonar_beam(const SonarScan& scan, std::size_t i, const Senso
   if (i >= scan.ranges_m.size() || i >= scan.angles_rad.size()) {
     throw std::out_of_range("sonar_beam: beam index out of range");
   }
-  auto beam = make_beam(scan.ranges_m[i], scan.range_min_m, scan.range_max_m, options);
+  auto beam = make_beam(scan.ranges_m[i], scan.range_min_m, scan.range_max_m, usable_range_m(scan, options));
   if (!beam) return beam;
   beam->origin_m = {scan.sensor_pose.x_m, scan.sensor_pose.y_m};
   beam->angle_rad = scan.sensor_pose.theta_rad + scan.angles_rad[i];

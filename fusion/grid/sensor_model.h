@@ -71,9 +71,18 @@ struct Beam {
   double empty_factor_k = 0.9;     // DS k
 };
 
+/// How far the beams of this scan are walked [m]: the laser scan's own usable_range_m when it gives one, else
+/// options.max_usable_range_m (always for sonar).
+double usable_range_m(const LaserScan& scan, const SensorModelOptions& options);
+double usable_range_m(const SonarScan& scan, const SensorModelOptions& options);
+/// How the range σ grows with range [m/m]: the laser scan's sigma_range_per_m, sonar_sigma_per_range for sonar.
+double range_sigma_per_m(const LaserScan& scan, const SensorModelOptions& options);
+double range_sigma_per_m(const SonarScan& scan, const SensorModelOptions& options);
+
 /// Beam i of a laser scan (its axis at sensor θ + angle_min + i·increment), or nullopt when the reading is
-/// ignored (NaN, negative, below range_min). A reading >= range_max (also +inf) or beyond max_usable_range_m
-/// becomes a beam without return that clears up to min(range_max, max_usable_range_m).
+/// ignored (NaN, negative, below range_min). A reading >= range_max (also +inf) or beyond the usable range
+/// (usable_range_m above) becomes a beam without return that clears up to min(range_max, usable range). Its σ is
+/// sigma_range_m + sigma_range_per_m · reading.
 /// Does not validate scan or options (the caller has). @throw std::out_of_range when i >= ranges_m.size().
 std::optional<Beam> laser_beam(const LaserScan& scan, std::size_t i, const SensorModelOptions& options);
 /// Beam i of a sonar ring; σ = sigma_range_m + sonar_sigma_per_range·reading. Otherwise as laser_beam.

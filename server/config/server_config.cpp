@@ -61,6 +61,8 @@ std::string usage() {
          "  --gate-sigmas N        a segment matches within N σ in direction and offset (default 3)\n"
          "  --max-gap M            largest gap [m] between collinear extents still matched (default 0.10)\n"
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
+         "  --usable-range M       returns beyond M only clear space, for scans that give no usable_range (default "
+         "20)\n"
          "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at "
          "once)\n"
          "  --grid-extract-every N run the grid line extractor every N scans (default 0: POST /api/v1/grid/extract)\n"
@@ -170,6 +172,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.service.grid_extract_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-resolution")
       c.service.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
+    else if (flag == "--usable-range")
+      c.service.grid.sensor.max_usable_range_m = parse_number<double>(flag, value, 0.1, 1000.0);
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";

@@ -175,9 +175,9 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
   if (!sensor_it->is_string() || (*sensor_it != "laser" && *sensor_it != "sonar"))
     throw bad_request("sensor", "expected \"laser\" or \"sonar\"");
   const bool laser = *sensor_it == "laser";
-  static const std::vector<std::string> kLaserKeys = {"sensor",    "source",          "stamp",   "pose",
-                                                      "angle_min", "angle_increment", "ranges",  "range_min",
-                                                      "range_max", "sigma_range",     "pose_cov"};
+  static const std::vector<std::string> kLaserKeys = {
+      "sensor",    "source",    "stamp",       "pose",     "angle_min",         "angle_increment", "ranges",
+      "range_min", "range_max", "sigma_range", "pose_cov", "sigma_range_per_m", "usable_range"};
   static const std::vector<std::string> kSonarKeys = {"sensor",    "source",      "stamp",      "pose",
                                                       "angles",    "ranges",      "beam_width", "range_min",
                                                       "range_max", "sigma_range", "pose_cov"};
@@ -229,6 +229,14 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
     scan.range_max_m = range_max;
     if (doc.contains("sigma_range")) scan.sigma_range_m = finite_number(doc["sigma_range"], "sigma_range", 10.0);
     if (scan.sigma_range_m <= 0) throw bad_request("sigma_range", "must be > 0");
+    if (doc.contains("sigma_range_per_m")) {
+      scan.sigma_range_per_m = finite_number(doc["sigma_range_per_m"], "sigma_range_per_m", 1.0);
+      if (scan.sigma_range_per_m < 0) throw bad_request("sigma_range_per_m", "must be >= 0 [m/m]");
+    }
+    if (doc.contains("usable_range")) {
+      scan.usable_range_m = finite_number(doc["usable_range"], "usable_range", limits.max_range_m);
+      if (scan.usable_range_m <= 0) throw bad_request("usable_range", "must be > 0 [m]");
+    }
     request.scan = std::move(scan);
   } else {
     fusion::SonarScan scan;

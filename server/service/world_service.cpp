@@ -10,6 +10,7 @@
 #include <variant>
 
 #include "fusion/grid/scan_geometry.h"
+#include "fusion/grid/sensor_model.h"
 
 namespace wm::service {
 namespace {
@@ -220,6 +221,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   }
   auto line_options = options_.scan_lines;
   line_options.sigma_range_m = laser->sigma_range_m;
+  line_options.sigma_range_relative = laser->sigma_range_per_m;
   const auto segments = fusion::extract_scan_lines(readings, laser->sensor_pose, scan.pose_cov, line_options);
   if (segments.empty()) return std::nullopt;
   world::Observation observation;
@@ -272,7 +274,7 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
   // beams (a sonar cone, the laser's 2°) reach beyond their axis.
   const auto [pose, changed, points] = std::visit(
       [&](const auto& s) {
-        const double reach = std::min(s.range_max_m, sensor.max_usable_range_m);
+        const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, sensor));
         double half_width = sensor.laser_beam_width_rad / 2;
         if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
         return std::tuple{s.sensor_pose, fusion::scan_footprint(s, reach, half_width, 2 * grid_->resolution_m()),

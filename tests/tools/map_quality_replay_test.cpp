@@ -33,10 +33,11 @@ TEST_P(MapQualityReplayTest, OneWallOneElementOnTheWallsWithHonestCovariances) {
     for (const auto& d : world.decisions(0, 1'000'000, std::nullopt)) joins += d.rule == "elements_merged";
   });
   const auto& q = r.quality.map;
-  std::printf("%s: %zu scans, %zu elements, %.1f m, precision %.3f, recall %.3f, redundancy %.3f, calibration "
-              "%.3f of %zu, %zu joins\n",
-              c.name, r.scans, q.elements, q.total_length_m, q.precision, q.recall, q.redundancy,
-              r.quality.calibration.value_or(-1), r.quality.calibration_samples, joins);
+  std::printf(
+      "%s: %zu scans, %zu elements, %.1f m, precision %.3f, recall %.3f, redundancy %.3f, calibration "
+      "%.3f of %zu, %zu joins\n",
+      c.name, r.scans, q.elements, q.total_length_m, q.precision, q.recall, q.redundancy,
+      r.quality.calibration.value_or(-1), r.quality.calibration_samples, joins);
   EXPECT_GT(r.scans, 200u);
   EXPECT_GT(q.elements, 100u);
   // The same wall kept twice: was 0.52–0.69 before elements were gated in their own frame and joined.
@@ -53,8 +54,7 @@ TEST_P(MapQualityReplayTest, OneWallOneElementOnTheWallsWithHonestCovariances) {
 
 INSTANTIATE_TEST_SUITE_P(CarmenLogs, MapQualityReplayTest,
                          ::testing::Values(LogCase{"intel-corrected.log.gz", "carmen/intel-corrected.log.gz"},
-                                           LogCase{"aces-corrected.log.gz", ""},
-                                           LogCase{"csail-corrected.log.gz", ""},
+                                           LogCase{"aces-corrected.log.gz", ""}, LogCase{"csail-corrected.log.gz", ""},
                                            LogCase{"freiburg-079-corrected.log.gz", ""}),
                          [](const auto& info) {
                            std::string name = info.param.name;

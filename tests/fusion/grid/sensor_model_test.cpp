@@ -134,6 +134,24 @@ TEST(SensorModelTest, ReadingBeyondUsableRangeClearsUpToIt) {
   EXPECT_EQ(keys(cells, false).size(), 11u);  // centres at 0 … 0.5 m
 }
 
+TEST(SensorModelTest, AScansOwnUsableRangeAndRangeDependentSigmaWin) {
+  SensorModelOptions o = thin();
+  o.max_usable_range_m = 0.5;
+  LaserScan s = one_beam({0.025, 0.025, 0.0}, 3.0);
+  s.usable_range_m = 4.0;  // this sensor is good far out: its 3 m return marks a cell
+  s.sigma_range_m = 0.01;
+  s.sigma_range_per_m = 0.005;
+  const std::optional<Beam> beam = laser_beam(s, 0, o);
+  ASSERT_TRUE(beam);
+  EXPECT_TRUE(beam->has_return);
+  EXPECT_DOUBLE_EQ(beam->range_m, 3.0);
+  EXPECT_DOUBLE_EQ(beam->sigma_m, 0.01 + 0.005 * 3.0);
+  EXPECT_DOUBLE_EQ(usable_range_m(s, o), 4.0);
+  s.usable_range_m = 0.0;  // not given: the grid's
+  EXPECT_DOUBLE_EQ(usable_range_m(s, o), 0.5);
+  EXPECT_FALSE(laser_beam(s, 0, o)->has_return);
+}
+
 TEST(SensorModelTest, BadReadingsAreIgnoredPerBeam) {
   LaserScan s = one_beam({0, 0, 0}, 1.0);
   s.ranges_m = {std::numeric_limits<double>::quiet_NaN(), -1.0, 0.01, 1.0, -std::numeric_limits<double>::infinity()};

@@ -43,6 +43,28 @@ TEST(CodecTest, RefusalsNameTheField) {
   EXPECT_NE(refusal("{}").find("segments: missing"), std::string::npos);
 }
 
+TEST(CodecTest, ALaserScanMayStateItsUsableRangeAndRangeDependentSigma) {
+  const std::string head =
+      R"({"sensor": "laser", "pose": {"x": 0, "y": 0, "theta": 0}, "angle_min": 0, "angle_increment": 0.01, )"
+      R"("ranges": [35.0, 2.0], "range_max": 80)";
+  const auto scan = std::get<fusion::LaserScan>(
+      parse_scan(head + R"(, "usable_range": 40, "sigma_range_per_m": 0.001})", ScanLimits{}).scan);
+  EXPECT_EQ(scan.usable_range_m, 40.0);
+  EXPECT_EQ(scan.sigma_range_per_m, 0.001);
+  const auto plain = std::get<fusion::LaserScan>(parse_scan(head + "}", ScanLimits{}).scan);
+  EXPECT_EQ(plain.usable_range_m, 0.0);  // the server's default applies
+  EXPECT_EQ(plain.sigma_range_per_m, 0.0);
+  for (const std::string bad : {R"(, "usable_range": 0})", R"(, "usable_range": -3})", R"(, "usable_range": "far"})",
+                                R"(, "sigma_range_per_m": -0.1})", R"(, "sigma_range_per_m": 5})"}) {
+    try {
+      parse_scan(head + bad, ScanLimits{});
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const CodecError& e) {
+      EXPECT_EQ(e.kind(), CodecError::Kind::bad_request) << bad;
+    }
+  }
+}
+
 TEST(CodecTest, TooManySegmentsAreRefused) {
   PrimitiveLimits limits;
   limits.max_segments = 1;
