@@ -97,8 +97,8 @@ void update_per_primitive(benchmark::State& state, std::size_t elements, std::si
   const WorldOptions options;
   std::size_t i = 0;
   for (auto _ : state) {
-    auto result = wm::world::apply_observation(scene.state, scene.observations[i++ % scene.observations.size()],
-                                               1, options, stand_in_rules);
+    auto result = wm::world::apply_observation(scene.state, scene.observations[i++ % scene.observations.size()], 1,
+                                               options, stand_in_rules);
     benchmark::DoNotOptimize(result);
   }
   state.SetItemsProcessed(state.iterations() * 8);  // primitives
