@@ -66,6 +66,7 @@ std::vector<Command> command_table() {
         {"--offset", "DX,DY"},
         {"--source", "NAME"},
         {"--range-max", "M"},
+        {"--usable-range", "M"},
         {"--pose-sigma", "XY,THETA"}},
        "post the laser scans of a CARMEN log (FLASER / ROBOTLASER1, plain or .gz)\n"
        "in line order, with a progress bar and a summary",

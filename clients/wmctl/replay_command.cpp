@@ -52,6 +52,7 @@ struct ReplayOptions {
   double offset_x_m = 0, offset_y_m = 0;
   std::string source;                                  // the robot name the scans are posted under
   double sigma_xy_m = 0.03, sigma_theta_rad = 0.0087;  // 3 cm, 0.5°
+  double usable_range_m = 0;                           // sent as the scans' usable_range when > 0
   logs::CarmenReaderOptions reader;
 };
 
@@ -77,6 +78,8 @@ ReplayOptions replay_options(const Invocation& in) {
         throw UsageError("--pose-sigma: expected SIGMA_XY,SIGMA_THETA in metres and radians, e.g. 0.03,0.0087");
     } else if (flag == "--range-max") {
       o.reader.flaser_range_max_m = positive(flag, value, "metres > 0");
+    } else if (flag == "--usable-range") {
+      o.usable_range_m = positive(flag, value, "metres > 0");
     }
   }
   return o;
@@ -99,7 +102,9 @@ int replay(const Invocation& in) {
     scan->scan.sensor_pose.y_m += o.offset_y_m;
     if (o.rate_hz > 0)
       std::this_thread::sleep_until(start + std::chrono::duration<double>(static_cast<double>(posted) / o.rate_hz));
-    const auto body = scan_json(scan->scan, o.source, scan->timestamp_s, o.sigma_xy_m, o.sigma_theta_rad).dump();
+    auto message = scan_json(scan->scan, o.source, scan->timestamp_s, o.sigma_xy_m, o.sigma_theta_rad);
+    if (o.usable_range_m > 0) message["usable_range"] = o.usable_range_m;
+    const auto body = message.dump();
     parse_answer(in.client.request("POST", "/api/v1/scans", body, "application/json", in.token));
     ++posted;
     const int percent = static_cast<int>(100.0 * reader.progress());
