@@ -18,6 +18,9 @@ struct CandidateRef {
   std::int64_t element = 0;  // element number when object is empty
 };
 
+// How far (box to box) a candidate may be and still be worth the gate.
+double candidate_margin(const fusion::MatchOptions& match) { return kCandidateMarginM + match.max_gap_m; }
+
 // Bounding boxes overlap once each is grown by `margin`: a cheap test before the segment gate.
 bool boxes_near(const fusion::LineSegment& a, const fusion::LineSegment& b, double margin) {
   const Eigen::Vector2d a0 = a.p0(), a1 = a.p1(), b0 = b.p0(), b1 = b.p1();
@@ -35,7 +38,7 @@ struct Candidates {
 // What can match `seen`: the CAD edges and elements whose boxes come near it (the gate tolerances stay well
 // inside the margin).
 Candidates collect_candidates(const WorldState& state, const fusion::LineSegment& seen, const WorldOptions& options) {
-  const double margin = kCandidateMarginM + options.match.max_gap_m;
+  const double margin = candidate_margin(options.match);
   Candidates c;
   for (std::size_t i = 0; i < state.objects.size(); ++i) {
     const auto& object = state.objects[i];
@@ -92,6 +95,15 @@ std::vector<double> pose_numbers(const fusion::RigidObject& body) {
   return v;
 }
 
+// The segment a decision is about, as the log keeps it.
+void record_observed(DecisionRecord& record, const fusion::LineSegment& segment) {
+  record.p0 = segment.p0();
+  record.p1 = segment.p1();
+  record.rho_m = segment.line.rho_m;
+  record.phi_rad = segment.line.phi_rad;
+  record.observed_cov = segment.line.cov;
+}
+
 void make_fallback(DecisionRecord& record, std::string_view answered, const std::string& why) {
   record.explanation = "fallback (" + why + "); rules said " + std::string(answered) + " by " + record.rule;
   record.action = rules::Action::add;
@@ -107,9 +119,9 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
                      std::int64_t observation_seq, const WorldOptions& options, const Decide& decide) {
   WorldState& state = result.state;
   std::set<std::int64_t> declined;
+  const double margin = candidate_margin(options.join);
   for (std::size_t joins = 0; joins < options.max_joins_per_change;) {
     const Element& keeper = state.elements.at(number);
-    const double margin = kCandidateMarginM + options.match.max_gap_m;
     std::optional<fusion::MatchResult> best;
     std::int64_t best_number = 0;
     for (const auto& [other_number, other] : state.elements) {
@@ -152,11 +164,7 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
     record.observer = observation.observer;
     record.origin = "element";
     record.sensor = observation.sensor;
-    record.p0 = other.segment.p0();
-    record.p1 = other.segment.p1();
-    record.rho_m = other.segment.line.rho_m;
-    record.phi_rad = other.segment.line.phi_rad;
-    record.observed_cov = other.segment.line.cov;
+    record_observed(record, other.segment);
     record.before = line_numbers(keeper.segment.line);
 
     Element joined = keeper;
@@ -211,14 +219,10 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     record.observer = observation.observer;
     record.origin = observation.origin;
     record.sensor = observation.sensor;
-    record.p0 = seen.p0();
-    record.p1 = seen.p1();
-    record.rho_m = seen.line.rho_m;
-    record.phi_rad = seen.line.phi_rad;
-    record.observed_cov = seen.line.cov;
+    record_observed(record, seen);
 
     const CandidateRef* ref = match ? &candidates.refs[match->index] : nullptr;
-    std::optional<std::int64_t> grown;  // the element a merge changed, whose neighbours are checked next
+    std::optional<std::int64_t> grown;  // the element a merge or add changed, whose neighbours are checked next
     if (!action || *action == rules::Action::prune) {
       make_fallback(record, decision.action, "action '" + decision.action + "' is not known to the server");
     } else if (record.action == rules::Action::merge && !ref) {
@@ -325,11 +329,7 @@ void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& ord
     record.element = order.element_id;
     record.observer = observer;
     record.origin = it->second.origin;
-    record.p0 = it->second.segment.p0();
-    record.p1 = it->second.segment.p1();
-    record.rho_m = it->second.segment.line.rho_m;
-    record.phi_rad = it->second.segment.line.phi_rad;
-    record.observed_cov = it->second.segment.line.cov;
+    record_observed(record, it->second.segment);
     record.before = line_numbers(it->second.segment.line);
     state.elements.erase(it);
     result.changed_elements.erase(*number);
