@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "clients/logs/carmen_log_reader.h"
+#include "clients/logs/scan_body.h"
 #include "clients/wmctl/commands.h"
 
 namespace wm::wmctl {
@@ -19,21 +20,11 @@ namespace {
 
 json scan_json(const fusion::LaserScan& scan, const std::string& source, double stamp, double sigma_xy,
                double sigma_theta) {
-  json ranges = json::array();
-  for (const double r : scan.ranges_m) ranges.push_back(std::isfinite(r) ? json(r) : json(nullptr));
-  return {{"sensor", "laser"},
-          {"source", source},
-          {"stamp", stamp},
-          {"pose", {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
-          {"angle_min", scan.angle_min_rad},
-          {"angle_increment", scan.angle_increment_rad},
-          {"ranges", std::move(ranges)},
-          {"range_min", scan.range_min_m},
-          {"range_max", scan.range_max_m},
-          {"sigma_range", scan.sigma_range_m},
-          // The logs' corrected poses are good, not exact: without this the lines of one wall seen twice would
-          // fail the χ² gate by a centimetre and pile up as separate elements.
-          {"pose_cov", {{sigma_xy * sigma_xy, 0, 0}, {0, sigma_xy * sigma_xy, 0}, {0, 0, sigma_theta * sigma_theta}}}};
+  json body = logs::laser_scan_body(scan, source, stamp);
+  // The logs' corrected poses are good, not exact: the matcher's tolerances and the calibration figure count on
+  // the pose uncertainty being part of every scan line's covariance.
+  body["pose_cov"] = {{sigma_xy * sigma_xy, 0, 0}, {0, sigma_xy * sigma_xy, 0}, {0, 0, sigma_theta * sigma_theta}};
+  return body;
 }
 
 // A number > 0 given as `flag`'s value; `what` says what was expected.

@@ -1,35 +1,14 @@
 #include "tools/replay/log_replay.h"
 
+#include <algorithm>
 #include <chrono>
-#include <cmath>
-#include <nlohmann/json.hpp>
 
 #include "clients/logs/carmen_log_reader.h"
+#include "clients/logs/scan_body.h"
 #include "rules/engine.h"
 #include "server/storage/store.h"
 
 namespace wm::replay {
-namespace {
-
-// The request body as a client would post it: the journal keeps it to rebuild the grid at start.
-std::string scan_payload(const fusion::LaserScan& scan, const std::string& observer, double stamp) {
-  nlohmann::json ranges = nlohmann::json::array();
-  for (const double r : scan.ranges_m) ranges.push_back(std::isfinite(r) ? nlohmann::json(r) : nlohmann::json());
-  return nlohmann::json{
-      {"sensor", "laser"},
-      {"source", observer},
-      {"stamp", stamp},
-      {"pose", {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
-      {"angle_min", scan.angle_min_rad},
-      {"angle_increment", scan.angle_increment_rad},
-      {"ranges", std::move(ranges)},
-      {"range_min", scan.range_min_m},
-      {"range_max", scan.range_max_m},
-      {"sigma_range", scan.sigma_range_m}}
-      .dump();
-}
-
-}  // namespace
 
 LogReplayResult replay_log(const std::filesystem::path& log, const LogReplayOptions& options,
                            const std::function<void(service::WorldService&)>& on_service) {
@@ -57,7 +36,8 @@ LogReplayResult replay_log(const std::filesystem::path& log, const LogReplayOpti
     request.observer = observer;
     request.stamp_s = scan->timestamp_s;
     request.pose_cov = pose_cov;
-    auto payload = scan_payload(scan->scan, observer, scan->timestamp_s);
+    // The request body as a client would post it: the journal keeps it to rebuild the grid at start.
+    auto payload = logs::laser_scan_body(scan->scan, observer, scan->timestamp_s).dump();
     request.scan = std::move(scan->scan);
     world.post_scan(std::move(request), std::move(payload), std::nullopt);
     if (++result.scans == options.max_scans) break;
