@@ -51,7 +51,7 @@ Scene make_scene(std::size_t n, std::size_t plan_rooms) {
     e.moments = wm::fusion::SegmentMoments::of(e.segment);
     e.origin = "scan";
     e.observer = "bench";
-    scene.state.elements.emplace(e.number, std::move(e));
+    scene.state.elements.put(std::move(e));
   }
   scene.state.next_element_number = static_cast<std::int64_t>(n + 1);
   if (plan_rooms > 0) {

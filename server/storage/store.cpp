@@ -170,8 +170,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
     if (s.step()) {
       const auto plan = apriori::parse_floor_plan_json(s.column_text(1));
       state.plan_name = plan.name;
-      state.objects = world::make_objects(plan, options, 0);
-      world::rebuild_object_index(state);
+      state.objects = world::ObjectTable(world::make_objects(plan, options, 0));
     }
   }
   {
@@ -182,12 +181,13 @@ world::WorldState Store::load(const world::WorldOptions& options) {
       const auto ord = static_cast<std::size_t>(s.column_int(0));
       if (ord >= state.objects.size() || state.objects[ord].plan->id != s.column_text(1))
         throw StorageError("objects table does not match the stored floor plan");
-      auto& object = state.objects[ord];
+      auto object = state.objects[ord];
       fusion::Pose2D pose{s.column_double(2), s.column_double(3), s.column_double(4)};
       object.body = fusion::RigidObject(pose, read_matrix<Eigen::Matrix3d>(s, 5), object.body.edges());
       object.confirmations = s.column_int(6);
       object.adjustments = s.column_int(7);
       object.updated_version = s.column_int(8);
+      state.objects.put(ord, std::move(object));
     }
   }
   {
@@ -218,7 +218,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
       } else {
         throw StorageError("corrupt element moments in database");
       }
-      state.elements.emplace(e.number, std::move(e));
+      state.elements.put(std::move(e));
     }
   }
   return state;

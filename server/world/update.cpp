@@ -21,15 +21,6 @@ struct CandidateRef {
 // How far (box to box) a candidate may be and still be worth the gate.
 double candidate_margin(const fusion::MatchOptions& match) { return kCandidateMarginM + match.max_gap_m; }
 
-// Bounding boxes overlap once each is grown by `margin`: a cheap test before the segment gate.
-bool boxes_near(const fusion::LineSegment& a, const fusion::LineSegment& b, double margin) {
-  const Eigen::Vector2d a0 = a.p0(), a1 = a.p1(), b0 = b.p0(), b1 = b.p1();
-  return std::max(a0.x(), a1.x()) + margin >= std::min(b0.x(), b1.x()) &&
-         std::max(b0.x(), b1.x()) + margin >= std::min(a0.x(), a1.x()) &&
-         std::max(a0.y(), a1.y()) + margin >= std::min(b0.y(), b1.y()) &&
-         std::max(b0.y(), b1.y()) + margin >= std::min(a0.y(), a1.y());
-}
-
 struct Candidates {
   std::vector<fusion::LineSegment> segments;
   std::vector<CandidateRef> refs;
@@ -38,20 +29,18 @@ struct Candidates {
 // What can match `seen`: the CAD edges and elements whose boxes come near it (the gate tolerances stay well
 // inside the margin).
 Candidates collect_candidates(const WorldState& state, const fusion::LineSegment& seen, const WorldOptions& options) {
-  const double margin = candidate_margin(options.match);
+  const Box near = Box::of(seen, candidate_margin(options.match));
   Candidates c;
-  for (std::size_t i = 0; i < state.objects.size(); ++i) {
-    const auto& object = state.objects[i];
-    for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
-      auto edge = apriori_edge(object, k, options);
-      if (!boxes_near(edge, seen, margin)) continue;
-      c.segments.push_back(std::move(edge));
-      c.refs.push_back({i, k, 0});
-    }
+  for (const auto& [i, k] : state.objects.edges_near(near)) {
+    auto edge = apriori_edge(state.objects[i], k, options);
+    if (!Box::of(edge).overlaps(near)) continue;
+    c.segments.push_back(std::move(edge));
+    c.refs.push_back({i, k, 0});
   }
   const auto seen_moments = fusion::SegmentMoments::of(seen);
-  for (const auto& [number, element] : state.elements) {
-    if (!boxes_near(element.segment, seen, margin)) continue;
+  for (const auto number : state.elements.near(near)) {
+    const Element& element = state.elements.at(number);
+    if (!Box::of(element.segment).overlaps(near)) continue;
     // Taking `seen` in would bend the element: not the same straight wall, whatever the gate says.
     if ((element.moments + seen_moments).rms_offset_m() > options.max_straightness_rms_m) continue;
     c.segments.push_back(element.segment);
@@ -119,14 +108,14 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
                      std::int64_t observation_seq, const WorldOptions& options, const Decide& decide) {
   WorldState& state = result.state;
   std::set<std::int64_t> declined;
-  const double margin = candidate_margin(options.join);
   for (std::size_t joins = 0; joins < options.max_joins_per_change;) {
     const Element& keeper = state.elements.at(number);
+    const Box near = Box::of(keeper.segment, candidate_margin(options.join));
     std::optional<fusion::MatchResult> best;
     std::int64_t best_number = 0;
-    for (const auto& [other_number, other] : state.elements) {
-      if (other_number == number || declined.count(other_number) ||
-          !boxes_near(keeper.segment, other.segment, margin) ||
+    for (const auto other_number : state.elements.near(near)) {
+      const Element& other = state.elements.at(other_number);
+      if (other_number == number || declined.count(other_number) || !Box::of(other.segment).overlaps(near) ||
           (keeper.moments + other.moments).rms_offset_m() > options.max_straightness_rms_m)
         continue;
       const auto m = fusion::match_segment(keeper.segment, other.segment, options.join);
@@ -177,7 +166,7 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
     state.elements.erase(best_number);
     result.changed_elements.erase(best_number);
     result.removed_elements.insert(best_number);
-    state.elements.at(number) = std::move(joined);
+    state.elements.put(std::move(joined));
     result.changed_elements.insert(number);
     result.decisions.push_back(std::move(record));
     ++joins;
@@ -233,19 +222,21 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
 
     if (record.action == rules::Action::confirm) {
       if (ref && ref->object) {
-        auto& object = state.objects[*ref->object];
+        ObjectState object = state.objects[*ref->object];
         ++object.confirmations;
         object.updated_version = state.version;
+        state.objects.put(*ref->object, std::move(object));
         result.changed_objects.insert(*ref->object);
       } else if (ref) {
-        auto& element = state.elements.at(ref->element);
+        Element element = state.elements.at(ref->element);
         ++element.support;
         element.updated_version = state.version;
         element.updated_at_unix_s = observation.received_at_unix_s;
+        state.elements.put(std::move(element));
         result.changed_elements.insert(ref->element);
       }
     } else if (record.action == rules::Action::merge && !ref->object) {
-      auto& element = state.elements.at(ref->element);
+      Element element = state.elements.at(ref->element);
       record.before = line_numbers(element.segment.line);
       element.segment = fusion::fuse(element.segment, seen, options.fusion);
       element.moments += fusion::SegmentMoments::of(seen);
@@ -253,6 +244,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       ++element.support;
       element.updated_version = state.version;
       element.updated_at_unix_s = observation.received_at_unix_s;
+      state.elements.put(std::move(element));
       result.changed_elements.insert(ref->element);
       grown = ref->element;
     } else if (record.action == rules::Action::merge) {
@@ -274,15 +266,16 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       record.element = element.id();
       result.changed_elements.insert(element.number);
       grown = element.number;
-      state.elements.emplace(element.number, std::move(element));
+      state.elements.put(std::move(element));
     } else if (record.action == rules::Action::rigid_adjust) {
-      auto& object = state.objects[*ref->object];
+      ObjectState object = state.objects[*ref->object];
       try {
         record.before = pose_numbers(object.body);
         object.body = object.body.updated(ref->edge, seen.line, apriori_edge_noise(object, ref->edge, options));
         record.after = pose_numbers(object.body);
         ++object.adjustments;
         object.updated_version = state.version;
+        state.objects.put(*ref->object, std::move(object));
         result.changed_objects.insert(*ref->object);
       } catch (const std::invalid_argument& e) {
         record.before.clear();
@@ -303,7 +296,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       record.object.reset();
       result.changed_elements.insert(element.number);
       grown = element.number;  // a view that missed the scan-line gate may still lie on an element
-      state.elements.emplace(element.number, std::move(element));
+      state.elements.put(std::move(element));
     }
     result.decisions.push_back(std::move(record));
     if (grown) join_neighbours(result, *grown, observation, observation_seq, options, decide);
@@ -317,8 +310,8 @@ void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& ord
   for (const auto& order : orders) {
     const auto number = WorldState::element_number(order.element_id);
     if (!number) continue;
-    const auto it = state.elements.find(*number);
-    if (it == state.elements.end()) continue;
+    const Element* pruned = state.elements.find(*number);
+    if (!pruned) continue;
     DecisionRecord record;
     record.seq = ++state.last_decision_seq;
     record.observation_seq = observation_seq;
@@ -328,10 +321,10 @@ void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& ord
     record.explanation = order.explanation;
     record.element = order.element_id;
     record.observer = observer;
-    record.origin = it->second.origin;
-    record_observed(record, it->second.segment);
-    record.before = line_numbers(it->second.segment.line);
-    state.elements.erase(it);
+    record.origin = pruned->origin;
+    record_observed(record, pruned->segment);
+    record.before = line_numbers(pruned->segment.line);
+    state.elements.erase(*number);
     result.changed_elements.erase(*number);
     result.removed_elements.insert(*number);
     result.decisions.push_back(std::move(record));
@@ -359,8 +352,7 @@ UpdateResult apply_floor_plan(const WorldState& current, const apriori::FloorPla
   WorldState& state = result.state;
   state.version = current.version + 1;
   state.plan_name = plan.name;
-  state.objects = make_objects(plan, options, state.version);
-  rebuild_object_index(state);
+  state.objects = ObjectTable(make_objects(plan, options, state.version));
   for (std::size_t i = 0; i < state.objects.size(); ++i) result.changed_objects.insert(i);
   return result;
 }

@@ -1,12 +1,92 @@
 #include "server/world/world_state.h"
 
 #include <charconv>
+#include <stdexcept>
 
 namespace wm::world {
 
+namespace {
+
+// Edges are keyed in the spatial index as object << 24 | edge.
+constexpr int kEdgeBits = 24;
+
+std::int64_t edge_key(std::size_t object, std::size_t edge) {
+  return static_cast<std::int64_t>(object) << kEdgeBits | static_cast<std::int64_t>(edge);
+}
+
+Box edge_box(const ObjectState& object, std::size_t k) {
+  return Box::of(object.body.world_edge(k, Eigen::Matrix2d::Zero()));
+}
+
+}  // namespace
+
+void ElementTable::put(Element element) {
+  if (element.number <= 0) throw std::out_of_range("ElementTable: element numbers start at 1");
+  const auto number = element.number;
+  const Box box = Box::of(element.segment);
+  if (const Element* old = elements_.find(number))
+    index_.move(number, Box::of(old->segment), box);
+  else
+    index_.insert(number, box);
+  elements_.put(number, std::move(element));
+}
+
+bool ElementTable::erase(std::int64_t number) {
+  const Element* old = elements_.find(number);
+  if (!old) return false;
+  index_.erase(number, Box::of(old->segment));
+  return elements_.erase(number);
+}
+
+void ElementTable::clear() {
+  elements_.clear();
+  index_.clear();
+}
+
+ObjectTable::ObjectTable(std::vector<ObjectState> objects) {
+  auto by_id = std::make_shared<std::unordered_map<std::string, std::size_t>>();
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    const auto& object = objects[i];
+    if (!by_id->emplace(object.plan->id, i).second)
+      throw std::invalid_argument("two plan objects share the id '" + object.plan->id + "'");
+    if (object.body.edges().size() >= (std::size_t{1} << kEdgeBits))
+      throw std::invalid_argument("plan object '" + object.plan->id + "' has too many edges");
+    for (std::size_t k = 0; k < object.body.edges().size(); ++k) edges_.insert(edge_key(i, k), edge_box(object, k));
+    objects_.put(static_cast<std::int64_t>(i), std::move(objects[i]));
+  }
+  by_id_ = std::move(by_id);
+}
+
+std::optional<std::size_t> ObjectTable::index_of(const std::string& id) const {
+  if (!by_id_) return std::nullopt;
+  const auto it = by_id_->find(id);
+  if (it == by_id_->end()) return std::nullopt;
+  return it->second;
+}
+
+void ObjectTable::put(std::size_t index, ObjectState object) {
+  const ObjectState& old = at(index);
+  if (old.plan->id != object.plan->id || old.body.edges().size() != object.body.edges().size())
+    throw std::invalid_argument("ObjectTable::put: object " + std::to_string(index) + " is '" + old.plan->id + "'");
+  if (old.body.pose().x_m != object.body.pose().x_m || old.body.pose().y_m != object.body.pose().y_m ||
+      old.body.pose().theta_rad != object.body.pose().theta_rad) {
+    for (std::size_t k = 0; k < object.body.edges().size(); ++k)
+      edges_.move(edge_key(index, k), edge_box(old, k), edge_box(object, k));
+  }
+  objects_.put(static_cast<std::int64_t>(index), std::move(object));
+}
+
+std::vector<std::pair<std::size_t, std::size_t>> ObjectTable::edges_near(const Box& box) const {
+  std::vector<std::pair<std::size_t, std::size_t>> result;
+  const std::int64_t edge_mask = (std::int64_t{1} << kEdgeBits) - 1;
+  for (const auto key : edges_.query(box))
+    result.emplace_back(static_cast<std::size_t>(key >> kEdgeBits), static_cast<std::size_t>(key & edge_mask));
+  return result;
+}
+
 const ObjectState* WorldState::find_object(const std::string& id) const {
-  auto it = object_index.find(id);
-  return it == object_index.end() ? nullptr : &objects[it->second];
+  const auto index = objects.index_of(id);
+  return index ? &objects[*index] : nullptr;
 }
 
 std::optional<std::int64_t> WorldState::element_number(const std::string& id) {
@@ -20,8 +100,7 @@ std::optional<std::int64_t> WorldState::element_number(const std::string& id) {
 const Element* WorldState::find_element(const std::string& id) const {
   auto n = element_number(id);
   if (!n) return nullptr;
-  auto it = elements.find(*n);
-  return it == elements.end() ? nullptr : &it->second;
+  return elements.find(*n);
 }
 
 std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
@@ -34,11 +113,6 @@ std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const Worl
     objects.push_back(ObjectState{std::move(shared), std::move(body), 0, 0, version});
   }
   return objects;
-}
-
-void rebuild_object_index(WorldState& state) {
-  state.object_index.clear();
-  for (std::size_t i = 0; i < state.objects.size(); ++i) state.object_index.emplace(state.objects[i].plan->id, i);
 }
 
 Eigen::Matrix2d midpoint_line_cov(const fusion::LineSegment& segment, double sigma_offset_m, double sigma_angle_rad) {

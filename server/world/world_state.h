@@ -2,7 +2,6 @@
 
 #include <Eigen/Core>
 #include <cstdint>
-#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -14,6 +13,8 @@
 #include "fusion/kalman/line_map.h"
 #include "fusion/kalman/rigid_object.h"
 #include "fusion/kalman/segment_moments.h"
+#include "server/world/cow_map.h"
+#include "server/world/spatial_hash.h"
 
 namespace wm::world {
 
@@ -68,14 +69,88 @@ struct Element {
   std::string id() const { return "e" + std::to_string(number); }
 };
 
+/// The observed elements by number, with their spatial index kept in step. Copies share what they have not
+/// changed (see CowMap), so the writer's per-request copy costs little however large the map.
+class ElementTable {
+ public:
+  using const_iterator = CowMap<Element>::const_iterator;  // (number, element) in number order
+
+  std::size_t size() const { return elements_.size(); }
+  bool empty() const { return elements_.empty(); }
+  const_iterator begin() const { return elements_.begin(); }
+  const_iterator end() const { return elements_.end(); }
+  const Element* find(std::int64_t number) const { return elements_.find(number); }
+  /// @throw std::out_of_range when there is no such element.
+  const Element& at(std::int64_t number) const { return elements_.at(number); }
+  bool contains(std::int64_t number) const { return elements_.contains(number); }
+  std::size_t count(std::int64_t number) const { return elements_.count(number); }
+
+  /// Inserts or replaces the element of `element.number` (> 0). @throw std::out_of_range otherwise.
+  void put(Element element);
+  bool erase(std::int64_t number);
+  void clear();
+  /// Numbers of every element whose segment's box overlaps `box`, and perhaps a few more (callers test the
+  /// geometry). Sorted.
+  std::vector<std::int64_t> near(const Box& box) const { return index_.query(box); }
+
+ private:
+  CowMap<Element> elements_;
+  SpatialHash index_;
+};
+
+/// The CAD objects in plan order, with an index by id and a spatial index of their edges in the world frame (as
+/// posed now). Shares unchanged objects between copies like ElementTable.
+class ObjectTable {
+ public:
+  class const_iterator {
+   public:
+    const_iterator(const CowMap<ObjectState>* map, std::size_t index) : map_(map), index_(index) {}
+    const ObjectState& operator*() const { return map_->at(static_cast<std::int64_t>(index_)); }
+    const ObjectState* operator->() const { return &**this; }
+    const_iterator& operator++() {
+      ++index_;
+      return *this;
+    }
+    bool operator==(const const_iterator& other) const { return index_ == other.index_; }
+    bool operator!=(const const_iterator& other) const { return index_ != other.index_; }
+
+   private:
+    const CowMap<ObjectState>* map_;
+    std::size_t index_;
+  };
+
+  ObjectTable() = default;
+  /// @throw std::invalid_argument when two objects share an id or an object has 2^24 edges or more.
+  explicit ObjectTable(std::vector<ObjectState> objects);
+
+  std::size_t size() const { return objects_.size(); }
+  bool empty() const { return objects_.empty(); }
+  const_iterator begin() const { return {&objects_, 0}; }
+  const_iterator end() const { return {&objects_, objects_.size()}; }
+  /// @throw std::out_of_range for an index past the end.
+  const ObjectState& at(std::size_t index) const { return objects_.at(static_cast<std::int64_t>(index)); }
+  const ObjectState& operator[](std::size_t index) const { return at(index); }
+  std::optional<std::size_t> index_of(const std::string& id) const;
+
+  /// Replaces object `index` (same plan object, e.g. a new pose or counters); re-indexes its edges if it moved.
+  /// @throw std::out_of_range for an index past the end, std::invalid_argument for a different plan object.
+  void put(std::size_t index, ObjectState object);
+  /// (object index, edge index) of every edge whose box overlaps `box`, and perhaps a few more. Sorted.
+  std::vector<std::pair<std::size_t, std::size_t>> edges_near(const Box& box) const;
+
+ private:
+  CowMap<ObjectState> objects_;
+  std::shared_ptr<const std::unordered_map<std::string, std::size_t>> by_id_;
+  SpatialHash edges_;
+};
+
 /// The whole mutable world model. Copied by the single writer, changed, then published as an immutable
-/// snapshot, so readers never see half an update.
+/// snapshot, so readers never see half an update; the copy shares everything unchanged.
 struct WorldState {
   std::int64_t version = 0;  // increases by one per applied request
   std::string plan_name;
-  std::vector<ObjectState> objects;  // in plan order
-  std::unordered_map<std::string, std::size_t> object_index;
-  std::map<std::int64_t, Element> elements;  // by number
+  ObjectTable objects;
+  ElementTable elements;
   std::int64_t next_element_number = 1;
   std::int64_t last_observation_seq = 0;
   std::int64_t last_decision_seq = 0;
@@ -89,7 +164,6 @@ struct WorldState {
 /// Builds the object states of a plan (poses as drawn). @throw std::invalid_argument from fusion on bad geometry.
 std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
                                       std::int64_t version);
-void rebuild_object_index(WorldState& state);
 
 /// (ρ, φ) covariance of a line known to σ_offset [m] across the segment's midpoint and σ_angle [rad] in
 /// direction: J diag(σ_offset², σ_angle²) Jᵀ with J = [[1, t_mid], [0, 1]], t_mid the midpoint's coordinate

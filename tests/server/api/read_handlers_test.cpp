@@ -26,7 +26,7 @@ class ReadHandlersTest : public ApiTest {
     e.support = support;
     e.origin = "client";
     e.observer = "robot-1";
-    world_.state().elements[number] = e;
+    world_.state().elements.put(e);
   }
 
   /// A grid with one laser scan in it.
@@ -109,10 +109,13 @@ TEST_F(ReadHandlersTest, MapComesAsJsonDxfOrGeoJsonAndRefusesOtherFormats) {
 }
 
 TEST_F(ReadHandlersTest, AsBuiltReportSaysWhatMovedAndByHowMuch) {
-  auto& table = world_.state().objects[1];
+  auto table = world_.state().objects[1];
   table.adjustments = 1;
   table.body = fusion::RigidObject({5.3, 5.4, 0.4}, table.body.pose_cov(), table.plan->edges());
-  world_.state().objects[0].confirmations = 2;
+  world_.state().objects.put(1, table);
+  auto wall = world_.state().objects[0];
+  wall.confirmations = 2;
+  world_.state().objects.put(0, wall);
   add_element(3, 2);
   const auto response = send(verb::get, "/api/v1/report/as-built");
   ASSERT_EQ(status_of(response), 200);
@@ -230,7 +233,7 @@ TEST_F(ReadHandlersTest, MapQualityScoresTheElementsAgainstTheBayesGrid) {
   world::Element e;
   e.number = 1;
   e.segment = fusion::LineSegment::from_points({2.0, -0.1}, {2.0, 0.1}, Eigen::Matrix2d::Identity() * 1e-4);
-  world_.state().elements[1] = e;
+  world_.state().elements.put(e);
   // Scan lines matched to it: one inside the 95 % gate, one outside; a CAD-edge match and a client's do not count.
   const auto logged = [](std::int64_t seq, const char* origin, double d2, bool cad) {
     auto d = FakeWorldPort::decision(rules::Action::merge, "e1");
@@ -258,7 +261,7 @@ TEST_F(ReadHandlersTest, MapQualityScoresTheElementsAgainstTheBayesGrid) {
   EXPECT_EQ(body["definitions"]["occupied_probability"], 0.65);
   // The same wall kept twice is all redundant.
   e.number = 2;
-  world_.state().elements[2] = e;
+  world_.state().elements.put(e);
   body = json_of(send(verb::get, "/api/v1/map/quality"));
   EXPECT_NEAR(body["redundancy"].get<double>(), 1.0, 1e-9);
   // No scan line matched yet: calibration is null, not a number.

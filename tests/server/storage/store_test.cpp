@@ -46,8 +46,10 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
     Store store({path, true});
     auto loaded = world::apply_floor_plan(world::WorldState{}, plan(), options);
     // Move the table as a rigid update would, so the stored pose differs from the drawn one.
-    loaded.state.objects[1].body = fusion::RigidObject(
-        {5.0 + 1e-3 / 7.0, 5.0, 0.3 + 1e-4}, Eigen::Matrix3d::Identity() * 1e-3, loaded.state.objects[1].body.edges());
+    auto table = loaded.state.objects[1];
+    table.body = fusion::RigidObject({5.0 + 1e-3 / 7.0, 5.0, 0.3 + 1e-4}, Eigen::Matrix3d::Identity() * 1e-3,
+                                     table.body.edges());
+    loaded.state.objects.put(1, table);
     store.commit_floor_plan(loaded, plan());
     auto update = add_element(loaded.state, 1);
     store.commit_observation(update, world::Observation{"robot-1", "client", "unknown", 3.25, 0.0, {}},

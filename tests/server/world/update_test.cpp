@@ -237,11 +237,12 @@ TEST(UpdateTest, AnElementBuiltFromABentWallTakesNoMoreObservations) {
   auto state =
       apply_observation(WorldState{}, observe({{{0, 0}, {10, 0}}}, options), 1, options, std::ref(rules)).state;
   // What it was built from bows 10 cm out at the middle (RMS ≈ 2.9 cm about the best line).
-  auto& element = state.elements.at(1);
+  auto element = state.elements.at(1);
   element.moments =
       fusion::SegmentMoments::of(fusion::LineSegment::from_points({0, 0}, {5, 0.1}, Eigen::Matrix2d::Identity())) +
       fusion::SegmentMoments::of(fusion::LineSegment::from_points({5, 0.1}, {10, 0}, Eigen::Matrix2d::Identity()));
   EXPECT_NEAR(element.moments.rms_offset_m(), 0.1 / std::sqrt(12.0), 2e-3);
+  state.elements.put(element);
   options.max_straightness_rms_m = 0.02;
   const auto result = apply_observation(state, observe({{{4, 0.0}, {6, 0.0}}}, options), 2, options, std::ref(rules));
   // Neither a candidate for the view nor joined with the element the view became.

@@ -1,0 +1,66 @@
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "fusion/geometry/line.h"
+#include "server/world/cow_map.h"
+
+namespace wm::world {
+
+/// An axis-aligned box in the world frame [m].
+struct Box {
+  double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+
+  /// The box of a segment's endpoints, grown by `margin` on every side.
+  static Box of(const fusion::LineSegment& segment, double margin = 0.0);
+  bool overlaps(const Box& other) const {
+    return x0 <= other.x1 && other.x0 <= x1 && y0 <= other.y1 && other.y0 <= y1;
+  }
+};
+
+/// Which keys (element numbers, CAD edges) have a box touching which square cell of the plane: the spatial index
+/// of the world model. A query returns the keys registered in the cells a box touches, so matching, joining and a
+/// map excerpt cost what the neighbourhood holds, not what the map holds. Cells are hashed into a fixed number of
+/// buckets kept in a CowMap: copying the index (once per request, with the state) copies 256 chunk pointers, and a
+/// change copies only the buckets of the cells it enters or leaves. Boost.Geometry's R-tree answers the same
+/// queries but shares nothing between copies: every request would copy the whole tree.
+class SpatialHash {
+ public:
+  static constexpr double kCellM = 4.0;
+  static constexpr std::size_t kBuckets = 16384;
+  /// A box over more cells than this (a 200 m diagonal) is kept in one list that every query reads.
+  static constexpr std::size_t kMaxCellsPerKey = 2500;
+
+  void insert(std::int64_t key, const Box& box);
+  void erase(std::int64_t key, const Box& box);
+  /// The key's box changed: touches only the cells it left or entered.
+  void move(std::int64_t key, const Box& from, const Box& to);
+  /// Every key registered with a box that shares a cell with `box` (so every box that overlaps it, and some near
+  /// ones). Sorted, without repeats.
+  std::vector<std::int64_t> query(const Box& box) const;
+  void clear() { buckets_.clear(); }
+
+ private:
+  struct Cell {
+    std::int64_t ix = 0, iy = 0;
+    auto operator<=>(const Cell&) const = default;
+  };
+  struct Entry {
+    Cell cell;
+    std::int64_t key = 0;
+    auto operator<=>(const Entry&) const = default;
+  };
+  // Bucket kLargeBucket holds the keys whose box covers too many cells (with cell {0, 0}).
+  static constexpr std::int64_t kLargeBucket = static_cast<std::int64_t>(kBuckets);
+
+  static std::vector<Cell> cells_of(const Box& box);  // sorted; empty when the box is too large
+  static std::int64_t bucket_of(const Cell& cell);
+  void remove(std::int64_t bucket, const Entry& entry);
+  void add(std::int64_t bucket, const Entry& entry);
+
+  CowMap<std::vector<Entry>> buckets_;  // sorted entries per bucket
+};
+
+}  // namespace wm::world
