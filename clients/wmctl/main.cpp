@@ -38,8 +38,9 @@ std::vector<Command> command_table() {
        primitives_post},
       {"map",
        {},
-       {{"--format", "dxf|geojson"}, {"--out", "FILE"}},
-       "objects and observed elements; with --format and --out, export them to FILE",
+       {{"--format", "dxf|geojson"}, {"--out", "FILE"}, {"--bbox", "X0,Y0,X1,Y1"}},
+       "objects and observed elements; with --format and --out, export them to FILE;\n"
+       "with --bbox, only what crosses that box (metres)",
        map},
       {"map quality",
        {},

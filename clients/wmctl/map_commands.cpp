@@ -110,8 +110,12 @@ int map(const Invocation& in) {
   const auto format = in.flag("--format");
   const auto out = in.flag("--out");
   if (format.has_value() != out.has_value()) throw UsageError("map: --format and --out go together");
-  if (!format) return in.emit(parse_answer(in.client.request("GET", "/api/v1/map")), print_map);
-  const auto answer = in.client.request("GET", "/api/v1/map?format=" + *format);
+  // The server checks the box and names what is wrong with it.
+  const auto bbox = in.flag("--bbox");
+  const std::string box_query = bbox ? "bbox=" + *bbox : "";
+  if (!format)
+    return in.emit(parse_answer(in.client.request("GET", "/api/v1/map" + (bbox ? "?" + box_query : ""))), print_map);
+  const auto answer = in.client.request("GET", "/api/v1/map?format=" + *format + (bbox ? "&" + box_query : ""));
   save(answer, *out);
   std::cout << "wrote " << *out << " (" << answer.body.size() << " bytes)\n";
   return kExitOk;

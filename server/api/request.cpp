@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <boost/beast/core/string.hpp>
 #include <charconv>
+#include <cmath>
+#include <cstdlib>
 
 #include "server/api/api_error.h"
 #include "server/json/codec.h"
@@ -86,6 +88,25 @@ std::int64_t query_int(const Target& target, const std::string& key, std::int64_
     throw bad_request(
         key, "expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) + "], got '" + s + "'");
   return v;
+}
+
+std::optional<QueryBox> query_bbox(const Target& target) {
+  const auto bbox = target.param("bbox");
+  if (!bbox) return std::nullopt;
+  double v[4];
+  std::size_t start = 0;
+  for (int i = 0; i < 4; ++i) {
+    const auto comma = bbox->find(',', start);
+    if ((i < 3) != (comma != std::string::npos)) throw bad_request("bbox", "expected x0,y0,x1,y1 in metres");
+    const std::string part = bbox->substr(start, i < 3 ? comma - start : std::string::npos);
+    char* end = nullptr;
+    v[i] = std::strtod(part.c_str(), &end);
+    if (part.empty() || *end != '\0' || !std::isfinite(v[i]) || std::abs(v[i]) > 1e6)
+      throw bad_request("bbox", "expected four finite numbers x0,y0,x1,y1");
+    start = comma + 1;
+  }
+  if (v[2] <= v[0] || v[3] <= v[1]) throw bad_request("bbox", "x1 must exceed x0 and y1 must exceed y0");
+  return QueryBox{v[0], v[1], v[2], v[3]};
 }
 
 void require_json_body(const Request& request) {

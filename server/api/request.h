@@ -36,6 +36,14 @@ bool has_content_type(const Request& request, std::string_view wanted);
 std::int64_t query_int(const Target& target, const std::string& key, std::int64_t fallback, std::int64_t min,
                        std::int64_t max);
 
+/// A box in metres, as the query parameter bbox=x0,y0,x1,y1 gives it.
+struct QueryBox {
+  double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+/// The bbox parameter, nullopt when absent. @throw ApiError(400, bbox) unless it is four finite numbers of at most
+/// 10⁶ m with x1 > x0 and y1 > y0.
+std::optional<QueryBox> query_bbox(const Target& target);
+
 /// @throw ApiError 400 for an empty body, 415 when it is not sent as application/json.
 void require_json_body(const Request& request);
 /// The body as a JSON object (after require_json_body). @throw ApiError(400), json_codec::CodecError.

@@ -17,7 +17,7 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1/health", get_health, Lane::immediate},
     Route{verb::get, "/api/v1/floorplan", get_floor_plan, Lane::read},
     Route{verb::put, "/api/v1/floorplan", put_floor_plan, Lane::write, "?units=U&level=L&name=N"},
-    Route{verb::get, "/api/v1/map", get_map, Lane::read, "?format=json|dxf|geojson"},
+    Route{verb::get, "/api/v1/map", get_map, Lane::read, "?format=json|dxf|geojson&bbox=x0,y0,x1,y1"},
     Route{verb::get, "/api/v1/map/quality", get_map_quality, Lane::read},
     Route{verb::get, "/api/v1/report/as-built", get_as_built_report, Lane::read},
     Route{verb::get, "/api/v1/objects", get_objects, Lane::read},

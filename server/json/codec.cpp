@@ -297,11 +297,17 @@ json element_json(const world::Element& element) {
   return j;
 }
 
-json map_json(const world::WorldState& state, const world::WorldOptions& options) {
+json map_json(const world::WorldState& state, const world::WorldOptions& options,
+              const std::optional<world::MapExcerpt>& excerpt) {
   json objects = json::array();
-  for (const auto& o : state.objects) objects.push_back(object_json(o, options));
   json elements = json::array();
-  for (const auto& [number, e] : state.elements) elements.push_back(element_json(e));
+  if (excerpt) {
+    for (const auto index : excerpt->objects) objects.push_back(object_json(state.objects[index], options));
+    for (const auto number : excerpt->elements) elements.push_back(element_json(state.elements.at(number)));
+  } else {
+    for (const auto& o : state.objects) objects.push_back(object_json(o, options));
+    for (const auto& [number, e] : state.elements) elements.push_back(element_json(e));
+  }
   return {{"version", state.version},
           {"plan", state.plan_name},
           {"objects", std::move(objects)},

@@ -58,7 +58,9 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits);
 
 nlohmann::json object_json(const world::ObjectState& object, const world::WorldOptions& options);
 nlohmann::json element_json(const world::Element& element);
-nlohmann::json map_json(const world::WorldState& state, const world::WorldOptions& options);
+/// With an excerpt, only its objects and elements (the answer to ?bbox=).
+nlohmann::json map_json(const world::WorldState& state, const world::WorldOptions& options,
+                        const std::optional<world::MapExcerpt>& excerpt = std::nullopt);
 nlohmann::json decision_json(const world::DecisionRecord& decision);
 nlohmann::json decision_json(const rules::Decision& decision);
 /// The rules' status with file paths relative to the rules directory's parent ("prolog/world_model.pl"),

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <optional>
 #include <vector>
 
 #include "apriori/export/layer_lines.h"
@@ -11,6 +12,8 @@ namespace wm::world {
 /// `plan_unobserved` (colour 8) edges of CAD objects never observed, `confirmed` (3) of objects confirmed,
 /// `adjusted` (1) of objects moved by a rigid adjustment, `merged` (5) elements with more than one observation,
 /// `new` (6) elements seen once. Edges are in the world frame (current poses); ids are edge or element ids.
-std::vector<apriori::LayerLines> map_layers(const WorldState& state, const WorldOptions& options);
+/// With an excerpt, only its objects and elements.
+std::vector<apriori::LayerLines> map_layers(const WorldState& state, const WorldOptions& options,
+                                            const std::optional<MapExcerpt>& excerpt = std::nullopt);
 
 }  // namespace wm::world

@@ -22,6 +22,19 @@ Box Box::of(const fusion::LineSegment& segment, double margin) {
           std::max(a.y(), b.y()) + margin};
 }
 
+bool Box::crossed_by(const fusion::LineSegment& segment) const {
+  if (!overlaps(of(segment))) return false;
+  // Separating axes left: the segment's normal. The box's corners must not all lie strictly on one side.
+  const Eigen::Vector2d a = segment.p0(), b = segment.p1(), d = b - a;
+  int below = 0, above = 0;
+  for (const auto& [x, y] : {std::pair{x0, y0}, std::pair{x0, y1}, std::pair{x1, y0}, std::pair{x1, y1}}) {
+    const double side = d.x() * (y - a.y()) - d.y() * (x - a.x());
+    below += side < 0;
+    above += side > 0;
+  }
+  return below < 4 && above < 4;
+}
+
 std::vector<SpatialHash::Cell> SpatialHash::cells_of(const Box& box) {
   const std::int64_t ix0 = cell_coordinate(box.x0), ix1 = cell_coordinate(box.x1), iy0 = cell_coordinate(box.y0),
                      iy1 = cell_coordinate(box.y1);
@@ -80,8 +93,7 @@ void SpatialHash::move(std::int64_t key, const Box& from, const Box& to) {
     return;
   }
   std::vector<Cell> left, entered;
-  std::set_difference(old_cells.begin(), old_cells.end(), new_cells.begin(), new_cells.end(),
-                      std::back_inserter(left));
+  std::set_difference(old_cells.begin(), old_cells.end(), new_cells.begin(), new_cells.end(), std::back_inserter(left));
   std::set_difference(new_cells.begin(), new_cells.end(), old_cells.begin(), old_cells.end(),
                       std::back_inserter(entered));
   for (const auto& cell : left) remove(bucket_of(cell), {cell, key});
@@ -95,7 +107,8 @@ std::vector<std::int64_t> SpatialHash::query(const Box& box) const {
   const auto cells = cells_of(box);
   if (cells.empty() && box.x0 <= box.x1 && box.y0 <= box.y1) {
     // A query larger than the cell limit: every entry whose cell lies in the box's range.
-    const Cell lo{cell_coordinate(box.x0), cell_coordinate(box.y0)}, hi{cell_coordinate(box.x1), cell_coordinate(box.y1)};
+    const Cell lo{cell_coordinate(box.x0), cell_coordinate(box.y0)},
+        hi{cell_coordinate(box.x1), cell_coordinate(box.y1)};
     for (const auto& [bucket, entries] : buckets_)
       for (const auto& entry : entries)
         if (bucket != kLargeBucket && entry.cell.ix >= lo.ix && entry.cell.ix <= hi.ix && entry.cell.iy >= lo.iy &&

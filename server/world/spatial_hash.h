@@ -15,9 +15,9 @@ struct Box {
 
   /// The box of a segment's endpoints, grown by `margin` on every side.
   static Box of(const fusion::LineSegment& segment, double margin = 0.0);
-  bool overlaps(const Box& other) const {
-    return x0 <= other.x1 && other.x0 <= x1 && y0 <= other.y1 && other.y0 <= y1;
-  }
+  bool overlaps(const Box& other) const { return x0 <= other.x1 && other.x0 <= x1 && y0 <= other.y1 && other.y0 <= y1; }
+  /// Whether the segment has a point in the box (its boundary included).
+  bool crossed_by(const fusion::LineSegment& segment) const;
 };
 
 /// Which keys (element numbers, CAD edges) have a box touching which square cell of the plane: the spatial index

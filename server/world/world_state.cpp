@@ -103,6 +103,17 @@ const Element* WorldState::find_element(const std::string& id) const {
   return elements.find(*n);
 }
 
+MapExcerpt map_excerpt(const WorldState& state, const Box& box) {
+  MapExcerpt excerpt;
+  for (const auto& [i, k] : state.objects.edges_near(box)) {
+    if (!excerpt.objects.empty() && excerpt.objects.back() == i) continue;  // edges come sorted by object
+    if (box.crossed_by(state.objects[i].body.world_edge(k, Eigen::Matrix2d::Zero()))) excerpt.objects.push_back(i);
+  }
+  for (const auto number : state.elements.near(box))
+    if (box.crossed_by(state.elements.at(number).segment)) excerpt.elements.push_back(number);
+  return excerpt;
+}
+
 std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
                                       std::int64_t version) {
   std::vector<ObjectState> objects;

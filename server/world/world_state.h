@@ -161,6 +161,14 @@ struct WorldState {
   static std::optional<std::int64_t> element_number(const std::string& id);
 };
 
+/// What a box of the map shows: the objects with an edge in it (plan order) and the elements with a point in it
+/// (number order). Costs what the box holds, through the spatial indexes.
+struct MapExcerpt {
+  std::vector<std::size_t> objects;
+  std::vector<std::int64_t> elements;
+};
+MapExcerpt map_excerpt(const WorldState& state, const Box& box);
+
 /// Builds the object states of a plan (poses as drawn). @throw std::invalid_argument from fusion on bad geometry.
 std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
                                       std::int64_t version);

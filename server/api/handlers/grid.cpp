@@ -30,7 +30,7 @@ Layer grid_layer(const std::string& name) {
 // The cells to export: the bbox given (x0,y0,x1,y1 in metres, snapped outwards to cells) or everything
 // observed so far. @throw ApiError 404 when the grid is empty and no bbox was given.
 fusion::GridGeometry grid_region(const Call& call, std::int64_t max_cells) {
-  const auto bbox = call.target.param("bbox");
+  const auto bbox = query_bbox(call.target);
   if (!bbox) {
     const auto region = call.world.grid_bounds();
     if (!region) throw ApiError(404, "empty_grid", "no scan has reached the grid yet; POST /api/v1/scans first");
@@ -39,19 +39,7 @@ fusion::GridGeometry grid_region(const Call& call, std::int64_t max_cells) {
     return *region;
   }
   const double resolution = call.world.grid_resolution_m();
-  double v[4];
-  std::size_t start = 0;
-  for (int i = 0; i < 4; ++i) {
-    const auto comma = bbox->find(',', start);
-    if ((i < 3) != (comma != std::string::npos)) throw bad_request("bbox", "expected x0,y0,x1,y1 in metres");
-    const std::string part = bbox->substr(start, i < 3 ? comma - start : std::string::npos);
-    char* end = nullptr;
-    v[i] = std::strtod(part.c_str(), &end);
-    if (part.empty() || *end != '\0' || !std::isfinite(v[i]) || std::abs(v[i]) > 1e6)
-      throw bad_request("bbox", "expected four finite numbers x0,y0,x1,y1");
-    start = comma + 1;
-  }
-  if (v[2] <= v[0] || v[3] <= v[1]) throw bad_request("bbox", "x1 must exceed x0 and y1 must exceed y0");
+  const double v[4] = {bbox->x0, bbox->y0, bbox->x1, bbox->y1};
   const auto x0 = static_cast<std::int64_t>(std::floor(v[0] / resolution));
   const auto y0 = static_cast<std::int64_t>(std::floor(v[1] / resolution));
   const auto x1 = static_cast<std::int64_t>(std::ceil(v[2] / resolution));

@@ -13,11 +13,18 @@ Response get_map(const Call& call) {
   const auto snap = call.world.snapshot();
   const auto& options = call.world.world_options();
   const auto format = call.target.param("format").value_or("json");
-  if (format == "json") return json_response(call.request, json_codec::map_json(*snap, options));
+  const auto bbox = query_bbox(call.target);
+  std::optional<world::MapExcerpt> excerpt;
+  if (bbox) excerpt = world::map_excerpt(*snap, world::Box{bbox->x0, bbox->y0, bbox->x1, bbox->y1});
+  if (format == "json") {
+    auto body = json_codec::map_json(*snap, options, excerpt);
+    if (bbox) body["bbox"] = {bbox->x0, bbox->y0, bbox->x1, bbox->y1};
+    return json_response(call.request, body);
+  }
   if (format == "dxf")
-    return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options)), "image/vnd.dxf");
+    return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options, excerpt)), "image/vnd.dxf");
   if (format == "geojson")
-    return raw_response(call.request, apriori::write_geojson(world::map_layers(*snap, options)),
+    return raw_response(call.request, apriori::write_geojson(world::map_layers(*snap, options, excerpt)),
                         "application/geo+json");
   throw bad_request("format", "expected json, dxf or geojson");
 }

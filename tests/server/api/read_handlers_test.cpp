@@ -83,6 +83,36 @@ TEST_F(ReadHandlersTest, StaticFilesAreServedFromTheViewerDirectoryOnly) {
   EXPECT_EQ(status_of(send(verb::post, "/web/lib/app.js", "{}")), 405);
 }
 
+TEST_F(ReadHandlersTest, MapBboxKeepsWhatCrossesTheBoxAndRefusesABadBox) {
+  add_element(1, 1);  // (1, 2) – (4, 2); the plan: wall-n (0, 10) – (20, 10), table-1 about (5, 5)
+  const auto ids = [](const nlohmann::json& body, const char* key) {
+    std::vector<std::string> v;
+    for (const auto& item : body[key]) v.push_back(item["id"]);
+    return v;
+  };
+  auto body = json_of(send(verb::get, "/api/v1/map?bbox=19,9.5,30,10.5"));
+  EXPECT_EQ(ids(body, "objects"), std::vector<std::string>{"wall-n"});
+  EXPECT_TRUE(body["elements"].empty());
+  EXPECT_EQ(body["bbox"], nlohmann::json::array({19, 9.5, 30, 10.5}));
+  body = json_of(send(verb::get, "/api/v1/map?bbox=3.5,1.9,3.6,2.1"));
+  EXPECT_TRUE(body["objects"].empty());
+  EXPECT_EQ(ids(body, "elements"), std::vector<std::string>{"e1"});
+  // Inside the table, clear of its edges: nothing crosses the box. Over its edge: the whole table.
+  body = json_of(send(verb::get, "/api/v1/map?bbox=4.9,4.9,5.1,5.1"));
+  EXPECT_TRUE(body["objects"].empty());
+  body = json_of(send(verb::get, "/api/v1/map?bbox=4.5,4.5,5.5,5.5"));
+  ASSERT_EQ(ids(body, "objects"), std::vector<std::string>{"table-1"});
+  // The box's corner just misses the element's end: (0.9, 1.9) – (0.99, 1.99) against (1, 2).
+  EXPECT_TRUE(json_of(send(verb::get, "/api/v1/map?bbox=0.9,1.9,0.99,1.99"))["elements"].empty());
+  const auto geojson = json_of(send(verb::get, "/api/v1/map?format=geojson&bbox=3.5,1.9,3.6,2.1"));
+  ASSERT_EQ(geojson["features"].size(), 1u);
+  for (const std::string bad : {"1,2,3", "1,2,3,x", "3,0,1,1", "0,0,1,nan", "0,0,1,1,2", "0,0,1e7,1"}) {
+    const auto response = send(verb::get, "/api/v1/map?bbox=" + bad);
+    EXPECT_EQ(status_of(response), 400) << bad;
+    EXPECT_NE(response.body().find("bbox"), std::string::npos) << bad;
+  }
+}
+
 TEST_F(ReadHandlersTest, FloorPlanIsTheLoadedPlanInCanonicalJson) {
   const auto response = send(verb::get, "/api/v1/floorplan");
   ASSERT_EQ(status_of(response), 200);
