@@ -37,6 +37,23 @@ double SegmentMoments::rms_offset_m() const {
   return std::sqrt(std::max(0.0, half_trace - radius));
 }
 
+std::optional<LineSegment> SegmentMoments::refit(const LineSegment& near) const {
+  if (!(weight > 0.0)) return std::nullopt;
+  const Eigen::Vector2d mean = first / weight;
+  const Eigen::Matrix2d scatter = second / weight - mean * mean.transpose();
+  const double sxy = 0.5 * (scatter(0, 1) + scatter(1, 0)), diff = scatter(0, 0) - scatter(1, 1);
+  if (!(std::hypot(diff, 2.0 * sxy) > 0.0)) return std::nullopt;  // isotropic: every direction fits as well
+  const double axis = 0.5 * std::atan2(2.0 * sxy, diff);
+  Eigen::Vector2d normal(-std::sin(axis), std::cos(axis));
+  if (normal.dot(near.line.normal()) < 0.0) normal = -normal;
+  LineSegment fitted;
+  fitted.line = LineFeature{normal.dot(mean), std::atan2(normal.y(), normal.x()), near.line.cov}.normalized();
+  const double ta = fitted.line.coordinate_along(near.p0()), tb = fitted.line.coordinate_along(near.p1());
+  fitted.t0_m = std::min(ta, tb);
+  fitted.t1_m = std::max(ta, tb);
+  return fitted;
+}
+
 std::array<double, 6> SegmentMoments::to_array() const {
   return {weight, first.x(), first.y(), second(0, 0), second(0, 1), second(1, 1)};
 }

@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <optional>
 
 #include "fusion/geometry/line.h"
 
@@ -24,6 +25,13 @@ struct SegmentMoments {
   /// RMS distance of the mass from its best-fitting line [m]: √ of the smaller eigenvalue of the scatter
   /// second/weight − mean·meanᵀ. 0 when empty.
   double rms_offset_m() const;
+
+  /// The line that fits the mass best (total least squares: through its mean, along the scatter's major axis), as
+  /// a segment that keeps `near`'s covariance, turns its normal to `near`'s side and spans `near`'s ends projected
+  /// on it. nullopt when the moments are empty or have no major axis. Refitting an element this way after each
+  /// fusion weighs every view by its length, in any order (Pfister, Roumeliotis & Burdick, ICRA 2003), so a run of
+  /// short, tilted views of one end cannot turn a long wall the way a Kalman update with a covariance floor does.
+  std::optional<LineSegment> refit(const LineSegment& near) const;
 
   /// As stored: weight, first (2), second (xx, xy, yy).
   std::array<double, 6> to_array() const;

@@ -77,9 +77,34 @@ struct LocalSegment {
   LineSegment segment;  // sensor frame
 };
 
+// Whether the end point `end` lies off the line the other points of the piece fit (by the split threshold): the
+// corner point a split gives both sides, or the first points of the next wall, which would tilt a short segment.
+bool end_is_off(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs, Piece rest,
+                std::size_t end, const ScanLineOptions& options) {
+  const std::size_t n = rest.last - rest.first;
+  try {
+    const LineFeature line = fit_line(std::span<const Eigen::Vector2d>(points.data() + rest.first, n),
+                                      std::span<const Eigen::Matrix2d>(covs.data() + rest.first, n));
+    return std::abs(line.signed_distance(points[end])) >
+           std::max(options.split_distance_m, 4.0 * normal_sigma(covs[end], line.normal()));
+  } catch (const std::invalid_argument&) {
+    return false;
+  }
+}
+
 std::optional<LocalSegment> fit_piece(const std::vector<Eigen::Vector2d>& points,
                                       const std::vector<Eigen::Matrix2d>& covs, Piece piece,
                                       const ScanLineOptions& options) {
+  // Trim end points that do not belong to the line of the others (at most a few at each end).
+  for (int trims = 0; trims < 4 && piece.last - piece.first > std::max<std::size_t>(options.min_points, 3); ++trims) {
+    if (end_is_off(points, covs, {piece.first + 1, piece.last}, piece.first, options)) {
+      ++piece.first;
+    } else if (end_is_off(points, covs, {piece.first, piece.last - 1}, piece.last - 1, options)) {
+      --piece.last;
+    } else {
+      break;
+    }
+  }
   const std::size_t n = piece.last - piece.first;
   if (n < options.min_points || n < 2) return std::nullopt;
   const std::span<const Eigen::Vector2d> p(points.data() + piece.first, n);

@@ -32,7 +32,8 @@ struct RangeReading {
 
 /// Extracts line segments from one ordered scan (readings in beam order; invalid ones already removed).
 /// Points are split at gaps and recursively at the farthest point from the chord (iterative end-point
-/// fit), fitted by weighted total least squares with per-point covariance from range and bearing noise,
+/// fit), trimmed of up to four end points that lie off the line of the others (the corner a split shares), fitted
+/// by weighted total least squares with per-point covariance from range and bearing noise,
 /// and adjacent segments whose lines pass a χ² test are merged and refitted. The segments are returned
 /// in the world frame: `sensor_pose` places the sensor, `pose_cov` (3×3 over x, y, θ) is propagated into
 /// each line's covariance. @throw std::invalid_argument for non-finite readings or pose, or bad options.

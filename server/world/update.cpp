@@ -93,6 +93,24 @@ void record_observed(DecisionRecord& record, const fusion::LineSegment& segment)
   record.observed_cov = segment.line.cov;
 }
 
+// The element's line after it took in more views: the Kalman update gives the covariance (floored, see
+// WorldOptions::fusion) and the extent; the line itself is the best fit of everything the element was built from.
+// The views' own scatter across the line (the pose error they do not share) floors the offset uncertainty at the
+// midpoint, so a view as far off as the ones already taken in still matches.
+fusion::LineSegment fused_and_refit(const fusion::LineSegment& fused, const fusion::SegmentMoments& moments) {
+  auto segment = moments.refit(fused).value_or(fused);
+  const double spread = moments.rms_offset_m();
+  const double t_mid = 0.5 * (segment.t0_m + segment.t1_m);
+  Eigen::Matrix2d to_mid, from_mid;
+  to_mid << 1.0, -t_mid, 0.0, 1.0;
+  from_mid << 1.0, t_mid, 0.0, 1.0;
+  Eigen::Matrix2d mid = to_mid * segment.line.cov * to_mid.transpose();
+  mid(0, 0) = std::max(mid(0, 0), spread * spread);
+  const Eigen::Matrix2d cov = from_mid * mid * from_mid.transpose();
+  segment.line.cov = 0.5 * (cov + cov.transpose());
+  return segment;
+}
+
 void make_fallback(DecisionRecord& record, std::string_view answered, const std::string& why) {
   record.explanation = "fallback (" + why + "); rules said " + std::string(answered) + " by " + record.rule;
   record.action = rules::Action::add;
@@ -157,9 +175,9 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
     record.before = line_numbers(keeper.segment.line);
 
     Element joined = keeper;
-    joined.segment = fusion::fuse(keeper.segment, other.segment, options.fusion);
-    joined.support += other.support;
     joined.moments += other.moments;
+    joined.segment = fused_and_refit(fusion::fuse(keeper.segment, other.segment, options.fusion), joined.moments);
+    joined.support += other.support;
     joined.updated_version = state.version;
     joined.updated_at_unix_s = observation.received_at_unix_s;
     record.after = line_numbers(joined.segment.line);
@@ -238,8 +256,8 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     } else if (record.action == rules::Action::merge && !ref->object) {
       Element element = state.elements.at(ref->element);
       record.before = line_numbers(element.segment.line);
-      element.segment = fusion::fuse(element.segment, seen, options.fusion);
       element.moments += fusion::SegmentMoments::of(seen);
+      element.segment = fused_and_refit(fusion::fuse(element.segment, seen, options.fusion), element.moments);
       record.after = line_numbers(element.segment.line);
       ++element.support;
       element.updated_version = state.version;

@@ -40,14 +40,16 @@ TEST_P(MapQualityReplayTest, OneWallOneElementOnTheWallsWithHonestCovariances) {
       r.quality.calibration.value_or(-1), r.quality.calibration_samples, joins);
   EXPECT_GT(r.scans, 200u);
   EXPECT_GT(q.elements, 100u);
-  // The same wall kept twice: was 0.52–0.69 before elements were gated in their own frame and joined.
-  EXPECT_LE(q.redundancy, 0.08);
+  // The same wall kept twice: was 0.52–0.69 before elements were gated in their own frame and joined, 0.03–0.09
+  // before their offset uncertainty took in the views' own scatter; now 0.002–0.026.
+  EXPECT_LE(q.redundancy, 0.05);
   EXPECT_GE(q.recall, 0.70);
-  // Freiburg-079's raw scan lines themselves reach only 0.88 (people, clutter the grid clears); the map 0.77.
+  // Freiburg-079's raw scan lines themselves reach only 0.88 (people, clutter the grid clears); the map 0.775. The
+  // issue's 0.90 is not reached there (the other three: 0.957–0.977).
   EXPECT_GE(q.precision, 0.75);
   ASSERT_TRUE(r.quality.calibration.has_value());
   EXPECT_GT(r.quality.calibration_samples, 1000u);
-  EXPECT_GE(*r.quality.calibration, 0.84);
+  EXPECT_GE(*r.quality.calibration, 0.85);
   EXPECT_LE(*r.quality.calibration, 0.99);
   EXPECT_GT(joins, 0u) << "maintenance never joined two elements";
 }

@@ -1,0 +1,163 @@
+// Rooms whose walls are known exactly: a robot drives two laps (one each way) through each, a ray-cast laser (σ 1 cm)
+// and a pose error like a corrected log's (σ 5 mm, 0.2°) write a CARMEN log, and the log is replayed into an
+// in-process world service with the shipped rules. One wall must give one element, on it to 2 cm and 0.5° (1° under
+// 2 m), and nothing longer than 1 m may lie off the walls.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "tests/support/temp_dir.h"
+#include "tools/replay/log_replay.h"
+
+namespace wm::testing {
+namespace {
+
+using Point = Eigen::Vector2d;
+
+struct Room {
+  const char* name;
+  std::vector<Point> corners;    // the walls: a closed polygon
+  std::vector<Point> waypoints;  // a closed loop inside it
+};
+
+// Distance along the ray from `origin` in direction `dir` to the nearest wall; +inf when none is hit.
+double cast(const Room& room, const Point& origin, const Point& dir) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < room.corners.size(); ++i) {
+    const Point a = room.corners[i], b = room.corners[(i + 1) % room.corners.size()];
+    const Point e = b - a;
+    const double denom = dir.x() * e.y() - dir.y() * e.x();
+    if (std::abs(denom) < 1e-12) continue;
+    const Point w = a - origin;
+    const double t = (w.x() * e.y() - w.y() * e.x()) / denom;   // along the ray
+    const double u = (w.x() * dir.y() - w.y() * dir.x()) / denom;  // along the wall
+    if (t > 1e-9 && u >= 0 && u <= 1) best = std::min(best, t);
+  }
+  return best;
+}
+
+// Writes the log: FLASER lines of 361 beams over 180°, the pose as a corrected log gives it (true pose + error).
+void write_log(const Room& room, const std::filesystem::path& path) {
+  std::mt19937 rng(42);
+  std::normal_distribution<double> range_noise(0.0, 0.01), xy_noise(0.0, 0.005), theta_noise(0.0, 0.0035);
+  std::ofstream out(path);
+  out << "PARAM robot_frontlaser_offset 0.0 nohost 0\n";
+  double stamp = 0;
+  const std::size_t n = room.waypoints.size();
+  for (int lap = 0; lap < 2; ++lap) {
+    for (std::size_t k = 0; k < n; ++k) {
+      // Second lap backwards.
+      const Point a = room.waypoints[lap == 0 ? k : (n - k) % n];
+      const Point b = room.waypoints[lap == 0 ? (k + 1) % n : (2 * n - k - 1) % n];
+      const double heading = std::atan2((b - a).y(), (b - a).x());
+      const int steps = static_cast<int>((b - a).norm() / 0.05);
+      for (int s = 0; s < steps; ++s) {
+        const Point p = a + (b - a) * (static_cast<double>(s) / steps);
+        out << "FLASER 361";
+        for (int i = 0; i < 361; ++i) {
+          const double angle = heading - std::numbers::pi / 2 + std::numbers::pi * i / 360.0;
+          const double r = cast(room, p, {std::cos(angle), std::sin(angle)});
+          out << ' ' << (std::isfinite(r) && r < 20 ? r + range_noise(rng) : 81.91);
+        }
+        const double x = p.x() + xy_noise(rng), y = p.y() + xy_noise(rng), theta = heading + theta_noise(rng);
+        out << ' ' << x << ' ' << y << ' ' << theta << ' ' << x << ' ' << y << ' ' << theta << ' ' << stamp
+            << " synthetic " << stamp << "\n";
+        stamp += 0.1;
+      }
+    }
+  }
+}
+
+class SyntheticRoomTest : public ::testing::TestWithParam<Room> {};
+
+TEST_P(SyntheticRoomTest, OneElementPerWallAndNothingSpurious) {
+  const Room& room = GetParam();
+  TempDir dir;
+  const auto log = dir.path() / "room.log";
+  write_log(room, log);
+  replay::LogReplayOptions options;
+  options.rules_dir = WM_RULES_DIR;
+  options.work_dir = dir.path();
+  std::vector<fusion::LineSegment> elements;
+  std::vector<std::int64_t> supports;
+  const auto r = replay::replay_log(log, options, [&](service::WorldService& world) {
+    for (const auto& [number, e] : world.snapshot()->elements) {
+      elements.push_back(e.segment);
+      supports.push_back(e.support);
+    }
+  });
+  ASSERT_GT(r.scans, 300u);
+
+  // Whether the segment lies on wall i: direction within `angle_limit`, both ends within 2 cm of its line,
+  // overlapping it.
+  constexpr double kOffsetM = 0.02, kDegree = std::numbers::pi / 180.0;
+  const auto on_wall = [&](const fusion::LineSegment& s, std::size_t i, double angle_limit) {
+    const Point a = room.corners[i], b = room.corners[(i + 1) % room.corners.size()];
+    const Point d = (b - a).normalized(), normal(-d.y(), d.x());
+    const Point p0 = s.p0(), p1 = s.p1();
+    const double angle =
+        std::abs(std::remainder(s.line.phi_rad - std::atan2(normal.y(), normal.x()), std::numbers::pi));
+    const double t0 = d.dot(p0 - a), t1 = d.dot(p1 - a);
+    return angle <= angle_limit && std::abs(normal.dot(p0 - a)) <= kOffsetM &&
+           std::abs(normal.dot(p1 - a)) <= kOffsetM && std::max(t0, t1) > 0 && std::min(t0, t1) < (b - a).norm();
+  };
+  // Nothing longer than 1 m off the walls (2 cm, 1°); of 0.3 m to 1 m, at most two. Measured: stubs of 0.35–0.72 m
+  // at 6–10° in corners, seen 1–8 times (scan lines that take in a point of the next wall), an open point.
+  std::size_t long_elements = 0, stubs_off = 0;
+  for (std::size_t k = 0; k < elements.size(); ++k) {
+    const auto& s = elements[k];
+    if (s.length_m() <= 0.3) continue;
+    ++long_elements;
+    bool on_any = false;
+    for (std::size_t i = 0; i < room.corners.size(); ++i) on_any = on_any || on_wall(s, i, kDegree);
+    if (on_any) continue;
+    std::printf("%s: off the walls (support %ld): %.2f m from (%.3f, %.3f) to (%.3f, %.3f)\n", room.name,
+                static_cast<long>(supports[k]), s.length_m(), s.p0().x(), s.p0().y(), s.p1().x(), s.p1().y());
+    EXPECT_LE(s.length_m(), 1.0) << room.name << ": a spurious element longer than 1 m";
+    ++stubs_off;
+  }
+  EXPECT_LE(stubs_off, 2u) << room.name;
+  // Each wall of 2 m or more: exactly one element on it to 2 cm and 0.5°, covering most of it (before elements
+  // were refitted to their moments, the 5 m and 10 m walls came out turned by 3° and 5°). Shorter walls: one
+  // element to 2 cm and 1° (the 1 m alcove walls, seen only at grazing angles, come to 0.54°).
+  for (std::size_t i = 0; i < room.corners.size(); ++i) {
+    const Point a = room.corners[i], b = room.corners[(i + 1) % room.corners.size()];
+    const double length = (b - a).norm();
+    if (length < 0.5) continue;
+    std::size_t on = 0;
+    double covered = 0;
+    for (const auto& s : elements) {
+      if (s.length_m() > 0.3 && on_wall(s, i, length >= 2.0 ? 0.5 * kDegree : kDegree)) {
+        ++on;
+        covered += s.length_m();
+      }
+    }
+    EXPECT_EQ(on, 1u) << room.name << ": wall " << i << " from (" << a.transpose() << ") to (" << b.transpose()
+                      << ") has " << on << " elements longer than 0.3 m on it";
+    EXPECT_GE(covered, 0.6 * length) << room.name << ": wall " << i << " is mostly missing";
+  }
+  std::printf("%s: %zu walls, %zu elements (%zu longer than 0.3 m, %zu of them off the walls), %zu scans\n",
+              room.name, room.corners.size(), elements.size(), long_elements, stubs_off, r.scans);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Rooms, SyntheticRoomTest,
+    ::testing::Values(
+        Room{"rectangle",
+             {{0, 0}, {8, 0}, {8, 5}, {0, 5}},
+             {{1.5, 1.5}, {6.5, 1.5}, {6.5, 3.5}, {1.5, 3.5}}},
+        // 14 walls from 1 m to 10 m: two notches and an alcove.
+        Room{"fourteen_walls",
+             {{0, 0}, {10, 0}, {10, 3}, {12, 3}, {12, 8}, {6, 8}, {6, 6}, {4, 6}, {4, 8}, {0, 8}, {0, 5}, {-1, 5},
+              {-1, 2}, {0, 2}},
+             {{1.5, 1.5}, {8.5, 1.5}, {10.5, 4.5}, {10.5, 6.5}, {5, 4.5}, {1.5, 6.5}}}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace wm::testing
