@@ -35,7 +35,7 @@ double cast(const Room& room, const Point& origin, const Point& dir) {
     const double denom = dir.x() * e.y() - dir.y() * e.x();
     if (std::abs(denom) < 1e-12) continue;
     const Point w = a - origin;
-    const double t = (w.x() * e.y() - w.y() * e.x()) / denom;   // along the ray
+    const double t = (w.x() * e.y() - w.y() * e.x()) / denom;      // along the ray
     const double u = (w.x() * dir.y() - w.y() * dir.x()) / denom;  // along the wall
     if (t > 1e-9 && u >= 0 && u <= 1) best = std::min(best, t);
   }
@@ -142,20 +142,30 @@ TEST_P(SyntheticRoomTest, OneElementPerWallAndNothingSpurious) {
                       << ") has " << on << " elements longer than 0.3 m on it";
     EXPECT_GE(covered, 0.6 * length) << room.name << ": wall " << i << " is mostly missing";
   }
-  std::printf("%s: %zu walls, %zu elements (%zu longer than 0.3 m, %zu of them off the walls), %zu scans\n",
-              room.name, room.corners.size(), elements.size(), long_elements, stubs_off, r.scans);
+  std::printf("%s: %zu walls, %zu elements (%zu longer than 0.3 m, %zu of them off the walls), %zu scans\n", room.name,
+              room.corners.size(), elements.size(), long_elements, stubs_off, r.scans);
 }
 
 INSTANTIATE_TEST_SUITE_P(
     Rooms, SyntheticRoomTest,
     ::testing::Values(
-        Room{"rectangle",
-             {{0, 0}, {8, 0}, {8, 5}, {0, 5}},
-             {{1.5, 1.5}, {6.5, 1.5}, {6.5, 3.5}, {1.5, 3.5}}},
+        Room{"rectangle", {{0, 0}, {8, 0}, {8, 5}, {0, 5}}, {{1.5, 1.5}, {6.5, 1.5}, {6.5, 3.5}, {1.5, 3.5}}},
         // 14 walls from 1 m to 10 m: two notches and an alcove.
         Room{"fourteen_walls",
-             {{0, 0}, {10, 0}, {10, 3}, {12, 3}, {12, 8}, {6, 8}, {6, 6}, {4, 6}, {4, 8}, {0, 8}, {0, 5}, {-1, 5},
-              {-1, 2}, {0, 2}},
+             {{0, 0},
+              {10, 0},
+              {10, 3},
+              {12, 3},
+              {12, 8},
+              {6, 8},
+              {6, 6},
+              {4, 6},
+              {4, 8},
+              {0, 8},
+              {0, 5},
+              {-1, 5},
+              {-1, 2},
+              {0, 2}},
              {{1.5, 1.5}, {8.5, 1.5}, {10.5, 4.5}, {10.5, 6.5}, {5, 4.5}, {1.5, 6.5}}}),
     [](const auto& info) { return std::string(info.param.name); });
 

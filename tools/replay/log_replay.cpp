@@ -21,6 +21,8 @@ LogReplayResult replay_log(const std::filesystem::path& log, const LogReplayOpti
   rules::Engine engine(engine_options);
   service::WorldService world(options.service, store, engine, nullptr);
 
+  if (options.plan) world.load_floor_plan(*options.plan);
+
   LogReplayResult result;
   logs::CarmenLogReader reader(log);
   const std::string observer = log.stem().stem().string();

@@ -3,7 +3,9 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <optional>
 
+#include "apriori/floor_plan.h"
 #include "server/service/map_quality_report.h"
 #include "server/service/world_service.h"
 
@@ -18,6 +20,8 @@ struct LogReplayOptions {
   double sigma_theta_rad = 0.0087;
   std::size_t every = 1;      // replay every K-th scan
   std::size_t max_scans = 0;  // 0: all
+  /// Loaded before the first scan (e.g. to measure what a large plan costs ingest).
+  std::optional<apriori::FloorPlan> plan;
 };
 
 struct LogReplayResult {

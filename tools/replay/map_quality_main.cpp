@@ -6,13 +6,19 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
 #include <string>
 
+#include "apriori/import/amrl_import.h"
 #include "tools/replay/log_replay.h"
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: wm-map-quality [--every K] [--rules DIR] [--pose-sigma XY,THETA] LOG...\n");
+    std::fprintf(stderr,
+                 "usage: wm-map-quality [--every K] [--rules DIR] [--pose-sigma XY,THETA] [--plan FILE] LOG...\n"
+                 "  --plan: a floor plan (JSON, or an AMRL *.vectormap.json) loaded before each replay\n");
     return 2;
   }
   wm::replay::LogReplayOptions options;
@@ -31,6 +37,23 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "--pose-sigma: expected XY,THETA (m, rad)\n");
         return 2;
       }
+      continue;
+    }
+    if (arg == "--plan" && i + 1 < argc) {
+      const std::string path = argv[++i];
+      try {
+        std::ifstream in(path, std::ios::binary);
+        if (!in) throw std::runtime_error("cannot open");
+        const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        options.plan = path.ends_with(".vectormap.json") ? wm::apriori::import_amrl_vectormap(text).plan
+                                                         : wm::apriori::parse_floor_plan_json(text);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "--plan %s: %s\n", path.c_str(), e.what());
+        return 2;
+      }
+      std::size_t edges = 0;
+      for (const auto& object : options.plan->objects) edges += object.edges().size();
+      std::fprintf(stderr, "plan %s: %zu objects, %zu edges\n", path.c_str(), options.plan->objects.size(), edges);
       continue;
     }
     if (arg == "--rules" && i + 1 < argc) {
