@@ -116,19 +116,22 @@ LineSegment fuse(const LineSegment& element, const LineSegment& observed) {
 }
 
 LineSegment fuse(const LineSegment& element, const LineSegment& observed, const FusionOptions& options) {
-  LineSegment fused = fuse(element, observed);
+  return with_covariance_floor(fuse(element, observed), options);
+}
+
+LineSegment with_covariance_floor(LineSegment segment, const FusionOptions& floor) {
   // Midpoint form M = A C Aᵀ with A = [[1, −t_mid], [0, 1]] (the inverse of midpoint_line_cov's lever arm).
-  const double t_mid = 0.5 * (fused.t0_m + fused.t1_m);
+  const double t_mid = 0.5 * (segment.t0_m + segment.t1_m);
   Eigen::Matrix2d to_mid;
   to_mid << 1.0, -t_mid, 0.0, 1.0;
-  Eigen::Matrix2d mid = to_mid * fused.line.cov * to_mid.transpose();
-  mid(0, 0) += std::max(0.0, options.min_offset_sigma_m * options.min_offset_sigma_m - mid(0, 0));
-  mid(1, 1) += std::max(0.0, options.min_angle_sigma_rad * options.min_angle_sigma_rad - mid(1, 1));
+  Eigen::Matrix2d mid = to_mid * segment.line.cov * to_mid.transpose();
+  mid(0, 0) += std::max(0.0, floor.min_offset_sigma_m * floor.min_offset_sigma_m - mid(0, 0));
+  mid(1, 1) += std::max(0.0, floor.min_angle_sigma_rad * floor.min_angle_sigma_rad - mid(1, 1));
   Eigen::Matrix2d from_mid;
   from_mid << 1.0, t_mid, 0.0, 1.0;
   const Eigen::Matrix2d cov = from_mid * mid * from_mid.transpose();
-  fused.line.cov = 0.5 * (cov + cov.transpose());
-  return fused;
+  segment.line.cov = 0.5 * (cov + cov.transpose());
+  return segment;
 }
 
 }  // namespace wm::fusion

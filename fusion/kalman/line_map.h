@@ -84,5 +84,8 @@ struct FusionOptions {
 LineSegment fuse(const LineSegment& element, const LineSegment& observed);
 /// fuse(), then the covariance raised to the floor of `options` where it went below (in the midpoint form).
 LineSegment fuse(const LineSegment& element, const LineSegment& observed, const FusionOptions& options);
+/// The segment with its covariance raised to the floor of `floor` where it is below, in the midpoint form
+/// M = A C Aᵀ, A = [[1, −t_mid], [0, 1]] (t_mid the middle of the extent): M_oo ≥ σ_offset², M_φφ ≥ σ_angle².
+LineSegment with_covariance_floor(LineSegment segment, const FusionOptions& floor);
 
 }  // namespace wm::fusion

@@ -98,17 +98,7 @@ void record_observed(DecisionRecord& record, const fusion::LineSegment& segment)
 // The views' own scatter across the line (the pose error they do not share) floors the offset uncertainty at the
 // midpoint, so a view as far off as the ones already taken in still matches.
 fusion::LineSegment fused_and_refit(const fusion::LineSegment& fused, const fusion::SegmentMoments& moments) {
-  auto segment = moments.refit(fused).value_or(fused);
-  const double spread = moments.rms_offset_m();
-  const double t_mid = 0.5 * (segment.t0_m + segment.t1_m);
-  Eigen::Matrix2d to_mid, from_mid;
-  to_mid << 1.0, -t_mid, 0.0, 1.0;
-  from_mid << 1.0, t_mid, 0.0, 1.0;
-  Eigen::Matrix2d mid = to_mid * segment.line.cov * to_mid.transpose();
-  mid(0, 0) = std::max(mid(0, 0), spread * spread);
-  const Eigen::Matrix2d cov = from_mid * mid * from_mid.transpose();
-  segment.line.cov = 0.5 * (cov + cov.transpose());
-  return segment;
+  return fusion::with_covariance_floor(moments.refit(fused).value_or(fused), {moments.rms_offset_m(), 0.0});
 }
 
 void make_fallback(DecisionRecord& record, std::string_view answered, const std::string& why) {
