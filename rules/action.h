@@ -20,16 +20,18 @@ enum class Action {
   add,           // keep the observation as a new element
   ignore,        // change nothing
   prune,         // remove an element the rules' prune/3 named (not an answer of decide/5)
+  trim,          // cut an element's ends back to what the occupancy grid backs (not an answer of decide/5)
 };
 
 namespace detail {
-inline constexpr std::array<std::pair<Action, std::string_view>, 6> kActionNames{{
+inline constexpr std::array<std::pair<Action, std::string_view>, 7> kActionNames{{
     {Action::confirm, "delete"},
     {Action::merge, "merge"},
     {Action::rigid_adjust, "rigid_adjust"},
     {Action::add, "add"},
     {Action::ignore, "ignore"},
     {Action::prune, "prune"},
+    {Action::trim, "trim"},
 }};
 }  // namespace detail
 

@@ -59,18 +59,19 @@ std::string joined_lines(const std::vector<std::string>& lines, const char* othe
 
 // The support module's entry points (rules/internal/engine_support.pl), looked up once.
 struct EntryPoints {
-  predicate_t init = nullptr;             // init/0
-  predicate_t shutdown = nullptr;         // shutdown/0
-  predicate_t set_floor_plan = nullptr;   // set_floor_plan(+Objects)
-  predicate_t set_elements = nullptr;     // set_elements(+Elements)
-  predicate_t update_elements = nullptr;  // update_elements(+Upserts, +RemovedIds)
-  predicate_t add_decisions = nullptr;    // add_decisions(+Decisions, +KeepLast)
-  predicate_t decide = nullptr;           // decide(+Observation, +Match, +Context, +InfLimit, +TimeLimit, -Result)
-  predicate_t decide_batch = nullptr;     // decide_batch(+Cases, +InfLimit, +TimeLimit, -Results)
-  predicate_t reload = nullptr;           // reload(+Files, +RulesDir, +InfLimit, +TimeLimit, +Grace, -Result)
-  predicate_t dry_run = nullptr;          // dry_run(+Files, +RulesDir, +Cases, +InfLimit, +TimeLimit, -Result)
-  predicate_t prune = nullptr;            // prune(+Max, +InfLimit, +TimeLimit, -Result)
-  predicate_t query = nullptr;            // query(+Text, +MaxSolutions, +InfLimit, +TimeLimit, -Result)
+  predicate_t init = nullptr;              // init/0
+  predicate_t shutdown = nullptr;          // shutdown/0
+  predicate_t set_floor_plan = nullptr;    // set_floor_plan(+Objects)
+  predicate_t set_elements = nullptr;      // set_elements(+Elements)
+  predicate_t update_elements = nullptr;   // update_elements(+Upserts, +RemovedIds)
+  predicate_t add_decisions = nullptr;     // add_decisions(+Decisions, +KeepLast)
+  predicate_t set_element_grid = nullptr;  // set_element_grid(+Facts)
+  predicate_t decide = nullptr;            // decide(+Observation, +Match, +Context, +InfLimit, +TimeLimit, -Result)
+  predicate_t decide_batch = nullptr;      // decide_batch(+Cases, +InfLimit, +TimeLimit, -Results)
+  predicate_t reload = nullptr;            // reload(+Files, +RulesDir, +InfLimit, +TimeLimit, +Grace, -Result)
+  predicate_t dry_run = nullptr;           // dry_run(+Files, +RulesDir, +Cases, +InfLimit, +TimeLimit, -Result)
+  predicate_t prune = nullptr;             // prune(+Max, +InfLimit, +TimeLimit, -Result)
+  predicate_t query = nullptr;             // query(+Text, +MaxSolutions, +InfLimit, +TimeLimit, -Result)
 
   static EntryPoints lookup() {
     const auto p = [](const char* name, int arity) { return PL_predicate(name, arity, internal::kSupportModuleName); };
@@ -80,6 +81,7 @@ struct EntryPoints {
             .set_elements = p("set_elements", 1),
             .update_elements = p("update_elements", 2),
             .add_decisions = p("add_decisions", 2),
+            .set_element_grid = p("set_element_grid", 1),
             .decide = p("decide", 6),
             .decide_batch = p("decide_batch", 4),
             .reload = p("reload", 6),
@@ -307,6 +309,14 @@ void Engine::update_elements(const std::vector<ElementFacts>& upserts, const std
   internal::put_element_facts(args, upserts, impl_->vocabulary);
   internal::put_atoms(args + 1, removed);
   call_or_throw(impl_->entry.update_elements, args, "update_elements");
+}
+
+void Engine::set_element_grid(const std::vector<ElementGridFacts>& facts) {
+  require_attached("set_element_grid");
+  Frame frame;
+  term_t list = PL_new_term_ref();
+  internal::put_element_grid_facts(list, facts, impl_->vocabulary);
+  call_or_throw(impl_->entry.set_element_grid, list, "set_element_grid");
 }
 
 void Engine::add_decisions(const std::vector<DecisionFacts>& decisions, std::size_t keep_last) {

@@ -74,6 +74,9 @@ class Engine {
   void set_elements(const std::vector<ElementFacts>& elements);
   /// Inserts or replaces the given elements and removes the ids in `removed`, in one transaction.
   void update_elements(const std::vector<ElementFacts>& upserts, const std::vector<std::string>& removed);
+  /// Inserts or replaces wm_kb:element_grid/3 facts (one per id). update_elements and set_elements drop them for
+  /// the elements they touch. @throw std::invalid_argument for a non-finite share or an empty id.
+  void set_element_grid(const std::vector<ElementGridFacts>& facts);
   /// Appends decision/7 facts, keeping only the `keep_last` newest in the knowledge base.
   void add_decisions(const std::vector<DecisionFacts>& decisions, std::size_t keep_last);
 

@@ -56,6 +56,14 @@ struct ElementFacts {
   double updated_at_unix_s = 0;  // wall-clock time of its last change [s]
 };
 
+/// What the occupancy grid says of an element (wm_kb:element_grid/3), from the server's last grid check of it:
+/// element_grid(Id, Backed, Contrary) with the shares of its length that an occupied cell backs and that the grid
+/// has seen without backing (the rest is unknown to the grid). Dropped when the element changes.
+struct ElementGridFacts {
+  std::string id;                   // e.g. "e12"
+  double backed = 0, contrary = 0;  // [0, 1]
+};
+
 /// One logged decision, as the rules see it (wm_kb:decision/7):
 /// decision(Seq, Action, Rule, Element, Object, Observer, At) with `none` for a missing element/object.
 struct DecisionFacts {

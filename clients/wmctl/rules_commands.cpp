@@ -17,7 +17,8 @@ std::string history_target(const std::string& id) {
   return std::string(element ? "/api/v1/elements/" : "/api/v1/objects/") + id + "/history";
 }
 
-// The state of a line element or an object before or after a decision, with its standard deviations.
+// The state of a line element or an object before or after a decision, with its standard deviations; the extent
+// of an element for a trim.
 std::string numbers(const json& state) {
   std::ostringstream out;
   out << std::setprecision(4);
@@ -29,6 +30,9 @@ std::string numbers(const json& state) {
     out << "pose (" << state["pose"]["x"].get<double>() << ", " << state["pose"]["y"].get<double>() << ", "
         << state["pose"]["theta"].get<double>() << "), sigma_xy " << std::sqrt(state["pose_cov"][0][0].get<double>())
         << " m";
+  } else if (state.contains("p0")) {
+    out << "from (" << state["p0"][0].get<double>() << ", " << state["p0"][1].get<double>() << ") to ("
+        << state["p1"][0].get<double>() << ", " << state["p1"][1].get<double>() << ") m";
   }
   return out.str();
 }

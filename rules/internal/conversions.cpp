@@ -120,6 +120,7 @@ Vocabulary Vocabulary::lookup() {
   v.case_ = f("case", 3);
   v.element_fact = f("element", 8);
   v.decision_fact = f("decision", 7);
+  v.element_grid_fact = f("element_grid", 3);
   v.file = f("file", 2);
   v.text = f("text", 2);
   v.observation = f("observation", 4);
@@ -231,6 +232,23 @@ void put_element_facts(term_t list, const std::vector<ElementFacts>& elements, c
   PL_put_nil(list);
   for (auto e = elements.rbegin(); e != elements.rend(); ++e) {
     put_element_fact(item, *e, v);
+    cons(list, item);
+  }
+}
+
+void put_element_grid_facts(term_t list, const std::vector<ElementGridFacts>& facts, const Vocabulary& v) {
+  constexpr const char* kWhere = "set_element_grid";
+  term_t item = PL_new_term_ref();
+  term_t a = PL_new_term_refs(3);
+  PL_put_nil(list);
+  for (auto f = facts.rbegin(); f != facts.rend(); ++f) {
+    if (f->id.empty()) throw std::invalid_argument("set_element_grid: an element id is empty");
+    require_finite(f->backed, kWhere, "backed");
+    require_finite(f->contrary, kWhere, "contrary");
+    put_atom(a, f->id);
+    put_float(a + 1, f->backed);
+    put_float(a + 2, f->contrary);
+    put_functor(item, v.element_grid_fact, a, kWhere);
     cons(list, item);
   }
 }

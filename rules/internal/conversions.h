@@ -23,20 +23,21 @@ namespace wm::rules::internal {
 /// The functors and atoms of the support module's term shapes, looked up once per Engine. The handles
 /// are process-wide in SWI-Prolog (valid on every thread) and never released.
 struct Vocabulary {
-  functor_t context = 0;        // context(Origin, Sensor)
-  functor_t case_ = 0;          // case(Observation, Match, Context)
-  functor_t element_fact = 0;   // element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt)
-  functor_t decision_fact = 0;  // decision(Seq, Action, Rule, Element, Object, Observer, At)
-  functor_t file = 0;           // file(Path, AbsolutePath)
-  functor_t text = 0;           // text(Path, Text)
-  functor_t observation = 0;    // observation(Source, Rho, Phi, Length)
-  functor_t element = 0;        // element(ElementId, ObjectId, D2), a match
-  functor_t object = 0;         // object(Id, Kind, Attributes, Edges)
-  functor_t edge = 0;           // edge(Id, Rho, Phi, Length)
-  functor_t decision = 0;       // decision(Action, Rule, Explanation), a result
-  functor_t error = 0;          // error(Message)
-  functor_t ok = 0;             // ok(Value)
-  atom_t none = 0;              // `none`: no match, not in the plan
+  functor_t context = 0;            // context(Origin, Sensor)
+  functor_t case_ = 0;              // case(Observation, Match, Context)
+  functor_t element_fact = 0;       // element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt)
+  functor_t decision_fact = 0;      // decision(Seq, Action, Rule, Element, Object, Observer, At)
+  functor_t element_grid_fact = 0;  // element_grid(Id, Backed, Contrary)
+  functor_t file = 0;               // file(Path, AbsolutePath)
+  functor_t text = 0;               // text(Path, Text)
+  functor_t observation = 0;        // observation(Source, Rho, Phi, Length)
+  functor_t element = 0;            // element(ElementId, ObjectId, D2), a match
+  functor_t object = 0;             // object(Id, Kind, Attributes, Edges)
+  functor_t edge = 0;               // edge(Id, Rho, Phi, Length)
+  functor_t decision = 0;           // decision(Action, Rule, Explanation), a result
+  functor_t error = 0;              // error(Message)
+  functor_t ok = 0;                 // ok(Value)
+  atom_t none = 0;                  // `none`: no match, not in the plan
 
   /// Looks every handle up (needs an initialised runtime).
   static Vocabulary lookup();
@@ -60,6 +61,7 @@ void put_cases(term_t list, const std::vector<DecisionQuery>& queries, const Voc
 /// non-finite number (messages start with "set_elements: ").
 void put_element_facts(term_t list, const std::vector<ElementFacts>& elements, const Vocabulary& v);
 /// Puts the list of decision/7 facts, in order. @throw std::invalid_argument for a non-finite at_unix_s.
+void put_element_grid_facts(term_t list, const std::vector<ElementGridFacts>& facts, const Vocabulary& v);
 void put_decision_facts(term_t list, const std::vector<DecisionFacts>& decisions, const Vocabulary& v);
 /// Puts a list of atoms, in order.
 void put_atoms(term_t list, const std::vector<std::string>& atoms);

@@ -9,7 +9,8 @@
     beside it holds its plunit tests.
 
     Entry points, all called from C++ and all catching every error they can report:
-      init/0, set_floor_plan/1, set_elements/1, update_elements/2, add_decisions/2, decide/6,
+      init/0, set_floor_plan/1, set_elements/1, update_elements/2, set_element_grid/1,
+      add_decisions/2, decide/6,
       decide_batch/4, reload/6, dry_run/6, prune/4, query/5, shutdown/0.
     C++ registers one foreign predicate in this module before loading it: text_nesting_exceeds/3
     (+Text, +Max, -Line), true when brackets nest deeper than Max outside quotes and comments.
@@ -42,7 +43,7 @@
 
 :- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
 %   Observed map elements and recent decisions, kept in step with the map by the server.
-:- dynamic wm_kb:element/8, wm_kb:decision/7.
+:- dynamic wm_kb:element/8, wm_kb:element_grid/3, wm_kb:decision/7.
 
 %   What the rules can ask about the observation being decided (set per decision, backtrackable).
 wm_kb:observation_origin(Origin) :-
@@ -66,14 +67,26 @@ clear_facts :-
 set_elements(Elements) :-
     must_be(list, Elements),
     transaction(( retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+                  retractall(wm_kb:element_grid(_, _, _)),
                   forall(member(E, Elements), assertz(wm_kb:E)) )).
 
 %!  update_elements(+Upserts, +RemovedIds) is det.
 update_elements(Upserts, Removed) :-
     transaction(( forall(member(element(Id, _, _, _, _, _, _, _), Upserts),
-                         retractall(wm_kb:element(Id, _, _, _, _, _, _, _))),
-                  forall(member(Id, Removed), retractall(wm_kb:element(Id, _, _, _, _, _, _, _))),
+                         ( retractall(wm_kb:element(Id, _, _, _, _, _, _, _)),
+                           retractall(wm_kb:element_grid(Id, _, _)) )),
+                  forall(member(Id, Removed),
+                         ( retractall(wm_kb:element(Id, _, _, _, _, _, _, _)),
+                           retractall(wm_kb:element_grid(Id, _, _)) )),
                   forall(member(E, Upserts), assertz(wm_kb:E)) )).
+
+%!  set_element_grid(+Facts) is det.
+%   Inserts or replaces element_grid(Id, Backed, Contrary) facts: what the grid said of each element at its
+%   last check (an element that changes loses its fact in update_elements/2).
+set_element_grid(Facts) :-
+    must_be(list, Facts),
+    transaction(( forall(member(element_grid(Id, _, _), Facts), retractall(wm_kb:element_grid(Id, _, _))),
+                  forall(member(F, Facts), assertz(wm_kb:F)) )).
 
 %!  add_decisions(+Decisions, +KeepLast) is det.
 %   Appends decision/7 facts and forgets all but the KeepLast newest (the full log is in SQLite).
@@ -632,5 +645,6 @@ shutdown :-
     retractall(retired_rules(_, _)),
     clear_facts,
     retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+    retractall(wm_kb:element_grid(_, _, _)),
     retractall(wm_kb:decision(_, _, _, _, _, _, _)),
     flag(wm_decision_facts, _, 0).

@@ -52,6 +52,12 @@
         element(Id, Origin, Observer, Rho, Phi, Length, Support, UpdatedAt)
                                      % observed map elements not in the plan; Origin = client | scan
                                      % | grid; Support = observations fused; UpdatedAt [unix s]
+        element_grid(Id, Backed, Contrary)
+                                     % what the occupancy grid said of element Id at its last check (every
+                                     % few scans, over what the scans saw): the shares of its length within
+                                     % one cell of an occupied cell (P > 0.65), and seen by the grid without
+                                     % one (free, or too little evidence); the rest is unknown. Gone when
+                                     % the element changes, until the next check.
         decision(Seq, Action, Rule, Element, Object, Observer, At)
                                      % the most recent decisions (Element/Object `none` if absent)
         observation_origin(Origin)   % of the observation being decided: client | scan | grid, or
@@ -75,7 +81,7 @@
     not_deformable object and an unmatched observation.
 
     The rule names below (solid_confirmed, elements_merged, unknown_element_merged,
-    not_deformable_rigid, unmatched_added, apriori_confirmed) are part of the API: clients and logs refer to them.
+    not_deformable_rigid, unmatched_added, apriori_confirmed, grid_unbacked) are part of the API: clients and logs refer to them.
 */
 
 :- dynamic override/5, prune/3.
@@ -139,3 +145,19 @@ decide(observation(Observer, _, _, _), element(Element, Object, D2), delete, apr
            "~w matched element ~w of a-priori ~w ~w (d2 = ~4f): the plan element is confirmed, \c
             the observation is deleted",
            [Observer, Element, Kind, Object, D2]).
+
+%   Removal: an element made from scans (or by the grid extractor) of which the occupancy grid backs no part
+%   while it has seen at least half of it: the surface has gone (a person who walked past, a chair that was
+%   moved, a door that opened) or was never there (a bad fit). Elements a client posted stay: a client may
+%   know of a surface the laser sees through (glass).
+prune(Element, grid_unbacked, Explanation) :-
+    element_grid(Element, Backed, Contrary),
+    Backed < 0.05,
+    Contrary >= 0.5,
+    element(Element, Origin, _, _, _, Length, Support, _),
+    Origin \== client,
+    Percent is round(100 * Contrary),
+    format(string(Explanation),
+           "the occupancy grid backs none of element ~w (~3f m, ~w, support ~w) and has seen ~w % \c
+            of it without an occupied cell: removed",
+           [Element, Length, Origin, Support, Percent]).

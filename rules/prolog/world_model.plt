@@ -11,7 +11,7 @@
 
 %   The test-facts module: the same dynamic facts the C++ engine asserts from the floor plan.
 :- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7,
-           wm_kb:observation_origin/1.
+           wm_kb:observation_origin/1, wm_kb:element_grid/3.
 :- set_module(wm_kb:base(system)).
 
 :- prolog_load_context(directory, Dir),
@@ -29,6 +29,8 @@ set_facts(Facts) :-
     retractall(wm_kb:object(_, _)),
     retractall(wm_kb:attribute(_, _)),
     retractall(wm_kb:edge(_, _, _, _, _)),
+    retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+    retractall(wm_kb:element_grid(_, _, _)),
     forall(member(F, Facts), assertz(wm_kb:F)).
 
 plan([ object(w1, wall), attribute(w1, solid), edge(w1, w1_e0, 2.0, 0.0, 4.0),
@@ -101,6 +103,31 @@ test(attributes_come_from_the_facts, [Rule == apriori_confirmed]) :-
     with_facts([object(w1, wall)],
                wm_rules_under_test:decide(observation(lidar, 2.0, 0.0, 3.5),
                                           element(e7, w1, 0.25), _, Rule, _)).
+
+%   pruned(+Origin, +Backed, +Contrary, -Pruned): the elements prune/3 names for one element e5 of Origin with
+%   the given grid shares.
+pruned(Origin, Backed, Contrary, Pruned) :-
+    with_facts([element(e5, Origin, robot, 2.0, 0.0, 1.5, 3, 0.0), element_grid(e5, Backed, Contrary),
+                element(e6, scan, robot, 4.0, 0.0, 1.0, 9, 0.0)],
+               findall(E-R, wm_rules_under_test:prune(E, R, _), Pruned)).
+
+test(element_the_grid_sees_through_is_pruned, [Pruned == [e5-grid_unbacked]]) :-
+    pruned(scan, 0.0, 0.9, Pruned).
+
+test(element_the_grid_backs_in_part_stays, [Pruned == []]) :-
+    pruned(scan, 0.2, 0.8, Pruned).
+
+test(element_the_grid_has_barely_seen_stays, [Pruned == []]) :-
+    pruned(grid, 0.0, 0.3, Pruned).
+
+test(element_a_client_posted_stays_where_the_laser_sees_through, [Pruned == []]) :-
+    pruned(client, 0.0, 1.0, Pruned).
+
+test(prune_explanation_gives_the_numbers) :-
+    with_facts([element(e5, scan, robot, 2.0, 0.0, 1.5, 3, 0.0), element_grid(e5, 0.0, 0.9)],
+               wm_rules_under_test:prune(e5, _, Explanation)),
+    once(sub_string(Explanation, _, _, _, "1.500 m")),
+    once(sub_string(Explanation, _, _, _, "90 %")).
 
 test(rules_do_not_see_user_predicates, [error(existence_error(procedure, _))]) :-
     wm_rules_under_test:wm_undefined_helper.

@@ -66,6 +66,9 @@ std::string usage() {
          "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at "
          "once)\n"
          "  --grid-extract-every N run the grid line extractor every N scans (default 0: POST /api/v1/grid/extract)\n"
+         "  --grid-trim-every N    every N scans, cut elements' ends back to what the Bayes grid backs and let the "
+         "rules\n"
+         "                         prune what it backs nowhere (default 10; 0: never)\n"
          "  --no-scan-lines        laser scans update the grids only, without the scan line extractor\n"
          "  --layer-mapping FILE   DXF layer/block mapping (JSON) for uploads that bring none (default: built in)\n"
          "  --web DIR              the web viewer's files (default: the shipped clients/web; '' disables)\n"
@@ -170,6 +173,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.service.grid_flush_interval = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 0, 86'400'000));
     else if (flag == "--grid-extract-every")
       c.service.grid_extract_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
+    else if (flag == "--grid-trim-every")
+      c.service.grid_trim_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-resolution")
       c.service.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
     else if (flag == "--usable-range")

@@ -323,6 +323,7 @@ json state_numbers_json(const std::vector<double>& v) {
   if (v.size() == 6) {
     return {{"rho", v[0]}, {"phi", v[1]}, {"cov", json::array({json::array({v[2], v[3]}), json::array({v[4], v[5]})})}};
   }
+  if (v.size() == 4) return {{"p0", json::array({v[0], v[1]})}, {"p1", json::array({v[2], v[3]})}};  // a trim
   if (v.size() == 12) {
     json cov = json::array();
     for (int r = 0; r < 3; ++r) cov.push_back(json::array({v[3 + 3 * r], v[4 + 3 * r], v[5 + 3 * r]}));

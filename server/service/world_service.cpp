@@ -193,6 +193,7 @@ ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string pa
         emit_scan_event(scan, seq);
         if (lines) outcome.lines = finish_update(std::move(*lines));
         extract_grid_lines_if_due(seq);
+        trim_to_grid_if_due(scan, seq);
         return outcome;
       });
 }
@@ -302,6 +303,87 @@ void WorldService::extract_grid_lines_if_due(std::int64_t scan_seq) {
     extract_grid_lines_on_writer();
   } catch (const std::exception& e) {
     std::cerr << "wmd: grid line extraction after scan " << scan_seq << " failed: " << e.what() << "\n";
+  }
+}
+
+void WorldService::trim_to_grid_if_due(const json_codec::ScanRequest& scan, std::int64_t scan_seq) {
+  if (options_.grid_trim_every == 0) return;
+  const auto seen = std::visit(
+      [&](const auto& s) {
+        const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, options_.grid.sensor));
+        const auto& p = s.sensor_pose;
+        return world::Box{p.x_m - reach, p.y_m - reach, p.x_m + reach, p.y_m + reach};
+      },
+      scan.scan);
+  if (!trim_region_) trim_region_ = seen;
+  trim_region_ = world::Box{std::min(trim_region_->x0, seen.x0), std::min(trim_region_->y0, seen.y0),
+                            std::max(trim_region_->x1, seen.x1), std::max(trim_region_->y1, seen.y1)};
+  if (scan_seq % static_cast<std::int64_t>(options_.grid_trim_every) != 0) return;
+  const world::Box region = *trim_region_;
+  trim_region_.reset();
+  try {
+    PreparedUpdate p;
+    p.base = snapshot();
+    p.seq = p.base->last_observation_seq + 1;
+    p.observation.observer = "grid-trim";
+    p.observation.origin = "grid";
+    p.observation.sensor = "grid";
+    p.observation.received_at_unix_s = now_unix_s();
+    std::vector<world::GridShares> checked;
+    {
+      std::shared_lock lock(grid_mutex_);
+      const double resolution = grid_->resolution_m();
+      // P > 0.65, the map-quality definition of an occupied cell, is log-odds > ln(0.65 / 0.35).
+      const double occupied_log_odds = std::log(0.65 / 0.35);
+      const world::GridProbe probe = [&](const Eigen::Vector2d& point) {
+        const auto cx = static_cast<std::int64_t>(std::floor(point.x() / resolution));
+        const auto cy = static_cast<std::int64_t>(std::floor(point.y() / resolution));
+        bool seen_any = false;
+        for (std::int64_t dy = -1; dy <= 1; ++dy)
+          for (std::int64_t dx = -1; dx <= 1; ++dx) {
+            const double l = grid_->log_odds({cx + dx, cy + dy});
+            if (l > occupied_log_odds) return world::GridEvidence::backed;
+            seen_any = seen_any || l != 0.0;
+          }
+        return seen_any ? world::GridEvidence::contrary : world::GridEvidence::unknown;
+      };
+      auto trim = options_.grid_trim;
+      trim.step_m = resolution;
+      auto trimmed = world::trim_to_grid(*p.base, region, probe, p.seq, p.observation.observer, trim);
+      p.update = std::move(trimmed.update);
+      checked = std::move(trimmed.checked);
+    }
+    // The trimmed elements' facts first (that drops their old element_grid/3), then what the grid said of every
+    // element checked: the rules' prune/3 may remove what the grid backs nowhere.
+    std::vector<rules::ElementFacts> upserts;
+    for (auto number : p.update.changed_elements) upserts.push_back(element_facts(p.update.state.elements.at(number)));
+    engine_.update_elements(upserts, {});
+    std::vector<rules::ElementGridFacts> grid_facts;
+    grid_facts.reserve(checked.size());
+    for (const auto& c : checked) grid_facts.push_back({"e" + std::to_string(c.number), c.backed, c.contrary});
+    engine_.set_element_grid(grid_facts);
+    const auto orders = engine_.prune_orders(options_.max_prune_per_update);
+    if (!orders.empty()) {
+      if (p.update.decisions.empty()) {
+        p.update.state.version = p.base->version + 1;
+        p.update.state.last_observation_seq = p.seq;
+      }
+      world::apply_prune(p.update, orders, p.seq, p.observation.observer);
+      std::vector<std::string> removed;
+      for (auto number : p.update.removed_elements) removed.push_back("e" + std::to_string(number));
+      engine_.update_elements({}, removed);
+    }
+    if (p.update.decisions.empty()) return;
+    const std::string payload = "{\"grid_revision\": " + std::to_string(scan_seq) + "}";
+    commit_prepared(p, [&] { store_.commit_observation(p.update, p.observation, payload); });
+    finish_update(std::move(p));
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: grid trim after scan " << scan_seq << " failed: " << e.what() << "\n";
+    try {
+      sync_all_facts(*snapshot());  // the rules see the map as committed
+    } catch (const std::exception& again) {
+      std::cerr << "wmd: rule facts not restored after the failed grid trim: " << again.what() << "\n";
+    }
   }
 }
 

@@ -22,6 +22,7 @@
 #include "server/service/rules_watcher.h"
 #include "server/service/world_port.h"
 #include "server/storage/store.h"
+#include "server/world/grid_trim.h"
 #include "server/world/update.h"
 
 namespace wm::service {
@@ -47,6 +48,10 @@ struct ServiceOptions {
   /// Run the grid line extractor (thinning + Hough) every this many scans (0: only on request), and its settings.
   std::size_t grid_extract_every = 0;
   fusion::GridLineOptions grid_lines;
+  /// Every this many scans, the ends of the elements the scans since the last time could see are cut back to
+  /// what the Bayes grid backs (world::trim_to_grid, its own observation of origin "grid"); 0: never.
+  std::size_t grid_trim_every = 10;
+  world::GridTrimOptions grid_trim;
 };
 
 /// A reader–writer lock that lets a waiting writer in before new readers (a glibc rwlock of kind
@@ -189,6 +194,9 @@ class WorldService final : public WorldPort {
   void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
   /// The periodic grid line extraction (ServiceOptions::grid_extract_every), its own observation after the scan.
   void extract_grid_lines_if_due(std::int64_t scan_seq);
+  /// Widens the region the next grid trim looks at by what this scan could see; trims when it is due
+  /// (ServiceOptions::grid_trim_every). Failures are logged: the scan is already committed.
+  void trim_to_grid_if_due(const json_codec::ScanRequest& scan, std::int64_t scan_seq);
 
   void flush_grid(bool force);
   void emit(const nlohmann::json& event);
@@ -206,7 +214,8 @@ class WorldService final : public WorldPort {
   /// The journal sequence of the last scan in the grid = scans ever accepted (the journal numbers them 1, 2,
   /// …); persisted with the scan, so it never goes back across restarts.
   std::atomic<std::int64_t> grid_revision_{0};
-  std::int64_t last_scan_seq_ = 0;  // the last scan inserted into the grid (all journaled scans, once started)
+  std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see
+  std::int64_t last_scan_seq_ = 0;         // the last scan inserted into the grid (all journaled scans, once started)
   std::int64_t flushed_scan_seq_ = 0;
   bool flush_all_tiles_ = false;
   std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();

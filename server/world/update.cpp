@@ -220,7 +220,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
 
     const CandidateRef* ref = match ? &candidates.refs[match->index] : nullptr;
     std::optional<std::int64_t> grown;  // the element a merge or add changed, whose neighbours are checked next
-    if (!action || *action == rules::Action::prune) {
+    if (!action || *action == rules::Action::prune || *action == rules::Action::trim) {
       make_fallback(record, decision.action, "action '" + decision.action + "' is not known to the server");
     } else if (record.action == rules::Action::merge && !ref) {
       make_fallback(record, decision.action, "merge needs a match");

@@ -52,7 +52,8 @@ struct DecisionRecord {
   double rho_m = 0, phi_rad = 0;  // the observed line and its covariance
   Eigen::Matrix2d observed_cov = Eigen::Matrix2d::Zero();
   /// What the action changed, for explanations: merge → the element's [ρ, φ, C(2×2 row-major)];
-  /// rigid_adjust → the object's [x, y, θ, C(3×3 row-major)]; empty otherwise.
+  /// rigid_adjust → the object's [x, y, θ, C(3×3 row-major)]; trim → the element's endpoints [x0, y0, x1, y1];
+  /// empty otherwise.
   std::vector<double> before, after;
 
   /// The question the rules were asked (to re-ask it, e.g. in a dry run).

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -176,6 +177,31 @@ TEST_F(KnowledgeBaseTest, ExamplesExtendTheShippedRulesInAnyFileOrder) {
   EXPECT_EQ(orders[0].element_id, "e1");
   EXPECT_EQ(orders[0].rule, "unconfirmed_pruned");
   EXPECT_NE(orders[0].explanation.find("e1"), std::string::npos);
+}
+
+TEST_F(KnowledgeBaseTest, GridFactsReachTheShippedPruneRuleAndGoWhenTheElementChanges) {
+  // e1 (scan) and e2 (client) are both seen through by the grid; the shipped rule removes only e1.
+  engine_.set_element_grid({{"e1", 0.0, 0.9}, {"e2", 0.0, 1.0}});
+  EXPECT_DOUBLE_EQ(only("element_grid(e1, _, C)", "C").floating, 0.9);
+  auto orders = engine_.prune_orders(100);
+  ASSERT_EQ(orders.size(), 1u);
+  EXPECT_EQ(orders[0].element_id, "e1");
+  EXPECT_EQ(orders[0].rule, "grid_unbacked");
+  EXPECT_NE(orders[0].explanation.find("90 %"), std::string::npos) << orders[0].explanation;
+  // A second check replaces the fact; a change of the element drops it, until the next check.
+  engine_.set_element_grid({{"e1", 0.5, 0.5}});
+  EXPECT_EQ(engine_.query("element_grid(e1, B, _)", 10).solutions.size(), 1u);
+  EXPECT_DOUBLE_EQ(only("element_grid(e1, B, _)", "B").floating, 0.5);
+  EXPECT_TRUE(engine_.prune_orders(100).empty());
+  engine_.set_element_grid({{"e1", 0.0, 1.0}});
+  engine_.update_elements({{"e1", "scan", "robot-1", 1.0, 0.5, 2.5, 2, 300.0}}, {});
+  EXPECT_TRUE(engine_.query("element_grid(e1, _, _)", 10).solutions.empty());
+  EXPECT_TRUE(engine_.prune_orders(100).empty());
+  engine_.set_element_grid({{"e1", 0.0, 1.0}});
+  engine_.update_elements({}, {"e1"});
+  EXPECT_TRUE(engine_.query("element_grid(e1, _, _)", 10).solutions.empty());
+  EXPECT_THROW(engine_.set_element_grid({{"e1", std::nan(""), 0.0}}), std::invalid_argument);
+  EXPECT_THROW(engine_.set_element_grid({{"", 0.0, 0.0}}), std::invalid_argument);
 }
 
 TEST_F(KnowledgeBaseTest, PruneWithoutRulesIsEmptyAndALoopingPruneIsContained) {

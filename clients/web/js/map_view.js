@@ -10,6 +10,7 @@ export const kColors = {
   elements: { scan: '#ec6a00', grid: '#9c36b5', client: '#8d5524', other: '#6b6b6b' },
   highlights: {
     merge: '#00b8d9', rigid_adjust: '#7cd500', add: '#ff00e6', delete: '#ff2a2a', prune: '#ff2a2a',
+    trim: '#ffb000',
     ignore: '#8d8d8d',
   },
   robots: ['#0077ff', '#d62828', '#2a9d8f', '#8338ec', '#fb8500'],

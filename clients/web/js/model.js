@@ -2,7 +2,7 @@
 // Pure: no DOM, so `node --test` checks the event handling directly.
 
 /** Highlight colours' keys: what a decision did to what it touched. */
-export const kHighlightActions = ['merge', 'rigid_adjust', 'add', 'delete', 'prune', 'ignore'];
+export const kHighlightActions = ['merge', 'rigid_adjust', 'add', 'delete', 'prune', 'trim', 'ignore'];
 
 /** How long a decision's highlight lasts [ms]. */
 export const kHighlightMs = 3000;
@@ -18,7 +18,7 @@ export function objectOfEdge(edgeId) {
  * - add / merge: the element the action produced or touched (`element`);
  * - rigid_adjust: the whole object (`object`), since all its edges moved;
  * - delete (the plan confirmed the observation): the matched CAD edge, else the object;
- * - prune: the removed element; ignore: whatever was matched.
+ * - prune: the removed element; trim: the element whose ends were cut; ignore: whatever was matched.
  */
 export function highlightTargets(decision) {
   if (!decision || typeof decision.action !== 'string') return [];

@@ -285,6 +285,7 @@ export function renderLegend() {
     group('observed elements', [['scan', kColors.elements.scan], ['grid', kColors.elements.grid],
       ['client', kColors.elements.client]], 'line'),
     group('decisions (flash)', [['merged', kColors.highlights.merge], ['rigid_adjust', kColors.highlights.rigid_adjust],
-      ['added', kColors.highlights.add], ['deleted / pruned', kColors.highlights.delete]], 'wide'),
+      ['added', kColors.highlights.add], ['deleted / pruned', kColors.highlights.delete],
+      ['trimmed', kColors.highlights.trim]], 'wide'),
     group('grid', [['free', '#ffffff'], ['occupied', '#000000'], ['unknown', 'rgb(188, 194, 204)']], 'box'));
 }

@@ -97,6 +97,24 @@ TEST(CodecTest, ParseJsonRefusesNestingBeyond64LevelsBeforeParsing) {
   EXPECT_THROW(parse_ordered_json(nested(65)), CodecError);
 }
 
+TEST(CodecTest, ADecisionsBeforeAndAfterAreLabelledByWhatChanged) {
+  world::DecisionRecord trim;
+  trim.action = rules::Action::trim;
+  trim.rule = "grid_trimmed";
+  trim.before = {0.0, 1.0, 4.0, 1.0};
+  trim.after = {1.0, 1.0, 3.0, 1.0};
+  const auto j = decision_json(trim);
+  EXPECT_EQ(j["action"], "trim");
+  EXPECT_EQ(j["before"]["p0"], nlohmann::json::array({0.0, 1.0}));
+  EXPECT_EQ(j["after"]["p1"], nlohmann::json::array({3.0, 1.0}));
+  world::DecisionRecord merge;
+  merge.action = rules::Action::merge;
+  merge.before = {2.0, 0.5, 1e-4, 0.0, 0.0, 4e-4};
+  EXPECT_DOUBLE_EQ(decision_json(merge)["before"]["rho"].get<double>(), 2.0);
+  EXPECT_DOUBLE_EQ(decision_json(merge)["before"]["cov"][1][1].get<double>(), 4e-4);
+  EXPECT_FALSE(decision_json(merge).contains("after"));
+}
+
 TEST(CodecTest, InvalidUtf8IsFoundAtItsByte) {
   EXPECT_EQ(invalid_utf8_offset("plain ascii"), std::nullopt);
   EXPECT_EQ(invalid_utf8_offset("pavill\xc3\xb3n \xe2\x82\xac \xf0\x9f\xa4\x96"), std::nullopt);  // ó € 🤖

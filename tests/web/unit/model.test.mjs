@@ -74,5 +74,6 @@ test('decisions highlight what they touched', () => {
   assert.deepEqual(highlightTargets({ action: 'delete', element: null, object: 'wall-3', matched: { element: 'wall-3/0', object: 'wall-3' } }),
     [{ kind: 'edge', id: 'wall-3/0', action: 'delete' }]);
   assert.deepEqual(highlightTargets({ action: 'prune', element: 'e7' }), [{ kind: 'element', id: 'e7', action: 'prune' }]);
+  assert.deepEqual(highlightTargets({ action: 'trim', element: 'e8' }), [{ kind: 'element', id: 'e8', action: 'trim' }]);
   assert.deepEqual(highlightTargets(null), []);
 });

@@ -1,0 +1,89 @@
+#include "server/world/grid_trim.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+namespace wm::world {
+
+GridTrimResult trim_to_grid(const WorldState& current, const Box& region, const GridProbe& probe,
+                            std::int64_t observation_seq, const std::string& observer, const GridTrimOptions& options) {
+  GridTrimResult trim_result{{current, {}, {}, {}, {}}, {}};
+  UpdateResult& result = trim_result.update;
+  WorldState& state = result.state;
+  bool bumped = false;
+  std::vector<GridEvidence> samples;
+  for (const auto number : current.elements.near(region)) {
+    const Element& element = current.elements.at(number);
+    if (!region.crossed_by(element.segment)) continue;
+    const fusion::LineSegment& segment = element.segment;
+    const double length = segment.length_m();
+    const auto steps = static_cast<std::size_t>(std::ceil(length / options.step_m));
+    if (steps < 2) continue;
+    const Eigen::Vector2d a = segment.p0(), b = segment.p1();
+    samples.clear();
+    for (std::size_t i = 0; i <= steps; ++i)
+      samples.push_back(probe(a + (static_cast<double>(i) / static_cast<double>(steps)) * (b - a)));
+    // From each end, up to the first sample that is not contrary; an end is cut only when that sample is backed
+    // (an unknown one leaves the end as it is, and an element backed nowhere stays whole).
+    std::size_t first = 0;
+    while (first < steps && samples[first] == GridEvidence::contrary) ++first;
+    if (samples[first] != GridEvidence::backed) first = 0;
+    std::size_t last = steps;
+    while (last > first && samples[last] == GridEvidence::contrary) --last;
+    if (samples[last] != GridEvidence::backed) last = steps;
+    std::size_t backed = 0, contrary = 0;
+    for (std::size_t i = first; i <= last; ++i) {
+      backed += samples[i] == GridEvidence::backed;
+      contrary += samples[i] == GridEvidence::contrary;
+    }
+    const auto kept = static_cast<double>(last - first + 1);
+    trim_result.checked.push_back({number, static_cast<double>(backed) / kept, static_cast<double>(contrary) / kept});
+    const double dt = length / static_cast<double>(steps);
+    const double t0 = segment.t0_m + static_cast<double>(first) * dt;
+    const double t1 = segment.t0_m + static_cast<double>(last) * dt;
+    const double cut = (t0 - segment.t0_m) + (segment.t1_m - t1);
+    if (cut < options.min_trim_m || t1 - t0 < options.min_kept_m) continue;
+
+    if (!bumped) {
+      state.version = current.version + 1;
+      state.last_observation_seq = observation_seq;
+      bumped = true;
+    }
+    Element trimmed = element;
+    trimmed.segment.t0_m = t0;
+    trimmed.segment.t1_m = t1;
+    trimmed.updated_version = state.version;
+
+    DecisionRecord record;
+    record.seq = ++state.last_decision_seq;
+    record.observation_seq = observation_seq;
+    record.index = -1;  // not about a segment of a request
+    record.action = rules::Action::trim;
+    record.rule = "grid_trimmed";
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "the grid sees through %.3f m of element %s's ends (no occupied cell within one cell): "
+                  "cut from %.3f m to %.3f m",
+                  cut, element.id().c_str(), length, t1 - t0);
+    record.explanation = text;
+    record.element = element.id();
+    record.observer = observer;
+    record.origin = "grid";
+    record.sensor = "grid";
+    record.p0 = trimmed.segment.p0();
+    record.p1 = trimmed.segment.p1();
+    record.rho_m = segment.line.rho_m;
+    record.phi_rad = segment.line.phi_rad;
+    record.observed_cov = segment.line.cov;
+    record.before = {a.x(), a.y(), b.x(), b.y()};
+    record.after = {record.p0.x(), record.p0.y(), record.p1.x(), record.p1.y()};
+    result.decisions.push_back(std::move(record));
+    result.changed_elements.insert(number);
+    state.elements.put(std::move(trimmed));
+  }
+  return trim_result;
+}
+
+}  // namespace wm::world
