@@ -95,18 +95,23 @@ bool end_is_off(const std::vector<Eigen::Vector2d>& points, const std::vector<Ei
 std::optional<LocalSegment> fit_piece(const std::vector<Eigen::Vector2d>& points,
                                       const std::vector<Eigen::Matrix2d>& covs, Piece piece,
                                       const ScanLineOptions& options) {
-  // Trim end points that do not belong to the line of the others (at most a few at each end).
-  for (int trims = 0; trims < 4 && piece.last - piece.first > std::max<std::size_t>(options.min_points, 3); ++trims) {
-    if (end_is_off(points, covs, {piece.first + 1, piece.last}, piece.first, options)) {
+  // Trim end points that do not belong to the line of the others (at most a few at each end), down to four points:
+  // min_points counts the piece as split, and a short piece that kept a corner point would come out tilted by
+  // 10–15°. The line that judges an end leaves out the point next to it too, so two points of the next wall at one
+  // end cannot pull it toward themselves.
+  if (piece.last - piece.first < options.min_points) return std::nullopt;
+  constexpr std::size_t kFewestFitted = 4;
+  for (int trims = 0; trims < 4 && piece.last - piece.first > kFewestFitted; ++trims) {
+    const std::size_t skip = piece.last - piece.first >= 6 ? 2 : 1;
+    if (end_is_off(points, covs, {piece.first + skip, piece.last}, piece.first, options)) {
       ++piece.first;
-    } else if (end_is_off(points, covs, {piece.first, piece.last - 1}, piece.last - 1, options)) {
+    } else if (end_is_off(points, covs, {piece.first, piece.last - skip}, piece.last - 1, options)) {
       --piece.last;
     } else {
       break;
     }
   }
   const std::size_t n = piece.last - piece.first;
-  if (n < options.min_points || n < 2) return std::nullopt;
   const std::span<const Eigen::Vector2d> p(points.data() + piece.first, n);
   const std::span<const Eigen::Matrix2d> q(covs.data() + piece.first, n);
   LineFeature line;

@@ -308,11 +308,14 @@ void WorldService::extract_grid_lines_if_due(std::int64_t scan_seq) {
 
 void WorldService::trim_to_grid_if_due(const json_codec::ScanRequest& scan, std::int64_t scan_seq) {
   if (options_.grid_trim_every == 0) return;
+  // Where this scan changed the grid (as emit_scan_event says it), plus a cell for the 3×3 neighbourhood.
   const auto seen = std::visit(
       [&](const auto& s) {
         const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, options_.grid.sensor));
-        const auto& p = s.sensor_pose;
-        return world::Box{p.x_m - reach, p.y_m - reach, p.x_m + reach, p.y_m + reach};
+        double half_width = options_.grid.sensor.laser_beam_width_rad / 2;
+        if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
+        const auto box = fusion::scan_footprint(s, reach, half_width, 3 * grid_->resolution_m());
+        return world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
       },
       scan.scan);
   if (!trim_region_) trim_region_ = seen;

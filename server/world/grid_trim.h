@@ -44,6 +44,6 @@ struct GridTrimResult {
 /// endpoints in before/after ([x0, y0, x1, y1]). `current` is not changed. Elements shorter than two samples are
 /// not looked at.
 GridTrimResult trim_to_grid(const WorldState& current, const Box& region, const GridProbe& probe,
-                          std::int64_t observation_seq, const std::string& observer, const GridTrimOptions& options);
+                            std::int64_t observation_seq, const std::string& observer, const GridTrimOptions& options);
 
 }  // namespace wm::world

@@ -108,10 +108,84 @@ void make_fallback(DecisionRecord& record, std::string_view answered, const std:
   record.fallback = true;
 }
 
+// Whether `part` is a piece of the wall `whole` stands for, whatever its own direction says: at most half as long,
+// its ends projected within `max_gap_m` of the whole's extent, and the part as a whole within `band_m` RMS of its
+// line (the straightness an element keeps). A view of 0.3–0.7 m tilted by a 3σ 7° lies within 3 cm RMS of its
+// wall but fails the direction gate; left alone, it stays as a stub beside the wall.
+bool lies_within(const Element& part, const Element& whole, double band_m, double max_gap_m) {
+  const fusion::LineSegment& w = whole.segment;
+  if (part.support > 1 || part.segment.length_m() > 0.5 * w.length_m()) return false;
+  const Eigen::Vector2d ends[2] = {part.segment.p0(), part.segment.p1()};
+  double offsets[2];
+  for (int k = 0; k < 2; ++k) {
+    const double t = w.line.coordinate_along(ends[k]);
+    if (t < w.t0_m - max_gap_m || t > w.t1_m + max_gap_m) return false;
+    offsets[k] = w.line.signed_distance(ends[k]);
+  }
+  // RMS distance from the line of a segment whose ends lie at offsets a and b: sqrt((a² + ab + b²) / 3).
+  const double a = offsets[0], b = offsets[1];
+  return (a * a + a * b + b * b) / 3.0 <= band_m * band_m;
+}
+
+// Puts "element `from` lies on element `into`" to the rules (an observation of origin "element", observer: from's
+// id); a merge answer joins them: fused line, union of extents, support and moments summed, `from` removed, one
+// decision logged. A `piece` (lies_within) adds its moments and support but not its line: a view whose direction
+// failed the gate would make the wall's covariance claim what the view does not know. Whether they were joined.
+bool join_into(UpdateResult& result, std::int64_t into, std::int64_t from, const fusion::MatchResult& match, bool piece,
+               const Observation& observation, std::int64_t observation_seq, const WorldOptions& options,
+               const Decide& decide) {
+  WorldState& state = result.state;
+  const Element& keeper = state.elements.at(into);
+  const Element& other = state.elements.at(from);
+  rules::DecisionQuery q;
+  q.observer = other.id();
+  q.origin = "element";
+  q.sensor = observation.sensor;
+  q.rho_m = other.segment.line.rho_m;
+  q.phi_rad = other.segment.line.phi_rad;
+  q.length_m = other.segment.length_m();
+  q.element_id = keeper.id();
+  q.mahalanobis_sq = match.mahalanobis_sq;
+  const rules::Decision decision = decide(q);
+  if (rules::parse_action(decision.action) != rules::Action::merge) return false;
+  DecisionRecord record;
+  record.seq = ++state.last_decision_seq;
+  record.observation_seq = observation_seq;
+  record.index = -1;  // not about a segment of the request
+  record.action = rules::Action::merge;
+  record.rule = decision.rule;
+  record.explanation = decision.explanation;
+  record.fallback = decision.fallback;
+  record.element = record.matched_element = keeper.id();
+  record.mahalanobis_sq = match.mahalanobis_sq;
+  record.observer = observation.observer;
+  record.origin = "element";
+  record.sensor = observation.sensor;
+  record_observed(record, other.segment);
+  record.before = line_numbers(keeper.segment.line);
+
+  Element joined = keeper;
+  joined.moments += other.moments;
+  joined.segment = fused_and_refit(piece ? keeper.segment : fusion::fuse(keeper.segment, other.segment, options.fusion),
+                                   joined.moments);
+  joined.support += other.support;
+  joined.updated_version = state.version;
+  joined.updated_at_unix_s = observation.received_at_unix_s;
+  record.after = line_numbers(joined.segment.line);
+  state.elements.erase(from);
+  result.changed_elements.erase(from);
+  result.removed_elements.insert(from);
+  state.elements.put(std::move(joined));
+  result.changed_elements.insert(into);
+  result.decisions.push_back(std::move(record));
+  return true;
+}
+
 // After element `number` grew, other elements may now lie on it: two views of one wall that no single observation
-// connected before. Each such neighbour (best first) is put to the rules as an observation of origin "element"
-// (observer: the neighbour's id) matched to the grown element; a merge answer joins them (fused line, union of
-// extents, support summed; the neighbour is removed), anything else leaves both. Only joins are logged.
+// connected before. Each such neighbour (best first) is joined into it if the rules say merge (join_into); anything
+// else leaves both. A neighbour that passes only as a piece of the grown element (lies_within) comes after every
+// gated one. When the grown element is itself a piece of a longer one, it is joined into that one instead, and
+// nothing more is asked for it.
 void join_neighbours(UpdateResult& result, std::int64_t number, const Observation& observation,
                      std::int64_t observation_seq, const WorldOptions& options, const Decide& decide) {
   WorldState& state = result.state;
@@ -121,63 +195,38 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
     const Box near = Box::of(keeper.segment, candidate_margin(options.join));
     std::optional<fusion::MatchResult> best;
     std::int64_t best_number = 0;
+    bool keeper_is_piece = false, other_is_piece = false;
     for (const auto other_number : state.elements.near(near)) {
       const Element& other = state.elements.at(other_number);
       if (other_number == number || declined.count(other_number) || !Box::of(other.segment).overlaps(near) ||
           (keeper.moments + other.moments).rms_offset_m() > options.max_straightness_rms_m)
         continue;
-      const auto m = fusion::match_segment(keeper.segment, other.segment, options.join);
+      auto m = fusion::match_segment(keeper.segment, other.segment, options.join);
+      bool keeper_piece = false, other_piece = false;
+      const double band = options.max_straightness_rms_m, gap = options.join.max_gap_m;
+      if (!m && ((other_piece = lies_within(other, keeper, band, gap)) ||
+                 (keeper_piece = lies_within(keeper, other, band, gap)))) {
+        constexpr double kAfterGated = 1e6;
+        // Of the pieces, the longest first; of the walls the grown element is a piece of, the longest.
+        m = fusion::MatchResult{0, fusion::mahalanobis_squared(keeper.segment.line, other.segment.line),
+                                kAfterGated - other.segment.length_m()};
+      }
       if (m && (!best || m->cost < best->cost)) {
         best = m;
         best_number = other_number;
+        keeper_is_piece = keeper_piece;
+        other_is_piece = other_piece;
       }
     }
     if (!best) return;
-    const Element& other = state.elements.at(best_number);
-    rules::DecisionQuery q;
-    q.observer = other.id();
-    q.origin = "element";
-    q.sensor = observation.sensor;
-    q.rho_m = other.segment.line.rho_m;
-    q.phi_rad = other.segment.line.phi_rad;
-    q.length_m = other.segment.length_m();
-    q.element_id = keeper.id();
-    q.mahalanobis_sq = best->mahalanobis_sq;
-    const rules::Decision decision = decide(q);
-    if (rules::parse_action(decision.action) != rules::Action::merge) {
-      declined.insert(best_number);
+    if (keeper_is_piece) {
+      if (join_into(result, best_number, number, *best, true, observation, observation_seq, options, decide)) return;
+    } else if (join_into(result, number, best_number, *best, other_is_piece, observation, observation_seq, options,
+                         decide)) {
+      ++joins;
       continue;
     }
-    DecisionRecord record;
-    record.seq = ++state.last_decision_seq;
-    record.observation_seq = observation_seq;
-    record.index = -1;  // not about a segment of the request
-    record.action = rules::Action::merge;
-    record.rule = decision.rule;
-    record.explanation = decision.explanation;
-    record.fallback = decision.fallback;
-    record.element = record.matched_element = keeper.id();
-    record.mahalanobis_sq = best->mahalanobis_sq;
-    record.observer = observation.observer;
-    record.origin = "element";
-    record.sensor = observation.sensor;
-    record_observed(record, other.segment);
-    record.before = line_numbers(keeper.segment.line);
-
-    Element joined = keeper;
-    joined.moments += other.moments;
-    joined.segment = fused_and_refit(fusion::fuse(keeper.segment, other.segment, options.fusion), joined.moments);
-    joined.support += other.support;
-    joined.updated_version = state.version;
-    joined.updated_at_unix_s = observation.received_at_unix_s;
-    record.after = line_numbers(joined.segment.line);
-    state.elements.erase(best_number);
-    result.changed_elements.erase(best_number);
-    result.removed_elements.insert(best_number);
-    state.elements.put(std::move(joined));
-    result.changed_elements.insert(number);
-    result.decisions.push_back(std::move(record));
-    ++joins;
+    declined.insert(best_number);
   }
 }
 

@@ -22,9 +22,10 @@ namespace wm::world {
 struct WorldOptions {
   fusion::MatchOptions match;
   /// The floor under a fused element's uncertainty (midpoint form): what a wall is known to after many views from
-  /// poses that share their error. 0.007 rad is about 0.8 of the heading σ replays post (0.0087 rad); 0.0044 left
-  /// calibration at 0.84 on Freiburg-079 once elements were refitted to their moments.
-  fusion::FusionOptions fusion{0.01, 0.007};
+  /// poses that share their error: no better than the heading σ replays post (0.0087 rad, 0.5°). 0.0044 left
+  /// calibration at 0.84 on Freiburg-079 once elements were refitted to their moments; 0.007 left it at 0.853 once
+  /// single tilted views were joined into their walls as pieces (0.866 with 0.0087).
+  fusion::FusionOptions fusion{0.01, 0.0087};
   /// Joins of two elements into one (asked of the rules) after one change of an element, at most.
   std::size_t max_joins_per_change = 16;
   /// When an element lies on a grown one: both are fused estimates whose directions are known to the covariance

@@ -17,8 +17,10 @@
 int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
-                 "usage: wm-map-quality [--every K] [--rules DIR] [--pose-sigma XY,THETA] [--plan FILE] LOG...\n"
-                 "  --plan: a floor plan (JSON, or an AMRL *.vectormap.json) loaded before each replay\n");
+                 "usage: wm-map-quality [--every K] [--rules DIR] [--pose-sigma XY,THETA] [--plan FILE] "
+                 "[--grid-trim-every N] LOG...\n"
+                 "  --plan: a floor plan (JSON, or an AMRL *.vectormap.json) loaded before each replay\n"
+                 "  --grid-trim-every: as wmd's (default 10; 0: elements are not trimmed to the grid)\n");
     return 2;
   }
   wm::replay::LogReplayOptions options;
@@ -30,6 +32,10 @@ int main(int argc, char** argv) {
     const std::string arg = argv[i];
     if (arg == "--every" && i + 1 < argc) {
       options.every = static_cast<std::size_t>(std::stoul(argv[++i]));
+      continue;
+    }
+    if (arg == "--grid-trim-every" && i + 1 < argc) {
+      options.service.grid_trim_every = static_cast<std::size_t>(std::stoul(argv[++i]));
       continue;
     }
     if (arg == "--pose-sigma" && i + 1 < argc) {

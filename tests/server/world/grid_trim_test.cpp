@@ -1,10 +1,10 @@
 // trim_to_grid against a grid given as a function of the point: which ends are cut, which are not, what is logged
 // and what the rules are told.
+#include "server/world/grid_trim.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
-
-#include "server/world/grid_trim.h"
 
 namespace wm::world {
 namespace {
@@ -81,8 +81,8 @@ TEST(GridTrimTest, EndsTheGridSeesThroughAreCutBackToTheBackedPart) {
 
 TEST(GridTrimTest, AnEndInUnknownSpaceStaysAndACutStopsAtTheFirstUnknownSample) {
   // From x = 1 (backed) to x = 7: beyond x = 5 the grid knows nothing, so the end at 7 is not cut.
-  const auto result = trim_to_grid(state_with({element_along_x(2, 1.0, 7.0, 0.0)}), kEverywhere, wall_probe, 12,
-                                   "grid-trim", {});
+  const auto result =
+      trim_to_grid(state_with({element_along_x(2, 1.0, 7.0, 0.0)}), kEverywhere, wall_probe, 12, "grid-trim", {});
   EXPECT_TRUE(result.update.decisions.empty());
   EXPECT_EQ(result.update.state.version, 7);
   ASSERT_EQ(result.checked.size(), 1u);
@@ -91,8 +91,8 @@ TEST(GridTrimTest, AnEndInUnknownSpaceStaysAndACutStopsAtTheFirstUnknownSample) 
 }
 
 TEST(GridTrimTest, AnElementTheGridBacksNowhereIsLeftWholeForTheRules) {
-  const auto result = trim_to_grid(state_with({element_along_x(3, -4.0, -1.0, 2.0)}), kEverywhere, wall_probe, 12,
-                                   "grid-trim", {});
+  const auto result =
+      trim_to_grid(state_with({element_along_x(3, -4.0, -1.0, 2.0)}), kEverywhere, wall_probe, 12, "grid-trim", {});
   EXPECT_TRUE(result.update.decisions.empty());
   ASSERT_EQ(result.checked.size(), 1u);
   EXPECT_DOUBLE_EQ(result.checked[0].backed, 0.0);
