@@ -11,7 +11,7 @@ namespace wm::fusion {
 
 /// Settings of the scan line extractor (split-and-merge, docs/fusion.md §2 for the fit).
 struct ScanLineOptions {
-  std::size_t min_points = 6;      // fewer points: no segment
+  std::size_t min_points = 6;      // fewer points in a piece as split: no segment (its fit may keep 4 after trimming)
   double min_length_m = 0.3;       // shorter: no segment
   double max_gap_m = 0.25;         // consecutive points farther apart start a new segment
   double split_distance_m = 0.03;  // split where a point is farther than max(this, 3σ) from the chord

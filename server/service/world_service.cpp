@@ -308,16 +308,23 @@ void WorldService::extract_grid_lines_if_due(std::int64_t scan_seq) {
 
 void WorldService::trim_to_grid_if_due(const json_codec::ScanRequest& scan, std::int64_t scan_seq) {
   if (options_.grid_trim_every == 0) return;
-  // Where this scan changed the grid (as emit_scan_event says it), plus a cell for the 3×3 neighbourhood.
-  const auto seen = std::visit(
-      [&](const auto& s) {
-        const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, options_.grid.sensor));
-        double half_width = options_.grid.sensor.laser_beam_width_rad / 2;
-        if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
-        const auto box = fusion::scan_footprint(s, reach, half_width, 3 * grid_->resolution_m());
-        return world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
-      },
-      scan.scan);
+  // Where this scan changed the grid (as emit_scan_event says it), plus a cell for the 3×3 neighbourhood. The scan
+  // is committed: nothing here may fail it.
+  world::Box seen;
+  try {
+    seen = std::visit(
+        [&](const auto& s) {
+          const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, options_.grid.sensor));
+          double half_width = options_.grid.sensor.laser_beam_width_rad / 2;
+          if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
+          const auto box = fusion::scan_footprint(s, reach, half_width, 3 * grid_->resolution_m());
+          return world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
+        },
+        scan.scan);
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: scan " << scan_seq << " left out of the grid trim: " << e.what() << "\n";
+    return;
+  }
   if (!trim_region_) trim_region_ = seen;
   trim_region_ = world::Box{std::min(trim_region_->x0, seen.x0), std::min(trim_region_->y0, seen.y0),
                             std::max(trim_region_->x1, seen.x1), std::max(trim_region_->y1, seen.y1)};
@@ -481,7 +488,9 @@ WorldService::PreparedUpdate WorldService::prepare_update(world::Observation obs
     // The rules' prune/3 sees the map as this update leaves it.
     std::vector<rules::ElementFacts> upserts;
     for (auto number : p.update.changed_elements) upserts.push_back(element_facts(p.update.state.elements.at(number)));
-    engine_.update_elements(upserts, {});
+    std::vector<std::string> joined_away;  // elements a join removed
+    for (auto number : p.update.removed_elements) joined_away.push_back("e" + std::to_string(number));
+    engine_.update_elements(upserts, joined_away);
     const auto orders = engine_.prune_orders(options_.max_prune_per_update);
     if (!orders.empty()) {
       world::apply_prune(p.update, orders, p.seq, observation.observer);

@@ -33,18 +33,24 @@ GridTrimResult trim_to_grid(const WorldState& current, const Box& region, const 
     std::size_t last = steps;
     while (last > first && samples[last] == GridEvidence::contrary) --last;
     if (samples[last] != GridEvidence::backed) last = steps;
-    std::size_t backed = 0, contrary = 0;
-    for (std::size_t i = first; i <= last; ++i) {
-      backed += samples[i] == GridEvidence::backed;
-      contrary += samples[i] == GridEvidence::contrary;
-    }
-    const auto kept = static_cast<double>(last - first + 1);
-    trim_result.checked.push_back({number, static_cast<double>(backed) / kept, static_cast<double>(contrary) / kept});
     const double dt = length / static_cast<double>(steps);
     const double t0 = segment.t0_m + static_cast<double>(first) * dt;
     const double t1 = segment.t0_m + static_cast<double>(last) * dt;
     const double cut = (t0 - segment.t0_m) + (segment.t1_m - t1);
-    if (cut < options.min_trim_m || t1 - t0 < options.min_kept_m) continue;
+    // Elements a client posted are not cut (a client may know of glass the laser sees through), nor cuts too small
+    // to matter, nor elements whose backed part is too short to stand for them.
+    const bool trims = element.origin != "client" && cut >= options.min_trim_m && t1 - t0 >= options.min_kept_m;
+    // The rules hear of what stays: the kept extent when cut, else the whole element.
+    const std::size_t from = trims ? first : 0, to = trims ? last : steps;
+    std::size_t backed = 0, contrary = 0;
+    for (std::size_t i = from; i <= to; ++i) {
+      backed += samples[i] == GridEvidence::backed;
+      contrary += samples[i] == GridEvidence::contrary;
+    }
+    const auto counted = static_cast<double>(to - from + 1);
+    trim_result.checked.push_back(
+        {number, static_cast<double>(backed) / counted, static_cast<double>(contrary) / counted});
+    if (!trims) continue;
 
     if (!bumped) {
       state.version = current.version + 1;

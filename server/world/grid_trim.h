@@ -24,7 +24,8 @@ struct GridTrimOptions {
   double min_kept_m = 0.10;  // an element whose backed part is shorter is left whole (removal is the rules') [m]
 };
 
-/// What the grid said of one element at a check, over the extent it keeps: shares of its samples.
+/// What the grid said of one element at a check, over the extent it keeps (the whole element when it is not cut):
+/// shares of its samples.
 struct GridShares {
   std::int64_t number = 0;
   double backed = 0, contrary = 0;  // [0, 1]; the rest is unknown to the grid
@@ -42,7 +43,7 @@ struct GridTrimResult {
 /// that ran past a wall's end (a door frame, a chair beside it) keeps the element reaching into space that
 /// every later scan sees through. Each cut is a "trim" decision of `observation_seq` with the old and new
 /// endpoints in before/after ([x0, y0, x1, y1]). `current` is not changed. Elements shorter than two samples are
-/// not looked at.
+/// not looked at; elements of origin "client" are looked at (their shares are reported) but never cut.
 GridTrimResult trim_to_grid(const WorldState& current, const Box& region, const GridProbe& probe,
                             std::int64_t observation_seq, const std::string& observer, const GridTrimOptions& options);
 

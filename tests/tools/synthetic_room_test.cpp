@@ -157,8 +157,9 @@ TEST_P(SyntheticRoomTest, OneElementPerWallAndNothingSpurious) {
 TEST(MovedObjectTest, ABoxCarriedAwayIsForgottenAndOneThatStaysIsKept) {
   const Room room{"rectangle", {{0, 0}, {8, 0}, {8, 5}, {0, 5}}, {{1.5, 1.5}, {6.5, 1.5}, {6.5, 3.5}, {1.5, 3.5}}};
   const std::vector<Point> box{{3.25, 2.2}, {4.75, 2.2}, {4.75, 2.8}, {3.25, 2.8}};
-  // Metres of element within 10 cm of the box's place, and the rules that removed elements.
-  const auto replay_with_box_for = [&](int box_laps, std::map<std::string, std::size_t>& removals) {
+  // Metres of element within 10 cm of the box's place, metres within 5 cm of the room's walls, and the rules that
+  // removed elements.
+  const auto replay_with_box_for = [&](int box_laps, std::map<std::string, std::size_t>& removals, double& on_walls) {
     TempDir dir;
     const auto log = dir.path() / "room.log";
     write_log(room, log, box, box_laps);
@@ -172,6 +173,8 @@ TEST(MovedObjectTest, ABoxCarriedAwayIsForgottenAndOneThatStaysIsKept) {
         for (int k = 0; k <= 100; ++k) {
           const Point p = a + (b - a) * (k / 100.0);
           if (p.x() > 3.15 && p.x() < 4.85 && p.y() > 2.1 && p.y() < 2.9) on_box += e.segment.length_m() / 101;
+          const double to_wall = std::min({p.x(), 8 - p.x(), p.y(), 5 - p.y()});
+          if (std::abs(to_wall) < 0.05) on_walls += e.segment.length_m() / 101;
         }
       }
       for (const auto& d : world.decisions(0, 1'000'000, std::nullopt))
@@ -180,13 +183,20 @@ TEST(MovedObjectTest, ABoxCarriedAwayIsForgottenAndOneThatStaysIsKept) {
     return on_box;
   };
   std::map<std::string, std::size_t> removals_kept, removals_gone;
-  const double kept = replay_with_box_for(2, removals_kept);
-  const double gone = replay_with_box_for(1, removals_gone);
-  std::printf("box: %.2f m of elements on it when it stays, %.2f m when it is carried away (%zu grid_unbacked)\n", kept,
-              gone, removals_gone["grid_unbacked"]);
+  double walls_kept = 0, walls_gone = 0;
+  const double kept = replay_with_box_for(2, removals_kept, walls_kept);
+  const double gone = replay_with_box_for(1, removals_gone, walls_gone);
+  std::printf(
+      "box: %.2f m of elements on it when it stays, %.2f m when it is carried away (%zu grid_unbacked); "
+      "walls %.2f m and %.2f m\n",
+      kept, gone, removals_gone["grid_unbacked"], walls_kept, walls_gone);
   EXPECT_GT(kept, 2.5) << "the box's sides seen in both laps";
   EXPECT_LT(gone, 0.1) << "elements of a box that has gone stay in the map";
   EXPECT_GT(removals_gone["grid_unbacked"], 0u);
+  // The room's 26 m of walls stay mapped either way: the grid backs them, so neither the trim nor the rule takes
+  // them.
+  EXPECT_GT(walls_kept, 0.8 * 26.0);
+  EXPECT_GT(walls_gone, 0.8 * 26.0);
 }
 
 INSTANTIATE_TEST_SUITE_P(

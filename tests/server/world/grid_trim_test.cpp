@@ -99,6 +99,27 @@ TEST(GridTrimTest, AnElementTheGridBacksNowhereIsLeftWholeForTheRules) {
   EXPECT_DOUBLE_EQ(result.checked[0].contrary, 1.0);
 }
 
+TEST(GridTrimTest, AnElementLeftWholeIsReportedWholeSoTheRulesCanRemoveIt) {
+  // From x = 2.97 to x = 4.9: only its first sample touches the wall's end. Its backed part is too short to keep,
+  // so it is not cut, and the rules must hear that the grid backs almost none of it.
+  const auto result =
+      trim_to_grid(state_with({element_along_x(8, 2.97, 4.9, 0.0)}), kEverywhere, wall_probe, 12, "grid-trim", {});
+  EXPECT_TRUE(result.update.decisions.empty());
+  ASSERT_EQ(result.checked.size(), 1u);
+  EXPECT_LT(result.checked[0].backed, 0.05);
+  EXPECT_GT(result.checked[0].contrary, 0.9);
+}
+
+TEST(GridTrimTest, AClientsElementIsNeverCutButItsSharesAreReported) {
+  Element posted = element_along_x(9, 0.0, 4.0, 0.0);
+  posted.origin = "client";
+  const auto result = trim_to_grid(state_with({posted}), kEverywhere, wall_probe, 12, "grid-trim", {});
+  EXPECT_TRUE(result.update.decisions.empty());
+  ASSERT_EQ(result.checked.size(), 1u);
+  EXPECT_NEAR(result.checked[0].backed, 0.5, 0.02);
+  EXPECT_NEAR(result.checked[0].contrary, 0.5, 0.02);
+}
+
 TEST(GridTrimTest, CutsShorterThanTheMinimumAndElementsOutsideTheRegionAreLeftAlone) {
   // 3 cm past the wall's end: one sample, cut by default, not when the minimum cut is 10 cm.
   const WorldState past_by_3cm = state_with({element_along_x(4, 1.0, 3.03, 0.0)});

@@ -269,9 +269,13 @@ TEST(UpdateTest, ASingleTiltedViewLyingAlongAWallIsJoinedIntoItAsAPiece) {
   piece.number = 2;
   piece.support = 2;
   twice.elements.put(piece);
+  twice.next_element_number = 3;
   const auto grown =
       apply_observation(twice, observe({{{0.0, 0.0}, {6.0, 0.0}}}, options), 3, options, std::ref(again));
   EXPECT_EQ(grown.state.elements.size(), 2u);
+  EXPECT_TRUE(grown.removed_elements.empty());
+  EXPECT_EQ(grown.state.elements.at(2).support, 2);
+  EXPECT_EQ(grown.state.elements.at(1).support, 2) << "the view merged into the wall";
 }
 
 TEST(UpdateTest, AnElementBuiltFromABentWallTakesNoMoreObservations) {
