@@ -9,6 +9,12 @@
 namespace wm::apriori {
 namespace {
 
+/// gtest assertion that `text` contains `part` (the tests do not link gmock's matchers).
+::testing::AssertionResult contains(const std::string& text, const std::string& part) {
+  if (text.find(part) != std::string::npos) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "'" << part << "' not found in:\n" << text;
+}
+
 TEST(GeoJsonWriterTest, WritesAFeatureCollectionOfLineStrings) {
   LayerLines confirmed{"confirmed", {{{0.0, 0.0}, {1.0 / 3.0, 2.5}}, {{1, 1}, {2, 1}, {2, 2}}}};
   confirmed.ids = {"wall-1", "wall-2"};
@@ -41,6 +47,41 @@ TEST(GeoJsonWriterTest, BadInputIsAnInvalidArgument) {
   LayerLines ids{"a", {{{0, 0}, {1, 1}}}};
   ids.ids = {"x", "y"};
   EXPECT_THROW(write_geojson({ids}), std::invalid_argument);
+}
+
+TEST(GeoJsonWriterTest, WithoutAGeoreferenceItSaysTheCoordinatesAreLocalMetres) {
+  const auto j = nlohmann::json::parse(write_geojson({LayerLines{"a", {{{0, 0}, {90, 0}}}}}));
+  EXPECT_EQ(j["features"][0]["geometry"]["coordinates"][1][0], 90.0);  // unchanged metres
+  EXPECT_TRUE(contains(j["coordinate_system"].get<std::string>(), "local metres"));
+  EXPECT_EQ(j["crs"]["type"], "name");
+  const auto crs_name = j["crs"]["properties"]["name"].get<std::string>();
+  EXPECT_TRUE(crs_name.starts_with("ENGCRS[")) << crs_name;
+  EXPECT_FALSE(j.contains("georeference"));
+}
+
+TEST(GeoJsonWriterTest, WithAGeoreferenceCoordinatesAreLongitudeLatitude) {
+  const Georeference g{45.0, 7.0, 90.0};
+  const auto j = nlohmann::json::parse(write_geojson({LayerLines{"a", {{{0, 0}, {1000, 0}}}}}, g));
+  const auto& c = j["features"][0]["geometry"]["coordinates"];
+  EXPECT_NEAR(c[0][0].get<double>(), 7.0, 1e-12);
+  EXPECT_NEAR(c[0][1].get<double>(), 45.0, 1e-12);
+  // PROJ's value (see tests/apriori/geo/georeference_test.cpp), written with all its digits: 1e-13° is 1e-8 m.
+  EXPECT_NEAR(c[1][0].get<double>(), 7.01268281703984, 1e-13);
+  EXPECT_NEAR(c[1][1].get<double>(), 44.9999992957776, 1e-13);
+  EXPECT_FALSE(j.contains("crs"));  // RFC 7946: WGS 84 is implied
+  EXPECT_TRUE(contains(j["coordinate_system"].get<std::string>(), "WGS 84 longitude, latitude"));
+  EXPECT_EQ(j["georeference"]["latitude_deg"], 45.0);
+  EXPECT_EQ(j["georeference"]["longitude_deg"], 7.0);
+  EXPECT_EQ(j["georeference"]["heading_deg"], 90.0);
+}
+
+TEST(GeoJsonWriterTest, BadGeoreferenceNamesTheField) {
+  try {
+    write_geojson({}, Georeference{91.0, 0.0, 0.0});
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_TRUE(std::string(e.what()).starts_with("write_geojson: georeference latitude_deg: expected")) << e.what();
+  }
 }
 
 }  // namespace
