@@ -174,7 +174,9 @@ FloorPlan parse_floor_plan_json(std::string_view text_in, const FloorPlanLimits&
     throw FloorPlanError("", std::string("number out of range (must be finite): ") + e.what());
   }
   if (!doc.is_object()) throw FloorPlanError("", "a floor plan is a JSON object with \"objects\"");
-  require_known_keys(doc, "", {"name", "units", "objects", "description"});
+  // "placement" and "georeference" are what GET /api/v1/floorplan adds: a plan read back loads as it was drawn
+  // (the placement in force stays; it changes only through its own requests).
+  require_known_keys(doc, "", {"name", "units", "objects", "description", "placement", "georeference"});
   FloorPlan plan;
   plan.name = doc.contains("name") ? text(doc["name"], "name", 256) : std::string("unnamed");
   const double scale = unit_scale(doc);

@@ -21,10 +21,11 @@ enum class Action {
   ignore,        // change nothing
   prune,         // remove an element the rules' prune/3 named (not an answer of decide/5)
   trim,          // cut an element's ends back to what the occupancy grid backs (not an answer of decide/5)
+  place,         // the floor plan's placement in the world changed (not an answer of decide/5)
 };
 
 namespace detail {
-inline constexpr std::array<std::pair<Action, std::string_view>, 7> kActionNames{{
+inline constexpr std::array<std::pair<Action, std::string_view>, 8> kActionNames{{
     {Action::confirm, "delete"},
     {Action::merge, "merge"},
     {Action::rigid_adjust, "rigid_adjust"},
@@ -32,6 +33,7 @@ inline constexpr std::array<std::pair<Action, std::string_view>, 7> kActionNames
     {Action::ignore, "ignore"},
     {Action::prune, "prune"},
     {Action::trim, "trim"},
+    {Action::place, "place"},
 }};
 }  // namespace detail
 

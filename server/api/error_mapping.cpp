@@ -1,5 +1,7 @@
 #include "server/api/error_mapping.h"
 
+#include "fusion/registration/plan_registration.h"
+
 #include <stdexcept>
 
 #include "apriori/floor_plan.h"
@@ -44,6 +46,10 @@ HttpError http_error(const std::exception_ptr& failure) {
     return {422, "rule_error", e.what()};
   } catch (const service::RequestIdConflict& e) {
     return {409, "request_id_conflict", e.what()};
+  } catch (const service::Conflict& e) {
+    return {409, "conflict", e.what()};
+  } catch (const fusion::RegistrationError& e) {
+    return {400, "bad_request", e.what()};
   } catch (const service::Busy& e) {
     return {503, "busy", e.what()};
   } catch (const storage::StorageError& e) {

@@ -31,6 +31,13 @@ Response get_root(const Call& call);   // GET /: the viewer's index.html when se
 // handlers/floorplan.cpp
 Response get_floor_plan(const Call& call);
 Response put_floor_plan(const Call& call);
+Response post_floor_plan_place(const Call& call);     // POST /api/v1/floorplan/place: an explicit placement
+Response post_floor_plan_pairs(const Call& call);     // POST /api/v1/floorplan/pairs: from plan ↔ world point pairs
+Response post_floor_plan_align(const Call& call);     // POST /api/v1/floorplan/align: searched against the grid
+Response post_floor_plan_undo(const Call& call);      // POST /api/v1/floorplan/undo: the placement before
+Response post_floor_plan_redecide(const Call& call);  // POST /api/v1/floorplan/redecide
+Response put_georeference(const Call& call);          // PUT /api/v1/floorplan/georeference
+Response delete_georeference(const Call& call);
 // handlers/map.cpp
 Response get_map(const Call& call);
 Response get_map_quality(const Call& call);  // GET /api/v1/map/quality

@@ -310,8 +310,27 @@ json map_json(const world::WorldState& state, const world::WorldOptions& options
   }
   return {{"version", state.version},
           {"plan", state.plan_name},
+          {"placement", placement_json(state.placement, state.placement_cov)},
+          {"georeference", georeference_json(state.georeference)},
           {"objects", std::move(objects)},
           {"elements", std::move(elements)}};
+}
+
+json placement_json(const fusion::Similarity2D& placement, const Eigen::Matrix4d& cov) {
+  json rows = json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back(json::array({cov(r, 0), cov(r, 1), cov(r, 2), cov(r, 3)}));
+  return {{"x", placement.x_m},
+          {"y", placement.y_m},
+          {"theta", placement.theta_rad},
+          {"scale", placement.scale},
+          {"cov", std::move(rows)}};
+}
+
+json georeference_json(const std::optional<apriori::Georeference>& georeference) {
+  if (!georeference) return nullptr;
+  return {{"latitude", georeference->latitude_deg},
+          {"longitude", georeference->longitude_deg},
+          {"heading", georeference->heading_deg}};
 }
 
 namespace {
@@ -324,6 +343,12 @@ json state_numbers_json(const std::vector<double>& v) {
     return {{"rho", v[0]}, {"phi", v[1]}, {"cov", json::array({json::array({v[2], v[3]}), json::array({v[4], v[5]})})}};
   }
   if (v.size() == 4) return {{"p0", json::array({v[0], v[1]})}, {"p1", json::array({v[2], v[3]})}};  // a trim
+  if (v.size() == 20) {  // a placement: x, y, θ, scale, C(4×4)
+    Eigen::Matrix4d cov;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) cov(r, c) = v[static_cast<std::size_t>(4 + 4 * r + c)];
+    return placement_json({v[0], v[1], v[2], v[3]}, cov);
+  }
   if (v.size() == 12) {
     json cov = json::array();
     for (int r = 0; r < 3; ++r) cov.push_back(json::array({v[3 + 3 * r], v[4 + 3 * r], v[5 + 3 * r]}));

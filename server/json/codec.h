@@ -59,6 +59,10 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits);
 nlohmann::json object_json(const world::ObjectState& object, const world::WorldOptions& options);
 nlohmann::json element_json(const world::Element& element);
 /// With an excerpt, only its objects and elements (the answer to ?bbox=).
+/// {"x", "y", "theta", "scale", "cov": 4×4 over (x, y, θ, scale)}.
+nlohmann::json placement_json(const fusion::Similarity2D& placement, const Eigen::Matrix4d& cov);
+/// {"latitude", "longitude", "heading"} in degrees, or null.
+nlohmann::json georeference_json(const std::optional<apriori::Georeference>& georeference);
 nlohmann::json map_json(const world::WorldState& state, const world::WorldOptions& options,
                         const std::optional<world::MapExcerpt>& excerpt = std::nullopt);
 nlohmann::json decision_json(const world::DecisionRecord& decision);

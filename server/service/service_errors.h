@@ -11,6 +11,13 @@ class Busy : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A request the map's state does not allow now (HTTP 409): no floor plan to place, an empty grid to align against,
+/// nothing to undo. Nothing was applied.
+class Conflict : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// A request id (Idempotency-Key) that was used before with another body or on another endpoint (HTTP 409).
 /// Nothing was applied.
 class RequestIdConflict : public std::runtime_error {

@@ -14,6 +14,7 @@
 #include "apriori/floor_plan.h"
 #include "fusion/grid/grid_geometry.h"
 #include "fusion/grid/occupancy_grid.h"
+#include "fusion/registration/plan_registration.h"
 #include "rules/types.h"
 #include "server/json/codec.h"
 #include "server/service/service_errors.h"
@@ -47,6 +48,38 @@ struct DryRunOutcome {
   std::vector<DryRunChange> changes;
 };
 
+/// A placement of the plan put in force.
+struct PlacementOutcome {
+  std::int64_t version = 0;
+  world::DecisionRecord decision;  // the `place` decision with before/after
+};
+
+/// What re-deciding the observed elements against the plan did.
+struct RedecideOutcome {
+  std::size_t elements = 0;                      // elements put to the rules
+  std::int64_t version = 0;                      // map version after (unchanged when nothing changed)
+  std::vector<world::DecisionRecord> decisions;  // the decisions that changed the map (kept elements: none)
+};
+
+struct AlignRequest {
+  fusion::RegistrationOptions search;  // `initial` is set by the service to the placement in force
+  bool apply = false;                  // put the best placement in force when it is good and not ambiguous
+  bool apply_ambiguous = false;        // ... even when it is ambiguous
+  double min_score = 0.5;              // below this share of the seen plan on occupied cells, nothing is applied
+  bool redecide = false;               // after applying, re-decide the observed elements
+  std::string observer = "client";
+};
+
+struct AlignOutcome {
+  fusion::RegistrationResult result;
+  fusion::Similarity2D before;
+  bool applied = false;
+  std::string verdict;  // "applied", or why not: "preview", "ambiguous", "low_score", "timed_out", "cancelled"
+  std::optional<PlacementOutcome> placement;
+  std::optional<RedecideOutcome> redecided;
+  std::size_t edges = 0;  // drawn edges searched (solid objects' when the plan marks any)
+};
+
 /// The cells of one grid layer over a region, with the grid revision they were read at.
 struct GridLayerValues {
   std::vector<float> values;  // row-major from the lower-left cell; NaN = unknown
@@ -77,6 +110,19 @@ class WorldPort {
   /// Replaces the floor plan; the observed elements stay. Returns the new map version.
   /// @throw Busy, storage::StorageError, std::invalid_argument for bad geometry.
   virtual std::int64_t load_floor_plan(apriori::FloorPlan plan) = 0;
+  /// Puts a placement of the plan in force (one logged `place` decision; objects keep their pose relative to the
+  /// drawing). `payload_json` is journaled. @throw Conflict without a plan, Busy, storage::StorageError.
+  virtual PlacementOutcome place_floor_plan(world::PlacementChange change, std::string payload_json) = 0;
+  /// Searches the placement that fits the grid best, and applies it when asked and it is sound.
+  /// @throw Conflict without a plan or with an empty grid, fusion::RegistrationError for bad bounds, Busy.
+  virtual AlignOutcome align_floor_plan(AlignRequest request) = 0;
+  /// Goes back to the placement before the one in force. @throw Conflict when the plan is as drawn.
+  virtual PlacementOutcome undo_placement(std::string observer) = 0;
+  /// Puts every observed element to the rules against the plan as placed now: elements the plan confirms go,
+  /// merges and rigid adjustments are applied; elements the rules would add again stay as they are.
+  virtual RedecideOutcome redecide_elements(std::string observer) = 0;
+  /// Sets (or, with nullopt, removes) the world frame's georeference. Returns the new map version.
+  virtual std::int64_t set_georeference(std::optional<apriori::Georeference> georeference) = 0;
   /// Runs the grid line extractor on the Bayes layer and decides its segments like posted primitives.
   /// nullopt when the grid is empty or yields no line. @throw Busy, storage::StorageError.
   virtual std::optional<PrimitivesOutcome> extract_grid_lines() = 0;

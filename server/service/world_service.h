@@ -117,6 +117,11 @@ class WorldService final : public WorldPort {
                         std::optional<std::string> request_id) override;
   /// Replaces the floor plan (store and knowledge base facts). Returns the new map version.
   std::int64_t load_floor_plan(apriori::FloorPlan plan) override;
+  PlacementOutcome place_floor_plan(world::PlacementChange change, std::string payload_json) override;
+  AlignOutcome align_floor_plan(AlignRequest request) override;
+  PlacementOutcome undo_placement(std::string observer) override;
+  RedecideOutcome redecide_elements(std::string observer) override;
+  std::int64_t set_georeference(std::optional<apriori::Georeference> georeference) override;
   /// Converts the Bayes grid into line segments (threshold, thinning, Hough, fits with eq. 3 covariance) and
   /// decides them like posted primitives (origin "grid"). nullopt when the grid is empty or yields no line.
   std::optional<PrimitivesOutcome> extract_grid_lines() override;
@@ -176,6 +181,9 @@ class WorldService final : public WorldPort {
   std::optional<storage::RequestRecord> known_request(const std::string& request_id, std::string_view kind,
                                                       std::int64_t body_hash);
   std::optional<PrimitivesOutcome> extract_grid_lines_on_writer();
+  /// On the writer: applies and commits a placement (`undo`: pops the stack instead of pushing).
+  PlacementOutcome place_on_writer(const world::PlacementChange& change, const std::string& payload, bool undo);
+  RedecideOutcome redecide_on_writer(const std::string& observer);
 
   // The steps of post_scan, in order, on the writer thread.
   /// The first answer to a scan retried with its request id; nullopt: apply it. @throw RequestIdConflict.

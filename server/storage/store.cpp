@@ -71,6 +71,15 @@ CREATE INDEX decisions_by_observation ON decisions(observation_seq);
     R"sql(
 ALTER TABLE elements ADD COLUMN moments BLOB;
 )sql",
+    // v6: the plan's placement in the world, a stack (the top row is in force; undo removes it), each row with the
+    // decision that logged it; the world frame's georeference.
+    R"sql(
+CREATE TABLE placements(ord INTEGER PRIMARY KEY, x REAL NOT NULL, y REAL NOT NULL, theta REAL NOT NULL,
+                        scale REAL NOT NULL, cov BLOB NOT NULL, rule TEXT NOT NULL, decision_seq INTEGER NOT NULL,
+                        version INTEGER NOT NULL, created_at REAL NOT NULL);
+CREATE TABLE georeference(id INTEGER PRIMARY KEY CHECK (id = 1), latitude REAL NOT NULL, longitude REAL NOT NULL,
+                          heading REAL NOT NULL);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);
@@ -165,12 +174,20 @@ world::WorldState Store::load(const world::WorldOptions& options) {
         state.last_decision_seq = value;
     }
   }
+  if (const auto history = placements(); !history.empty()) {
+    state.placement = history.back().placement;
+    state.placement_cov = history.back().cov;
+  }
+  {
+    Statement s(writer_, "SELECT latitude, longitude, heading FROM georeference WHERE id = 1");
+    if (s.step()) state.georeference = apriori::Georeference{s.column_double(0), s.column_double(1), s.column_double(2)};
+  }
   {
     Statement s(writer_, "SELECT name, plan_json FROM floor_plan WHERE id = 1");
     if (s.step()) {
       const auto plan = apriori::parse_floor_plan_json(s.column_text(1));
       state.plan_name = plan.name;
-      state.objects = world::ObjectTable(world::make_objects(plan, options, 0));
+      state.objects = world::ObjectTable(world::make_objects(plan, options, 0, state.placement));
     }
   }
   {
@@ -344,6 +361,50 @@ std::optional<RequestRecord> Store::find_request(const std::string& request_id) 
   r.grid_revision = s.column_int(4);
   r.lines_seq = s.column_optional_int(5);
   return r;
+}
+
+std::vector<StoredPlacement> Store::placements() {
+  std::vector<StoredPlacement> result;
+  Statement s(writer_, "SELECT x, y, theta, scale, cov, rule, decision_seq FROM placements ORDER BY ord");
+  while (s.step())
+    result.push_back({{s.column_double(0), s.column_double(1), s.column_double(2), s.column_double(3)},
+                      read_matrix<Eigen::Matrix4d>(s, 4),
+                      s.column_text(5),
+                      s.column_int(6)});
+  return result;
+}
+
+void Store::commit_placement(const ObservationEntry& entry, bool undo) {
+  Transaction tx(writer_);
+  write_observation(entry);
+  const auto& state = entry.update.state;
+  if (undo) {
+    writer_.exec("DELETE FROM placements WHERE ord = (SELECT MAX(ord) FROM placements)");
+  } else {
+    Statement s(writer_,
+                "INSERT INTO placements(x, y, theta, scale, cov, rule, decision_seq, version, created_at) "
+                "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)");
+    s.bind(1, state.placement.x_m).bind(2, state.placement.y_m).bind(3, state.placement.theta_rad);
+    s.bind(4, state.placement.scale);
+    bind_matrix(s, 5, state.placement_cov);
+    const auto& d = entry.update.decisions.at(0);
+    s.bind(6, std::string_view(d.rule)).bind(7, d.seq).bind(8, state.version).bind(9, now_unix_s()).run();
+  }
+  tx.commit();
+}
+
+void Store::commit_georeference(const world::WorldState& state) {
+  Transaction tx(writer_);
+  if (state.georeference) {
+    run(writer_,
+        "INSERT INTO georeference(id, latitude, longitude, heading) VALUES (1, ?1, ?2, ?3) ON CONFLICT(id) DO UPDATE "
+        "SET latitude = excluded.latitude, longitude = excluded.longitude, heading = excluded.heading",
+        state.georeference->latitude_deg, state.georeference->longitude_deg, state.georeference->heading_deg);
+  } else {
+    writer_.exec("DELETE FROM georeference");
+  }
+  write_counters(state);
+  tx.commit();
 }
 
 void Store::commit_floor_plan(const world::UpdateResult& update, const apriori::FloorPlan& plan) {

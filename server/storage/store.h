@@ -35,6 +35,14 @@ struct RequestRecord {
   std::optional<std::int64_t> lines_seq;  // scan only: the observation of its extracted lines, if any
 };
 
+/// One placement of the plan as stored: the stack's rows, oldest first.
+struct StoredPlacement {
+  fusion::Similarity2D placement;
+  Eigen::Matrix4d cov = Eigen::Matrix4d::Zero();
+  std::string rule;
+  std::int64_t decision_seq = 0;
+};
+
 /// One scan for the journal: its request body is what is replayed into the grid at start.
 struct ScanEntry {
   std::int64_t seq = 0;  // = the grid revision it brings the grid to (one more than the last journaled scan)
@@ -59,7 +67,7 @@ class Store {
   /// Opens or creates the file and migrates it. @throw StorageError (also for a file newer than this build).
   explicit Store(const StoreOptions& options);
 
-  static constexpr int kSchemaVersion = 5;
+  static constexpr int kSchemaVersion = 6;
   int schema_version();
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
@@ -69,8 +77,15 @@ class Store {
   /// record, when given, in one transaction. @throw StorageError (nothing written then).
   void commit_observation(const world::UpdateResult& update, const world::Observation& observation,
                           std::string_view payload_json, const std::optional<RequestRecord>& request = std::nullopt);
-  /// Replaces the stored floor plan and objects in one transaction.
+  /// Replaces the stored floor plan and objects in one transaction. The placement stays.
   void commit_floor_plan(const world::UpdateResult& update, const apriori::FloorPlan& plan);
+  /// A change of placement: its observation, decision and moved objects, and the placement pushed on the stack
+  /// (or, for an undo, the top row removed), in one transaction. @throw StorageError (nothing written then).
+  void commit_placement(const ObservationEntry& entry, bool undo);
+  /// The placements in force and before, oldest first (empty: the plan as drawn).
+  std::vector<StoredPlacement> placements();
+  /// The world frame's georeference (removed when the state has none) and the counters.
+  void commit_georeference(const world::WorldState& state);
 
   /// Decisions with seq > since_seq in order, at most `limit`; only those about `element` when given.
   std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,

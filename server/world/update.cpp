@@ -409,8 +409,47 @@ UpdateResult apply_floor_plan(const WorldState& current, const apriori::FloorPla
   WorldState& state = result.state;
   state.version = current.version + 1;
   state.plan_name = plan.name;
-  state.objects = ObjectTable(make_objects(plan, options, state.version));
+  state.objects = ObjectTable(make_objects(plan, options, state.version, current.placement));
   for (std::size_t i = 0; i < state.objects.size(); ++i) result.changed_objects.insert(i);
+  return result;
+}
+
+std::vector<double> placement_numbers(const fusion::Similarity2D& placement, const Eigen::Matrix4d& cov) {
+  std::vector<double> numbers{placement.x_m, placement.y_m, placement.theta_rad, placement.scale};
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) numbers.push_back(cov(r, c));
+  return numbers;
+}
+
+UpdateResult apply_placement(const WorldState& current, const PlacementChange& change, std::int64_t observation_seq) {
+  UpdateResult result{current, {}, {}, {}, {}};
+  WorldState& state = result.state;
+  state.version = current.version + 1;
+  state.last_observation_seq = observation_seq;
+  state.placement = change.placement;
+  state.placement_cov = change.cov;
+  // A new table: a change of scale changes the edges without moving the poses, which ObjectTable::put would not
+  // re-index.
+  std::vector<ObjectState> objects;
+  objects.reserve(current.objects.size());
+  for (std::size_t i = 0; i < current.objects.size(); ++i) {
+    objects.push_back(replaced(current.objects[i], current.placement, change.placement));
+    objects.back().updated_version = state.version;
+    result.changed_objects.insert(i);
+  }
+  state.objects = ObjectTable(std::move(objects));
+  DecisionRecord d;
+  d.seq = ++state.last_decision_seq;
+  d.observation_seq = observation_seq;
+  d.action = rules::Action::place;
+  d.rule = change.rule;
+  d.explanation = change.explanation;
+  d.observer = change.observer;
+  d.origin = "client";
+  d.sensor = "none";
+  d.before = placement_numbers(current.placement, current.placement_cov);
+  d.after = placement_numbers(change.placement, change.cov);
+  result.decisions.push_back(std::move(d));
   return result;
 }
 

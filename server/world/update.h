@@ -85,7 +85,24 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
 void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& orders, std::int64_t observation_seq,
                  const std::string& observer);
 
-/// Replaces the floor plan; observed elements stay. @throw std::invalid_argument on geometry fusion rejects.
+/// Replaces the floor plan (placed as the current plan is); observed elements stay.
+/// @throw std::invalid_argument on geometry fusion rejects.
 UpdateResult apply_floor_plan(const WorldState& current, const apriori::FloorPlan& plan, const WorldOptions& options);
+
+/// Why a placement changes, for its decision record.
+struct PlacementChange {
+  fusion::Similarity2D placement;
+  Eigen::Matrix4d cov = Eigen::Matrix4d::Zero();
+  std::string rule;         // placed | paired | aligned | undone
+  std::string explanation;  // what the decision log says
+  std::string observer;     // who asked
+};
+
+/// Places the plan anew: every object keeps its pose relative to the drawing (see replaced()); one `place` decision
+/// with the placement before and after ([x, y, θ, scale, C(4×4 row-major)]) as observation `observation_seq`.
+UpdateResult apply_placement(const WorldState& current, const PlacementChange& change, std::int64_t observation_seq);
+
+/// The numbers a `place` decision keeps of a placement: x, y, θ, scale, then the 4×4 covariance row-major.
+std::vector<double> placement_numbers(const fusion::Similarity2D& placement, const Eigen::Matrix4d& cov);
 
 }  // namespace wm::world

@@ -1,5 +1,6 @@
 #include "server/world/world_state.h"
 
+#include <Eigen/Geometry>
 #include <charconv>
 #include <stdexcept>
 
@@ -114,16 +115,47 @@ MapExcerpt map_excerpt(const WorldState& state, const Box& box) {
   return excerpt;
 }
 
+namespace {
+
+// The object's edges at the placement's scale (its own frame turns with its pose).
+std::vector<fusion::LocalEdge> scaled_edges(const apriori::PlanObject& drawn, double scale) {
+  auto edges = drawn.edges();
+  if (scale != 1.0)
+    for (auto& e : edges) {
+      e.p0 *= scale;
+      e.p1 *= scale;
+    }
+  return edges;
+}
+
+// A pose covariance carried through a change of placement: position turned by dθ and scaled by `ratio`.
+Eigen::Matrix3d placed_cov(const Eigen::Matrix3d& cov, double dtheta, double ratio) {
+  Eigen::Matrix3d j = Eigen::Matrix3d::Identity();
+  j.topLeftCorner<2, 2>() = ratio * Eigen::Rotation2Dd(dtheta).toRotationMatrix();
+  return j * cov * j.transpose();
+}
+
+}  // namespace
+
 std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
-                                      std::int64_t version) {
+                                      std::int64_t version, const fusion::Similarity2D& placement) {
   std::vector<ObjectState> objects;
   objects.reserve(plan.objects.size());
   for (const auto& drawn : plan.objects) {
     auto shared = std::make_shared<const apriori::PlanObject>(drawn);
-    fusion::RigidObject body(drawn.pose, drawn.pose_cov.value_or(options.default_pose_cov), drawn.edges());
+    const auto cov = placed_cov(drawn.pose_cov.value_or(options.default_pose_cov), placement.theta_rad, 1.0);
+    fusion::RigidObject body(placement.transform_pose(drawn.pose), cov, scaled_edges(drawn, placement.scale));
     objects.push_back(ObjectState{std::move(shared), std::move(body), 0, 0, version});
   }
   return objects;
+}
+
+ObjectState replaced(const ObjectState& object, const fusion::Similarity2D& from, const fusion::Similarity2D& to) {
+  ObjectState moved = object;
+  const auto in_drawing = from.inverse_transform_pose(object.body.pose());
+  const auto cov = placed_cov(object.body.pose_cov(), to.theta_rad - from.theta_rad, to.scale / from.scale);
+  moved.body = fusion::RigidObject(to.transform_pose(in_drawing), cov, scaled_edges(*object.plan, to.scale));
+  return moved;
 }
 
 Eigen::Matrix2d midpoint_line_cov(const fusion::LineSegment& segment, double sigma_offset_m, double sigma_angle_rad) {

@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "apriori/floor_plan.h"
+#include "apriori/geo/georeference.h"
+#include "fusion/geometry/similarity2d.h"
 #include "fusion/geometry/line.h"
 #include "fusion/kalman/line_map.h"
 #include "fusion/kalman/rigid_object.h"
@@ -151,6 +153,11 @@ class ObjectTable {
 struct WorldState {
   std::int64_t version = 0;  // increases by one per applied request
   std::string plan_name;
+  /// Where the plan's drawing frame sits in the world; every object's pose and edges are placed through it.
+  fusion::Similarity2D placement;
+  Eigen::Matrix4d placement_cov = Eigen::Matrix4d::Zero();  // over (x, y, θ, scale); zero for "as drawn"
+  /// The world frame on the Earth, when known (the GeoJSON export is in WGS 84 then).
+  std::optional<apriori::Georeference> georeference;
   ObjectTable objects;
   ElementTable elements;
   std::int64_t next_element_number = 1;
@@ -171,9 +178,14 @@ struct MapExcerpt {
 };
 MapExcerpt map_excerpt(const WorldState& state, const Box& box);
 
-/// Builds the object states of a plan (poses as drawn). @throw std::invalid_argument from fusion on bad geometry.
+/// Builds the object states of a plan, placed in the world by `placement` (poses and edges as drawn, then placed).
+/// @throw std::invalid_argument from fusion on bad geometry.
 std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
-                                      std::int64_t version);
+                                      std::int64_t version, const fusion::Similarity2D& placement = {});
+
+/// An object moved from one placement of the plan to another: its pose relative to the drawing (a rigid adjustment
+/// included) is kept, its edges take the new scale, its covariance turns and scales with it.
+ObjectState replaced(const ObjectState& object, const fusion::Similarity2D& from, const fusion::Similarity2D& to);
 
 /// (ρ, φ) covariance of a line known to σ_offset [m] across the segment's midpoint and σ_angle [rad] in
 /// direction: J diag(σ_offset², σ_angle²) Jᵀ with J = [[1, t_mid], [0, 1]], t_mid the midpoint's coordinate

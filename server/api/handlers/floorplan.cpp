@@ -135,7 +135,11 @@ Response get_floor_plan(const Call& call) {
   const auto snap = call.world.snapshot();
   apriori::FloorPlan plan{snap->plan_name, {}};
   for (const auto& o : snap->objects) plan.objects.push_back(*o.plan);
-  return json_response(call.request, json_codec::parse_json(apriori::to_json_text(plan)));
+  // The plan as drawn, and where it sits in the world.
+  auto answer = json_codec::parse_json(apriori::to_json_text(plan));
+  answer["placement"] = json_codec::placement_json(snap->placement, snap->placement_cov);
+  answer["georeference"] = json_codec::georeference_json(snap->georeference);
+  return json_response(call.request, answer);
 }
 
 Response put_floor_plan(const Call& call) {

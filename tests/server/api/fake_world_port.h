@@ -42,6 +42,9 @@ class FakeWorldPort final : public service::WorldPort {
   std::optional<std::string> last_element_filter;
   std::string last_goal;
   std::optional<rules::RuleText> last_candidate;
+  std::optional<world::PlacementChange> last_placement;
+  std::optional<service::AlignRequest> last_align;
+  service::AlignOutcome align_answer;
 
   // --- WorldPort ---
   std::shared_ptr<const world::WorldState> snapshot() const override { return state_; }
@@ -67,6 +70,32 @@ class FakeWorldPort final : public service::WorldPort {
     enter("load_floor_plan");
     last_plan = std::move(plan);
     return 9;
+  }
+  service::PlacementOutcome place_floor_plan(world::PlacementChange change, std::string payload_json) override {
+    enter("place_floor_plan");
+    last_payload = std::move(payload_json);
+    last_placement = change;
+    auto update = world::apply_placement(*state_, change, state_->last_observation_seq + 1);
+    state_ = std::make_shared<world::WorldState>(update.state);
+    return {state_->version, update.decisions.at(0)};
+  }
+  service::AlignOutcome align_floor_plan(service::AlignRequest request) override {
+    enter("align_floor_plan");
+    last_align = request;
+    return align_answer;
+  }
+  service::PlacementOutcome undo_placement(std::string) override {
+    enter("undo_placement");
+    return {1, decision(rules::Action::place, "")};
+  }
+  service::RedecideOutcome redecide_elements(std::string) override {
+    enter("redecide_elements");
+    return {2, 3, {decision(rules::Action::confirm, "e1")}};
+  }
+  std::int64_t set_georeference(std::optional<apriori::Georeference> georeference) override {
+    enter("set_georeference");
+    state_->georeference = georeference;
+    return ++state_->version;
   }
   std::optional<service::PrimitivesOutcome> extract_grid_lines() override {
     enter("extract_grid_lines");
