@@ -193,7 +193,8 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   // Back to schema 3 as version 3 wrote it: scan 1 with lines (observation 2), scan 2 without.
   const char* v3 = R"sql(
     DROP INDEX decisions_by_observation; DROP TABLE requests; ALTER TABLE scans DROP COLUMN lines_seq;
-    ALTER TABLE elements DROP COLUMN moments; PRAGMA user_version = 3;
+    ALTER TABLE elements DROP COLUMN moments; DROP TABLE placements; DROP TABLE georeference;
+    PRAGMA user_version = 3;
     INSERT INTO observations VALUES (1, 'client', 'r', 0, 0, '{}'), (2, 'scan', 'r', 0, 0, '{"scan": 1}');
     INSERT INTO scans VALUES (1, 'r', 'laser', 0, 0, '{}'), (2, 'r', 'laser', 0, 0, '{}');)sql";
   ASSERT_EQ(sqlite3_exec(db, v3, nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
