@@ -1,10 +1,9 @@
 #include "server/api/error_mapping.h"
 
-#include "fusion/registration/plan_registration.h"
-
 #include <stdexcept>
 
 #include "apriori/floor_plan.h"
+#include "fusion/registration/plan_registration.h"
 #include "rules/types.h"
 #include "server/api/api_error.h"
 #include "server/json/codec_error.h"

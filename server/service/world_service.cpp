@@ -732,7 +732,8 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
   for (const auto& [number, e] : state->elements) {
     const Eigen::Vector2d a = e.segment.p0(), b = e.segment.p1();
     const auto n = static_cast<int>(std::ceil((b - a).norm() / step));
-    for (int i = 0; i <= n; ++i) observed.element_points.push_back(a + (b - a) * (static_cast<double>(i) / std::max(n, 1)));
+    for (int i = 0; i <= n; ++i)
+      observed.element_points.push_back(a + (b - a) * (static_cast<double>(i) / std::max(n, 1)));
   }
   AlignOutcome outcome;
   outcome.before = state->placement;

@@ -180,7 +180,8 @@ world::WorldState Store::load(const world::WorldOptions& options) {
   }
   {
     Statement s(writer_, "SELECT latitude, longitude, heading FROM georeference WHERE id = 1");
-    if (s.step()) state.georeference = apriori::Georeference{s.column_double(0), s.column_double(1), s.column_double(2)};
+    if (s.step())
+      state.georeference = apriori::Georeference{s.column_double(0), s.column_double(1), s.column_double(2)};
   }
   {
     Statement s(writer_, "SELECT name, plan_json FROM floor_plan WHERE id = 1");

@@ -137,8 +137,8 @@ Eigen::Matrix3d placed_cov(const Eigen::Matrix3d& cov, double dtheta, double rat
 
 }  // namespace
 
-std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
-                                      std::int64_t version, const fusion::Similarity2D& placement) {
+std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options, std::int64_t version,
+                                      const fusion::Similarity2D& placement) {
   std::vector<ObjectState> objects;
   objects.reserve(plan.objects.size());
   for (const auto& drawn : plan.objects) {

@@ -10,8 +10,8 @@
 
 #include "apriori/floor_plan.h"
 #include "apriori/geo/georeference.h"
-#include "fusion/geometry/similarity2d.h"
 #include "fusion/geometry/line.h"
+#include "fusion/geometry/similarity2d.h"
 #include "fusion/kalman/line_map.h"
 #include "fusion/kalman/rigid_object.h"
 #include "fusion/kalman/segment_moments.h"
@@ -180,8 +180,8 @@ MapExcerpt map_excerpt(const WorldState& state, const Box& box);
 
 /// Builds the object states of a plan, placed in the world by `placement` (poses and edges as drawn, then placed).
 /// @throw std::invalid_argument from fusion on bad geometry.
-std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options,
-                                      std::int64_t version, const fusion::Similarity2D& placement = {});
+std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const WorldOptions& options, std::int64_t version,
+                                      const fusion::Similarity2D& placement = {});
 
 /// An object moved from one placement of the plan to another: its pose relative to the drawing (a rigid adjustment
 /// included) is kept, its edges take the new scale, its covariance turns and scales with it.

@@ -24,7 +24,8 @@ Response get_map(const Call& call) {
   if (format == "dxf")
     return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options, excerpt)), "image/vnd.dxf");
   if (format == "geojson")
-    return raw_response(call.request, apriori::write_geojson(world::map_layers(*snap, options, excerpt), snap->georeference),
+    return raw_response(call.request,
+                        apriori::write_geojson(world::map_layers(*snap, options, excerpt), snap->georeference),
                         "application/geo+json");
   throw bad_request("format", "expected json, dxf or geojson");
 }

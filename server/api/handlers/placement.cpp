@@ -32,8 +32,8 @@ bool bool_field(const nlohmann::json& doc, const std::string& key, bool fallback
 }
 
 Eigen::Vector2d point_field(const nlohmann::json& v, const std::string& path) {
-  if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number() ||
-      !std::isfinite(v[0].get<double>()) || !std::isfinite(v[1].get<double>()))
+  if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number() || !std::isfinite(v[0].get<double>()) ||
+      !std::isfinite(v[1].get<double>()))
     throw bad_request(path, "expected [x, y] with finite numbers");
   return {v[0].get<double>(), v[1].get<double>()};
 }
@@ -45,7 +45,8 @@ double scale_value(double scale, const std::string& path) {
 
 // "theta" [rad] or "theta_deg".
 double heading_field(const nlohmann::json& doc) {
-  if (doc.contains("theta") && doc.contains("theta_deg")) throw bad_request("theta", "give theta or theta_deg, not both");
+  if (doc.contains("theta") && doc.contains("theta_deg"))
+    throw bad_request("theta", "give theta or theta_deg, not both");
   if (doc.contains("theta_deg")) return number_field(doc, "theta_deg") * kDeg;
   return number_field(doc, "theta");
 }
@@ -55,7 +56,8 @@ Eigen::Matrix4d cov_field(const nlohmann::json& doc) {
   if (!doc.contains("cov")) return Eigen::Vector4d(1e-4, 1e-4, 1e-6, 0).asDiagonal();  // 1 cm, 0.06°: by hand
   const auto& v = doc["cov"];
   Eigen::Matrix4d cov;
-  if (!v.is_array() || v.size() != 4) throw bad_request("cov", "expected 4 rows of 4 numbers over (x, y, theta, scale)");
+  if (!v.is_array() || v.size() != 4)
+    throw bad_request("cov", "expected 4 rows of 4 numbers over (x, y, theta, scale)");
   for (int r = 0; r < 4; ++r) {
     const auto& row = v[static_cast<std::size_t>(r)];
     if (!row.is_array() || row.size() != 4) throw bad_request("cov", "expected 4 rows of 4 numbers");
@@ -93,8 +95,8 @@ nlohmann::json redecide_json(const service::RedecideOutcome& outcome) {
 }
 
 nlohmann::json hypothesis_json(const fusion::PlacementHypothesis& h) {
-  return {{"x", h.placement.x_m},         {"y", h.placement.y_m},    {"theta", h.placement.theta_rad},
-          {"scale", h.placement.scale},   {"score", h.score},        {"coverage", h.coverage}};
+  return {{"x", h.placement.x_m},       {"y", h.placement.y_m}, {"theta", h.placement.theta_rad},
+          {"scale", h.placement.scale}, {"score", h.score},     {"coverage", h.coverage}};
 }
 
 std::string observer_of(const nlohmann::json& doc) {
