@@ -18,7 +18,7 @@ std::string usage_line(const Command& command) {
   std::string line(command.name);
   for (const auto operand : command.operands) line += " " + std::string(operand);
   for (const auto& flag : command.flags) {
-    const std::string text = std::string(flag.name) + " " + std::string(flag.value);
+    const std::string text = std::string(flag.name) + (flag.value.empty() ? "" : " " + std::string(flag.value));
     line += flag.required ? " " + text : " [" + text + "]";
   }
   return line;
@@ -38,6 +38,11 @@ void parse_arguments(const Command& command, const std::vector<std::string>& wor
       std::string accepted;
       for (const auto& flag : command.flags) accepted += (accepted.empty() ? "" : ", ") + std::string(flag.name);
       throw UsageError(name + ": unknown flag '" + words[i] + "'; it takes " + accepted);
+    }
+    if (known->value.empty()) {  // a switch: present or not
+      into.flags.emplace_back(words[i], "true");
+      --i;
+      continue;
     }
     if (i + 1 >= words.size()) throw UsageError(words[i] + " needs " + std::string(known->value));
     into.flags.emplace_back(words[i], words[i + 1]);

@@ -58,7 +58,7 @@ struct Invocation {
   }
 };
 
-/// A "--flag VALUE" a command accepts; `value` names the value in the usage text.
+/// A "--flag VALUE" a command accepts; `value` names the value in the usage text (empty: a switch, "--flag" alone).
 struct Flag {
   std::string_view name;
   std::string_view value;

@@ -9,6 +9,12 @@ namespace wm::wmctl {
 int health(const Invocation& in);
 int floorplan_load(const Invocation& in);
 int floorplan_show(const Invocation& in);
+int floorplan_align(const Invocation& in);
+int floorplan_place(const Invocation& in);
+int floorplan_pairs(const Invocation& in);
+int floorplan_undo(const Invocation& in);
+int floorplan_redecide(const Invocation& in);
+int floorplan_georeference(const Invocation& in);
 int primitives_post(const Invocation& in);
 int map(const Invocation& in);
 int map_quality(const Invocation& in);
