@@ -71,7 +71,7 @@ int floorplan_align(const Invocation& in) {
               << " m, sigma x " << fixed(std::sqrt(r["cov"][0][0].get<double>()), 4) << " m, sigma theta "
               << fixed(std::sqrt(r["cov"][2][2].get<double>()) / kDeg, 4) << " deg\n";
     if (r["runner_up"].is_null())
-      std::cout << "runner-up: none above half the best's search score\n";
+      std::cout << "runner-up: none within 0.7 of the best's search score\n";
     else
       std::cout << "runner-up: " << placement_line(r["runner_up"]) << ", score "
                 << fixed(r["runner_up"]["score"].get<double>()) << ", coverage "
@@ -135,11 +135,12 @@ int floorplan_redecide(const Invocation& in) {
 
 int floorplan_georeference(const Invocation& in) {
   if (in.flag("--clear")) {
-    const auto r = parse_answer(in.client.request("DELETE", "/api/v1/floorplan/georeference", "{}", "application/json",
-                                                  in.token));
+    const auto r =
+        parse_answer(in.client.request("DELETE", "/api/v1/floorplan/georeference", "{}", "application/json", in.token));
     return in.emit(r, [](const json&) { std::cout << "georeference removed: exports are in local metres\n"; });
   }
-  if (!in.flag("--lat") || !in.flag("--lon")) throw UsageError("floorplan georeference needs --lat and --lon, or --clear");
+  if (!in.flag("--lat") || !in.flag("--lon"))
+    throw UsageError("floorplan georeference needs --lat and --lon, or --clear");
   json body = {{"latitude", parse_number(*in.flag("--lat"), "--lat")},
                {"longitude", parse_number(*in.flag("--lon"), "--lon")}};
   if (const auto v = in.flag("--heading")) body["heading"] = parse_number(*v, "--heading");

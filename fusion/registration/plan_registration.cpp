@@ -607,7 +607,8 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
     if (s * radius_drawn <= 10 * observed_radius && s * radius_drawn >= 5 * pyramid.cell_m) plausible.push_back(s);
   if (!plausible.empty()) scales = std::move(plausible);
   std::vector<Rotation> rotations;
-  const auto peaks = direction_peaks(edges, observed, options.occupied_probability);
+  const auto peaks =
+      options.rotations_from_directions ? direction_peaks(edges, observed, options.occupied_probability) : std::nullopt;
   for (const double s : scales) {
     const double step = std::min(pyramid.cell_m / (radius_drawn * s), 0.1);
     if (!peaks) {
@@ -615,6 +616,7 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
         rotations.push_back({s, theta});
       continue;
     }
+    const auto before = rotations.size();
     for (const double shift : *peaks)
       for (const double turn : {shift, shift + kPi}) {
         // The nearest equivalent of the peak to the initial heading, if the bound allows it.
@@ -623,6 +625,10 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
         for (const double t : angles(theta, kPeakHalfWidth, step))
           if (std::abs(t - options.initial.theta_rad) <= options.max_rotation_rad) rotations.push_back({s, t});
       }
+    // No peak within a narrow bound: the bound itself is small, search all of it.
+    if (rotations.size() == before)
+      for (const double theta : angles(options.initial.theta_rad, options.max_rotation_rad, step))
+        rotations.push_back({s, theta});
   }
   const auto window = static_cast<std::int64_t>(std::ceil(options.max_translation_m / pyramid.cell_m));
   const auto deadline = start + options.time_budget;
@@ -650,7 +656,7 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
   result.matched_points = refined.matched;
 
   if (!search.timed_out() && !search.cancelled()) {
-    if (const auto second = search.run(0.5f * best_search_score, best, 0.8, 1.0)) {
+    if (const auto second = search.run(0.7f * best_search_score, best, 0.8, 1.0)) {
       auto other = refine(edges, points, search.placement(*second), band0, cell, with_scale).placement;
       const Eigen::Vector2d c_best = refined.placement.transform_point(centroid_drawn);
       const Eigen::Vector2d c_other = other.transform_point(centroid_drawn);

@@ -47,6 +47,9 @@ struct RegistrationOptions {
   /// Cell of the search's finest level [m] (the grid's own cell when that is coarser). Angles step by
   /// cell / (distance of the farthest drawn point from the centroid): Olson's rule, one cell at the rim.
   double search_cell_m = 0.1;
+  /// Rotations from the peaks of the direction histograms (a few candidates) instead of every angle in the bound;
+  /// every angle is searched anyway when the histograms show no clear peak.
+  bool rotations_from_directions = true;
   /// At most this many points sampled along the drawing for the search (spacing grows for big plans).
   std::size_t max_samples = 3000;
   /// Cells with P above this are occupied (the map-quality threshold).
@@ -72,7 +75,7 @@ struct PlacementHypothesis {
 
 struct RegistrationResult {
   PlacementHypothesis best;
-  std::optional<PlacementHypothesis> runner_up;  // none when nothing reached half the best's search score
+  std::optional<PlacementHypothesis> runner_up;  // none when nothing reached 0.7 of the best's search score
   bool ambiguous = false;
   /// Covariance of (x [m], y [m], θ [rad], scale) from the refinement's residuals, cells taken as independent
   /// (so a lower bound); scale's row and column are zero when the scale was held.

@@ -196,12 +196,12 @@ TEST_F(FloorPlanAlignTest, PointPairsAndAnExplicitPosePlaceThePlanAndBadInputCha
   EXPECT_EQ(get_json("/api/v1/map")["version"], version);
 
   // Pairs in millimetres: the scale comes out.
-  const auto paired = send_json(
-      "POST", "/api/v1/floorplan/pairs",
-      {{"scale", true},
-       {"pairs",
-        {{{"plan", {0, 0}}, {"world", {10, 20}}}, {{"plan", {1000, 0}}, {"world", {10, 21}}},
-         {{"plan", {0, 2000}}, {"world", {8, 20}}}}}});
+  const auto paired = send_json("POST", "/api/v1/floorplan/pairs",
+                                {{"scale", true},
+                                 {"pairs",
+                                  {{{"plan", {0, 0}}, {"world", {10, 20}}},
+                                   {{"plan", {1000, 0}}, {"world", {10, 21}}},
+                                   {{"plan", {0, 2000}}, {"world", {8, 20}}}}}});
   EXPECT_NEAR(paired["placement"]["scale"].get<double>(), 0.001, 1e-9);
   EXPECT_NEAR(paired["placement"]["theta"].get<double>(), std::numbers::pi / 2, 1e-9);
   EXPECT_NEAR(paired["placement"]["x"].get<double>(), 10, 1e-9);
