@@ -30,7 +30,8 @@ struct Case {
 
 // The placement that puts back a drawing turned by θ about the lines' centroid and shifted by `shift`: within the
 // search's bounds when |shift| ≤ 10 m.
-Similarity2D about_centroid(const std::vector<wm::testing::PlanLine>& lines, const Eigen::Vector2d& shift, double theta) {
+Similarity2D about_centroid(const std::vector<wm::testing::PlanLine>& lines, const Eigen::Vector2d& shift,
+                            double theta) {
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
   double length = 0;
   for (const auto& l : lines) {
@@ -45,7 +46,8 @@ Similarity2D about_centroid(const std::vector<wm::testing::PlanLine>& lines, con
 // The drawing of `lines` that `truth` places back on them.
 std::vector<DrawnEdge> drawn(const std::vector<wm::testing::PlanLine>& lines, const Similarity2D& truth) {
   std::vector<DrawnEdge> edges;
-  for (const auto& l : lines) edges.push_back({truth.inverse_transform_point(l.p0), truth.inverse_transform_point(l.p1)});
+  for (const auto& l : lines)
+    edges.push_back({truth.inverse_transform_point(l.p0), truth.inverse_transform_point(l.p1)});
   return edges;
 }
 
@@ -138,13 +140,12 @@ int main(int argc, char** argv) {
       ->Iterations(5);
   if (!std::getenv("WM_BENCH_QUICK"))  // 2.5 minutes here
     benchmark::RegisterBenchmark("BM_AlignGdc1_10m_180deg_EveryAngle", align, &gdc1, false, 10.0, kPi)
-      ->Unit(benchmark::kMillisecond)
-      ->Iterations(1);
+        ->Unit(benchmark::kMillisecond)
+        ->Iterations(1);
   benchmark::RegisterBenchmark("BM_AlignPlan6000_10m_180deg", align, &plan_6000, true, 10.0, kPi)
       ->Unit(benchmark::kMillisecond)
       ->Iterations(3);
 
-  return wm::bench::run_with_ratios(argc, argv,
-                                    {{"against branch and bound over every angle",
-                                      "BM_AlignGdc1_10m_180deg_EveryAngle"}});
+  return wm::bench::run_with_ratios(
+      argc, argv, {{"against branch and bound over every angle", "BM_AlignGdc1_10m_180deg_EveryAngle"}});
 }

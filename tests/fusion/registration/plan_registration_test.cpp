@@ -98,7 +98,9 @@ TEST_F(Gdc1Registration, FindsAPlanDisplacedByUpToTenMetresAndHalfATurn) {
     EXPECT_FALSE(r.timed_out);
     EXPECT_GT(r.best.score, 0.8);
     // A runner-up is reported when one reaches 0.7 of the best's search score; it must then be clearly worse.
-    if (r.runner_up) EXPECT_LT(r.runner_up->score * r.runner_up->coverage, 0.9 * r.best.score * r.best.coverage);
+    if (r.runner_up) {
+      EXPECT_LT(r.runner_up->score * r.runner_up->coverage, 0.9 * r.best.score * r.best.coverage);
+    }
     // The covariance is a real one: positive, and small for a plan that fits to millimetres.
     EXPECT_GT(r.covariance(0, 0), 0);
     EXPECT_LT(std::sqrt(r.covariance(0, 0)), 0.01);
