@@ -696,7 +696,8 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
   emit({{"type", "placement"},
         {"version", outcome.version},
         {"placement", json_codec::placement_json(placement, snapshot()->placement_cov)},
-        {"rule", decision.rule}});
+        {"rule", decision.rule},
+        {"explanation", decision.explanation}});
   return {outcome.version, decision};
 }
 

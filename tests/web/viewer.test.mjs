@@ -257,6 +257,17 @@ test('the viewer shows the grid, the plan and the elements, follows live decisio
     await expectDrawnEqualsApi('after a new floor plan');
   });
 
+  await t.test('a new placement of the plan moves it live and the status says where', async () => {
+    const placed = await postJson(base, '/api/v1/floorplan/place', { x: 1.5, y: -0.5, theta_deg: 10 });
+    assert.equal(placed.decision.action, 'place');
+    await page.waitForFunction(() => document.querySelector('#status-placement').textContent.includes('10.00°'));
+    assert.match(await page.textContent('#status-placement'), /x 1\.50 m, y -0\.50 m/);
+    await expectDrawnEqualsApi('after a new placement');
+    await postJson(base, '/api/v1/floorplan/undo', {});
+    await page.waitForFunction(() => document.querySelector('#status-placement').textContent === 'as drawn');
+    await expectDrawnEqualsApi('after the placement was undone');
+  });
+
   await t.test('the layer switch shows each Dempster-Shafer layer', async () => {
     for (const layer of ['ds_belief', 'ds_plausibility', 'ds_conflict', 'bayes']) {
       await page.selectOption('#layer-select', layer);

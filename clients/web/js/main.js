@@ -83,6 +83,7 @@ async function resync(reason, { withGrid = true } = {}) {
     const [map, health] = await Promise.all([api.map(), api.health()]);
     model.loadMap(map);
     status.setHealth(health);
+    status.setPlacement(map.placement);
     state.syncs++;
     state.lastSyncReason = reason;
   } catch (error) {
@@ -151,6 +152,10 @@ function handle(event) {
       break;
     case 'rules':
       if (event.status) status.setRules(event.status);
+      break;
+    case 'placement':
+      // The objects moved with the "update" event before this one; here the status says where and why.
+      status.setPlacement(event.placement, event.explanation);
       break;
     default:
       break;  // hello, resync (handled by the stream's onGap), or something newer than this page

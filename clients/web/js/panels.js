@@ -54,6 +54,19 @@ export class StatusPanel {
     badge.textContent = { open: 'live', connecting: 'connecting…', closed: 'disconnected' }[state] || state;
   }
 
+  /** Where the plan sits: a GET /api/v1/map "placement", or a "placement" event (which also says why). */
+  setPlacement(placement, why) {
+    const el = this.$('status-placement');
+    if (!el || !placement) return;
+    const deg = (placement.theta * 180) / Math.PI;
+    const asDrawn = placement.x === 0 && placement.y === 0 && placement.theta === 0 && placement.scale === 1;
+    el.textContent = asDrawn
+      ? 'as drawn'
+      : `x ${placement.x.toFixed(2)} m, y ${placement.y.toFixed(2)} m, ${deg.toFixed(2)}°` +
+        (placement.scale === 1 ? '' : `, scale ${placement.scale.toPrecision(6)}`);
+    el.title = why ?? '';
+  }
+
   setHealth(health, error) {
     const h = this.$('status-health');
     if (error) {
