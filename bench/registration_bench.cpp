@@ -13,7 +13,7 @@
 #include "bench/support/ratio_reporter.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/registration/plan_registration.h"
-#include "tests/support/plan_scans.h"
+#include "tools/raycast/raycast.h"
 
 namespace {
 
@@ -30,7 +30,7 @@ struct Case {
 
 // The placement that puts back a drawing turned by θ about the lines' centroid and shifted by `shift`: within the
 // search's bounds when |shift| ≤ 10 m.
-Similarity2D about_centroid(const std::vector<wm::testing::PlanLine>& lines, const Eigen::Vector2d& shift,
+Similarity2D about_centroid(const std::vector<wm::raycast::PlanLine>& lines, const Eigen::Vector2d& shift,
                             double theta) {
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
   double length = 0;
@@ -44,7 +44,7 @@ Similarity2D about_centroid(const std::vector<wm::testing::PlanLine>& lines, con
 }
 
 // The drawing of `lines` that `truth` places back on them.
-std::vector<DrawnEdge> drawn(const std::vector<wm::testing::PlanLine>& lines, const Similarity2D& truth) {
+std::vector<DrawnEdge> drawn(const std::vector<wm::raycast::PlanLine>& lines, const Similarity2D& truth) {
   std::vector<DrawnEdge> edges;
   for (const auto& l : lines)
     edges.push_back({truth.inverse_transform_point(l.p0), truth.inverse_transform_point(l.p1)});
@@ -53,9 +53,9 @@ std::vector<DrawnEdge> drawn(const std::vector<wm::testing::PlanLine>& lines, co
 
 const Case& gdc1() {
   static const Case c = [] {
-    const auto lines = wm::testing::read_vectormap(WM_PLANS_DIR "/GDC1.vectormap.json");
+    const auto lines = wm::raycast::read_vectormap(WM_PLANS_DIR "/GDC1.vectormap.json");
     wm::fusion::OccupancyGrid grid(wm::fusion::GridOptions{});
-    for (const auto& scan : wm::testing::simulate_scans(lines, wm::testing::gdc1_route())) grid.insert(scan);
+    for (const auto& scan : wm::raycast::simulate_scans(lines, wm::raycast::gdc1_route())) grid.insert(scan);
     const auto bounds = *grid.bounds();
     const Similarity2D truth = about_centroid(lines, {4.0, -6.0}, 2.6);
     return Case{drawn(lines, truth),
@@ -71,7 +71,7 @@ const Case& plan_6000() {
   static const Case c = [] {
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> width(2.0, 6.0), depth(3.0, 6.0);
-    std::vector<wm::testing::PlanLine> lines;
+    std::vector<wm::raycast::PlanLine> lines;
     double y = 0;
     int rooms = 0;
     while (rooms < 1500) {

@@ -7,11 +7,13 @@
 #include <numbers>
 
 #include "e2e_fixture.h"
-#include "support/plan_scans.h"
 #include "support/test_data.h"
+#include "tools/raycast/raycast.h"
 
 namespace wm::testing {
 namespace {
+
+using raycast::PlanLine;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
@@ -43,7 +45,8 @@ std::vector<PlanLine> table_lines(const Eigen::Vector2d& at, double theta) {
 }
 
 std::vector<PlanLine> gdc1_walls() {
-  return read_vectormap(real_data("amrl-vectormaps/GDC1.vectormap.json", "plans/GDC1.vectormap.json").string());
+  return raycast::read_vectormap(
+      real_data("amrl-vectormaps/GDC1.vectormap.json", "plans/GDC1.vectormap.json").string());
 }
 
 // The JSON plan of GDC1 drawn in the frame that `truth` places in the world: every wall solid, and the table.
@@ -107,7 +110,7 @@ TEST_F(FloorPlanAlignTest, AGdc1PlanDrawnElsewhereIsAlignedAndTheRulesThenConfir
   const auto walls = gdc1_walls();
   auto world = walls;
   for (const auto& l : table_lines(kTableBuilt, kTableBuiltTheta)) world.push_back(l);
-  const auto scans = simulate_scans(world, gdc1_route(), 0.5, 720, 20.0);
+  const auto scans = raycast::simulate_scans(world, raycast::gdc1_route());
   // Drawn 8 m off and turned by 160°, about the building's centre.
   const Eigen::Vector2d centre(0.0, 0.0);
   const double theta = 160 * kDeg;

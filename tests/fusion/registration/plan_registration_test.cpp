@@ -9,24 +9,24 @@
 #include <numbers>
 
 #include "fusion/grid/occupancy_grid.h"
-#include "tests/support/plan_scans.h"
 #include "tests/support/test_data.h"
+#include "tools/raycast/raycast.h"
 
 namespace wm::fusion {
 namespace {
 
-using testing::PlanLine;
+using raycast::PlanLine;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
 std::vector<PlanLine> gdc1() {
-  return testing::read_vectormap(
+  return raycast::read_vectormap(
       testing::real_data("amrl-vectormaps/GDC1.vectormap.json", "plans/GDC1.vectormap.json").string());
 }
 
 ObservedMap observe(const std::vector<PlanLine>& lines) {
   OccupancyGrid grid(GridOptions{});
-  for (const auto& scan : testing::simulate_scans(lines, testing::gdc1_route())) grid.insert(scan);
+  for (const auto& scan : raycast::simulate_scans(lines, raycast::gdc1_route())) grid.insert(scan);
   const auto bounds = *grid.bounds();
   return {bounds, grid.export_layer(OccupancyGrid::Layer::bayes_probability, bounds), {}};
 }
@@ -131,7 +131,7 @@ TEST_F(Gdc1Registration, RefinesAScaleErrorWithinARange) {
 }
 
 TEST_F(Gdc1Registration, APlanOfAnotherBuildingScoresLow) {
-  const auto other = testing::read_vectormap(
+  const auto other = raycast::read_vectormap(
       testing::real_data("amrl-vectormaps/AHG2.vectormap.json", "plans/AHG2.vectormap.json").string());
   std::vector<DrawnEdge> edges;
   // Centred on GDC1's area, so the search looks where the robots were.
@@ -153,7 +153,7 @@ TEST(PlanRegistration, ARoomWithAHalfTurnSymmetryIsAmbiguous) {
   lines.push_back({{-12, 1}, {-3, 1}});  // a wall at one side ...
   lines.push_back({{12, -1}, {3, -1}});  // ... and its twin turned by half a turn
   OccupancyGrid grid(GridOptions{});
-  for (const auto& scan : testing::simulate_scans(lines, {{{-10, -2.5}, {10, -2.5}}, {{10, 2.5}, {-10, 2.5}}}))
+  for (const auto& scan : raycast::simulate_scans(lines, {{{-10, -2.5}, {10, -2.5}}, {{10, 2.5}, {-10, 2.5}}}))
     grid.insert(scan);
   const auto bounds = *grid.bounds();
   const ObservedMap observed{bounds, grid.export_layer(OccupancyGrid::Layer::bayes_probability, bounds), {}};
