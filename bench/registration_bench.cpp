@@ -28,21 +28,6 @@ struct Case {
   Similarity2D truth;
 };
 
-// The placement that puts back a drawing turned by θ about the lines' centroid and shifted by `shift`: within the
-// search's bounds when |shift| ≤ 10 m.
-Similarity2D about_centroid(const std::vector<wm::raycast::PlanLine>& lines, const Eigen::Vector2d& shift,
-                            double theta) {
-  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
-  double length = 0;
-  for (const auto& l : lines) {
-    sum += 0.5 * (l.p0 + l.p1) * (l.p1 - l.p0).norm();
-    length += (l.p1 - l.p0).norm();
-  }
-  const Eigen::Vector2d c = sum / length;
-  const Eigen::Vector2d t = c + Eigen::Rotation2Dd(theta) * (shift - c);
-  return {t.x(), t.y(), theta, 1.0};
-}
-
 // The drawing of `lines` that `truth` places back on them.
 std::vector<DrawnEdge> drawn(const std::vector<wm::raycast::PlanLine>& lines, const Similarity2D& truth) {
   std::vector<DrawnEdge> edges;
@@ -57,7 +42,7 @@ const Case& gdc1() {
     wm::fusion::OccupancyGrid grid(wm::fusion::GridOptions{});
     for (const auto& scan : wm::raycast::simulate_scans(lines, wm::raycast::gdc1_route())) grid.insert(scan);
     const auto bounds = *grid.bounds();
-    const Similarity2D truth = about_centroid(lines, {4.0, -6.0}, 2.6);
+    const Similarity2D truth{4.0, -6.0, 2.6, 1.0};
     return Case{drawn(lines, truth),
                 {bounds, grid.export_layer(wm::fusion::OccupancyGrid::Layer::bayes_probability, bounds), {}},
                 truth};
@@ -100,7 +85,7 @@ const Case& plan_6000() {
         p[static_cast<std::size_t>(cell.y * g.width() + cell.x)] = 0.9f;
       }
     }
-    const Similarity2D truth = about_centroid(lines, {-3.0, 5.0}, -1.2);
+    const Similarity2D truth{-3.0, 5.0, -1.2, 1.0};
     return Case{drawn(lines, truth), {g, std::move(p), {}}, truth};
   }();
   return c;

@@ -16,9 +16,9 @@ constexpr double kPi = 3.14159265358979323846;
 // default branch-and-bound depth).
 constexpr int kLevels = 7;
 constexpr std::size_t kMaxScaleSteps = 256;
-// How far around a direction-histogram peak rotations are searched [rad]: three bins, what the histograms' smoothing
-// and the drawing's own rounding leave.
-constexpr double kPeakHalfWidth = 0.6 * kPi / 180;
+// How far around a direction-histogram peak rotations are searched [rad]: the spread of the directions read from
+// rasterised walls (±1.5° at 160° on GDC1) that the correlation's peak still carries.
+constexpr double kPeakHalfWidth = 1.0 * kPi / 180;
 
 bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
 
@@ -214,11 +214,12 @@ class Search {
   bool cancelled() const { return cancelled_; }
 
  private:
-  // Where the window's centre puts the drawing's centroid: the initial placement at this rotation's scale (a unit
-  // error scales the drawing about its own origin).
+  // Where the window's centre puts the drawing's centroid: the initial placement's translation with this rotation's
+  // angle and scale, so the window bounds the placement's translation (a unit error scales the drawing about its
+  // own origin too).
   Eigen::Vector2d window_centre(std::size_t r) const {
     return Eigen::Vector2d(initial_.x_m, initial_.y_m) +
-           rotations_[r].scale * (Eigen::Rotation2Dd(initial_.theta_rad) * centroid_drawn_);
+           rotations_[r].scale * (Eigen::Rotation2Dd(rotations_[r].theta) * centroid_drawn_);
   }
   Eigen::Vector2d centroid_world(const Candidate& c) const {
     return window_centre(c.rotation) +
@@ -354,17 +355,19 @@ std::optional<std::vector<double>> direction_peaks(const std::vector<DrawnEdge>&
   for (std::int64_t y = 0; y < g.height(); ++y)
     for (std::int64_t x = 0; x < g.width(); ++x) {
       if (!occupied(x, y)) continue;
+      // The occupied neighbours within a disk of four cells: a square window, or a smaller disk, bends the
+      // direction of a rasterised wall toward the grid's axes (a wall at 160° read as 150° with 5 × 5).
       double sxx = 0, syy = 0, sxy = 0;
       int n = 0;
-      for (int dy = -2; dy <= 2; ++dy)
-        for (int dx = -2; dx <= 2; ++dx)
-          if ((dx || dy) && occupied(x + dx, y + dy)) {
+      for (int dy = -4; dy <= 4; ++dy)
+        for (int dx = -4; dx <= 4; ++dx)
+          if ((dx || dy) && dx * dx + dy * dy <= 16 && occupied(x + dx, y + dy)) {
             sxx += dx * dx;
             syy += dy * dy;
             sxy += dx * dy;
             ++n;
           }
-      if (n < 3) continue;
+      if (n < 4) continue;
       const double anisotropy = std::hypot(sxx - syy, 2 * sxy) / (sxx + syy);
       add_direction(seen, 0.5 * std::atan2(2 * sxy, sxx - syy), anisotropy);
     }

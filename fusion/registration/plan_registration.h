@@ -33,8 +33,8 @@ struct ObservedMap {
 };
 
 struct RegistrationOptions {
-  /// The search's centre: the placement now. The search moves the drawing's centroid at most
-  /// `max_translation_m` from where this placement puts it, and turns it at most `max_rotation_rad` either way.
+  /// The search's centre: the placement now. The placement's translation (x, y) changes by at most
+  /// `max_translation_m` in each coordinate, its angle by at most `max_rotation_rad` either way.
   Similarity2D initial;
   double max_translation_m = 10.0;
   double max_rotation_rad = 3.14159265358979323846;

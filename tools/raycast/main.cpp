@@ -75,7 +75,8 @@ int main(int argc, char** argv) {
     const Eigen::Rotation2Dd turn(dtheta);
     const auto scans = raycast::simulate_scans(lines, route, options);
     for (const auto& scan : scans) {
-      const Eigen::Vector2d p = turn * Eigen::Vector2d(scan.sensor_pose.x_m, scan.sensor_pose.y_m) + Eigen::Vector2d(dx, dy);
+      const Eigen::Vector2d p =
+          turn * Eigen::Vector2d(scan.sensor_pose.x_m, scan.sensor_pose.y_m) + Eigen::Vector2d(dx, dy);
       const double theta = scan.sensor_pose.theta_rad + dtheta;
       out << "ROBOTLASER1 0 " << scan.angle_min_rad << ' ' << scan.angle_increment_rad * scan.ranges_m.size() << ' '
           << scan.angle_increment_rad << ' ' << scan.range_max_m << " 0.01 0 " << scan.ranges_m.size();

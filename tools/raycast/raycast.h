@@ -27,9 +27,9 @@ double cast_ray(const std::vector<PlanLine>& lines, const Eigen::Vector2d& origi
 std::vector<std::vector<Eigen::Vector2d>> gdc1_route();
 
 struct DriveOptions {
-  double step_m = 0.5;       // between scans along the route
-  int beams = 720;           // over 360°
-  double max_range_m = 20;   // no return beyond
+  double step_m = 0.5;      // between scans along the route
+  int beams = 720;          // over 360°
+  double max_range_m = 20;  // no return beyond
   double sigma_range_m = 0.01;
   unsigned seed = 7;
 };
