@@ -81,7 +81,10 @@ int floorplan_align(const Invocation& in) {
               << "verdict: " << r["verdict"].get<std::string>();
     if (r["verdict"] == "preview") std::cout << " (nothing changed; --apply puts it in force)";
     if (r["verdict"] == "ambiguous") std::cout << " (nothing changed; --apply-ambiguous applies it anyway)";
-    if (r["verdict"] == "low_score") std::cout << " (nothing changed: is this the building the robots saw?)";
+    if (r["verdict"] == "low_score" && r["best"]["coverage"].get<double>() == 0)
+      std::cout << " (nothing changed: within the bounds the plan overlaps nothing the robots saw)";
+    else if (r["verdict"] == "low_score")
+      std::cout << " (nothing changed: is this the building the robots saw?)";
     std::cout << "\n";
     if (r.contains("decision")) print_decision(r["decision"]);
     if (r.contains("redecided")) print_redecided(r["redecided"]);
