@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <unordered_map>
 
@@ -16,6 +17,9 @@ constexpr double kPi = 3.14159265358979323846;
 // default branch-and-bound depth).
 constexpr int kLevels = 7;
 constexpr std::size_t kMaxScaleSteps = 256;
+// What one search may take on: (scale, angle) pairs, and root windows over all of them (32 bytes each in memory).
+constexpr std::size_t kMaxRotations = 200000;
+constexpr std::size_t kMaxRoots = 4000000;
 // How far around a direction-histogram peak rotations are searched [rad]: the spread of the directions read from
 // rasterised walls (±1.5° at 160° on GDC1) that the correlation's peak still carries.
 constexpr double kPeakHalfWidth = 1.0 * kPi / 180;
@@ -182,7 +186,11 @@ class Search {
       for (std::int64_t oy = -window_; oy <= window_; oy += step)
         for (std::int64_t ox = -window_; ox <= window_; ox += step)
           roots.push_back({r, ox, oy, score(points, ox, oy, kLevels)});
-      if (stopped()) return best_;
+      // The clock is read after every rotation's roots (at most kMaxRoots in all, bounded before the search).
+      if (timed_out_ || std::chrono::steady_clock::now() > deadline_) {
+        timed_out_ = true;
+        return best_;
+      }
     }
     std::sort(roots.begin(), roots.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
     for (std::size_t i = 0; i < roots.size(); ++i) {
@@ -431,6 +439,11 @@ Refined refine(const std::vector<DrawnEdge>& edges, const std::vector<Eigen::Vec
     double length;
   };
   std::vector<Placed> placed(edges.size());
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const auto& q : points) {
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
   for (int iteration = 0; iteration < 40; ++iteration) {
     for (std::size_t i = 0; i < edges.size(); ++i) {
       const Eigen::Vector2d a = placement.transform_point(edges[i].p0), b = placement.transform_point(edges[i].p1);
@@ -440,7 +453,12 @@ Refined refine(const std::vector<DrawnEdge>& edges, const std::vector<Eigen::Vec
     }
     // Edges by bucket of `bucket` m, each in every bucket its band-widened box touches.
     const double bucket = std::max(1.0, 2 * band);
+    const std::int64_t points_box[4] = {static_cast<std::int64_t>(std::floor(lo.x() / bucket)) - 1,
+                                        static_cast<std::int64_t>(std::floor(lo.y() / bucket)) - 1,
+                                        static_cast<std::int64_t>(std::floor(hi.x() / bucket)) + 1,
+                                        static_cast<std::int64_t>(std::floor(hi.y() / bucket)) + 1};
     std::unordered_map<std::int64_t, std::vector<std::uint32_t>> buckets;
+    std::size_t entries = 0;  // bounded: an absurd plan must not exhaust memory here
     const auto key = [](std::int64_t bx, std::int64_t by) { return bx * 73856093LL ^ by * 19349663LL; };
     for (std::size_t i = 0; i < placed.size(); ++i) {
       const auto& e = placed[i];
@@ -449,9 +467,15 @@ Refined refine(const std::vector<DrawnEdge>& edges, const std::vector<Eigen::Vec
       const auto x1 = static_cast<std::int64_t>(std::floor((std::max(e.a.x(), b.x()) + band) / bucket));
       const auto y0 = static_cast<std::int64_t>(std::floor((std::min(e.a.y(), b.y()) - band) / bucket));
       const auto y1 = static_cast<std::int64_t>(std::floor((std::max(e.a.y(), b.y()) + band) / bucket));
-      if ((x1 - x0 + 1) * (y1 - y0 + 1) > 1'000'000) continue;  // an absurd edge; the search placed it already
-      for (auto by = y0; by <= y1; ++by)
-        for (auto bx = x0; bx <= x1; ++bx) buckets[key(bx, by)].push_back(static_cast<std::uint32_t>(i));
+      // Only where there are observed points: an edge's box is clipped to theirs.
+      const auto cx0 = std::max(x0, points_box[0]), cx1 = std::min(x1, points_box[2]);
+      const auto cy0 = std::max(y0, points_box[1]), cy1 = std::min(y1, points_box[3]);
+      if (cx0 > cx1 || cy0 > cy1) continue;
+      const auto cells = static_cast<std::size_t>((cx1 - cx0 + 1) * (cy1 - cy0 + 1));
+      if (cells > 1'000'000 || entries + cells > 20'000'000) continue;  // absurd edges are left to the search
+      entries += cells;
+      for (auto by = cy0; by <= cy1; ++by)
+        for (auto bx = cx0; bx <= cx1; ++bx) buckets[key(bx, by)].push_back(static_cast<std::uint32_t>(i));
     }
     struct Match {
       Eigen::Vector2d q, normal;
@@ -609,9 +633,27 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
   for (const double s : scales)
     if (s * radius_drawn <= 10 * observed_radius && s * radius_drawn >= 5 * pyramid.cell_m) plausible.push_back(s);
   if (!plausible.empty()) scales = std::move(plausible);
-  std::vector<Rotation> rotations;
   const auto peaks =
       options.rotations_from_directions ? direction_peaks(edges, observed, options.occupied_probability) : std::nullopt;
+  // What the bounds would cost, refused before anything is allocated for it: the angles each scale takes on the
+  // path it will take (around the direction peaks, or every angle of the bound), and the root windows of all.
+  const auto window = static_cast<std::int64_t>(std::ceil(options.max_translation_m / pyramid.cell_m));
+  const double roots_per_rotation = std::pow(std::floor(2.0 * static_cast<double>(window) / (1 << kLevels)) + 1, 2);
+  double rotation_count = 0;
+  for (const double s : scales) {
+    const double step = std::min(pyramid.cell_m / (radius_drawn * s), 0.1);
+    const double sweep = 2 * std::ceil(std::min(options.max_rotation_rad, kPi) / step) + 1;
+    rotation_count +=
+        peaks ? std::min(sweep, 2.0 * static_cast<double>(peaks->size()) * (2 * std::ceil(kPeakHalfWidth / step) + 1))
+              : sweep;
+  }
+  if (rotation_count > static_cast<double>(kMaxRotations) ||
+      rotation_count * roots_per_rotation > static_cast<double>(kMaxRoots))
+    throw RegistrationError("the bounds would take " + std::to_string(static_cast<long long>(rotation_count)) +
+                            " rotations of " + std::to_string(static_cast<long long>(roots_per_rotation)) +
+                            " translation windows (at most " + std::to_string(kMaxRotations) + " and " +
+                            std::to_string(kMaxRoots) + " in all): narrow max_translation, max_rotation or the scale");
+  std::vector<Rotation> rotations;
   for (const double s : scales) {
     const double step = std::min(pyramid.cell_m / (radius_drawn * s), 0.1);
     if (!peaks) {
@@ -633,7 +675,6 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
       for (const double theta : angles(options.initial.theta_rad, options.max_rotation_rad, step))
         rotations.push_back({s, theta});
   }
-  const auto window = static_cast<std::int64_t>(std::ceil(options.max_translation_m / pyramid.cell_m));
   const auto deadline = start + options.time_budget;
   Search search(search_samples, centroid_drawn, options.initial, pyramid, std::move(rotations), window, options,
                 deadline);

@@ -19,7 +19,8 @@ constexpr std::array kRoutes{
     Route{verb::put, "/api/v1/floorplan", put_floor_plan, Lane::write, "?units=U&level=L&name=N"},
     Route{verb::post, "/api/v1/floorplan/place", post_floor_plan_place, Lane::write},
     Route{verb::post, "/api/v1/floorplan/pairs", post_floor_plan_pairs, Lane::write},
-    Route{verb::post, "/api/v1/floorplan/align", post_floor_plan_align, Lane::write},
+    // On the read lane: a search takes up to its time budget and must not hold back the writes; one at a time.
+    Route{verb::post, "/api/v1/floorplan/align", post_floor_plan_align, Lane::read},
     Route{verb::post, "/api/v1/floorplan/undo", post_floor_plan_undo, Lane::write},
     Route{verb::post, "/api/v1/floorplan/redecide", post_floor_plan_redecide, Lane::write},
     Route{verb::put, "/api/v1/floorplan/georeference", put_georeference, Lane::write},

@@ -63,9 +63,11 @@ struct RedecideOutcome {
 
 struct AlignRequest {
   fusion::RegistrationOptions search;  // `initial` is set by the service to the placement in force
+  bool scale_given = false;            // else the scale in force is kept
   bool apply = false;                  // put the best placement in force when it is good and not ambiguous
   bool apply_ambiguous = false;        // ... even when it is ambiguous
   double min_score = 0.5;              // below this share of the seen plan on occupied cells, nothing is applied
+  double min_coverage = 0.05;          // nor when less than this share of the plan lies in the observed area
   bool redecide = false;               // after applying, re-decide the observed elements
   std::string observer = "client";
 };
@@ -74,7 +76,7 @@ struct AlignOutcome {
   fusion::RegistrationResult result;
   fusion::Similarity2D before;
   bool applied = false;
-  std::string verdict;  // "applied", or why not: "preview", "ambiguous", "low_score", "timed_out", "cancelled"
+  std::string verdict;  // "applied", or why not: "preview", "ambiguous", "low_score", "low_coverage", "timed_out"
   std::optional<PlacementOutcome> placement;
   std::optional<RedecideOutcome> redecided;
   std::size_t edges = 0;  // drawn edges searched (solid objects' when the plan marks any)

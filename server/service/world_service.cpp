@@ -719,7 +719,13 @@ PlacementOutcome WorldService::undo_placement(std::string observer) {
 }
 
 AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
-  // The search runs on the calling thread, against a snapshot and a copy of the grid: ingest goes on meanwhile.
+  // The search runs on the calling thread, against a snapshot and a copy of the grid: the writer goes on meanwhile.
+  // One at a time: a search takes a core for up to its time budget.
+  if (aligning_.exchange(true)) throw Conflict("an alignment is running: try again when it has answered");
+  struct Release {
+    std::atomic<bool>& flag;
+    ~Release() { flag = false; }
+  } release{aligning_};
   const auto state = snapshot();
   if (state->objects.empty()) throw Conflict("no floor plan is loaded: there is nothing to align");
   std::optional<fusion::ProbabilityRaster> raster;
@@ -729,18 +735,26 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
   }
   if (!raster) throw Conflict("the grid is empty: post scans before aligning the plan");
   fusion::ObservedMap observed{raster->geometry, std::move(raster->p), {}};
-  const double step = observed.geometry.resolution_m();
+  // Points along the elements at the grid's cell, within the grid's bounds (a client's element may be km long).
+  const auto& g = observed.geometry;
+  const double step = g.resolution_m();
+  const Eigen::Vector2d lo = g.origin_m();
+  const Eigen::Vector2d hi =
+      lo + step * Eigen::Vector2d(static_cast<double>(g.width()), static_cast<double>(g.height()));
   for (const auto& [number, e] : state->elements) {
     const Eigen::Vector2d a = e.segment.p0(), b = e.segment.p1();
-    const auto n = static_cast<int>(std::ceil((b - a).norm() / step));
-    for (int i = 0; i <= n; ++i)
-      observed.element_points.push_back(a + (b - a) * (static_cast<double>(i) / std::max(n, 1)));
+    const double n = std::min(std::ceil((b - a).norm() / step), 1e5);
+    for (double i = 0; i <= n; ++i) {
+      const Eigen::Vector2d p = a + (b - a) * (i / std::max(n, 1.0));
+      if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) observed.element_points.push_back(p);
+    }
   }
   AlignOutcome outcome;
   outcome.before = state->placement;
   const auto edges = drawn_edges(*state);
   outcome.edges = edges.size();
   request.search.initial = state->placement;
+  if (!request.scale_given) request.search.scale_min = request.search.scale_max = state->placement.scale;
   try {
     outcome.result = fusion::register_plan(edges, observed, request.search);
   } catch (const fusion::RegistrationError& e) {
@@ -755,6 +769,8 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
     outcome.verdict = "timed_out";
   else if (r.best.score < request.min_score)
     outcome.verdict = "low_score";
+  else if (r.best.coverage < request.min_coverage)
+    outcome.verdict = "low_coverage";
   else if (r.ambiguous && !request.apply_ambiguous)
     outcome.verdict = "ambiguous";
   else if (!request.apply)
@@ -773,7 +789,14 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
   change.explanation = text;
   change.observer = request.observer;
   nlohmann::json payload = {{"align", {{"score", r.best.score}, {"coverage", r.best.coverage}}}};
-  outcome.placement = place_floor_plan(change, payload.dump());
+  // Applied only to the plan and placement it was searched for: a plan loaded or placed meanwhile wins.
+  outcome.placement = writer_->run([&] {
+    const auto now = snapshot();
+    if (!(now->placement == outcome.before) || now->plan_name != state->plan_name ||
+        now->objects.size() != state->objects.size())
+      throw Conflict("the plan or its placement changed during the search: nothing applied; align again");
+    return place_on_writer(change, payload.dump(), false);
+  });
   outcome.applied = true;
   if (request.redecide) outcome.redecided = redecide_elements(request.observer);
   return outcome;
@@ -816,8 +839,8 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
     total.removed_elements.insert(number);
     total.changed_elements.erase(number);
     for (const auto n : result.changed_elements) total.changed_elements.insert(n);
-    for (const auto n : result.removed_elements)
-      if (base->elements.contains(n)) total.removed_elements.insert(n);
+    // Elements a join removed, also those this redecide created (their rows must not be written).
+    for (const auto n : result.removed_elements) total.removed_elements.insert(n);
     for (const auto i : result.changed_objects) total.changed_objects.insert(i);
     total.state = std::move(result.state);
   }

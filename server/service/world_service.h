@@ -222,6 +222,7 @@ class WorldService final : public WorldPort {
   /// The journal sequence of the last scan in the grid = scans ever accepted (the journal numbers them 1, 2,
   /// …); persisted with the scan, so it never goes back across restarts.
   std::atomic<std::int64_t> grid_revision_{0};
+  std::atomic<bool> aligning_{false};      // an align_floor_plan search is running
   std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see
   std::int64_t last_scan_seq_ = 0;         // the last scan inserted into the grid (all journaled scans, once started)
   std::int64_t flushed_scan_seq_ = 0;

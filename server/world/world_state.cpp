@@ -128,10 +128,12 @@ std::vector<fusion::LocalEdge> scaled_edges(const apriori::PlanObject& drawn, do
   return edges;
 }
 
-// A pose covariance carried through a change of placement: position turned by dθ and scaled by `ratio`.
-Eigen::Matrix3d placed_cov(const Eigen::Matrix3d& cov, double dtheta, double ratio) {
+// A pose covariance carried through a change of placement: its position part turns by dθ. It is not scaled with the
+// drawing: how well an object's position is known in the world does not depend on the units it was drawn in (a
+// plan drawn in millimetres placed at 0.001 would otherwise freeze every rigid adjustment).
+Eigen::Matrix3d placed_cov(const Eigen::Matrix3d& cov, double dtheta) {
   Eigen::Matrix3d j = Eigen::Matrix3d::Identity();
-  j.topLeftCorner<2, 2>() = ratio * Eigen::Rotation2Dd(dtheta).toRotationMatrix();
+  j.topLeftCorner<2, 2>() = Eigen::Rotation2Dd(dtheta).toRotationMatrix();
   return j * cov * j.transpose();
 }
 
@@ -143,7 +145,7 @@ std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const Worl
   objects.reserve(plan.objects.size());
   for (const auto& drawn : plan.objects) {
     auto shared = std::make_shared<const apriori::PlanObject>(drawn);
-    const auto cov = placed_cov(drawn.pose_cov.value_or(options.default_pose_cov), placement.theta_rad, 1.0);
+    const auto cov = placed_cov(drawn.pose_cov.value_or(options.default_pose_cov), placement.theta_rad);
     fusion::RigidObject body(placement.transform_pose(drawn.pose), cov, scaled_edges(drawn, placement.scale));
     objects.push_back(ObjectState{std::move(shared), std::move(body), 0, 0, version});
   }
@@ -153,7 +155,7 @@ std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const Worl
 ObjectState replaced(const ObjectState& object, const fusion::Similarity2D& from, const fusion::Similarity2D& to) {
   ObjectState moved = object;
   const auto in_drawing = from.inverse_transform_pose(object.body.pose());
-  const auto cov = placed_cov(object.body.pose_cov(), to.theta_rad - from.theta_rad, to.scale / from.scale);
+  const auto cov = placed_cov(object.body.pose_cov(), to.theta_rad - from.theta_rad);
   moved.body = fusion::RigidObject(to.transform_pose(in_drawing), cov, scaled_edges(*object.plan, to.scale));
   return moved;
 }

@@ -184,7 +184,7 @@ std::vector<ObjectState> make_objects(const apriori::FloorPlan& plan, const Worl
                                       const fusion::Similarity2D& placement = {});
 
 /// An object moved from one placement of the plan to another: its pose relative to the drawing (a rigid adjustment
-/// included) is kept, its edges take the new scale, its covariance turns and scales with it.
+/// included) is kept, its edges take the new scale, its covariance turns with it.
 ObjectState replaced(const ObjectState& object, const fusion::Similarity2D& from, const fusion::Similarity2D& to);
 
 /// (ρ, φ) covariance of a line known to σ_offset [m] across the segment's midpoint and σ_angle [rad] in

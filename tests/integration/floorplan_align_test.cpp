@@ -176,7 +176,8 @@ TEST_F(FloorPlanAlignTest, AGdc1PlanDrawnElsewhereIsAlignedAndTheRulesThenConfir
   EXPECT_EQ(undone["placement"]["x"], 0.0);
   EXPECT_NEAR(undone["before"]["x"].get<double>(), best["x"].get<double>(), 1e-12);
   EXPECT_EQ(send_json("POST", "/api/v1/floorplan/undo", json::object(), 409)["error"], "conflict");
-  const auto log = get_json("/api/v1/decisions?since=0&limit=10000")["decisions"];
+  const auto log = get_json("/api/v1/decisions?limit=10000&since=" +
+                            std::to_string(aligned["decision"]["seq"].get<std::int64_t>() - 1))["decisions"];
   int placements = 0;
   for (const auto& d : log) placements += d["action"] == "place";
   EXPECT_EQ(placements, 2);
@@ -196,6 +197,13 @@ TEST_F(FloorPlanAlignTest, PointPairsAndAnExplicitPosePlaceThePlanAndBadInputCha
   send_json("POST", "/api/v1/floorplan/place", {{"x", 1}, {"y", 2}, {"theta", 0}, {"scale", -1}}, 400);
   EXPECT_EQ(call("POST", "/api/v1/floorplan/place", R"({"x": 1e999, "y": 0, "theta": 0})").status, 400);
   send_json("PUT", "/api/v1/floorplan/georeference", {{"latitude", 95}, {"longitude", 0}}, 400);
+  // Pairs whose plan points nearly coincide would give a scale of 1e11; a far placement; a search over budget.
+  send_json("POST", "/api/v1/floorplan/pairs",
+            {{"scale", true},
+             {"pairs", {{{"plan", {0, 0}}, {"world", {0, 0}}}, {{"plan", {1e-8, 0}}, {"world", {1000, 0}}}}}},
+            400);
+  send_json("POST", "/api/v1/floorplan/place", {{"x", 1e300}, {"y", 0}, {"theta", 0}}, 400);
+  send_json("POST", "/api/v1/floorplan/align", {{"time_budget_ms", 60000}}, 400);
   EXPECT_EQ(get_json("/api/v1/map")["version"], version);
 
   // Pairs in millimetres: the scale comes out.

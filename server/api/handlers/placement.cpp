@@ -14,6 +14,9 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
+// Coordinates a placement or a pair may have [m]: the floor plan's own limit.
+constexpr double kMaxCoordinate = 1e5;
+
 // A finite number at `key`, or `fallback` when absent. @throw ApiError 400.
 double number_field(const nlohmann::json& doc, const std::string& key, std::optional<double> fallback = std::nullopt) {
   if (!doc.contains(key)) {
@@ -32,14 +35,16 @@ bool bool_field(const nlohmann::json& doc, const std::string& key, bool fallback
 }
 
 Eigen::Vector2d point_field(const nlohmann::json& v, const std::string& path) {
-  if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number() || !std::isfinite(v[0].get<double>()) ||
-      !std::isfinite(v[1].get<double>()))
+  if (!v.is_array() || v.size() != 2 || !v[0].is_number() || !v[1].is_number())
     throw bad_request(path, "expected [x, y] with finite numbers");
-  return {v[0].get<double>(), v[1].get<double>()};
+  const double x = v[0].get<double>(), y = v[1].get<double>();
+  if (!std::isfinite(x) || !std::isfinite(y) || std::abs(x) > kMaxCoordinate || std::abs(y) > kMaxCoordinate)
+    throw bad_request(path, "expected [x, y] with finite numbers within ±1e5");
+  return {x, y};
 }
 
 double scale_value(double scale, const std::string& path) {
-  if (!(scale > 0) || scale > 1e6) throw bad_request(path, "expected a scale in (0, 1e6]");
+  if (!(scale >= 1e-6) || scale > 1e6) throw bad_request(path, "expected a scale in [1e-6, 1e6]");
   return scale;
 }
 
@@ -112,6 +117,9 @@ Response post_floor_plan_place(const Call& call) {
   world::PlacementChange change;
   change.placement = {number_field(doc, "x"), number_field(doc, "y"), heading_field(doc),
                       scale_value(number_field(doc, "scale", 1.0), "scale")};
+  if (std::abs(change.placement.x_m) > kMaxCoordinate || std::abs(change.placement.y_m) > kMaxCoordinate)
+    throw bad_request("x", "expected x and y within ±1e5 m");
+  if (std::abs(change.placement.theta_rad) > 1e3) throw bad_request("theta", "expected an angle within ±1000 rad");
   change.cov = cov_field(doc);
   change.rule = "plan_placed";
   change.explanation = "placed by hand";
@@ -134,8 +142,13 @@ Response post_floor_plan_pairs(const Call& call) {
     pairs.push_back({point_field(p["plan"], path + ".plan"), point_field(p["world"], path + ".world")});
   }
   const double sigma = number_field(doc, "sigma", 0.05);
-  if (!(sigma > 0)) throw bad_request("sigma", "expected a positive number [m]");
+  if (!(sigma > 0) || sigma > 100) throw bad_request("sigma", "expected a number in (0, 100] [m]");
   const auto placed = fusion::place_from_pairs(pairs, bool_field(doc, "scale", false), sigma);
+  const auto& p = placed.placement;
+  if (!std::isfinite(p.x_m) || !std::isfinite(p.y_m) || !std::isfinite(p.theta_rad) || !(p.scale >= 1e-6) ||
+      p.scale > 1e6 || !placed.covariance.allFinite() || std::abs(p.x_m) > kMaxCoordinate ||
+      std::abs(p.y_m) > kMaxCoordinate)
+    throw bad_request("pairs", "the pairs give no usable placement (scale outside [1e-6, 1e6] or beyond ±1e5 m)");
   nlohmann::json answer = {{"placement", json_codec::placement_json(placed.placement, placed.covariance)},
                            {"rms_m", placed.rms_m},
                            {"pairs", pairs.size()},
@@ -157,7 +170,7 @@ Response post_floor_plan_align(const Call& call) {
   require_token(call.request, call.options);
   const auto doc = parse_json_object(call.request);
   require_known_keys(doc, {"max_translation_m", "max_rotation_deg", "scale", "apply", "apply_ambiguous", "min_score",
-                           "redecide", "time_budget_ms", "source"});
+                           "min_coverage", "redecide", "time_budget_ms", "source"});
   service::AlignRequest request;
   auto& search = request.search;
   search.max_translation_m = number_field(doc, "max_translation_m", 10.0);
@@ -166,6 +179,7 @@ Response post_floor_plan_align(const Call& call) {
   const double rotation_deg = number_field(doc, "max_rotation_deg", 180.0);
   if (rotation_deg < 0 || rotation_deg > 180) throw bad_request("max_rotation_deg", "expected a number in [0, 180]");
   search.max_rotation_rad = rotation_deg * kDeg;
+  request.scale_given = doc.contains("scale");
   if (doc.contains("scale")) {
     const auto& s = doc["scale"];
     if (s.is_string() && s.get<std::string>() == "units") {
@@ -182,13 +196,16 @@ Response post_floor_plan_align(const Call& call) {
     }
   }
   const double budget_ms = number_field(doc, "time_budget_ms", 10000.0);
-  if (budget_ms < 1 || budget_ms > 120000) throw bad_request("time_budget_ms", "expected a number in [1, 120000]");
+  if (budget_ms < 1 || budget_ms > 30000) throw bad_request("time_budget_ms", "expected a number in [1, 30000]");
   search.time_budget = std::chrono::milliseconds(static_cast<std::int64_t>(budget_ms));
   request.apply = bool_field(doc, "apply", false);
   request.apply_ambiguous = bool_field(doc, "apply_ambiguous", false);
   request.redecide = bool_field(doc, "redecide", false);
   request.min_score = number_field(doc, "min_score", 0.5);
   if (request.min_score < 0 || request.min_score > 1) throw bad_request("min_score", "expected a number in [0, 1]");
+  request.min_coverage = number_field(doc, "min_coverage", 0.05);
+  if (request.min_coverage < 0 || request.min_coverage > 1)
+    throw bad_request("min_coverage", "expected a number in [0, 1]");
   request.observer = observer_of(doc);
   const auto outcome = call.world.align_floor_plan(request);
   const auto& r = outcome.result;

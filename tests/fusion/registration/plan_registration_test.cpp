@@ -198,6 +198,15 @@ TEST(PlanRegistration, RefusesWhatItCannotPlace) {
   bad.scale_min = 0.001;
   bad.scale_max = 1000;
   EXPECT_THROW(register_plan(std::vector<DrawnEdge>{{{0, 0}, {100, 0}}}, one, bad), RegistrationError);
+  // Bounds that would take millions of windows are refused before anything is allocated for them.
+  bad = {};
+  bad.max_translation_m = 1000;
+  try {
+    register_plan(std::vector<DrawnEdge>{{{0, 0}, {100, 0}}}, one, bad);
+    ADD_FAILURE() << "a search of 77 million windows must be refused";
+  } catch (const RegistrationError& e) {
+    EXPECT_NE(std::string(e.what()).find("narrow max_translation"), std::string::npos) << e.what();
+  }
 }
 
 TEST(PlacementFromPairs, RecoversASimilarityAndRefusesDegeneratePairs) {
