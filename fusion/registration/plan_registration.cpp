@@ -418,6 +418,24 @@ std::vector<Eigen::Vector2d> observed_points(const ObservedMap& observed, double
   return points;
 }
 
+// The covariance of a placement from that of the small similarity about `pivot` it was solved for, (dt, dθ, ds) with
+// t' = m + (1 + ds)·R(dθ)·(t − m) + dt, θ' = θ + dθ, s' = s·(1 + ds). The scale's row and column are zero when held.
+Eigen::Matrix4d placement_cov(const Similarity2D& placement, const Eigen::Vector2d& pivot, Eigen::Matrix4d correction,
+                              bool with_scale) {
+  if (!with_scale) {
+    correction.row(3).setZero();
+    correction.col(3).setZero();
+  }
+  const Eigen::Vector2d lever = Eigen::Vector2d(placement.x_m, placement.y_m) - pivot;
+  Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
+  a.block<2, 2>(0, 0).setIdentity();
+  a.block<2, 1>(0, 2) = perp(lever);
+  a.block<2, 1>(0, 3) = lever;
+  a(2, 2) = 1;
+  a(3, 3) = placement.scale;
+  return a * correction * a.transpose();
+}
+
 struct Refined {
   Similarity2D placement;
   Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
@@ -533,19 +551,7 @@ Refined refine(const std::vector<DrawnEdge>& edges, const std::vector<Eigen::Vec
     const double dof = std::max(1.0, static_cast<double>(matches.size()) - unknowns);
     const double sigma_sq = weighted_sq / dof;
     result.rms_m = std::sqrt(weighted_sq / std::max(weight_sum, 1.0));
-    // From the correction's unknowns to (x, y, θ, scale) of the placement.
-    Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
-    a.block<2, 2>(0, 0).setIdentity();
-    a.block<2, 1>(0, 2) = perp(t_new - centroid);
-    a.block<2, 1>(0, 3) = t_new - centroid;
-    a(2, 2) = 1;
-    a(3, 3) = placement.scale;
-    Eigen::Matrix4d cov = sigma_sq * inverse;
-    if (!with_scale) {
-      cov.row(3).setZero();
-      cov.col(3).setZero();
-    }
-    result.covariance = a * cov * a.transpose();
+    result.covariance = placement_cov(placement, centroid, sigma_sq * inverse, with_scale);
     const bool settled = delta.head<2>().norm() < 1e-4 && std::abs(delta(2)) < 1e-6 && std::abs(delta(3)) < 1e-7;
     if (settled && band <= band_min) break;
     band = std::max(band_min, band * 0.7);
@@ -759,19 +765,7 @@ PairsPlacement place_from_pairs(const std::vector<PointPair>& pairs, bool with_s
   const double dof = 2.0 * static_cast<double>(pairs.size()) - unknowns;
   result.rms_m = std::sqrt(sq / static_cast<double>(pairs.size()));
   const double sigma_sq = std::max(point_sigma_m * point_sigma_m, dof > 0 ? sq / dof : 0.0);
-  Eigen::Matrix4d cov = sigma_sq * normal_matrix.inverse();
-  if (!with_scale) {
-    cov.row(3).setZero();
-    cov.col(3).setZero();
-  }
-  const Eigen::Vector2d t_world(result.placement.x_m, result.placement.y_m);
-  Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
-  a.block<2, 2>(0, 0).setIdentity();
-  a.block<2, 1>(0, 2) = perp(t_world - centroid);
-  a.block<2, 1>(0, 3) = t_world - centroid;
-  a(2, 2) = 1;
-  a(3, 3) = result.placement.scale;
-  result.covariance = a * cov * a.transpose();
+  result.covariance = placement_cov(result.placement, centroid, sigma_sq * normal_matrix.inverse(), with_scale);
   return result;
 }
 

@@ -332,13 +332,7 @@ void WorldService::trim_to_grid_if_due(const json_codec::ScanRequest& scan, std:
   const world::Box region = *trim_region_;
   trim_region_.reset();
   try {
-    PreparedUpdate p;
-    p.base = snapshot();
-    p.seq = p.base->last_observation_seq + 1;
-    p.observation.observer = "grid-trim";
-    p.observation.origin = "grid";
-    p.observation.sensor = "grid";
-    p.observation.received_at_unix_s = now_unix_s();
+    auto p = own_observation(snapshot(), "grid-trim", "grid", "grid");
     std::vector<world::GridShares> checked;
     {
       std::shared_lock lock(grid_mutex_);
@@ -475,6 +469,19 @@ PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, 
   auto prepared = prepare_update(std::move(observation));
   commit_prepared(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload); });
   return finish_update(std::move(prepared));
+}
+
+WorldService::PreparedUpdate WorldService::own_observation(std::shared_ptr<const world::WorldState> base,
+                                                           std::string observer, std::string origin,
+                                                           std::string sensor) {
+  PreparedUpdate p;
+  p.seq = base->last_observation_seq + 1;
+  p.base = std::move(base);
+  p.observation.observer = std::move(observer);
+  p.observation.origin = std::move(origin);
+  p.observation.sensor = std::move(sensor);
+  p.observation.received_at_unix_s = now_unix_s();
+  return p;
 }
 
 WorldService::PreparedUpdate WorldService::prepare_update(world::Observation observation) {
@@ -679,13 +686,7 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
                                                bool undo) {
   const auto base = snapshot();
   if (base->objects.empty()) throw Conflict("no floor plan is loaded: there is nothing to place");
-  PreparedUpdate p;
-  p.base = base;
-  p.seq = base->last_observation_seq + 1;
-  p.observation.observer = change.observer;
-  p.observation.origin = "placement";
-  p.observation.sensor = "none";
-  p.observation.received_at_unix_s = now_unix_s();
+  auto p = own_observation(base, change.observer, "placement", "none");
   p.update = world::apply_placement(*base, change, p.seq);
   commit_prepared(p, [&] { store_.commit_placement({p.update, p.observation, payload}, undo); });
   const auto decision = p.update.decisions.at(0);
@@ -848,13 +849,7 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
   for (const auto n : total.removed_elements) total.changed_elements.erase(n);
   total.state.version = base->version + 1;
   total.state.last_observation_seq = seq;
-  PreparedUpdate p;
-  p.base = base;
-  p.seq = seq;
-  p.observation.observer = observer;
-  p.observation.origin = "redecide";
-  p.observation.sensor = "none";
-  p.observation.received_at_unix_s = now_unix_s();
+  auto p = own_observation(base, observer, "redecide", "none");
   p.update = std::move(total);
   const std::string payload = "{\"redecide\": " + std::to_string(outcome.elements) + "}";
   commit_prepared(p, [&] { store_.commit_observation(p.update, p.observation, payload); });

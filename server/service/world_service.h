@@ -170,6 +170,10 @@ class WorldService final : public WorldPort {
     std::int64_t seq = 0;
   };
   PreparedUpdate prepare_update(world::Observation observation);
+  /// An observation the server makes itself (grid trim, placement, redecide) against `base`, numbered next; its
+  /// update is the caller's to fill.
+  static PreparedUpdate own_observation(std::shared_ptr<const world::WorldState> base, std::string observer,
+                                        std::string origin, std::string sensor);
   /// Runs `commit`; if it throws, puts the rules' facts back to the committed map and rethrows.
   template <typename F>
   void commit_prepared(const PreparedUpdate& prepared, F&& commit);
