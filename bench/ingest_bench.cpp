@@ -1,0 +1,432 @@
+// End-to-end ingest: the 910 laser scans of the Intel Research Lab CARMEN log posted to a real wmd child process
+// over loopback HTTP/1.1, by R = 1, 4, 16 robots at once (one thread and one keep-alive connection each,
+// robot k posting scans k, k + R, ... in order as observer "robot-k"), with --sync full on a fresh database.
+// Baselines in the same run:
+//  - the same ingest against wmd started with the extra arguments in WM_BENCH_BASELINE_ARGS (space-separated;
+//    unset: --handler-threads 8, today's default);
+//  - raw SQLite (WAL, synchronous=FULL) inserting one Intel scan body per transaction, the fsync ceiling of a
+//    writer that commits every scan on its own, and 16 per transaction, what group commit could reach.
+// WM_BENCH_QUICK caps the log at 200 scans.
+#include <benchmark/benchmark.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sqlite3.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench/support/ratio_reporter.h"
+#include "clients/logs/carmen_log_reader.h"
+#include "clients/logs/scan_body.h"
+
+namespace {
+
+namespace beast = boost::beast;
+namespace http = boost::beast::http;
+namespace net = boost::asio;
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+constexpr int kRobotCounts[] = {1, 4, 16};
+constexpr auto kRetryPause = std::chrono::milliseconds(5);  // instead of Retry-After's whole second: we measure load
+
+// The shared copy of the log, else the whole copy the tests ship.
+fs::path intel_log() {
+  const fs::path shared = fs::path(WM_SHARED_DATA_DIR) / "carmen";
+  if (fs::exists(shared / "intel-corrected.log.gz")) return shared / "intel-corrected.log.gz";
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(shared, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("intel", 0) == 0 && name.size() > 7 && name.compare(name.size() - 7, 7, ".log.gz") == 0)
+      return entry.path();
+  }
+  return fs::path(WM_TESTS_CARMEN_DIR) / "intel-corrected.log.gz";
+}
+
+std::vector<wm::logs::LogScan> read_scans(const fs::path& log, std::size_t limit) {
+  wm::logs::CarmenLogReader reader(log);
+  std::vector<wm::logs::LogScan> scans;
+  for (auto scan = reader.next(); scan && scans.size() < limit; scan = reader.next()) scans.push_back(std::move(*scan));
+  return scans;
+}
+
+// The body wmctl replay posts (its default pose uncertainty included, so the server does the same work).
+std::string scan_body(const wm::logs::LogScan& s, const std::string& observer) {
+  auto body = wm::logs::laser_scan_body(s.scan, observer, s.timestamp_s);
+  constexpr double kSigmaXy = 0.03, kSigmaTheta = 0.0087;
+  body["pose_cov"] = {{kSigmaXy * kSigmaXy, 0, 0}, {0, kSigmaXy * kSigmaXy, 0}, {0, 0, kSigmaTheta * kSigmaTheta}};
+  return body.dump();
+}
+
+// Every robot's bodies, in its posting order: robot k gets scans k, k + R, ...
+std::vector<std::vector<std::string>> robot_bodies(const std::vector<wm::logs::LogScan>& scans, int robots) {
+  std::vector<std::vector<std::string>> bodies(static_cast<std::size_t>(robots));
+  for (std::size_t i = 0; i < scans.size(); ++i)
+    bodies[i % bodies.size()].push_back(scan_body(scans[i], "robot-" + std::to_string(i % bodies.size())));
+  return bodies;
+}
+
+std::vector<std::string> split_words(const std::string& text) {
+  std::istringstream in(text);
+  std::vector<std::string> words;
+  for (std::string w; in >> w;) words.push_back(w);
+  return words;
+}
+
+// A fresh directory, removed with everything in it.
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = (fs::temp_directory_path() / "wm-ingest-bench-XXXXXX").string();
+    if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
+  }
+  ~TempDir() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+// One keep-alive HTTP/1.1 connection to wmd on loopback.
+class Connection {
+ public:
+  explicit Connection(unsigned short port) : endpoint_(net::ip::make_address("127.0.0.1"), port) { connect(); }
+
+  struct Answer {
+    int status;
+    std::string body;
+  };
+
+  Answer request(http::verb verb, const std::string& target, const std::string& body = {}) {
+    http::request<http::string_body> req{verb, target, 11};
+    req.set(http::field::host, "127.0.0.1");
+    req.keep_alive(true);
+    if (!body.empty()) {
+      req.set(http::field::content_type, "application/json");
+      req.body() = body;
+    }
+    req.prepare_payload();
+    stream_.expires_after(std::chrono::seconds(60));
+    http::write(stream_, req);
+    http::response<http::string_body> res;
+    http::read(stream_, buffer_, res);
+    if (!res.keep_alive()) reconnect();  // the server may close after an error answer
+    return {static_cast<int>(res.result_int()), std::move(res.body())};
+  }
+
+ private:
+  void connect() {
+    stream_.expires_after(std::chrono::seconds(10));
+    stream_.connect(endpoint_);
+    stream_.socket().set_option(net::ip::tcp::no_delay(true));
+  }
+  void reconnect() {
+    beast::error_code ignored;
+    stream_.socket().shutdown(net::ip::tcp::socket::shutdown_both, ignored);
+    stream_.close();
+    buffer_.clear();
+    connect();
+  }
+
+  net::io_context ioc_;
+  net::ip::tcp::endpoint endpoint_;
+  beast::tcp_stream stream_{ioc_};
+  beast::flat_buffer buffer_;
+};
+
+// wmd as a child process on a fresh database in its own directory, its output in wmd.log there; stopped with
+// SIGTERM by stop() or the destructor.
+class WmdProcess {
+ public:
+  explicit WmdProcess(const std::vector<std::string>& extra_args) {
+    const fs::path log = dir_.path() / "wmd.log";
+    std::vector<std::string> args = {WM_WMD, "--db", (dir_.path() / "bench.db").string(), "--port", "0",
+                                     "--sync", "full", "--no-watch-rules", "--web", ""};
+    args.insert(args.end(), extra_args.begin(), extra_args.end());
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    const std::string log_path = log.string();
+    pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("fork failed");
+    if (pid_ == 0) {  // only async-signal-safe calls until exec
+      ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // no wmd left behind by a crashed bench
+      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd >= 0) {
+        ::dup2(fd, STDOUT_FILENO);
+        ::dup2(fd, STDERR_FILENO);
+      }
+      ::execv(argv[0], argv.data());
+      ::_exit(127);
+    }
+    // wmd prints "wmd: listening on http://127.0.0.1:PORT/" to stdout once it accepts connections; a file rather
+    // than a pipe, so that nothing it writes later can block it.
+    const auto deadline = Clock::now() + std::chrono::seconds(60);
+    while (!(port_ = listening_port(log))) {
+      if (int status = 0; ::waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        throw std::runtime_error("wmd exited at start: " + head_of(log));
+      }
+      if (Clock::now() > deadline) throw std::runtime_error("wmd printed no port within 60 s: " + head_of(log));
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    wait_healthy(deadline);
+  }
+  ~WmdProcess() { stop(); }
+  WmdProcess(const WmdProcess&) = delete;
+  WmdProcess& operator=(const WmdProcess&) = delete;
+
+  unsigned short port() const { return *port_; }
+
+  /// SIGTERM, then waits; true when wmd exited 0. SIGKILL after 60 s so a hung shutdown cannot hang the bench.
+  bool stop() {
+    if (pid_ <= 0) return true;
+    ::kill(pid_, SIGTERM);
+    const auto deadline = Clock::now() + std::chrono::seconds(60);
+    int status = 0;
+    while (::waitpid(pid_, &status, WNOHANG) == 0) {
+      if (Clock::now() > deadline) {
+        ::kill(pid_, SIGKILL);
+        ::waitpid(pid_, &status, 0);
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    pid_ = -1;
+    return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+  }
+
+ private:
+  // The start of wmd's output, enough for the reason it gives (a bad flag prints the whole usage).
+  static std::string head_of(const fs::path& file) { return read_text(file).substr(0, 400); }
+
+  static std::string read_text(const fs::path& file) {
+    std::ifstream in(file);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  }
+
+  static std::optional<unsigned short> listening_port(const fs::path& log) {
+    const std::string text = read_text(log);
+    const std::string marker = "listening on http://";
+    const auto at = text.find(marker);
+    if (at == std::string::npos) return std::nullopt;
+    const auto end = text.find('/', at + marker.size());
+    const auto colon = text.rfind(':', end);
+    if (end == std::string::npos || colon == std::string::npos || colon < at) return std::nullopt;
+    return static_cast<unsigned short>(std::stoi(text.substr(colon + 1, end - colon - 1)));
+  }
+
+  void wait_healthy(Clock::time_point deadline) const {
+    for (;;) {
+      try {
+        Connection c(port());
+        if (c.request(http::verb::get, "/api/v1/health").status == 200) return;
+      } catch (const boost::system::system_error&) {
+      }
+      if (Clock::now() > deadline) throw std::runtime_error("wmd's /api/v1/health did not answer 200 within 60 s");
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
+
+  TempDir dir_;
+  pid_t pid_ = -1;
+  std::optional<unsigned short> port_;
+};
+
+// What one robot saw.
+struct RobotTally {
+  std::size_t accepted = 0;
+  std::size_t retries = 0;
+  std::vector<double> latencies_ms;  // per HTTP exchange, a 503 included
+};
+
+// Posts `bodies` in order on `connection`, retrying the same body after a 503; stops at the first other status,
+// at a connection error, or when another robot failed.
+void run_robot(Connection& connection, const std::vector<std::string>& bodies, RobotTally& tally,
+               std::atomic<bool>& failed, std::string& error, std::mutex& error_mutex) {
+  const auto fail = [&](const std::string& what) {
+    const std::lock_guard lock(error_mutex);
+    if (error.empty()) error = what;
+    failed = true;
+  };
+  try {
+    for (const auto& body : bodies) {
+      for (;;) {
+        if (failed) return;
+        const auto start = Clock::now();
+        const auto answer = connection.request(http::verb::post, "/api/v1/scans", body);
+        tally.latencies_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+        if (answer.status >= 200 && answer.status < 300) {
+          ++tally.accepted;
+          break;
+        }
+        if (answer.status != 503) return fail("POST /api/v1/scans: " + std::to_string(answer.status) + " " +
+                                              answer.body.substr(0, 300));
+        ++tally.retries;
+        std::this_thread::sleep_for(kRetryPause);
+      }
+    }
+  } catch (const std::exception& e) {
+    fail(std::string("connection: ") + e.what());
+  }
+}
+
+void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans,
+            const std::vector<std::string>* wmd_args, const std::string* label) {
+  const int robots = static_cast<int>(state.range(0));
+  const auto bodies = robot_bodies(*scans, robots);
+  std::size_t accepted = 0, retries = 0;
+  std::vector<double> latencies_ms;
+  try {
+    WmdProcess wmd(*wmd_args);
+    // Connections opened before the clock starts: we time ingest, not the handshakes.
+    std::vector<std::unique_ptr<Connection>> connections;
+    for (int k = 0; k < robots; ++k) connections.push_back(std::make_unique<Connection>(wmd.port()));
+    std::string error;
+    for (auto _ : state) {
+      std::vector<RobotTally> tallies(static_cast<std::size_t>(robots));
+      std::atomic<bool> failed{false};
+      std::mutex error_mutex;
+      std::vector<std::thread> threads;
+      for (std::size_t k = 0; k < tallies.size(); ++k)
+        threads.emplace_back(run_robot, std::ref(*connections[k]), std::cref(bodies[k]), std::ref(tallies[k]),
+                             std::ref(failed), std::ref(error), std::ref(error_mutex));
+      for (auto& t : threads) t.join();
+      for (const auto& t : tallies) {
+        accepted += t.accepted;
+        retries += t.retries;
+        latencies_ms.insert(latencies_ms.end(), t.latencies_ms.begin(), t.latencies_ms.end());
+      }
+      if (failed) break;
+    }
+    connections.clear();
+    if (!error.empty()) return state.SkipWithError(error.c_str());
+    if (!wmd.stop()) return state.SkipWithError("wmd did not exit 0 on SIGTERM");
+  } catch (const std::exception& e) {
+    return state.SkipWithError(e.what());
+  }
+  std::sort(latencies_ms.begin(), latencies_ms.end());
+  double sum = 0;
+  for (double l : latencies_ms) sum += l;
+  const auto p99_index = static_cast<std::size_t>(std::ceil(0.99 * static_cast<double>(latencies_ms.size()))) - 1;
+  state.SetItemsProcessed(static_cast<std::int64_t>(accepted));
+  state.SetLabel(*label);
+  state.counters["robots"] = robots;
+  state.counters["scans"] = static_cast<double>(accepted);
+  state.counters["retries"] = static_cast<double>(retries);
+  state.counters["mean_ms"] = latencies_ms.empty() ? 0.0 : sum / static_cast<double>(latencies_ms.size());
+  state.counters["p99_ms"] = latencies_ms.empty() ? 0.0 : latencies_ms[p99_index];
+}
+
+// A raw SQLite writer: `rows_per_transaction` inserts of `payload` per commit, WAL and synchronous=FULL as wmd's
+// --sync full.
+void sqlite_commits(benchmark::State& state, const std::string* payload, int rows_per_transaction) {
+  TempDir dir;
+  sqlite3* db = nullptr;
+  const auto check = [&](int rc, const char* what) {
+    if (rc == SQLITE_OK || rc == SQLITE_DONE || rc == SQLITE_ROW) return true;
+    state.SkipWithError((std::string(what) + ": " + sqlite3_errmsg(db)).c_str());
+    return false;
+  };
+  sqlite3_stmt* insert = nullptr;
+  if (check(sqlite3_open((dir.path() / "raw.db").string().c_str(), &db), "open") &&
+      check(sqlite3_exec(db,
+                         "PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;"
+                         "CREATE TABLE scans(id INTEGER PRIMARY KEY, body BLOB NOT NULL);",
+                         nullptr, nullptr, nullptr),
+            "schema") &&
+      check(sqlite3_prepare_v2(db, "INSERT INTO scans(body) VALUES (?)", -1, &insert, nullptr), "prepare")) {
+    for (auto _ : state) {
+      bool ok = check(sqlite3_exec(db, "BEGIN", nullptr, nullptr, nullptr), "begin");
+      for (int i = 0; ok && i < rows_per_transaction; ++i) {
+        sqlite3_bind_blob(insert, 1, payload->data(), static_cast<int>(payload->size()), SQLITE_STATIC);
+        ok = check(sqlite3_step(insert), "insert") && check(sqlite3_reset(insert), "reset");
+      }
+      if (!ok || !check(sqlite3_exec(db, "COMMIT", nullptr, nullptr, nullptr), "commit")) break;
+    }
+  }
+  sqlite3_finalize(insert);
+  sqlite3_close(db);
+  state.SetItemsProcessed(state.iterations() * rows_per_transaction);
+  state.counters["commits_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()),
+                                                       benchmark::Counter::kIsRate);
+  state.counters["payload_bytes"] = static_cast<double>(payload->size());
+}
+
+const char* ingest_family(bool baseline) { return baseline ? "BM_Ingest_Baseline" : "BM_Ingest"; }
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::size_t scan_limit = std::getenv("WM_BENCH_QUICK") ? 200 : SIZE_MAX;
+  const fs::path log = intel_log();
+  std::vector<wm::logs::LogScan> scans;
+  try {
+    scans = read_scans(log, scan_limit);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ingest_bench: %s\n", e.what());
+    return 1;
+  }
+  if (scans.empty()) {
+    std::fprintf(stderr, "ingest_bench: no scans in %s\n", log.c_str());
+    return 1;
+  }
+  std::printf("ingest_bench: %zu scans of %s\n", scans.size(), log.c_str());
+
+  const char* baseline_env = std::getenv("WM_BENCH_BASELINE_ARGS");
+  const std::vector<std::string> default_args;
+  const std::vector<std::string> baseline_args =
+      baseline_env && *baseline_env ? split_words(baseline_env) : std::vector<std::string>{"--handler-threads", "8"};
+  std::string baseline_label = "baseline:";
+  for (const auto& a : baseline_args) baseline_label += " " + a;
+  const std::string default_label = "default";
+  const std::string payload = scan_body(scans.front(), "robot-0");
+
+  // Names end in /real_time: the ratio reporter compares a baseline only with names of the same suffix.
+  benchmark::RegisterBenchmark("BM_SqliteCommit_1RowPerTxn", sqlite_commits, &payload, 1)->UseRealTime();
+  benchmark::RegisterBenchmark("BM_SqliteCommit_16RowsPerTxn", sqlite_commits, &payload, 16)->UseRealTime();
+  std::vector<std::pair<std::string, std::string>> ratios;
+  for (const int robots : kRobotCounts) {
+    for (const bool baseline : {false, true})
+      benchmark::RegisterBenchmark(ingest_family(baseline), ingest, &scans,
+                                   baseline ? &baseline_args : &default_args,
+                                   baseline ? &baseline_label : &default_label)
+          ->ArgName("robots")
+          ->Arg(robots)
+          ->Iterations(1)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond);
+    ratios.push_back({"default wmd against " + baseline_label + ", " + std::to_string(robots) + " robots",
+                      std::string(ingest_family(true)) + "/robots:" + std::to_string(robots) +
+                          "/iterations:1/real_time"});
+  }
+  ratios.push_back({"against raw SQLite, one commit per scan", "BM_SqliteCommit_1RowPerTxn/real_time"});
+  return wm::bench::run_with_ratios(argc, argv, ratios);
+}

@@ -1,0 +1,148 @@
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "pipeline/network.h"
+
+namespace wm::pipeline {
+namespace {
+
+[[noreturn]] void refuse(const std::string& source, const YAML::Node& at, const std::string& reason) {
+  std::string where = source;
+  if (at && at.Mark().line >= 0) where += ":" + std::to_string(at.Mark().line + 1);
+  throw NetworkError(where + ": " + reason);
+}
+
+std::string scalar(const std::string& source, const YAML::Node& node, const std::string& what) {
+  if (!node || !node.IsScalar()) refuse(source, node, what + " must be a name");
+  return node.as<std::string>();
+}
+
+std::vector<std::string> names(const std::string& source, const YAML::Node& node, const std::string& what) {
+  if (!node.IsSequence()) refuse(source, node, what + " must be a list of names");
+  std::vector<std::string> result;
+  for (const auto& item : node) result.push_back(scalar(source, item, what));
+  return result;
+}
+
+// "a.out -> b.in"
+TaskSpec::Connection connection(const std::string& source, const YAML::Node& node) {
+  const std::string text = scalar(source, node, "a connection");
+  const auto arrow = text.find("->");
+  const auto trim = [](std::string s) {
+    const auto b = s.find_first_not_of(" \t"), e = s.find_last_not_of(" \t");
+    return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
+  };
+  const auto split = [&](const std::string& end) -> std::pair<std::string, std::string> {
+    const auto t = trim(end);
+    const auto dot = t.find('.');
+    if (dot == std::string::npos || dot == 0 || dot + 1 == t.size() || t.find('.', dot + 1) != std::string::npos)
+      refuse(source, node, "connection '" + text + "': each end must be component.port");
+    return {t.substr(0, dot), t.substr(dot + 1)};
+  };
+  if (arrow == std::string::npos) refuse(source, node, "connection '" + text + "' must read 'a.out -> b.in'");
+  const auto [fc, fp] = split(text.substr(0, arrow));
+  const auto [tc, tp] = split(text.substr(arrow + 2));
+  return {fc, fp, tc, tp};
+}
+
+}  // namespace
+
+TaskSpec parse_task(const std::string& yaml, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml);
+  } catch (const YAML::Exception& e) {
+    throw NetworkError(source + ":" + std::to_string(e.mark.line + 1) + ": not YAML: " + e.msg);
+  }
+  if (!root.IsMap()) throw NetworkError(source + ": a task file is a map with components, connections, executors");
+  TaskSpec spec;
+  spec.source = source;
+  for (const auto& entry : root) {
+    const auto key = entry.first.as<std::string>();
+    if (key != "components" && key != "connections" && key != "executors" && key != "description")
+      refuse(source, entry.first, "unknown key '" + key + "' (components, connections, executors, description)");
+  }
+  const auto components = root["components"];
+  if (!components || !components.IsMap() || components.size() == 0)
+    refuse(source, components, "'components' must map names to {kind: ...}");
+  for (const auto& entry : components) {
+    TaskSpec::ComponentSpec c;
+    c.name = scalar(source, entry.first, "a component name");
+    const auto& body = entry.second;
+    if (!body.IsMap()) refuse(source, body, "component '" + c.name + "' must be a map with a kind");
+    for (const auto& field : body) {
+      const auto key = field.first.as<std::string>();
+      if (key == "kind") {
+        c.kind = scalar(source, field.second, "a kind");
+      } else if (key == "functions") {
+        c.functions = names(source, field.second, "functions");
+      } else if (key == "priorities") {
+        c.priorities = names(source, field.second, "priorities");
+      } else if (key == "params") {
+        if (!field.second.IsMap()) refuse(source, field.second, "params must be a map");
+        std::map<std::string, std::string> values;
+        for (const auto& p : field.second) values[p.first.as<std::string>()] = scalar(source, p.second, "a param");
+        c.params = Params(std::move(values));
+      } else if (key == "ports") {
+        if (!field.second.IsMap()) refuse(source, field.second, "ports must map port names to {capacity, policy}");
+        for (const auto& p : field.second) {
+          const auto port = p.first.as<std::string>();
+          if (!p.second.IsMap()) refuse(source, p.second, "port '" + port + "' must be {capacity: N, policy: P}");
+          for (const auto& o : p.second) {
+            const auto option = o.first.as<std::string>();
+            const auto value = scalar(source, o.second, option);
+            if (option == "capacity") {
+              std::size_t used = 0;
+              long long n = 0;
+              try {
+                n = std::stoll(value, &used);
+              } catch (const std::exception&) {
+                used = 0;
+              }
+              if (used != value.size() || n < 1 || n > 1000000)
+                refuse(source, o.second, "capacity of '" + port + "' must be a whole number in [1, 1000000]");
+              c.capacities[port] = static_cast<std::size_t>(n);
+            } else if (option == "policy") {
+              if (value == "fifo")
+                c.policies[port] = PortPolicy::fifo;
+              else if (value == "latest")
+                c.policies[port] = PortPolicy::latest;
+              else
+                refuse(source, o.second, "policy of '" + port + "' must be fifo or latest");
+            } else {
+              refuse(source, o.first, "unknown port option '" + option + "' (capacity, policy)");
+            }
+          }
+        }
+      } else {
+        refuse(source, field.first,
+               "component '" + c.name + "': unknown key '" + key + "' (kind, params, functions, priorities, ports)");
+      }
+    }
+    if (c.kind.empty()) refuse(source, body, "component '" + c.name + "' has no kind");
+    spec.components.push_back(std::move(c));
+  }
+  if (const auto links = root["connections"]) {
+    if (!links.IsSequence()) refuse(source, links, "'connections' must be a list of 'a.out -> b.in'");
+    for (const auto& link : links) spec.connections.push_back(connection(source, link));
+  }
+  const auto executors = root["executors"];
+  if (!executors || !executors.IsMap() || executors.size() == 0)
+    refuse(source, executors, "'executors' must map thread names to lists of components");
+  for (const auto& entry : executors)
+    spec.executors.push_back(
+        {scalar(source, entry.first, "an executor name"), names(source, entry.second, "an executor's components")});
+  return spec;
+}
+
+TaskSpec read_task_file(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw NetworkError(path + ": cannot be read");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_task(text.str(), path);
+}
+
+}  // namespace wm::pipeline
