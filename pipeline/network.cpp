@@ -178,7 +178,8 @@ Network::Network(const TaskSpec& spec, const Registry& registry) : source_(spec.
     if (!factory) {
       std::string known;
       for (const auto& k : registry.kinds()) known += (known.empty() ? "" : ", ") + k;
-      throw NetworkError(fail(spec, "component '" + c.name + "': unknown kind '" + c.kind + "' (known: " + known + ")"));
+      throw NetworkError(
+          fail(spec, "component '" + c.name + "': unknown kind '" + c.kind + "' (known: " + known + ")"));
     }
     auto node = std::make_unique<Node>();
     node->name = c.name;
@@ -230,8 +231,8 @@ Network::Network(const TaskSpec& spec, const Registry& registry) : source_(spec.
       const auto ports = subset(*f);
       for (std::size_t i = 1; i < ports.size(); ++i)
         if (ports[i] == ports[i - 1])
-          throw NetworkError(fail(spec, "component '" + c.name + "': function '" + f->name + "' names port '" +
-                                            ports[i] + "' twice"));
+          throw NetworkError(
+              fail(spec, "component '" + c.name + "': function '" + f->name + "' names port '" + ports[i] + "' twice"));
       for (const auto& port : ports)
         if (!node->input(port))
           throw NetworkError(fail(spec, "component '" + c.name + "': function '" + f->name + "' depends on '" + port +
@@ -246,10 +247,9 @@ Network::Network(const TaskSpec& spec, const Registry& registry) : source_(spec.
         std::set_intersection(ports.begin(), ports.end(), other.begin(), other.end(), std::back_inserter(shared));
         if (ports.size() == other.size() && !shared.empty() && (rank(*f) < 0 || rank(*g) < 0))
           throw NetworkError(fail(spec, "component '" + c.name + "': functions '" + f->name + "' and '" + g->name +
-                                            "' both depend on " + std::to_string(ports.size()) +
-                                            " ports and share " + port_list(shared) +
-                                            ": give them a relative priority (priorities: [" + f->name + ", " +
-                                            g->name + "] or the reverse)"));
+                                            "' both depend on " + std::to_string(ports.size()) + " ports and share " +
+                                            port_list(shared) + ": give them a relative priority (priorities: [" +
+                                            f->name + ", " + g->name + "] or the reverse)"));
       }
     }
     std::stable_sort(chosen.begin(), chosen.end(), [&](const auto* a, const auto* b) {
@@ -303,9 +303,28 @@ Network::Network(const TaskSpec& spec, const Registry& registry) : source_(spec.
         if (!q->written && !q->options.external)
           throw NetworkError(fail(spec, "component '" + node->name + "': port '" + q->name + "' of function '" +
                                             f->spec.name + "' is written by nobody (connect an output to it)"));
-      for (const auto& [port, targets] : node->targets)
+      for (const auto& [port, targets] : node->targets) {
+        const auto& emits = f->spec.options.emits;
+        if (emits && !std::count(emits->begin(), emits->end(), port)) continue;
         for (auto* q : targets)
           if (q->options.policy == PortPolicy::fifo) f->downstream.push_back(q);
+      }
+    }
+    for (const auto& f : node->component->functions())
+      if (f.options.emits)
+        for (const auto& port : *f.options.emits)
+          if (!node->output(port))
+            throw NetworkError(fail(spec, "component '" + node->name + "': function '" + f.name + "' emits on '" +
+                                              port + "', which is no output of " + node->kind));
+    // A FIFO that receives values nobody takes would fill and stall its producers for good.
+    for (const auto& q : node->inputs) {
+      if (!q->written || q->options.policy != PortPolicy::fifo) continue;
+      const bool taken = std::any_of(node->functions.begin(), node->functions.end(), [&](const auto& f) {
+        return std::count(f->consumed.begin(), f->consumed.end(), q.get()) > 0;
+      });
+      if (!taken)
+        throw NetworkError(fail(spec, "component '" + node->name + "': port '" + q->name +
+                                          "' is connected but no running function takes its values"));
     }
   }
 
@@ -383,8 +402,7 @@ StopReport Network::stop(bool drain, std::chrono::milliseconds timeout) {
   return report;
 }
 
-void Network::inject_any(const std::string& component, const std::string& port, std::type_index type,
-                         std::any value) {
+void Network::inject_any(const std::string& component, const std::string& port, std::type_index type, std::any value) {
   for (const auto& node : nodes_) {
     if (node->name != component) continue;
     InputQueue* q = node->input(port);
@@ -429,6 +447,13 @@ bool Network::consumes(const std::string& component, const std::string& port) co
             std::count(f->spec.options.peeks.begin(), f->spec.options.peeks.end(), port))
           return true;
   return false;
+}
+
+std::size_t Network::depth(const std::string& component, const std::string& port) const {
+  for (const auto& node : nodes_)
+    if (node->name == component)
+      if (const auto* q = node->input(port)) return q->depth();
+  return 0;
 }
 
 bool Network::has_component(const std::string& component) const {
@@ -491,7 +516,8 @@ void Network::activate(Node& node, std::size_t function) {
     ++f.failures;
     std::fprintf(stderr, "pipeline: %s.%s failed: %s\n", node.name.c_str(), f.spec.name.c_str(), e.what());
   }
-  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - begin).count();
+  const auto ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - begin).count();
   ++f.activations;
   f.busy_ns += ns;
   if (ns > f.max_ns) f.max_ns = ns;
@@ -542,9 +568,11 @@ NetworkStats Network::stats() const {
       s.functions.push_back({node->name, f->spec.name, f->spec.ports, f->spec.options.peeks, f->priority,
                              f->activations, f->failures, f->busy_ns * 1e-9, f->max_ns * 1e-9});
     for (const auto& [port, targets] : node->targets)
-      for (const auto* q : targets) s.connections.push_back(node->name + "." + port + " -> " + q->component + "." + q->name);
+      for (const auto* q : targets)
+        s.connections.push_back(node->name + "." + port + " -> " + q->component + "." + q->name);
   }
-  const double wall = started_ ? std::chrono::duration<double>(std::chrono::steady_clock::now() - started_at_).count() : 0;
+  const double wall =
+      started_ ? std::chrono::duration<double>(std::chrono::steady_clock::now() - started_at_).count() : 0;
   for (const auto& e : executors_) {
     ExecutorStats es{e->name, {}, e->cycles, e->busy_ns * 1e-9, wall};
     for (const auto* node : e->nodes) es.components.push_back(node->name);

@@ -61,6 +61,9 @@ struct FunctionOptions {
   std::vector<std::string> peeks;
   /// An extra condition on state outside the ports (e.g. "nothing in flight"); the function waits while it is false.
   std::function<bool()> guard;
+  /// The outputs it emits on: it waits for room in the FIFO inputs they feed (nullopt: every output of its
+  /// component). Naming them keeps a feedback loop (a result coming back to the component) from blocking itself.
+  std::optional<std::vector<std::string>> emits;
 };
 
 class Activation;
@@ -207,8 +210,8 @@ struct NetworkStats {
 
 /// What stop() left behind.
 struct StopReport {
-  bool drained = true;                          // every function that could run did before the threads ended
-  std::map<std::string, std::size_t> dropped;   // "component.port" → values left in it
+  bool drained = true;                         // every function that could run did before the threads ended
+  std::map<std::string, std::size_t> dropped;  // "component.port" → values left in it
 };
 
 namespace internal {
@@ -277,6 +280,8 @@ class Network {
   /// Whether the component exists and one of its running functions consumes or peeks `port`.
   bool consumes(const std::string& component, const std::string& port) const;
   bool has_component(const std::string& component) const;
+  /// Values waiting in an input (0 for an unknown one).
+  std::size_t depth(const std::string& component, const std::string& port) const;
   /// Wakes every executor (after state that guards read changed outside the network).
   void notify();
 

@@ -56,6 +56,10 @@ int main(int argc, char** argv) {
     std::cout << config::usage();
     return 0;
   }
+  if (cfg.print_network) {
+    std::cout << service::default_network_yaml();
+    return 0;
+  }
   try {
     storage::Store store(cfg.store);
     rules::Engine engine(cfg.rules);

@@ -26,6 +26,7 @@ using Handler = Response (*)(const Call&);
 
 // handlers/health.cpp, index.cpp
 Response get_health(const Call& call);
+Response get_network(const Call& call);
 Response get_index(const Call& call);  // GET /api/v1: the route table as JSON
 Response get_root(const Call& call);   // GET /: the viewer's index.html when served, else the index
 // handlers/floorplan.cpp

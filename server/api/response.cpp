@@ -34,6 +34,8 @@ Response error_response(unsigned http_version, bool keep_alive, int status, cons
                         const std::string& detail) {
   Response res{static_cast<http::status>(status), http_version};
   res.set(http::field::content_type, "application/json");
+  // A full queue clears within a second at ingest rates: tell clients when to come back.
+  if (status == 503) res.set(http::field::retry_after, "1");
   res.keep_alive(keep_alive);
   res.body() = json{{"error", error}, {"detail", detail}}.dump(-1, ' ', false, json::error_handler_t::replace);
   res.prepare_payload();

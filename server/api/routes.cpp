@@ -15,6 +15,7 @@ constexpr std::array kRoutes{
     Route{verb::get, "/", get_root, Lane::read},
     Route{verb::get, "/api/v1", get_index, Lane::immediate},
     Route{verb::get, "/api/v1/health", get_health, Lane::immediate},
+    Route{verb::get, "/api/v1/network", get_network, Lane::read},
     Route{verb::get, "/api/v1/floorplan", get_floor_plan, Lane::read},
     Route{verb::put, "/api/v1/floorplan", put_floor_plan, Lane::write, "?units=U&level=L&name=N"},
     Route{verb::post, "/api/v1/floorplan/place", post_floor_plan_place, Lane::write},

@@ -56,7 +56,9 @@ std::string usage() {
          "                         WebSocket and send writes, besides the server's own\n"
          "  --max-body-bytes N     largest accepted request body (default 16777216)\n"
          "  --threads N            HTTP I/O threads (default 4)\n"
-         "  --handler-threads N    threads that run request handlers off the I/O threads (default 8)\n"
+         "  --handler-threads N    threads that run read handlers off the I/O threads (default 8)\n"
+         "  --write-threads N      threads that wait for writes to be applied (default 32: one per robot posting at\n"
+         "                         once, so the store can commit them together)\n"
          "  --handler-queue N      requests waiting for a handler thread before 503 + Retry-After (default 256)\n"
          "  --gate-sigmas N        a segment matches within N σ in direction and offset (default 3)\n"
          "  --max-gap M            largest gap [m] between collinear extents still matched (default 0.10)\n"
@@ -66,6 +68,9 @@ std::string usage() {
          "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at "
          "once)\n"
          "  --grid-extract-every N run the grid line extractor every N scans (default 0: POST /api/v1/grid/extract)\n"
+         "  --network FILE         run the ingest on this processing network (YAML task file; default: the built-in\n"
+         "                         network, printed by --print-network)\n"
+         "  --print-network        print the default network's task file and exit\n"
          "  --grid-trim-every N    every N scans, cut elements' ends back to what the Bayes grid backs and let the "
          "rules\n"
          "                         prune what it backs nowhere (default 10; 0: never)\n"
@@ -92,6 +97,10 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     const std::string& flag = args[i];
     if (flag == "--help" || flag == "-h") {
       c.help = true;
+      continue;
+    }
+    if (flag == "--print-network") {
+      c.print_network = true;
       continue;
     }
     if (flag == "--no-watch-rules") {
@@ -171,6 +180,10 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.rules.time_limit_s = parse_number<double>(flag, value, 0.001, 60.0);
     else if (flag == "--grid-flush-ms")
       c.service.grid_flush_interval = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 0, 86'400'000));
+    else if (flag == "--network")
+      c.service.network_file = std::filesystem::path(value);
+    else if (flag == "--write-threads")
+      c.http.write_threads = parse_number<int>(flag, value, 1, 1024);
     else if (flag == "--grid-extract-every")
       c.service.grid_extract_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-trim-every")

@@ -29,6 +29,7 @@ struct ServerConfig {
   http::HttpOptions http;
   std::optional<std::filesystem::path> floor_plan_file;  // loaded at start (demo), replacing the stored plan
   bool help = false;
+  bool print_network = false;
 };
 
 /// Parses wmd's arguments. Unknown flags, missing values and out-of-range numbers throw ConfigError.

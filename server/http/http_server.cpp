@@ -98,8 +98,8 @@ class WorkQueue {
   std::vector<std::thread> threads_;
 };
 
-// The handler threads in two lanes. Writes (ingest, plan loads, reloads) mostly wait for the single writer
-// and get a quarter of the threads (at least one) to themselves, so readers can never take every thread.
+// The handler threads in two lanes. Writes (ingest, plan loads, reloads) mostly wait for the processing network
+// and have threads of their own, so readers can never take every thread.
 // Reads (map, grid, queries, dry runs) get the rest, at a lower CPU priority: on a busy machine the
 // serialisation of megabytes of map and grid yields to the writer instead of slowing ingest (on this
 // 2-core VM, 8 map and 4 grid readers took ingest from 118 to 12 scans/s at equal priority).
@@ -107,9 +107,8 @@ class HandlerPool {
  public:
   static constexpr int kReadNice = 10;
 
-  HandlerPool(int threads, std::size_t max_queued)
-      : writes_(write_threads(threads), max_queued, 0),
-        reads_(std::max(1, threads - write_threads(threads)), max_queued, kReadNice) {}
+  HandlerPool(int read_threads, int write_threads, std::size_t max_queued)
+      : writes_(std::max(1, write_threads), max_queued, 0), reads_(std::max(1, read_threads), max_queued, kReadNice) {}
 
   bool try_post(bool write, std::function<void()> job) { return (write ? writes_ : reads_).try_post(std::move(job)); }
   void stop() {
@@ -118,8 +117,6 @@ class HandlerPool {
   }
 
  private:
-  static int write_threads(int threads) { return std::max(1, threads / 4); }
-
   WorkQueue writes_;
   WorkQueue reads_;
 };
@@ -325,7 +322,7 @@ class Session : public std::enable_shared_from_this<Session> {
 }  // namespace
 
 struct HttpServer::Impl {
-  explicit Impl(const HttpOptions& o) : options(o), pool(o.handler_threads, o.handler_queue) {}
+  explicit Impl(const HttpOptions& o) : options(o), pool(o.handler_threads, o.write_threads, o.handler_queue) {}
 
   const HttpOptions options;
   Handlers handlers;

@@ -16,10 +16,13 @@ struct HttpOptions {
   unsigned short port = 8080;             // 0 picks a free port; port() tells which
   std::size_t max_body_bytes = 16 << 20;  // larger bodies get 413 (explicit: Beast 1.74 rejects all with none)
   int threads = 4;                        // I/O threads: they only move bytes and never wait for a handler
-  /// Threads that run handlers, which may wait for the writer or the Prolog reader, or serialise bodies
-  /// of megabytes. A quarter of them (at least one) serve only writes, so readers cannot stop ingest; the
-  /// others serve reads at a lower CPU priority (nice +10), so serialising yields to the writer.
+  /// Threads that run read handlers, which may wait for the Prolog reader or serialise bodies of megabytes, at a
+  /// lower CPU priority (nice +10), so serialising yields to the writers. Writes have their own threads, so readers
+  /// cannot stop ingest.
   int handler_threads = 8;
+  /// Threads that serve only writes. A write waits for the processing network to apply it, so each robot that posts
+  /// at once holds one: with too few, requests queue here instead of reaching the store's group commit.
+  int write_threads = 32;
   /// Requests of each lane (read, write) waiting for a handler thread; one more is answered 503 with
   /// Retry-After.
   std::size_t handler_queue = 256;

@@ -15,6 +15,7 @@
 #include "fusion/grid/grid_geometry.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/registration/plan_registration.h"
+#include "pipeline/network.h"
 #include "rules/types.h"
 #include "server/json/codec.h"
 #include "server/service/service_errors.h"
@@ -155,6 +156,8 @@ class WorldPort {
   /// One layer over `region` (cells never observed are NaN), read under the grid's shared lock: never during an
   /// insert, and a waiting insert goes first.
   virtual GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const = 0;
+  /// The processing network the writes run on: components, ports, queue depths, activity.
+  virtual pipeline::NetworkStats network_stats() const = 0;
 };
 
 }  // namespace wm::service

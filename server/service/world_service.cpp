@@ -28,17 +28,6 @@ rules::DecisionFacts decision_facts(const world::DecisionRecord& d, double at) {
   return {d.seq, std::string(rules::wire_name(d.action)), d.rule, d.element, d.object, d.observer, at};
 }
 
-// FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
-// Not a defence against a client that crafts collisions, which could only confuse its own requests.
-std::int64_t body_hash(std::string_view body) {
-  std::uint64_t h = 14695981039346656037ull;
-  for (const unsigned char c : body) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return static_cast<std::int64_t>(h);
-}
-
 }  // namespace
 
 WriterPreferringMutex::WriterPreferringMutex() {
@@ -89,10 +78,14 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
     throw storage::StorageError("the scan journal ends at " + std::to_string(store_.last_scan_seq()) +
                                 " but the grid was rebuilt to " + std::to_string(last_scan_seq_));
   // Replayed tiles stay dirty: the next flush (or the one at shutdown) writes them.
-  writer_ = std::make_unique<PrologWorker>(engine_, options_.max_queued_requests, "world model's write");
+  next_scan_seq_ = committed_scan_seq_ = last_scan_seq_;
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
+  const auto spec = options_.network_file ? pipeline::read_task_file(options_.network_file->string())
+                                          : pipeline::parse_task(default_network_yaml(), "<default network>");
+  network_ = std::make_unique<pipeline::Network>(spec, network_registry());
+  network_->start();
   // The knowledge base mirrors the committed map; fill it before the first request is taken.
-  writer_->run([this] {
+  run_command([this] {
     sync_all_facts(*snapshot());
     std::vector<rules::DecisionFacts> recent;
     for (const auto& d : store_.latest_decisions(options_.decision_facts_kept)) recent.push_back(decision_facts(d, 0));
@@ -106,16 +99,15 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
 
 WorldService::~WorldService() {
   watcher_.reset();
+  const auto report = network_->stop(true);
+  for (const auto& [port, count] : report.dropped)
+    std::cerr << "wmd: stopped with " << count << " values left in " << port << " (their requests got 503)\n";
   try {
-    writer_->run([this] {
-      flush_grid(true);
-      return 0;
-    });
+    if (inserted_ahead_.empty()) flush_grid(true);  // else the journal replays past the gap at start
   } catch (const std::exception& e) {
     std::cerr << "wmd: final grid flush failed (the journal still has every scan): " << e.what() << "\n";
   }
   reader_.reset();
-  writer_.reset();
 }
 
 void WorldService::emit(const nlohmann::json& event) {
@@ -176,28 +168,6 @@ void WorldService::flush_grid(bool force) {
   last_flush_ = now;
 }
 
-ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json,
-                                    std::optional<std::string> request_id) {
-  return writer_->run(
-      [this, scan = std::move(scan), payload = std::move(payload_json), request_id = std::move(request_id)] {
-        const auto hash = body_hash(payload);
-        if (auto replayed = replayed_scan(request_id, hash)) return std::move(*replayed);
-        const std::int64_t seq = last_scan_seq_ + 1;
-        // Decide the lines first (nothing is stored yet), then commit the scan and its lines together: a crash
-        // leaves either both or neither, never a scan in the grid whose line decisions are gone.
-        auto lines = prepare_scan_lines(scan);
-        commit_scan(scan, seq, payload, lines, request_id, hash);
-        // Committed: from here on nothing may fail the request (its retry would apply it twice).
-        insert_committed_scan(scan, seq);
-        ScanOutcome outcome{seq, seq, std::nullopt, false};
-        emit_scan_event(scan, seq);
-        if (lines) outcome.lines = finish_update(std::move(*lines));
-        extract_grid_lines_if_due(seq);
-        trim_to_grid_if_due(scan, seq);
-        return outcome;
-      });
-}
-
 std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::string>& request_id,
                                                        std::int64_t hash) {
   if (!request_id) return std::nullopt;
@@ -234,39 +204,6 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   return prepare_update(std::move(observation));
 }
 
-void WorldService::commit_scan(const json_codec::ScanRequest& scan, std::int64_t seq, const std::string& payload,
-                               const std::optional<PreparedUpdate>& lines, const std::optional<std::string>& request_id,
-                               std::int64_t hash) {
-  std::optional<storage::RequestRecord> record;
-  if (request_id) {
-    record = storage::RequestRecord{*request_id,
-                                    "scan",
-                                    hash,
-                                    seq,
-                                    lines ? lines->update.state.version : 0,
-                                    seq,
-                                    lines ? std::optional<std::int64_t>(lines->seq) : std::nullopt};
-  }
-  const std::string lines_payload = "{\"scan\": " + std::to_string(seq) + "}";
-  const storage::ScanEntry entry{seq, scan.observer, scan.sensor(), scan.stamp_s, payload};
-  if (lines) {
-    commit_prepared(*lines, [&] {
-      store_.commit_scan(entry, storage::ObservationEntry{lines->update, lines->observation, lines_payload}, record);
-    });
-  } else {
-    store_.commit_scan(entry, std::nullopt, record);
-  }
-}
-
-void WorldService::insert_committed_scan(const json_codec::ScanRequest& scan, std::int64_t seq) {
-  insert_scan(scan, seq);
-  try {
-    flush_grid(false);
-  } catch (const std::exception& e) {
-    std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what() << "\n";
-  }
-}
-
 void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq) {
   if (!events_ || events_->subscriber_count() == 0) return;
   constexpr std::size_t kMaxEventPoints = 360;
@@ -294,43 +231,14 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
         {"points", returns}});
 }
 
-void WorldService::extract_grid_lines_if_due(std::int64_t scan_seq) {
-  // The extraction is its own observation, not part of the scan: a crash before it skips one extraction, the
-  // scan stays whole.
-  if (options_.grid_extract_every == 0 || scan_seq % static_cast<std::int64_t>(options_.grid_extract_every) != 0)
-    return;
-  try {
-    extract_grid_lines_on_writer();
-  } catch (const std::exception& e) {
-    std::cerr << "wmd: grid line extraction after scan " << scan_seq << " failed: " << e.what() << "\n";
+void WorldService::trim_due(std::int64_t scan_seq) {
+  world::Box region;
+  {
+    std::lock_guard lock(trim_mutex_);
+    if (!trim_region_) return;
+    region = *trim_region_;
+    trim_region_.reset();
   }
-}
-
-void WorldService::trim_to_grid_if_due(const json_codec::ScanRequest& scan, std::int64_t scan_seq) {
-  if (options_.grid_trim_every == 0) return;
-  // Where this scan changed the grid (as emit_scan_event says it), plus a cell for the 3×3 neighbourhood. The scan
-  // is committed: nothing here may fail it.
-  world::Box seen;
-  try {
-    seen = std::visit(
-        [&](const auto& s) {
-          const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, options_.grid.sensor));
-          double half_width = options_.grid.sensor.laser_beam_width_rad / 2;
-          if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
-          const auto box = fusion::scan_footprint(s, reach, half_width, 3 * grid_->resolution_m());
-          return world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
-        },
-        scan.scan);
-  } catch (const std::exception& e) {
-    std::cerr << "wmd: scan " << scan_seq << " left out of the grid trim: " << e.what() << "\n";
-    return;
-  }
-  if (!trim_region_) trim_region_ = seen;
-  trim_region_ = world::Box{std::min(trim_region_->x0, seen.x0), std::min(trim_region_->y0, seen.y0),
-                            std::max(trim_region_->x1, seen.x1), std::max(trim_region_->y1, seen.y1)};
-  if (scan_seq % static_cast<std::int64_t>(options_.grid_trim_every) != 0) return;
-  const world::Box region = *trim_region_;
-  trim_region_.reset();
   try {
     auto p = own_observation(snapshot(), "grid-trim", "grid", "grid");
     std::vector<world::GridShares> checked;
@@ -392,7 +300,7 @@ void WorldService::trim_to_grid_if_due(const json_codec::ScanRequest& scan, std:
 }
 
 std::optional<PrimitivesOutcome> WorldService::extract_grid_lines() {
-  return writer_->run([this] { return extract_grid_lines_on_writer(); });
+  return run_command([this] { return extract_grid_lines_on_writer(); });
 }
 
 std::optional<PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
@@ -448,23 +356,6 @@ void WorldService::sync_all_facts(const world::WorldState& state) {
   engine_.set_elements(elements);
 }
 
-PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
-                                                std::optional<std::string> request_id) {
-  return writer_->run([this, observation = std::move(observation), payload = std::move(payload_json),
-                       request_id = std::move(request_id)]() mutable {
-    if (!request_id) return apply_on_writer(std::move(observation), payload);
-    const auto hash = body_hash(payload);
-    if (const auto known = known_request(*request_id, "primitives", hash))
-      return PrimitivesOutcome{known->seq, known->version, store_.observation_decisions(known->seq), true};
-    auto prepared = prepare_update(std::move(observation));
-    const storage::RequestRecord record{*request_id, "primitives", hash, prepared.seq, prepared.update.state.version,
-                                        0,           std::nullopt};
-    commit_prepared(prepared,
-                    [&] { store_.commit_observation(prepared.update, prepared.observation, payload, record); });
-    return finish_update(std::move(prepared));
-  });
-}
-
 PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, const std::string& payload) {
   auto prepared = prepare_update(std::move(observation));
   commit_prepared(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload); });
@@ -486,7 +377,7 @@ WorldService::PreparedUpdate WorldService::own_observation(std::shared_ptr<const
 
 WorldService::PreparedUpdate WorldService::prepare_update(world::Observation observation) {
   PreparedUpdate p;
-  p.base = snapshot();
+  p.base = head();
   p.seq = p.base->last_observation_seq + 1;
   observation.received_at_unix_s = now_unix_s();
   p.update = world::apply_observation(*p.base, observation, p.seq, options_.world,
@@ -505,8 +396,12 @@ WorldService::PreparedUpdate WorldService::prepare_update(world::Observation obs
       for (auto number : p.update.removed_elements) removed.push_back("e" + std::to_string(number));
       engine_.update_elements({}, removed);
     }
+    // Edge facts are in the world frame: a moved object must be seen where it is now by the next rule call.
+    if (std::any_of(p.update.decisions.begin(), p.update.decisions.end(),
+                    [](const auto& d) { return d.action == rules::Action::rigid_adjust; }))
+      engine_.set_floor_plan(object_facts(p.update.state));
   } catch (...) {
-    sync_all_facts(*p.base);  // nothing was applied: the facts go back to the committed map
+    sync_all_facts(*p.base);  // nothing was applied: the facts go back to the map decided before
     throw;
   }
   p.observation = std::move(observation);
@@ -527,8 +422,6 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
   auto& update = prepared.update;
   const auto& observation = prepared.observation;
   const auto seq = prepared.seq;
-  const bool moved = std::any_of(update.decisions.begin(), update.decisions.end(),
-                                 [](const auto& d) { return d.action == rules::Action::rigid_adjust; });
   std::vector<rules::DecisionFacts> logged;
   for (const auto& d : update.decisions) {
     logged.push_back(decision_facts(d, observation.received_at_unix_s));
@@ -555,13 +448,11 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
   }
   publish(std::move(update.state));
   engine_.add_decisions(logged, options_.decision_facts_kept);
-  // Edge facts are in the world frame: a moved object must be seen where it is now by the next rule call.
-  if (moved) engine_.set_floor_plan(object_facts(*snapshot()));
   return outcome;
 }
 
 std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
-  return writer_->run([this, plan = std::move(plan)] {
+  return run_command([this, plan = std::move(plan)] {
     const auto current = snapshot();
     auto update = world::apply_floor_plan(*current, plan, options_.world);
     auto new_facts = object_facts(update.state);
@@ -577,7 +468,7 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
 rules::RulesStatus WorldService::rules_status() { return engine_.status(); }
 
 rules::RulesStatus WorldService::reload_rules() {
-  return writer_->run([this] {
+  return run_command([this] {
     try {
       auto status = engine_.reload();
       emit({{"type", "rules"}, {"status", json_codec::rules_status_json(status)}});
@@ -677,7 +568,7 @@ std::string placement_text(const fusion::Similarity2D& p) {
 }  // namespace
 
 PlacementOutcome WorldService::place_floor_plan(world::PlacementChange change, std::string payload_json) {
-  return writer_->run([this, change = std::move(change), payload = std::move(payload_json)] {
+  return run_command([this, change = std::move(change), payload = std::move(payload_json)] {
     return place_on_writer(change, payload, false);
   });
 }
@@ -703,7 +594,7 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
 }
 
 PlacementOutcome WorldService::undo_placement(std::string observer) {
-  return writer_->run([this, observer = std::move(observer)] {
+  return run_command([this, observer = std::move(observer)] {
     const auto history = store_.placements();
     if (history.empty()) throw Conflict("the plan is placed as drawn: there is no placement to undo");
     world::PlacementChange change;
@@ -791,7 +682,7 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
   change.observer = request.observer;
   nlohmann::json payload = {{"align", {{"score", r.best.score}, {"coverage", r.best.coverage}}}};
   // Applied only to the plan and placement it was searched for: a plan loaded or placed meanwhile wins.
-  outcome.placement = writer_->run([&] {
+  outcome.placement = run_command([&] {
     const auto now = snapshot();
     if (!(now->placement == outcome.before) || now->plan_name != state->plan_name ||
         now->objects.size() != state->objects.size())
@@ -804,7 +695,7 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
 }
 
 RedecideOutcome WorldService::redecide_elements(std::string observer) {
-  return writer_->run([this, observer = std::move(observer)] { return redecide_on_writer(observer); });
+  return run_command([this, observer = std::move(observer)] { return redecide_on_writer(observer); });
 }
 
 RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
@@ -862,7 +753,7 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
 
 std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference> georeference) {
   if (georeference) apriori::validate(*georeference);
-  return writer_->run([this, georeference] {
+  return run_command([this, georeference] {
     world::WorldState state = *snapshot();
     state.georeference = georeference;
     ++state.version;

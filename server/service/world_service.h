@@ -5,9 +5,12 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <future>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <shared_mutex>
 #include <stdexcept>
 #include <string_view>
@@ -15,6 +18,7 @@
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
 #include "fusion/lines/scan_lines.h"
+#include "pipeline/network.h"
 #include "rules/engine.h"
 #include "server/events/event_hub.h"
 #include "server/json/codec.h"
@@ -52,7 +56,13 @@ struct ServiceOptions {
   /// what the Bayes grid backs (world::trim_to_grid, its own observation of origin "grid"); 0: never.
   std::size_t grid_trim_every = 10;
   world::GridTrimOptions grid_trim;
+  /// The processing network the ingest runs on (a YAML task file; nullopt: the built-in default network).
+  std::optional<std::filesystem::path> network_file;
 };
+
+/// The default processing network (its YAML task file): matcher, store, grid and grid lines each on their own
+/// executor.
+std::string default_network_yaml();
 
 /// A reader–writer lock that lets a waiting writer in before new readers (a glibc rwlock of kind
 /// PTHREAD_RWLOCK_PREFER_WRITER_NONRECURSIVE_NP). std::shared_mutex on glibc prefers readers: with a few
@@ -76,11 +86,14 @@ class WriterPreferringMutex {
   pthread_rwlock_t rwlock_;
 };
 
-/// Owns the world model. One writer thread applies every change (match → rules → apply → store) in
-/// arrival order; readers take immutable snapshots that are swapped after each committed request, so
-/// they never block the writer and never see half an update. Prolog decisions run on the writer thread;
-/// knowledge-base queries and dry runs run on a second Prolog thread, so a slow query never holds up
-/// ingest. The knowledge base mirrors the committed map: objects, elements, recent decisions.
+/// Owns the world model. Writes run on a processing network (pipeline::Network, from a task file): the matcher
+/// decides scans' lines and posted primitives against the map as the requests before them leave it (match → rules
+/// → apply), the store commits what arrives together in one transaction, the grid inserts committed scans; every
+/// other change (plan, placement, rules, extraction, trims) is a command the matcher runs when nothing is in flight.
+/// A request is answered after the transaction that holds it commits (a scan after it is in the grid too). Readers
+/// take immutable snapshots that are swapped after each committed request, so they never block the writers and
+/// never see half an update. Knowledge-base queries and dry runs run on their own Prolog thread. The knowledge base
+/// follows the decided map (and goes back to the committed one when a commit fails).
 class WorldService final : public WorldPort {
  public:
   /// Starts the writer with the state loaded from `store`. @throw storage::StorageError, rules::RuleError.
@@ -147,6 +160,10 @@ class WorldService final : public WorldPort {
   GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const override;
   /// Scans in the grid: the journal sequence of the last one inserted.
   std::int64_t grid_revision() const { return grid_revision_.load(); }
+  /// The processing network's components, ports, queues and activity.
+  pipeline::NetworkStats network_stats() const override;
+  /// Whether the network processes this sensor's scans ("laser", "sonar").
+  bool accepts_scans(const std::string& sensor) const;
 
  private:
   void publish(world::WorldState state);
@@ -180,6 +197,7 @@ class WorldService final : public WorldPort {
   /// After the commit: publishes the new state, tells the rules and live clients.
   PrimitivesOutcome finish_update(PreparedUpdate prepared);
   PrimitivesOutcome apply_on_writer(world::Observation observation, const std::string& payload);
+  static std::int64_t body_hash(std::string_view body);
   /// The stored record of `request_id` when it was used before (nullopt: apply the request).
   /// @throw RequestIdConflict when it was used with another body or kind.
   std::optional<storage::RequestRecord> known_request(const std::string& request_id, std::string_view kind,
@@ -195,24 +213,55 @@ class WorldService final : public WorldPort {
   /// The lines of a laser scan, extracted and decided against the committed map (nothing stored yet); nullopt
   /// for a sonar scan, with scan lines off, or when no line is found.
   std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
-  /// Journals the scan, its lines' observation and its request id in one transaction. @throw StorageError.
-  void commit_scan(const json_codec::ScanRequest& scan, std::int64_t seq, const std::string& payload,
-                   const std::optional<PreparedUpdate>& lines, const std::optional<std::string>& request_id,
-                   std::int64_t body_hash);
-  /// After the commit: into the grids, and a lazy flush of their tiles. Never throws (a retry of the request
-  /// would apply it twice); a failed flush is logged and retried with the next one.
-  void insert_committed_scan(const json_codec::ScanRequest& scan, std::int64_t seq);
   /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
   void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
-  /// The periodic grid line extraction (ServiceOptions::grid_extract_every), its own observation after the scan.
-  void extract_grid_lines_if_due(std::int64_t scan_seq);
-  /// Widens the region the next grid trim looks at by what this scan could see; trims when it is due
-  /// (ServiceOptions::grid_trim_every). Failures are logged: the scan is already committed.
-  void trim_to_grid_if_due(const json_codec::ScanRequest& scan, std::int64_t scan_seq);
-
   void flush_grid(bool force);
   void emit(const nlohmann::json& event);
 
+  // The processing network (world_service_network.cpp).
+  struct Decided;
+  struct GridScan;
+  using DecidedPtr = std::shared_ptr<Decided>;
+  using GridScanPtr = std::shared_ptr<GridScan>;
+  struct TrimTick {
+    std::int64_t scan_seq = 0;
+    std::shared_ptr<void> ticket;  // the scan that made the trim due is answered after it
+  };
+  pipeline::Registry network_registry();
+  /// Runs `work` on the matcher when nothing is in flight, and returns its result. @throw Busy when the queue is full.
+  template <typename F>
+  auto run_command(F&& work) -> decltype(work()) {
+    using Result = decltype(work());
+    auto task = std::make_shared<std::packaged_task<Result()>>(std::forward<F>(work));
+    auto future = task->get_future();
+    submit_command([task] { (*task)(); });
+    return future.get();
+  }
+  void submit_command(std::function<void()> job);
+  /// The map the next request is decided against: the last one decided (committed or in flight).
+  std::shared_ptr<const world::WorldState> head() const;
+  /// The matcher's functions.
+  void decide_scan(pipeline::Activation& a, const std::string& port);
+  void decide_primitives(pipeline::Activation& a);
+  void commit_group(pipeline::Activation& a);
+  void finish_committed(pipeline::Activation& a);
+  void insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every);
+  void trim_due(std::int64_t scan_seq);
+  /// After a failed group commit: what was decided on top of it is dropped, the rules go back to the committed map.
+  void resync_after_failure();
+
+  std::unique_ptr<pipeline::Network> network_;
+  // Matcher thread only:
+  std::shared_ptr<const world::WorldState> head_;
+  std::int64_t next_scan_seq_ = 0;                           // the last scan decided (journaled or in flight)
+  std::int64_t committed_scan_seq_ = 0;                      // the last scan committed
+  std::uint64_t epoch_ = 1;                                  // requests decided since the last failed commit
+  std::map<std::string, std::int64_t> pending_request_ids_;  // in flight: id → body hash
+  std::atomic<std::size_t> in_flight_{0};                    // decided, not yet finished
+  std::atomic<std::uint64_t> failed_epoch_{0};               // the store failed a group of this epoch
+  // Grid thread only (and the constructor and destructor, when the network is stopped):
+  std::set<std::int64_t> inserted_ahead_;  // scans inserted past a gap (laser and sonar ports interleave)
+  mutable std::mutex trim_mutex_;
   const ServiceOptions options_;
   storage::Store& store_;
   rules::Engine& engine_;
@@ -227,14 +276,13 @@ class WorldService final : public WorldPort {
   /// …); persisted with the scan, so it never goes back across restarts.
   std::atomic<std::int64_t> grid_revision_{0};
   std::atomic<bool> aligning_{false};      // an align_floor_plan search is running
-  std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see
+  std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see (trim_mutex_)
   std::int64_t last_scan_seq_ = 0;         // the last scan inserted into the grid (all journaled scans, once started)
   std::int64_t flushed_scan_seq_ = 0;
   bool flush_all_tiles_ = false;
   std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();
 
   // Declared last: destroyed first, so their threads stop before the members they use go away.
-  std::unique_ptr<PrologWorker> writer_;
   std::unique_ptr<PrologWorker> reader_;
   std::unique_ptr<RulesWatcher> watcher_;
 };

@@ -142,7 +142,10 @@ Store::Store(const StoreOptions& options)
   migrate();
 }
 
-int Store::schema_version() { return static_cast<int>(query_int(writer_, "PRAGMA user_version")); }
+int Store::schema_version() {
+  std::lock_guard lock(writer_mutex_);
+  return static_cast<int>(query_int(writer_, "PRAGMA user_version"));
+}
 
 void Store::migrate() {
   const int found = schema_version();
@@ -158,6 +161,7 @@ void Store::migrate() {
 }
 
 world::WorldState Store::load(const world::WorldOptions& options) {
+  std::lock_guard lock(writer_mutex_);
   world::WorldState state;
   {
     Statement s(writer_, "SELECT key, value FROM meta");
@@ -277,6 +281,7 @@ void Store::insert_observation(std::int64_t seq, std::string_view kind, const st
 
 void Store::commit_observation(const world::UpdateResult& update, const world::Observation& observation,
                                std::string_view payload_json, const std::optional<RequestRecord>& request) {
+  std::lock_guard lock(writer_mutex_);
   Transaction tx(writer_);
   write_observation({update, observation, payload_json});
   if (request) write_request(*request);
@@ -349,6 +354,7 @@ void Store::write_request(const RequestRecord& r) {
 }
 
 std::optional<RequestRecord> Store::find_request(const std::string& request_id) {
+  std::lock_guard lock(writer_mutex_);
   Statement s(writer_,
               "SELECT kind, body_hash, seq, version, grid_revision, lines_seq FROM requests WHERE request_id = ?1");
   s.bind(1, std::string_view(request_id));
@@ -365,6 +371,7 @@ std::optional<RequestRecord> Store::find_request(const std::string& request_id) 
 }
 
 std::vector<StoredPlacement> Store::placements() {
+  std::lock_guard lock(writer_mutex_);
   std::vector<StoredPlacement> result;
   Statement s(writer_, "SELECT x, y, theta, scale, cov, rule, decision_seq FROM placements ORDER BY ord");
   while (s.step())
@@ -376,6 +383,7 @@ std::vector<StoredPlacement> Store::placements() {
 }
 
 void Store::commit_placement(const ObservationEntry& entry, bool undo) {
+  std::lock_guard lock(writer_mutex_);
   Transaction tx(writer_);
   write_observation(entry);
   const auto& state = entry.update.state;
@@ -395,6 +403,7 @@ void Store::commit_placement(const ObservationEntry& entry, bool undo) {
 }
 
 void Store::commit_georeference(const world::WorldState& state) {
+  std::lock_guard lock(writer_mutex_);
   Transaction tx(writer_);
   if (state.georeference) {
     run(writer_,
@@ -409,6 +418,7 @@ void Store::commit_georeference(const world::WorldState& state) {
 }
 
 void Store::commit_floor_plan(const world::UpdateResult& update, const apriori::FloorPlan& plan) {
+  std::lock_guard lock(writer_mutex_);
   const std::string text = apriori::to_json_text(plan);
   Transaction tx(writer_);
   writer_.exec("DELETE FROM objects");
@@ -490,7 +500,27 @@ std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std:
 
 void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines,
                         const std::optional<RequestRecord>& request) {
+  std::lock_guard lock(writer_mutex_);
   Transaction tx(writer_);
+  write_scan(scan, lines);
+  if (request) write_request(*request);
+  tx.commit();
+}
+
+void Store::commit_batch(const std::vector<BatchEntry>& entries) {
+  std::lock_guard lock(writer_mutex_);
+  Transaction tx(writer_);
+  for (const auto& entry : entries) {
+    if (entry.scan)
+      write_scan(*entry.scan, entry.observation);
+    else if (entry.observation)
+      write_observation(*entry.observation);
+    if (entry.request) write_request(*entry.request);
+  }
+  tx.commit();
+}
+
+void Store::write_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines) {
   if (lines) write_observation(*lines);
   Statement s(writer_,
               "INSERT INTO scans(seq, observer, sensor, stamp, received_at, payload, lines_seq) "
@@ -502,13 +532,15 @@ void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEn
   else
     s.bind_null(7);
   s.run();
-  if (request) write_request(*request);
-  tx.commit();
 }
 
-std::int64_t Store::last_scan_seq() { return query_int(writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans"); }
+std::int64_t Store::last_scan_seq() {
+  std::lock_guard lock(writer_mutex_);
+  return query_int(writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans");
+}
 
 std::vector<Store::ScanRecord> Store::scans_after(std::int64_t after) {
+  std::lock_guard lock(writer_mutex_);
   Statement s(writer_, "SELECT seq, payload FROM scans WHERE seq > ?1 ORDER BY seq");
   s.bind(1, after);
   std::vector<ScanRecord> result;
@@ -532,6 +564,7 @@ void bind_floats(Statement& s, int index, const std::vector<float>& values) {
 }  // namespace
 
 std::optional<Store::StoredGrid> Store::load_grid() {
+  std::lock_guard lock(writer_mutex_);
   StoredGrid grid;
   {
     Statement s(writer_, "SELECT resolution, tile_size, through_scan_seq FROM grid_meta WHERE id = 1");
@@ -554,6 +587,7 @@ std::optional<Store::StoredGrid> Store::load_grid() {
 }
 
 void Store::flush_grid(const StoredGrid& changed) {
+  std::lock_guard lock(writer_mutex_);
   Transaction tx(writer_);
   run(writer_,
       "INSERT INTO grid_meta(id, resolution, tile_size, through_scan_seq) VALUES (1, ?1, ?2, ?3) "

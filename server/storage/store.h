@@ -60,7 +60,7 @@ struct ObservationEntry {
 };
 
 /// The world model's SQLite file: WAL, schema versioned by PRAGMA user_version with forward migrations.
-/// Writes come from the single writer thread, one transaction per applied request; decision-log reads use
+/// Writes are serialised on one connection, one transaction per applied request or group; decision-log reads use
 /// their own connection and may come from any thread.
 class Store {
  public:
@@ -96,6 +96,15 @@ class Store {
   /// last_scan_seq() + 1. @throw StorageError (nothing written then).
   void commit_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines,
                    const std::optional<RequestRecord>& request = std::nullopt);
+  /// One request of a group commit: a scan (with the observation of its lines), or an observation alone.
+  struct BatchEntry {
+    std::optional<ScanEntry> scan;
+    std::optional<ObservationEntry> observation;  // a scan's lines, or posted primitives
+    std::optional<RequestRecord> request;
+  };
+  /// Writes every entry, in order, in one transaction (one fsync for the group): all of them or none.
+  /// @throw StorageError (nothing written then).
+  void commit_batch(const std::vector<BatchEntry>& entries);
   /// The sequence of the last journaled scan, 0 for none. Scans are never deleted and numbered 1, 2, …, so
   /// this is also the number of scans ever accepted: the grid revision.
   std::int64_t last_scan_seq();
@@ -141,8 +150,12 @@ class Store {
                           std::string_view payload);
   void write_observation(const ObservationEntry& entry);
   void write_request(const RequestRecord& request);
+  void write_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines);
 
   StoreOptions options_;
+  /// The writer connection serves the group commits, the grid flushes and the commands, which may come from
+  /// different threads of the processing network: one at a time, a transaction never interleaved with another.
+  std::recursive_mutex writer_mutex_;
   Connection writer_;
   std::mutex reader_mutex_;
   Connection reader_;

@@ -100,10 +100,9 @@ TEST(NetworkTest, PeekReadsWithoutConsuming) {
   registry.add("peeker", [&](const Params&) {
     auto c = std::make_unique<Component>();
     c->input<int>("data", {PortPolicy::fifo, 16, true}).input<std::string>("mode", {PortPolicy::latest, 1, true});
-    c->function(
-        "process", {"data"},
-        [&](Activation& x) { trace.add(x.peek<std::string>("mode") + std::to_string(x.take<int>("data"))); },
-        {{"mode"}, {}});
+    c->function("process", {"data"},
+                [&](Activation& x) { trace.add(x.peek<std::string>("mode") + std::to_string(x.take<int>("data"))); },
+                {{"mode"}, {}, std::nullopt});
     return c;
   });
   Network network(one("peeker"), registry);
@@ -248,7 +247,7 @@ TEST(NetworkTest, GuardsHoldAFunctionBack) {
     auto c = std::make_unique<Component>();
     c->input<int>("in", {PortPolicy::fifo, 8, true});
     c->function("run", {"in"}, [&](Activation& x) { trace.add(std::to_string(x.take<int>("in"))); },
-                {{}, [&] { return open.load(); }});
+                {{}, [&] { return open.load(); }, std::nullopt});
     return c;
   });
   Network network(one("gated"), registry);
@@ -339,7 +338,7 @@ TEST(NetworkErrorsTest, TwoFunctionsOnOneSubset) {
     auto c = std::make_unique<Component>();
     c->input<int>("a", {PortPolicy::fifo, 8, true}).input<int>("b", {PortPolicy::fifo, 8, true});
     c->function("f", {"a", "b"}, [](Activation&) {});
-    c->function("g", {"b"}, [](Activation&) {}, {{"a"}, {}});  // peeking a counts: the same subset {a, b}
+    c->function("g", {"b"}, [](Activation&) {}, {{"a"}, {}, std::nullopt});  // peeking a counts: the same subset {a, b}
     return c;
   });
   const auto error = build_error(one("twice"), registry);

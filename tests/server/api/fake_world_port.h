@@ -142,6 +142,15 @@ class FakeWorldPort final : public service::WorldPort {
                                       const fusion::GridGeometry& region) const override {
     return {the_grid().export_layer(layer, region), 4};
   }
+  pipeline::NetworkStats network_stats() const override {
+    pipeline::NetworkStats stats;
+    stats.source = "fake.yaml";
+    stats.ports.push_back({"matcher", "laser", "scan", pipeline::PortPolicy::fifo, 256, 3, 7, 100, 0, 2});
+    stats.functions.push_back({"matcher", "laser", {"laser"}, {}, 0, 97, 0, 0.5, 0.01});
+    stats.executors.push_back({"world", {"matcher"}, 120, 0.5, 2.0});
+    stats.connections.push_back("matcher.decided -> store.in");
+    return stats;
+  }
 
   static world::DecisionRecord decision(rules::Action action, const std::string& element) {
     world::DecisionRecord d;

@@ -1,0 +1,482 @@
+// The world service's processing network: the component kinds (matcher, store, grid, grid_lines), the default task
+// file, and the matcher's commands.
+#include <cmath>
+#include <future>
+#include <iostream>
+
+#include "fusion/grid/scan_geometry.h"
+#include "fusion/grid/sensor_model.h"
+#include "server/service/world_service.h"
+
+namespace wm::service {
+namespace {
+
+}  // namespace
+
+// FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
+// Not a defence against a client that crafts collisions, which could only confuse its own requests.
+std::int64_t WorldService::body_hash(std::string_view body) {
+  std::uint64_t h = 14695981039346656037ull;
+  for (const unsigned char c : body) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return static_cast<std::int64_t>(h);
+}
+
+namespace {
+
+
+// Answers a waiting request when the last stage that holds it lets go: with its outcome, its error, or (dropped when
+// the server stops) Busy.
+template <typename Outcome>
+class Ticket {
+ public:
+  Ticket() = default;
+  Ticket(const Ticket&) = delete;
+  Ticket& operator=(const Ticket&) = delete;
+  ~Ticket() {
+    if (error_)
+      promise_.set_exception(error_);
+    else if (outcome_)
+      promise_.set_value(std::move(*outcome_));
+    else
+      promise_.set_exception(std::make_exception_ptr(Busy("the server stopped before the request was applied")));
+  }
+  std::future<Outcome> future() { return promise_.get_future(); }
+  void succeed(Outcome outcome) { outcome_ = std::move(outcome); }
+  void fail(std::exception_ptr error) { error_ = std::move(error); }
+
+ private:
+  std::promise<Outcome> promise_;
+  std::optional<Outcome> outcome_;
+  std::exception_ptr error_;
+};
+
+using ScanTicket = Ticket<ScanOutcome>;
+using PrimitivesTicket = Ticket<PrimitivesOutcome>;
+
+struct ScanJob {
+  json_codec::ScanRequest scan;
+  std::string payload;
+  std::optional<std::string> request_id;
+  std::shared_ptr<ScanTicket> ticket;
+};
+struct PrimitivesJob {
+  world::Observation observation;
+  std::string payload;
+  std::optional<std::string> request_id;
+  std::shared_ptr<PrimitivesTicket> ticket;  // null for the server's own observations (grid lines)
+  std::shared_ptr<void> hold;                 // a request answered only after this one is applied (or dropped)
+};
+using ScanJobPtr = std::shared_ptr<ScanJob>;
+using PrimitivesJobPtr = std::shared_ptr<PrimitivesJob>;
+using Command = std::shared_ptr<std::function<void()>>;
+struct GridTick {
+  std::int64_t scan_seq = 0;
+  std::shared_ptr<void> hold;  // the scan that made the extraction due is answered after it
+};
+
+}  // namespace
+
+// A request decided on the matcher, on its way through the store and back.
+struct WorldService::Decided {
+  std::uint64_t epoch = 0;
+  ScanJobPtr scan;  // a scan (with its lines, if any) ...
+  std::int64_t scan_seq = 0;
+  PrimitivesJobPtr primitives;  // ... or posted primitives
+  std::optional<PreparedUpdate> update;
+  std::optional<storage::RequestRecord> request;
+  std::string observation_payload;  // a scan's lines: {"scan": seq}
+  std::exception_ptr error;         // the commit failed
+};
+
+// A committed scan on its way into the grids.
+struct WorldService::GridScan {
+  ScanJobPtr job;
+  std::int64_t seq = 0;
+};
+
+
+std::string default_network_yaml() {
+  return R"(description: >
+  The default ingest network. Scans and primitives enter at the matcher, which extracts a laser scan's lines and
+  decides them (and posted primitives) against the map as the requests before them leave it; the store writes what
+  arrives together in one transaction; committed scans go into the Bayes and Dempster-Shafer grids; the grid line
+  extractor runs on its own thread when it is due.
+components:
+  matcher: {kind: matcher}
+  store: {kind: store, params: {max_batch: 64}}
+  grid: {kind: grid}
+  grid_lines: {kind: grid_lines}
+connections:
+  - matcher.decided -> store.in
+  - store.committed -> matcher.committed
+  - matcher.laser_scans -> grid.laser
+  - matcher.sonar_scans -> grid.sonar
+  - grid.trim -> matcher.trim
+  - grid.extract -> grid_lines.tick
+  - grid_lines.primitives -> matcher.primitives
+executors:
+  world: [matcher]
+  storage: [store]
+  grids: [grid]
+  lines: [grid_lines]
+)";
+}
+
+pipeline::Registry WorldService::network_registry() {
+  using pipeline::Component;
+  using pipeline::InputOptions;
+  using pipeline::PortPolicy;
+  pipeline::Registry registry;
+  const auto queued = options_.max_queued_requests;
+
+  registry.add("matcher", [this, queued](const pipeline::Params&) {
+    auto c = std::make_unique<Component>();
+    c->input<ScanJobPtr>("laser", {PortPolicy::fifo, queued, true})
+        .input<ScanJobPtr>("sonar", {PortPolicy::fifo, queued, true})
+        .input<PrimitivesJobPtr>("primitives", {PortPolicy::fifo, queued, true})
+        .input<Command>("commands", {PortPolicy::fifo, queued, true})
+        .input<DecidedPtr>("committed", {PortPolicy::fifo, 4 * queued, false})
+        .input<TrimTick>("trim", {PortPolicy::latest, 1, false});
+    c->output<DecidedPtr>("decided").output<GridScanPtr>("laser_scans").output<GridScanPtr>("sonar_scans");
+    const auto nothing_in_flight = [this] { return in_flight_ == 0; };
+    // Requests wait while a command or a trim waits for what is in flight: commands are never starved.
+    const auto no_barrier = [this] {
+      return network_->depth("matcher", "commands") == 0 && network_->depth("matcher", "trim") == 0;
+    };
+    c->function("finish", {"committed"}, [this](pipeline::Activation& a) { finish_committed(a); },
+                {{}, {}, std::vector<std::string>{"laser_scans", "sonar_scans"}});
+    c->function(
+        "command", {"commands"}, [](pipeline::Activation& a) { (*a.take<Command>("commands"))(); },
+        {{}, nothing_in_flight, std::vector<std::string>{}});
+    c->function(
+        "trim", {"trim"},
+        [this](pipeline::Activation& a) {
+          const auto tick = a.take<TrimTick>("trim");
+          trim_due(tick.scan_seq);
+        },
+        {{}, nothing_in_flight, std::vector<std::string>{}});
+    c->function("laser", {"laser"}, [this](pipeline::Activation& a) { decide_scan(a, "laser"); },
+                {{}, no_barrier, std::vector<std::string>{"decided"}});
+    c->function("sonar", {"sonar"}, [this](pipeline::Activation& a) { decide_scan(a, "sonar"); },
+                {{}, no_barrier, std::vector<std::string>{"decided"}});
+    c->function("primitives", {"primitives"}, [this](pipeline::Activation& a) { decide_primitives(a); },
+                {{}, no_barrier, std::vector<std::string>{"decided"}});
+    c->on_thread_start([this] { return std::static_pointer_cast<void>(std::make_shared<rules::ThreadAttachment>(engine_)); });
+    return c;
+  });
+
+  registry.add("store", [this, queued](const pipeline::Params& params) {
+    const auto batch = static_cast<std::size_t>(params.number("max_batch", 64, 1, 4096));
+    auto c = std::make_unique<Component>();
+    c->input<DecidedPtr>("in", {PortPolicy::fifo, queued, false, batch});
+    c->output<DecidedPtr>("committed");
+    c->function("commit", {"in"}, [this](pipeline::Activation& a) { commit_group(a); });
+    return c;
+  });
+
+  registry.add("grid", [this, queued](const pipeline::Params& params) {
+    // Every this many scans the grid asks the grid line extractor for a run (0: only POST /api/v1/grid/extract).
+    const auto extract_every = static_cast<std::int64_t>(
+        params.number("extract_every", static_cast<double>(options_.grid_extract_every), 0, 1e9));
+    auto c = std::make_unique<Component>();
+    c->input<GridScanPtr>("laser", {PortPolicy::fifo, 4 * queued, false})
+        .input<GridScanPtr>("sonar", {PortPolicy::fifo, 4 * queued, false});
+    c->output<TrimTick>("trim").output<GridTick>("extract");
+    c->function("laser_and_sonar", {"laser", "sonar"},
+                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, true, true, extract_every); });
+    c->function("laser", {"laser"},
+                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, true, false, extract_every); });
+    c->function("sonar", {"sonar"},
+                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, false, true, extract_every); });
+    return c;
+  });
+
+  registry.add("grid_lines", [this](const pipeline::Params&) {
+    auto c = std::make_unique<Component>();
+    c->input<GridTick>("tick", {PortPolicy::latest, 1, false});
+    c->output<PrimitivesJobPtr>("primitives");
+    // Off the matcher's thread: thinning and Hough over the whole grid take tens to hundreds of milliseconds.
+    c->function("extract", {"tick"}, [this](pipeline::Activation& a) {
+      const auto tick = a.take<GridTick>("tick");
+      std::optional<fusion::ProbabilityRaster> raster;
+      {
+        std::shared_lock lock(grid_mutex_);
+        raster = fusion::probability_raster(*grid_);
+      }
+      if (!raster) return;
+      const auto segments = fusion::extract_grid_lines(*raster, options_.grid_lines);
+      if (segments.empty()) return;
+      auto job = std::make_shared<PrimitivesJob>();
+      job->observation.observer = "grid-extractor";
+      job->observation.origin = "grid";
+      job->observation.sensor = "grid";
+      for (const auto& segment : segments) job->observation.segments.push_back({segment});
+      job->payload = "{\"grid_revision\": " + std::to_string(tick.scan_seq) + "}";
+      job->hold = tick.hold;
+      a.emit("primitives", std::move(job));
+    });
+    return c;
+  });
+  return registry;
+}
+
+std::shared_ptr<const world::WorldState> WorldService::head() const { return in_flight_ > 0 ? head_ : snapshot(); }
+
+void WorldService::submit_command(std::function<void()> job) {
+  try {
+    network_->inject("matcher", "commands", std::make_shared<std::function<void()>>(std::move(job)));
+  } catch (const pipeline::QueueFull& e) {
+    throw Busy(std::string("the world model's command queue is full; retry later (") + e.what() + ")");
+  }
+}
+
+ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json,
+                                    std::optional<std::string> request_id) {
+  const std::string sensor = scan.sensor();
+  if (!accepts_scans(sensor))
+    throw std::invalid_argument("the processing network (" + network_->source() + ") does not process " + sensor +
+                                " scans");
+  auto job = std::make_shared<ScanJob>(ScanJob{std::move(scan), std::move(payload_json), std::move(request_id),
+                                               std::make_shared<ScanTicket>()});
+  auto future = job->ticket->future();
+  try {
+    network_->inject("matcher", sensor, std::move(job));
+  } catch (const pipeline::QueueFull& e) {
+    throw Busy(std::string("the world model's scan queue is full; retry later (") + e.what() + ")");
+  }
+  return future.get();
+}
+
+PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
+                                                std::optional<std::string> request_id) {
+  auto job = std::make_shared<PrimitivesJob>(PrimitivesJob{std::move(observation), std::move(payload_json),
+                                                           std::move(request_id), std::make_shared<PrimitivesTicket>(), nullptr});
+  auto future = job->ticket->future();
+  try {
+    network_->inject("matcher", "primitives", std::move(job));
+  } catch (const pipeline::QueueFull& e) {
+    throw Busy(std::string("the world model's primitives queue is full; retry later (") + e.what() + ")");
+  }
+  return future.get();
+}
+
+bool WorldService::accepts_scans(const std::string& sensor) const { return network_->consumes("matcher", sensor); }
+
+pipeline::NetworkStats WorldService::network_stats() const { return network_->stats(); }
+
+void WorldService::resync_after_failure() {
+  if (failed_epoch_ < epoch_) return;
+  epoch_ = failed_epoch_ + 1;
+  // What was decided on top of the failed group fails in the store too; the next request starts from the committed
+  // map.
+  head_ = snapshot();
+  next_scan_seq_ = committed_scan_seq_;
+  try {
+    sync_all_facts(*head_);
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: rule facts not restored after a failed commit: " << e.what() << "\n";
+  }
+}
+
+void WorldService::decide_scan(pipeline::Activation& a, const std::string& port) {
+  resync_after_failure();
+  auto job = a.take<ScanJobPtr>(port);
+  try {
+    const auto hash = body_hash(job->payload);
+    if (job->request_id) {
+      if (pending_request_ids_.count(*job->request_id))
+        throw Busy("request id '" + *job->request_id + "' is being applied; retry to get its answer");
+      if (auto replayed = replayed_scan(job->request_id, hash)) {
+        job->ticket->succeed(std::move(*replayed));
+        return;
+      }
+    }
+    auto d = std::make_shared<Decided>();
+    d->epoch = epoch_;
+    d->scan_seq = next_scan_seq_ + 1;
+    d->update = prepare_scan_lines(job->scan);
+    d->observation_payload = "{\"scan\": " + std::to_string(d->scan_seq) + "}";
+    if (job->request_id) {
+      d->request = storage::RequestRecord{*job->request_id,
+                                          "scan",
+                                          hash,
+                                          d->scan_seq,
+                                          d->update ? d->update->update.state.version : 0,
+                                          d->scan_seq,
+                                          d->update ? std::optional<std::int64_t>(d->update->seq) : std::nullopt};
+      pending_request_ids_[*job->request_id] = hash;
+    }
+    if (d->update) head_ = std::make_shared<const world::WorldState>(d->update->update.state);
+    next_scan_seq_ = d->scan_seq;
+    d->scan = std::move(job);
+    ++in_flight_;
+    a.emit("decided", std::move(d));
+  } catch (...) {
+    job->ticket->fail(std::current_exception());
+  }
+}
+
+void WorldService::decide_primitives(pipeline::Activation& a) {
+  resync_after_failure();
+  auto job = a.take<PrimitivesJobPtr>("primitives");
+  try {
+    const auto hash = body_hash(job->payload);
+    if (job->request_id) {
+      if (pending_request_ids_.count(*job->request_id))
+        throw Busy("request id '" + *job->request_id + "' is being applied; retry to get its answer");
+      if (const auto known = known_request(*job->request_id, "primitives", hash)) {
+        job->ticket->succeed(
+            PrimitivesOutcome{known->seq, known->version, store_.observation_decisions(known->seq), true});
+        return;
+      }
+    }
+    auto d = std::make_shared<Decided>();
+    d->epoch = epoch_;
+    d->update = prepare_update(std::move(job->observation));
+    if (job->request_id) {
+      d->request = storage::RequestRecord{*job->request_id, "primitives", hash, d->update->seq,
+                                          d->update->update.state.version, 0, std::nullopt};
+      pending_request_ids_[*job->request_id] = hash;
+    }
+    head_ = std::make_shared<const world::WorldState>(d->update->update.state);
+    d->primitives = std::move(job);
+    ++in_flight_;
+    a.emit("decided", std::move(d));
+  } catch (...) {
+    if (job->ticket)
+      job->ticket->fail(std::current_exception());
+    else
+      std::cerr << "wmd: the server's own observation was not applied\n";
+  }
+}
+
+void WorldService::commit_group(pipeline::Activation& a) {
+  auto group = a.take_all<DecidedPtr>("in");
+  std::vector<DecidedPtr> valid;
+  for (auto& d : group) {
+    if (d->epoch <= failed_epoch_)
+      d->error = std::make_exception_ptr(Busy("an earlier request it was decided after could not be stored; retry"));
+    else
+      valid.push_back(d);
+  }
+  if (!valid.empty()) {
+    try {
+      std::vector<storage::Store::BatchEntry> entries;
+      std::vector<storage::ScanEntry> scans;
+      scans.reserve(valid.size());
+      entries.reserve(valid.size());
+      for (const auto& d : valid) {
+        storage::Store::BatchEntry entry;
+        if (d->scan) {
+          scans.push_back(storage::ScanEntry{d->scan_seq, d->scan->scan.observer, d->scan->scan.sensor(),
+                                             d->scan->scan.stamp_s, d->scan->payload});
+          entry.scan = scans.back();
+          if (d->update)
+            entry.observation.emplace(
+                storage::ObservationEntry{d->update->update, d->update->observation, d->observation_payload});
+        } else {
+          entry.observation.emplace(
+              storage::ObservationEntry{d->update->update, d->update->observation, d->primitives->payload});
+        }
+        entry.request = d->request;
+        entries.push_back(std::move(entry));
+      }
+      store_.commit_batch(entries);
+    } catch (...) {
+      const auto error = std::current_exception();
+      std::uint64_t epoch = failed_epoch_;
+      for (auto& d : valid) {
+        d->error = error;
+        epoch = std::max(epoch, d->epoch);
+      }
+      failed_epoch_ = epoch;
+    }
+  }
+  for (auto& d : group) a.emit("committed", std::move(d));
+}
+
+void WorldService::finish_committed(pipeline::Activation& a) {
+  auto d = a.take<DecidedPtr>("committed");
+  --in_flight_;
+  if (d->request) pending_request_ids_.erase(d->request->request_id);
+  if (d->error) {
+    resync_after_failure();
+    if (d->scan)
+      d->scan->ticket->fail(d->error);
+    else if (d->primitives->ticket)
+      d->primitives->ticket->fail(d->error);
+    return;
+  }
+  std::optional<PrimitivesOutcome> lines;
+  if (d->update) lines = finish_update(std::move(*d->update));
+  if (d->primitives) {
+    if (d->primitives->ticket) d->primitives->ticket->succeed(std::move(*lines));
+    return;
+  }
+  committed_scan_seq_ = d->scan_seq;
+  d->scan->ticket->succeed(ScanOutcome{d->scan_seq, d->scan_seq, std::move(lines), false});
+  const bool laser = std::holds_alternative<fusion::LaserScan>(d->scan->scan.scan);
+  a.emit(laser ? "laser_scans" : "sonar_scans", std::make_shared<GridScan>(GridScan{std::move(d->scan), d->scan_seq}));
+}
+
+void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every) {
+  std::vector<GridScanPtr> scans;
+  if (laser) scans.push_back(a.take<GridScanPtr>("laser"));
+  if (sonar) scans.push_back(a.take<GridScanPtr>("sonar"));
+  std::sort(scans.begin(), scans.end(), [](const auto& x, const auto& y) { return x->seq < y->seq; });
+  {
+    std::unique_lock lock(grid_mutex_);
+    for (const auto& s : scans) std::visit([this](const auto& scan) { grid_->insert(scan); }, s->job->scan.scan);
+    grid_revision_ = std::max(grid_revision_.load(), scans.back()->seq);
+  }
+  // The tiles are flushed only through a scan whose predecessors are all in: the journal is replayed past it.
+  for (const auto& s : scans) inserted_ahead_.insert(s->seq);
+  while (!inserted_ahead_.empty() && *inserted_ahead_.begin() == last_scan_seq_ + 1) {
+    last_scan_seq_ = *inserted_ahead_.begin();
+    inserted_ahead_.erase(inserted_ahead_.begin());
+  }
+  if (inserted_ahead_.empty()) {
+    try {
+      flush_grid(false);
+    } catch (const std::exception& e) {
+      std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what()
+                << "\n";
+    }
+  }
+  for (const auto& s : scans) {
+    emit_scan_event(s->job->scan, s->seq);
+    if (extract_every > 0 && s->seq % extract_every == 0) a.emit("extract", GridTick{s->seq, s->job->ticket});
+    if (options_.grid_trim_every == 0) continue;
+    world::Box seen;
+    try {
+      seen = std::visit(
+          [&](const auto& scan) {
+            const double reach = std::min(scan.range_max_m, fusion::usable_range_m(scan, options_.grid.sensor));
+            double half_width = options_.grid.sensor.laser_beam_width_rad / 2;
+            if constexpr (std::is_same_v<std::decay_t<decltype(scan)>, fusion::SonarScan>)
+              half_width = scan.beam_width_rad / 2;
+            const auto box = fusion::scan_footprint(scan, reach, half_width, 3 * grid_->resolution_m());
+            return world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
+          },
+          s->job->scan.scan);
+    } catch (const std::exception& e) {
+      std::cerr << "wmd: scan " << s->seq << " left out of the grid trim: " << e.what() << "\n";
+      continue;
+    }
+    {
+      std::lock_guard lock(trim_mutex_);
+      if (!trim_region_) trim_region_ = seen;
+      trim_region_ = world::Box{std::min(trim_region_->x0, seen.x0), std::min(trim_region_->y0, seen.y0),
+                                std::max(trim_region_->x1, seen.x1), std::max(trim_region_->y1, seen.y1)};
+    }
+    // The scan is answered after the trim it makes due, so a client that posts one scan at a time sees the same map
+    // as before the network (and a replay stays deterministic).
+    if (s->seq % static_cast<std::int64_t>(options_.grid_trim_every) == 0)
+      a.emit("trim", TrimTick{s->seq, s->job->ticket});
+  }
+}
+
+}  // namespace wm::service
