@@ -29,6 +29,7 @@
 #include <fstream>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -167,8 +168,9 @@ class WmdProcess {
  public:
   explicit WmdProcess(const std::vector<std::string>& extra_args) {
     const fs::path log = dir_.path() / "wmd.log";
-    std::vector<std::string> args = {WM_WMD, "--db", (dir_.path() / "bench.db").string(), "--port", "0",
-                                     "--sync", "full", "--no-watch-rules", "--web", ""};
+    std::vector<std::string> args = {
+        WM_WMD,  "--db", (dir_.path() / "bench.db").string(), "--port", "0", "--sync", "full", "--no-watch-rules",
+        "--web", ""};
     args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
@@ -176,7 +178,7 @@ class WmdProcess {
     const std::string log_path = log.string();
     pid_ = ::fork();
     if (pid_ < 0) throw std::runtime_error("fork failed");
-    if (pid_ == 0) {  // only async-signal-safe calls until exec
+    if (pid_ == 0) {                       // only async-signal-safe calls until exec
       ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // no wmd left behind by a crashed bench
       const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       if (fd >= 0) {
@@ -287,8 +289,8 @@ void run_robot(Connection& connection, const std::vector<std::string>& bodies, R
           ++tally.accepted;
           break;
         }
-        if (answer.status != 503) return fail("POST /api/v1/scans: " + std::to_string(answer.status) + " " +
-                                              answer.body.substr(0, 300));
+        if (answer.status != 503)
+          return fail("POST /api/v1/scans: " + std::to_string(answer.status) + " " + answer.body.substr(0, 300));
         ++tally.retries;
         std::this_thread::sleep_for(kRetryPause);
       }
@@ -296,6 +298,23 @@ void run_robot(Connection& connection, const std::vector<std::string>& bodies, R
   } catch (const std::exception& e) {
     fail(std::string("connection: ") + e.what());
   }
+}
+
+// Where the time went: the processing network's own counters (GET /api/v1/network), per executor and function.
+void print_network_profile(const std::string& label, int robots, const std::string& body) {
+  const auto network = nlohmann::json::parse(body, nullptr, false);
+  if (network.is_discarded() || !network.contains("executors")) return;
+  std::fprintf(stderr, "network profile, %s, %d robots (%s):\n", label.c_str(), robots,
+               network["source"].get<std::string>().c_str());
+  for (const auto& e : network["executors"])
+    std::fprintf(stderr, "  executor %-10s load %.2f (busy %.2f s)\n", e["name"].get<std::string>().c_str(),
+                 e["load"].get<double>(), e["busy_s"].get<double>());
+  for (const auto& f : network["functions"])
+    if (f["activations"].get<std::uint64_t>() > 0)
+      std::fprintf(stderr, "  %-12s %-16s %7llu activations, mean %.3f ms, busy %.2f s\n",
+                   f["component"].get<std::string>().c_str(), f["function"].get<std::string>().c_str(),
+                   static_cast<unsigned long long>(f["activations"].get<std::uint64_t>()), f["mean_ms"].get<double>(),
+                   f["busy_s"].get<double>());
 }
 
 void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans,
@@ -325,6 +344,13 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
         latencies_ms.insert(latencies_ms.end(), t.latencies_ms.begin(), t.latencies_ms.end());
       }
       if (failed) break;
+    }
+    try {
+      Connection c(wmd.port());
+      const auto answer = c.request(http::verb::get, "/api/v1/network");
+      if (answer.status == 200) print_network_profile(*label, robots, answer.body);
+    } catch (const std::exception&) {
+      // a profile is a bonus; the figures above stand without it
     }
     connections.clear();
     if (!error.empty()) return state.SkipWithError(error.c_str());
@@ -375,8 +401,8 @@ void sqlite_commits(benchmark::State& state, const std::string* payload, int row
   sqlite3_finalize(insert);
   sqlite3_close(db);
   state.SetItemsProcessed(state.iterations() * rows_per_transaction);
-  state.counters["commits_per_s"] = benchmark::Counter(static_cast<double>(state.iterations()),
-                                                       benchmark::Counter::kIsRate);
+  state.counters["commits_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   state.counters["payload_bytes"] = static_cast<double>(payload->size());
 }
 
@@ -415,17 +441,16 @@ int main(int argc, char** argv) {
   std::vector<std::pair<std::string, std::string>> ratios;
   for (const int robots : kRobotCounts) {
     for (const bool baseline : {false, true})
-      benchmark::RegisterBenchmark(ingest_family(baseline), ingest, &scans,
-                                   baseline ? &baseline_args : &default_args,
+      benchmark::RegisterBenchmark(ingest_family(baseline), ingest, &scans, baseline ? &baseline_args : &default_args,
                                    baseline ? &baseline_label : &default_label)
           ->ArgName("robots")
           ->Arg(robots)
           ->Iterations(1)
           ->UseRealTime()
           ->Unit(benchmark::kMillisecond);
-    ratios.push_back({"default wmd against " + baseline_label + ", " + std::to_string(robots) + " robots",
-                      std::string(ingest_family(true)) + "/robots:" + std::to_string(robots) +
-                          "/iterations:1/real_time"});
+    ratios.push_back(
+        {"default wmd against " + baseline_label + ", " + std::to_string(robots) + " robots",
+         std::string(ingest_family(true)) + "/robots:" + std::to_string(robots) + "/iterations:1/real_time"});
   }
   ratios.push_back({"against raw SQLite, one commit per scan", "BM_SqliteCommit_1RowPerTxn/real_time"});
   return wm::bench::run_with_ratios(argc, argv, ratios);

@@ -5,8 +5,10 @@
 #include <boost/beast/websocket.hpp>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <numbers>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <thread>
 
@@ -301,6 +303,67 @@ TEST_F(GridEveryTest, TheExtractorRunsEveryNScans) {
   const auto fifth = post_scan(room_scan(poses.back().first, poses.back().second, 0.3));  // the fifth grid update
   EXPECT_EQ(fifth["grid_revision"], 5);
   EXPECT_GE(grid_decisions(), 4u);
+}
+
+// A network file that drops sonar processing: sonar scans are refused with the reason and change nothing; laser
+// scans, their lines and the periodic grid line extractor (every 50 scans in that file) go on.
+class LaserOnlyNetworkTest : public GridTest {
+ protected:
+  void SetUp() override {
+    extra_args_ = {"--network", std::string(WM_SOURCE_DIR) + "/networks/laser_only.yaml"};
+    ServerFixture::SetUp();
+  }
+};
+
+TEST_F(LaserOnlyNetworkTest, SonarScansAreRefusedAndTheLaserPathWorks) {
+  const json sonar = {{"sensor", "sonar"}, {"source", "robot-2"}, {"pose", {{"x", 4}, {"y", 3}, {"theta", 0}}},
+                      {"angles", {0.0}},   {"ranges", {2.0}},     {"beam_width", 0.4363},
+                      {"range_max", 5.0},  {"sigma_range", 0.02}};
+  const auto refused = post_scan(sonar, 422);
+  EXPECT_NE(refused["detail"].get<std::string>().find("laser_only.yaml) does not process sonar scans"),
+            std::string::npos)
+      << refused.dump();
+  const auto arc = get_json("/api/v1/grid?bbox=5.95,2.95,6.05,3.05");
+  EXPECT_TRUE(arc["data"][0].is_null()) << "the sonar arc is not in the grid";
+  const auto first = post_scan(room_scan(3, 3, 0.3));
+  EXPECT_EQ(first["grid_revision"], 1) << "the refused sonar scan was not journaled";
+  EXPECT_FALSE(first["lines"].is_null());
+
+  const auto network = get_json("/api/v1/network");
+  EXPECT_NE(network["source"].get<std::string>().find("laser_only.yaml"), std::string::npos);
+  std::set<std::string> functions;
+  for (const auto& f : network["functions"])
+    functions.insert(f["component"].get<std::string>() + "." + f["function"].get<std::string>());
+  EXPECT_TRUE(functions.count("matcher.laser"));
+  EXPECT_FALSE(functions.count("matcher.sonar"));
+  EXPECT_FALSE(functions.count("grid.laser_and_sonar"));
+  for (const auto& f : network["functions"]) {
+    if (f["function"] == "laser") {
+      EXPECT_EQ(f["activations"], 1) << f.dump();
+    }
+  }
+  std::size_t executors = network["executors"].size();
+  EXPECT_EQ(executors, 4u);
+}
+
+TEST_F(GridTest, TheDefaultNetworkIsTheShippedFileAndServesEveryPath) {
+  // networks/default.yaml is what --print-network prints, so users start their own from the real thing.
+  std::ifstream shipped(std::string(WM_SOURCE_DIR) + "/networks/default.yaml");
+  std::stringstream text;
+  text << shipped.rdbuf();
+  const auto printed = run_command(std::string(WM_WMD_PATH) + " --print-network");
+  EXPECT_EQ(printed.status, 0);
+  EXPECT_EQ(printed.output, text.str());
+  post_scan(room_scan(3, 3, 0.3));
+  const auto network = get_json("/api/v1/network");
+  EXPECT_EQ(network["source"], "<default network>");
+  bool committed = false;
+  for (const auto& f : network["functions"])
+    if (f["component"] == "store" && f["function"] == "commit") committed = f["activations"].get<int>() >= 1;
+  EXPECT_TRUE(committed) << network.dump();
+  std::size_t depth = 0;
+  for (const auto& p : network["ports"]) depth += p["depth"].get<std::size_t>();
+  EXPECT_EQ(depth, 0u) << "the scan was answered after every stage";
 }
 
 TEST_F(GridTest, BadScansAreRefusedAndChangeNothing) {
