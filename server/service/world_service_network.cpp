@@ -9,9 +9,7 @@
 #include "server/service/world_service.h"
 
 namespace wm::service {
-namespace {
-
-}  // namespace
+namespace {}  // namespace
 
 // FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
 // Not a defence against a client that crafts collisions, which could only confuse its own requests.
@@ -25,7 +23,6 @@ std::int64_t WorldService::body_hash(std::string_view body) {
 }
 
 namespace {
-
 
 // Answers a waiting request when the last stage that holds it lets go: with its outcome, its error, or (dropped when
 // the server stops) Busy.
@@ -67,7 +64,7 @@ struct PrimitivesJob {
   std::string payload;
   std::optional<std::string> request_id;
   std::shared_ptr<PrimitivesTicket> ticket;  // null for the server's own observations (grid lines)
-  std::shared_ptr<void> hold;                 // a request answered only after this one is applied (or dropped)
+  std::shared_ptr<void> hold;                // a request answered only after this one is applied (or dropped)
 };
 using ScanJobPtr = std::shared_ptr<ScanJob>;
 using PrimitivesJobPtr = std::shared_ptr<PrimitivesJob>;
@@ -96,7 +93,6 @@ struct WorldService::GridScan {
   ScanJobPtr job;
   std::int64_t seq = 0;
 };
-
 
 std::string default_network_yaml() {
   return R"(description: >
@@ -148,23 +144,22 @@ pipeline::Registry WorldService::network_registry() {
     };
     c->function("finish", {"committed"}, [this](pipeline::Activation& a) { finish_committed(a); },
                 {{}, {}, std::vector<std::string>{"laser_scans", "sonar_scans"}});
-    c->function(
-        "command", {"commands"}, [](pipeline::Activation& a) { (*a.take<Command>("commands"))(); },
-        {{}, nothing_in_flight, std::vector<std::string>{}});
-    c->function(
-        "trim", {"trim"},
-        [this](pipeline::Activation& a) {
-          const auto tick = a.take<TrimTick>("trim");
-          trim_due(tick.scan_seq);
-        },
-        {{}, nothing_in_flight, std::vector<std::string>{}});
+    c->function("command", {"commands"}, [](pipeline::Activation& a) { (*a.take<Command>("commands"))(); },
+                {{}, nothing_in_flight, std::vector<std::string>{}});
+    c->function("trim", {"trim"},
+                [this](pipeline::Activation& a) {
+                  const auto tick = a.take<TrimTick>("trim");
+                  trim_due(tick.scan_seq);
+                },
+                {{}, nothing_in_flight, std::vector<std::string>{}});
     c->function("laser", {"laser"}, [this](pipeline::Activation& a) { decide_scan(a, "laser"); },
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
     c->function("sonar", {"sonar"}, [this](pipeline::Activation& a) { decide_scan(a, "sonar"); },
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
     c->function("primitives", {"primitives"}, [this](pipeline::Activation& a) { decide_primitives(a); },
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
-    c->on_thread_start([this] { return std::static_pointer_cast<void>(std::make_shared<rules::ThreadAttachment>(engine_)); });
+    c->on_thread_start(
+        [this] { return std::static_pointer_cast<void>(std::make_shared<rules::ThreadAttachment>(engine_)); });
     return c;
   });
 
@@ -239,8 +234,8 @@ ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string pa
   if (!accepts_scans(sensor))
     throw std::invalid_argument("the processing network (" + network_->source() + ") does not process " + sensor +
                                 " scans");
-  auto job = std::make_shared<ScanJob>(ScanJob{std::move(scan), std::move(payload_json), std::move(request_id),
-                                               std::make_shared<ScanTicket>()});
+  auto job = std::make_shared<ScanJob>(
+      ScanJob{std::move(scan), std::move(payload_json), std::move(request_id), std::make_shared<ScanTicket>()});
   auto future = job->ticket->future();
   try {
     network_->inject("matcher", sensor, std::move(job));
@@ -253,7 +248,8 @@ ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string pa
 PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
                                                 std::optional<std::string> request_id) {
   auto job = std::make_shared<PrimitivesJob>(PrimitivesJob{std::move(observation), std::move(payload_json),
-                                                           std::move(request_id), std::make_shared<PrimitivesTicket>(), nullptr});
+                                                           std::move(request_id), std::make_shared<PrimitivesTicket>(),
+                                                           nullptr});
   auto future = job->ticket->future();
   try {
     network_->inject("matcher", "primitives", std::move(job));
@@ -337,8 +333,8 @@ void WorldService::decide_primitives(pipeline::Activation& a) {
     d->epoch = epoch_;
     d->update = prepare_update(std::move(job->observation));
     if (job->request_id) {
-      d->request = storage::RequestRecord{*job->request_id, "primitives", hash, d->update->seq,
-                                          d->update->update.state.version, 0, std::nullopt};
+      d->request = storage::RequestRecord{
+          *job->request_id, "primitives", hash, d->update->seq, d->update->update.state.version, 0, std::nullopt};
       pending_request_ids_[*job->request_id] = hash;
     }
     head_ = std::make_shared<const world::WorldState>(d->update->update.state);
