@@ -24,6 +24,7 @@ const char* kGlobalOptions =
 std::vector<Command> command_table() {
   return {
       {"health", {}, {}, "server status, counts and loaded rules", health},
+      {"network", {}, {}, "the processing network: executors' load, functions' activations, queues", network},
       {"floorplan load",
        {"FILE"},
        {{"--mapping", "M.json"}, {"--units", "m|cm|mm|in|ft"}, {"--level", "NAME"}},

@@ -50,6 +50,28 @@ int health(const Invocation& in) {
   });
 }
 
+int network(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/network")), [](const json& n) {
+    std::cout << "network " << n["source"].get<std::string>() << "\n";
+    for (const auto& e : n["executors"]) {
+      std::cout << "executor " << e["name"].get<std::string>() << ": load " << std::fixed << std::setprecision(2)
+                << e["load"].get<double>() << ", components";
+      for (const auto& c : e["components"]) std::cout << " " << c.get<std::string>();
+      std::cout << "\n";
+    }
+    for (const auto& f : n["functions"])
+      std::cout << "  " << f["component"].get<std::string>() << "." << f["function"].get<std::string>() << " ("
+                << f["ports"].size() + f["peeks"].size() << " ports, priority " << f["priority"]
+                << "): " << f["activations"] << " activations, mean " << std::setprecision(3)
+                << f["mean_ms"].get<double>() << " ms, " << f["failures"] << " failures\n";
+    for (const auto& p : n["ports"])
+      std::cout << "  " << p["component"].get<std::string>() << "." << p["port"].get<std::string>() << " ["
+                << p["policy"].get<std::string>() << " " << p["capacity"] << "]: depth " << p["depth"] << " (max "
+                << p["max_depth"] << "), " << p["pushed"] << " in, " << p["dropped"] << " dropped, " << p["refused"]
+                << " refused\n";
+  });
+}
+
 int floorplan_load(const Invocation& in) {
   // DXF and RMF files go in an import envelope with the options; JSON (plan or AMRL map) goes as it is.
   const std::string mapping_file = in.flag("--mapping").value_or("");

@@ -38,6 +38,17 @@ TEST_F(ServerFixture, WmctlLoadsPostsAndShows) {
   r = run_command(wmctl(server_->url(), "decisions --since 1"));
   EXPECT_EQ(r.status, 0);
   EXPECT_NE(r.output.find("1 decisions"), std::string::npos) << r.output;
+
+  // The primitives went through the matcher and the store once each.
+  r = run_command(wmctl(server_->url(), "network"));
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("network <default network>"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("executor world: load"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("matcher.primitives (1 ports, priority 5): 1 activations"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("store.commit (1 ports, priority 0): 1 activations"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("matcher.primitives [fifo 256]: depth 0 (max 1), 1 in, 0 dropped, 0 refused"),
+            std::string::npos)
+      << r.output;
 }
 
 TEST_F(ServerFixture, WmctlFailsClearly) {
@@ -67,6 +78,7 @@ struct CommandSpec {
 std::vector<CommandSpec> command_specs() {
   return {
       {"health", "", {}},
+      {"network", "", {}},
       {"floorplan load", "plan.dxf", {{"--mapping", "m.json"}, {"--units", "mm"}, {"--level", "L1"}}},
       {"floorplan show", "", {}},
       {"primitives post", "p.json", {}},

@@ -257,6 +257,14 @@ test('the viewer shows the grid, the plan and the elements, follows live decisio
     await expectDrawnEqualsApi('after a new floor plan');
   });
 
+  await t.test('the status shows the processing network: each executor\'s load and the queues', async () => {
+    await page.waitForFunction(() => /world \d+%/.test(document.querySelector('#status-network').textContent), null,
+      { timeout: 15000 });
+    const text = await page.textContent('#status-network');
+    for (const executor of ['world', 'storage', 'grids', 'lines']) assert.match(text, new RegExp(`${executor} \\d+%`));
+    assert.match(await page.getAttribute('#status-network', 'title'), /store\.commit: \d+ ×/);
+  });
+
   await t.test('a new placement of the plan moves it live and the status says where', async () => {
     const placed = await postJson(base, '/api/v1/floorplan/place', { x: 1.5, y: -0.5, theta_deg: 10 });
     assert.equal(placed.decision.action, 'place');

@@ -77,6 +77,7 @@ export class Api {
   }
 
   health() { return this.json('/api/v1/health'); }
+  network() { return this.json('/api/v1/network'); }
   map() { return this.json('/api/v1/map'); }
   history(kind, id) {
     return this.json(`/api/v1/${kind === 'object' ? 'objects' : 'elements'}/${encodeURIComponent(id)}/history`);

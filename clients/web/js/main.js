@@ -221,6 +221,12 @@ async function pollHealth() {
     status.setHealth(await api.health());
   } catch (error) {
     status.setHealth(null, error.message);
+    return;
+  }
+  try {
+    status.setNetwork(await api.network());
+  } catch {
+    // an older server without the endpoint: the row stays as it is
   }
 }
 

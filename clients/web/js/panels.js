@@ -67,6 +67,22 @@ export class StatusPanel {
     el.title = why ?? '';
   }
 
+  /**
+   * The processing network (GET /api/v1/network): each executor's load and the deepest queue, so an operator sees
+   * which stage holds ingest back. The full table is in the title.
+   */
+  setNetwork(network) {
+    const el = this.$('status-network');
+    if (!el || !network) return;
+    const loads = network.executors.map((e) => `${e.name} ${Math.round(100 * e.load)}%`);
+    const deepest = network.ports.reduce((a, p) => (a && a.depth >= p.depth ? a : p), null);
+    const queue = deepest && deepest.depth > 0 ? ` · ${deepest.component}.${deepest.port} ${deepest.depth}/${deepest.capacity}` : ' · queues empty';
+    el.textContent = loads.join(', ') + queue;
+    el.title = network.functions
+      .map((f) => `${f.component}.${f.function}: ${f.activations} × ${f.mean_ms.toFixed(2)} ms`)
+      .join('\n');
+  }
+
   setHealth(health, error) {
     const h = this.$('status-health');
     if (error) {
