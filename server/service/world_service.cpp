@@ -231,16 +231,16 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
         {"points", returns}});
 }
 
-void WorldService::trim_due(std::int64_t scan_seq) {
+std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(std::int64_t scan_seq) {
   world::Box region;
   {
     std::lock_guard lock(trim_mutex_);
-    if (!trim_region_) return;
+    if (!trim_region_) return std::nullopt;
     region = *trim_region_;
     trim_region_.reset();
   }
   try {
-    auto p = own_observation(snapshot(), "grid-trim", "grid", "grid");
+    auto p = own_observation(head(), "grid-trim", "grid", "grid");
     std::vector<world::GridShares> checked;
     {
       std::shared_lock lock(grid_mutex_);
@@ -285,18 +285,17 @@ void WorldService::trim_due(std::int64_t scan_seq) {
       for (auto number : p.update.removed_elements) removed.push_back("e" + std::to_string(number));
       engine_.update_elements({}, removed);
     }
-    if (p.update.decisions.empty()) return;
-    const std::string payload = "{\"grid_revision\": " + std::to_string(scan_seq) + "}";
-    commit_prepared(p, [&] { store_.commit_observation(p.update, p.observation, payload); });
-    finish_update(std::move(p));
+    if (p.update.decisions.empty()) return std::nullopt;
+    return p;
   } catch (const std::exception& e) {
     std::cerr << "wmd: grid trim after scan " << scan_seq << " failed: " << e.what() << "\n";
     try {
-      sync_all_facts(*snapshot());  // the rules see the map as committed
+      sync_all_facts(*head());  // the rules see the map as decided before the trim
     } catch (const std::exception& again) {
       std::cerr << "wmd: rule facts not restored after the failed grid trim: " << again.what() << "\n";
     }
   }
+  return std::nullopt;
 }
 
 std::optional<PrimitivesOutcome> WorldService::extract_grid_lines() {

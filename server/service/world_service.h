@@ -246,7 +246,9 @@ class WorldService final : public WorldPort {
   void commit_group(pipeline::Activation& a);
   void finish_committed(pipeline::Activation& a);
   void insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every);
-  void trim_due(std::int64_t scan_seq);
+  /// The grid trim of what the scans since the last one could see, decided against head() (nullopt: nothing to do).
+  std::optional<PreparedUpdate> prepare_trim(std::int64_t scan_seq);
+  void decide_trim(pipeline::Activation& a);
   /// After a failed group commit: what was decided on top of it is dropped, the rules go back to the committed map.
   void resync_after_failure();
 

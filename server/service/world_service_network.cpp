@@ -81,8 +81,9 @@ struct WorldService::Decided {
   std::uint64_t epoch = 0;
   ScanJobPtr scan;  // a scan (with its lines, if any) ...
   std::int64_t scan_seq = 0;
-  PrimitivesJobPtr primitives;  // ... or posted primitives
+  PrimitivesJobPtr primitives;  // ... or posted primitives (neither: the server's own observation, a grid trim)
   std::optional<PreparedUpdate> update;
+  std::shared_ptr<void> hold;  // a request answered only after this one is applied (or failed)
   std::optional<storage::RequestRecord> request;
   std::string observation_payload;  // a scan's lines: {"scan": seq}
   std::exception_ptr error;         // the commit failed
@@ -138,20 +139,15 @@ pipeline::Registry WorldService::network_registry() {
         .input<TrimTick>("trim", {PortPolicy::latest, 1, false});
     c->output<DecidedPtr>("decided").output<GridScanPtr>("laser_scans").output<GridScanPtr>("sonar_scans");
     const auto nothing_in_flight = [this] { return in_flight_ == 0; };
-    // Requests wait while a command or a trim waits for what is in flight: commands are never starved.
-    const auto no_barrier = [this] {
-      return network_->depth("matcher", "commands") == 0 && network_->depth("matcher", "trim") == 0;
-    };
+    // Requests wait while a command waits for what is in flight: commands are never starved.
+    const auto no_barrier = [this] { return network_->depth("matcher", "commands") == 0; };
     c->function("finish", {"committed"}, [this](pipeline::Activation& a) { finish_committed(a); },
                 {{}, {}, std::vector<std::string>{"laser_scans", "sonar_scans"}});
     c->function("command", {"commands"}, [](pipeline::Activation& a) { (*a.take<Command>("commands"))(); },
                 {{}, nothing_in_flight, std::vector<std::string>{}});
-    c->function("trim", {"trim"},
-                [this](pipeline::Activation& a) {
-                  const auto tick = a.take<TrimTick>("trim");
-                  trim_due(tick.scan_seq);
-                },
-                {{}, nothing_in_flight, std::vector<std::string>{}});
+    // The trim is decided in the chain like a request (no barrier), before the scans waiting: it is tried first.
+    c->function("trim", {"trim"}, [this](pipeline::Activation& a) { decide_trim(a); },
+                {{}, no_barrier, std::vector<std::string>{"decided"}});
     c->function("laser", {"laser"}, [this](pipeline::Activation& a) { decide_scan(a, "laser"); },
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
     c->function("sonar", {"sonar"}, [this](pipeline::Activation& a) { decide_scan(a, "sonar"); },
@@ -349,6 +345,21 @@ void WorldService::decide_primitives(pipeline::Activation& a) {
   }
 }
 
+void WorldService::decide_trim(pipeline::Activation& a) {
+  resync_after_failure();
+  auto tick = a.take<TrimTick>("trim");
+  auto p = prepare_trim(tick.scan_seq);
+  if (!p) return;
+  auto d = std::make_shared<Decided>();
+  d->epoch = epoch_;
+  d->update = std::move(*p);
+  d->observation_payload = "{\"grid_revision\": " + std::to_string(tick.scan_seq) + "}";
+  d->hold = std::move(tick.ticket);
+  head_ = std::make_shared<const world::WorldState>(d->update->update.state);
+  ++in_flight_;
+  a.emit("decided", std::move(d));
+}
+
 void WorldService::commit_group(pipeline::Activation& a) {
   auto group = a.take_all<DecidedPtr>("in");
   std::vector<DecidedPtr> valid;
@@ -374,8 +385,9 @@ void WorldService::commit_group(pipeline::Activation& a) {
             entry.observation.emplace(
                 storage::ObservationEntry{d->update->update, d->update->observation, d->observation_payload});
         } else {
-          entry.observation.emplace(
-              storage::ObservationEntry{d->update->update, d->update->observation, d->primitives->payload});
+          entry.observation.emplace(storage::ObservationEntry{
+              d->update->update, d->update->observation,
+              d->primitives ? std::string_view(d->primitives->payload) : std::string_view(d->observation_payload)});
         }
         entry.request = d->request;
         entries.push_back(std::move(entry));
@@ -402,14 +414,16 @@ void WorldService::finish_committed(pipeline::Activation& a) {
     resync_after_failure();
     if (d->scan)
       d->scan->ticket->fail(d->error);
-    else if (d->primitives->ticket)
+    else if (d->primitives && d->primitives->ticket)
       d->primitives->ticket->fail(d->error);
+    else if (!d->primitives)
+      std::cerr << "wmd: the grid trim was not stored\n";
     return;
   }
   std::optional<PrimitivesOutcome> lines;
   if (d->update) lines = finish_update(std::move(*d->update));
-  if (d->primitives) {
-    if (d->primitives->ticket) d->primitives->ticket->succeed(std::move(*lines));
+  if (!d->scan) {
+    if (d->primitives && d->primitives->ticket) d->primitives->ticket->succeed(std::move(*lines));
     return;
   }
   committed_scan_seq_ = d->scan_seq;
