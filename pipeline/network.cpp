@@ -373,7 +373,7 @@ StopReport Network::stop(bool drain, std::chrono::milliseconds timeout) {
         const bool quiet = std::all_of(executors_.begin(), executors_.end(), [&](const auto& e) {
           return e->idle.load() && e->idle_at_pushes.load() == pushes;
         });
-        if (quiet) {
+        if (quiet && pushes_.load() == pushes) {  // and nothing moved while we looked
           report.drained = true;
           break;
         }
@@ -516,6 +516,9 @@ void Network::activate(Node& node, std::size_t function) {
     // A function reports failures through its values (e.g. a request's answer); what escapes is a bug, logged.
     ++f.failures;
     std::fprintf(stderr, "pipeline: %s.%s failed: %s\n", node.name.c_str(), f.spec.name.c_str(), e.what());
+  } catch (...) {
+    ++f.failures;
+    std::fprintf(stderr, "pipeline: %s.%s failed\n", node.name.c_str(), f.spec.name.c_str());
   }
   const auto ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - begin).count();

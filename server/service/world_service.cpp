@@ -55,6 +55,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
                            events::EventHub* events)
     : options_(options), store_(store), engine_(engine), events_(events) {
   snapshot_ = std::make_shared<const world::WorldState>(store_.load(options_.world));
+  head_ = snapshot_;
   // The grid as last flushed, then every scan journaled after that flush.
   auto grid_options = options_.grid;
   const auto stored = store_.load_grid();
@@ -446,7 +447,12 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
           {"objects", objects}});
   }
   publish(std::move(update.state));
-  engine_.add_decisions(logged, options_.decision_facts_kept);
+  // Committed and published: the request is answered as applied whatever happens here.
+  try {
+    engine_.add_decisions(logged, options_.decision_facts_kept);
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: decision facts of observation " << seq << " not kept: " << e.what() << "\n";
+  }
   return outcome;
 }
 

@@ -240,6 +240,8 @@ class WorldService final : public WorldPort {
   void submit_command(std::function<void()> job);
   /// The map the next request is decided against: the last one decided (committed or in flight).
   std::shared_ptr<const world::WorldState> head() const;
+  /// At the start of each decision on the matcher: the head is the published map when nothing is in flight.
+  void refresh_head();
   /// The matcher's functions.
   void decide_scan(pipeline::Activation& a, const std::string& port);
   void decide_primitives(pipeline::Activation& a);
@@ -252,7 +254,6 @@ class WorldService final : public WorldPort {
   /// After a failed group commit: what was decided on top of it is dropped, the rules go back to the committed map.
   void resync_after_failure();
 
-  std::unique_ptr<pipeline::Network> network_;
   // Matcher thread only:
   std::shared_ptr<const world::WorldState> head_;
   std::int64_t next_scan_seq_ = 0;                           // the last scan decided (journaled or in flight)
@@ -284,7 +285,9 @@ class WorldService final : public WorldPort {
   bool flush_all_tiles_ = false;
   std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();
 
-  // Declared last: destroyed first, so their threads stop before the members they use go away.
+  // Declared last: destroyed first, so their threads stop before the members they use go away (also when the
+  // constructor throws after the network started).
+  std::unique_ptr<pipeline::Network> network_;
   std::unique_ptr<PrologWorker> reader_;
   std::unique_ptr<RulesWatcher> watcher_;
 };

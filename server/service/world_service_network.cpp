@@ -38,7 +38,9 @@ class Ticket {
     else if (outcome_)
       promise_.set_value(std::move(*outcome_));
     else
-      promise_.set_exception(std::make_exception_ptr(Busy("the server stopped before the request was applied")));
+      promise_.set_exception(std::make_exception_ptr(
+          Busy("the server stopped while the request was on its way; it may have been applied (a retry with the "
+               "same request id is answered, not applied twice)")));
   }
   std::future<Outcome> future() { return promise_.get_future(); }
   void succeed(Outcome outcome) { outcome_ = std::move(outcome); }
@@ -216,6 +218,12 @@ pipeline::Registry WorldService::network_registry() {
 
 std::shared_ptr<const world::WorldState> WorldService::head() const { return in_flight_ > 0 ? head_ : snapshot(); }
 
+void WorldService::refresh_head() {
+  // With nothing in flight the published map is the head (a command may have changed it); a request that changes
+  // nothing (a sonar scan, a scan without lines) still goes in flight, and the next one chains from this.
+  if (in_flight_ == 0) head_ = snapshot();
+}
+
 void WorldService::submit_command(std::function<void()> job) {
   try {
     network_->inject("matcher", "commands", std::make_shared<std::function<void()>>(std::move(job)));
@@ -259,6 +267,8 @@ bool WorldService::accepts_scans(const std::string& sensor) const { return netwo
 
 pipeline::NetworkStats WorldService::network_stats() const { return network_->stats(); }
 
+// On the matcher, from finish only: the groups committed before the failed one are finished (and published) by then,
+// and what was decided after it carries its epoch and fails in the store.
 void WorldService::resync_after_failure() {
   if (failed_epoch_ < epoch_) return;
   epoch_ = failed_epoch_ + 1;
@@ -274,7 +284,7 @@ void WorldService::resync_after_failure() {
 }
 
 void WorldService::decide_scan(pipeline::Activation& a, const std::string& port) {
-  resync_after_failure();
+  refresh_head();
   auto job = a.take<ScanJobPtr>(port);
   try {
     const auto hash = body_hash(job->payload);
@@ -312,7 +322,7 @@ void WorldService::decide_scan(pipeline::Activation& a, const std::string& port)
 }
 
 void WorldService::decide_primitives(pipeline::Activation& a) {
-  resync_after_failure();
+  refresh_head();
   auto job = a.take<PrimitivesJobPtr>("primitives");
   try {
     const auto hash = body_hash(job->payload);
@@ -338,15 +348,20 @@ void WorldService::decide_primitives(pipeline::Activation& a) {
     ++in_flight_;
     a.emit("decided", std::move(d));
   } catch (...) {
-    if (job->ticket)
+    if (job->ticket) {
       job->ticket->fail(std::current_exception());
-    else
-      std::cerr << "wmd: the server's own observation was not applied\n";
+    } else {
+      try {
+        throw;
+      } catch (const std::exception& e) {
+        std::cerr << "wmd: the grid line extractor's observation was not applied: " << e.what() << "\n";
+      }
+    }
   }
 }
 
 void WorldService::decide_trim(pipeline::Activation& a) {
-  resync_after_failure();
+  refresh_head();
   auto tick = a.take<TrimTick>("trim");
   auto p = prepare_trim(tick.scan_seq);
   if (!p) return;
@@ -416,8 +431,9 @@ void WorldService::finish_committed(pipeline::Activation& a) {
       d->scan->ticket->fail(d->error);
     else if (d->primitives && d->primitives->ticket)
       d->primitives->ticket->fail(d->error);
-    else if (!d->primitives)
-      std::cerr << "wmd: the grid trim was not stored\n";
+    else
+      std::cerr << "wmd: the server's own observation (" << (d->primitives ? "grid lines" : "grid trim")
+                << ") was not stored\n";
     return;
   }
   std::optional<PrimitivesOutcome> lines;
@@ -439,14 +455,22 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
   std::sort(scans.begin(), scans.end(), [](const auto& x, const auto& y) { return x->seq < y->seq; });
   {
     std::unique_lock lock(grid_mutex_);
-    for (const auto& s : scans) std::visit([this](const auto& scan) { grid_->insert(scan); }, s->job->scan.scan);
-    grid_revision_ = std::max(grid_revision_.load(), scans.back()->seq);
-  }
-  // The tiles are flushed only through a scan whose predecessors are all in: the journal is replayed past it.
-  for (const auto& s : scans) inserted_ahead_.insert(s->seq);
-  while (!inserted_ahead_.empty() && *inserted_ahead_.begin() == last_scan_seq_ + 1) {
-    last_scan_seq_ = *inserted_ahead_.begin();
-    inserted_ahead_.erase(inserted_ahead_.begin());
+    for (const auto& s : scans) {
+      try {
+        std::visit([this](const auto& scan) { grid_->insert(scan); }, s->job->scan.scan);
+      } catch (const std::exception& e) {
+        // Validated at the HTTP boundary, so this is a bug; the scan is journaled and counted all the same.
+        std::cerr << "wmd: scan " << s->seq << " not inserted into the grid: " << e.what() << "\n";
+      }
+      inserted_ahead_.insert(s->seq);
+    }
+    // The tiles are flushed, and the revision told, only through a scan whose predecessors are all in (laser and
+    // sonar arrive on two ports): the journal is replayed past the flush at start.
+    while (!inserted_ahead_.empty() && *inserted_ahead_.begin() == last_scan_seq_ + 1) {
+      last_scan_seq_ = *inserted_ahead_.begin();
+      inserted_ahead_.erase(inserted_ahead_.begin());
+    }
+    grid_revision_ = last_scan_seq_;
   }
   if (inserted_ahead_.empty()) {
     try {

@@ -1,4 +1,5 @@
 // Scans through the running wmd: both grids, the map_server export, persistence, scan lines, live events.
+#include <atomic>
 #include <boost/asio/connect.hpp>
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
@@ -364,6 +365,42 @@ TEST_F(GridTest, TheDefaultNetworkIsTheShippedFileAndServesEveryPath) {
   std::size_t depth = 0;
   for (const auto& p : network["ports"]) depth += p["depth"].get<std::size_t>();
   EXPECT_EQ(depth, 0u) << "the scan was answered after every stage";
+}
+
+// Requests that change nothing (a sonar scan) stay in flight while others are decided after them: those must be
+// decided against the map as it is, plan and all (a stale head once dropped the plan loaded before).
+TEST_F(GridTest, ConcurrentSonarScansAndPrimitivesAfterAPlanKeepThePlan) {
+  send_json("PUT", "/api/v1/floorplan", lab_plan());
+  const auto objects = get_json("/api/v1/map")["objects"].size();
+  ASSERT_GT(objects, 0u);
+  const json sonar = {{"sensor", "sonar"}, {"source", "robot-2"}, {"pose", {{"x", 4}, {"y", 3}, {"theta", 0}}},
+                      {"angles", {0.0}},   {"ranges", {2.0}},     {"beam_width", 0.4363},
+                      {"range_max", 5.0},  {"sigma_range", 0.02}};
+  std::atomic<int> failures{0};
+  std::vector<std::thread> clients;
+  for (int c = 0; c < 4; ++c)
+    clients.emplace_back([&, c] {
+      client::HttpClient http(server_->url());
+      for (int i = 0; i < 25; ++i) {
+        json body = sonar;
+        std::string target = "/api/v1/scans";
+        if (c % 2 == 1) {
+          target = "/api/v1/primitives";
+          const double y = 0.5 + 0.37 * i + 0.05 * c;
+          body = {{"source", "robot-" + std::to_string(c)}, {"segments", {{{"p0", {20, y}}, {"p1", {21, y}}}}}};
+        }
+        const auto r = http.request("POST", target, body.dump());
+        if (r.status != 200) {
+          ++failures;
+          ADD_FAILURE() << target << " " << r.status << ": " << r.body;
+        }
+      }
+    });
+  for (auto& t : clients) t.join();
+  EXPECT_EQ(failures, 0);
+  const auto map = get_json("/api/v1/map");
+  EXPECT_EQ(map["objects"].size(), objects) << "the plan is still there";
+  EXPECT_EQ(get_json("/api/v1/health")["last_decision_seq"].get<int>(), 50) << "every primitive decided once";
 }
 
 TEST_F(GridTest, BadScansAreRefusedAndChangeNothing) {
