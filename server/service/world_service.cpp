@@ -5,7 +5,6 @@
 #include <cmath>
 #include <iostream>
 #include <system_error>
-#include <tuple>
 #include <type_traits>
 #include <variant>
 
@@ -205,19 +204,27 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   return prepare_update(std::move(observation));
 }
 
-void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq) {
-  if (!events_ || events_->subscriber_count() == 0) return;
-  constexpr std::size_t kMaxEventPoints = 360;
+Eigen::AlignedBox2d WorldService::changed_region(const json_codec::ScanRequest& scan, double pad_m) const {
   const auto& sensor = options_.grid.sensor;
   // The grid changed around the pose and along every beam, up to its return or the grid's usable range; wide
   // beams (a sonar cone, the laser's 2°) reach beyond their axis.
-  const auto [pose, changed, points] = std::visit(
+  return std::visit(
       [&](const auto& s) {
         const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, sensor));
         double half_width = sensor.laser_beam_width_rad / 2;
         if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
-        return std::tuple{s.sensor_pose, fusion::scan_footprint(s, reach, half_width, 2 * grid_->resolution_m()),
-                          fusion::scan_returns(s, kMaxEventPoints)};
+        return fusion::scan_footprint(s, reach, half_width, pad_m);
+      },
+      scan.scan);
+}
+
+void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq) {
+  if (!events_ || events_->subscriber_count() == 0) return;
+  constexpr std::size_t kMaxEventPoints = 360;
+  const auto changed = changed_region(scan, 2 * grid_->resolution_m());
+  const auto [pose, points] = std::visit(
+      [&](const auto& s) {
+        return std::pair{s.sensor_pose, fusion::scan_returns(s, kMaxEventPoints)};
       },
       scan.scan);
   nlohmann::json returns = nlohmann::json::array();

@@ -2,6 +2,7 @@
 
 #include <pthread.h>
 
+#include <Eigen/Geometry>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -215,6 +216,8 @@ class WorldService final : public WorldPort {
   std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
   /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
   void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
+  /// Where a scan changes the grid (its footprint up to its usable range, beam widths included), padded by pad_m.
+  Eigen::AlignedBox2d changed_region(const json_codec::ScanRequest& scan, double pad_m) const;
   void flush_grid(bool force);
   void emit(const nlohmann::json& event);
 

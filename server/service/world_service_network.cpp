@@ -486,16 +486,9 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
     if (options_.grid_trim_every == 0) continue;
     world::Box seen;
     try {
-      seen = std::visit(
-          [&](const auto& scan) {
-            const double reach = std::min(scan.range_max_m, fusion::usable_range_m(scan, options_.grid.sensor));
-            double half_width = options_.grid.sensor.laser_beam_width_rad / 2;
-            if constexpr (std::is_same_v<std::decay_t<decltype(scan)>, fusion::SonarScan>)
-              half_width = scan.beam_width_rad / 2;
-            const auto box = fusion::scan_footprint(scan, reach, half_width, 3 * grid_->resolution_m());
-            return world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
-          },
-          s->job->scan.scan);
+      // A cell more than the event's region: the trim probes a 3×3 neighbourhood.
+      const auto box = changed_region(s->job->scan, 3 * grid_->resolution_m());
+      seen = world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
     } catch (const std::exception& e) {
       std::cerr << "wmd: scan " << s->seq << " left out of the grid trim: " << e.what() << "\n";
       continue;
