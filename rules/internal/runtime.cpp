@@ -68,8 +68,12 @@ void initialise_runtime() {
   // SWI-Prolog's signal handling stays on: its alert signal lets call_with_time_limit/2 interrupt
   // blocking calls (sleep/1), and its SIGSEGV handler on an alternate stack turns a C-stack overflow
   // in Prolog's C code into resource_error(c_stack) instead of a crash. With --no-signals neither
-  // works. The process-control signals stay the host's: their dispositions are restored.
-  constexpr int kHostSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1, SIGCHLD};
+  // works. The process-control signals stay the host's: their dispositions are restored. So does SIGALRM:
+  // call_with_time_limit/2 does not use it (library(time) raises its own signal in the thread), and a
+  // SIGALRM sent to the process became error(signal(alrm, 14)) raised inside whatever built-in was
+  // running; SWI-Prolog 9.0.4 does not clear it there and aborts later on a corrupted stack (found by
+  // fuzzing: libFuzzer's timeout timer is a SIGALRM).
+  constexpr int kHostSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1, SIGCHLD, SIGALRM};
   struct sigaction saved[std::size(kHostSignals)];
   for (std::size_t i = 0; i < std::size(kHostSignals); ++i) sigaction(kHostSignals[i], nullptr, &saved[i]);
   // PL_initialise switches LC_NUMERIC to the environment's: keep "C" so that numbers print with '.'

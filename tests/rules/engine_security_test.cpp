@@ -2,8 +2,12 @@
 // that try to run code, and queries that tried to crash the process or outrun the time limit. Each
 // test asserts what was refused, that nothing ran, and that the knowledge base still answers.
 #include <gtest/gtest.h>
+#include <pthread.h>
+#include <unistd.h>
 
+#include <atomic>
 #include <chrono>
+#include <csignal>
 #include <filesystem>
 #include <string>
 #include <thread>
@@ -303,6 +307,73 @@ TEST_F(QuerySecurityTest, LargeAnswersAreRefusedNotSent) {
   ASSERT_EQ(answer.solutions.size(), 1u);
   EXPECT_EQ(answer.solutions[0][0].items.size(), 1001u);
   EXPECT_EQ(answer.solutions[0][0].items.back().text, "...");
+}
+
+std::atomic<int> host_alarms{0};
+extern "C" void count_host_alarm(int) { host_alarms.fetch_add(1); }
+
+// Found by fuzzing: a SIGALRM sent to the process (libFuzzer's timeout timer; `kill -ALRM`) reached
+// SWI-Prolog's handler, which raised error(signal(alrm, 14)) inside a running built-in and later
+// aborted the process on a corrupted stack. SIGALRM stays the host's; the time limits do not need it.
+// (ctest runs each test in a fresh process, so the host handler is installed before the runtime starts.)
+TEST(EngineSignalTest, SigalrmReachesTheHostAndQueriesAndTimeLimitsAreUnaffected) {
+  struct sigaction host {};
+  host.sa_handler = count_host_alarm;
+  sigemptyset(&host.sa_mask);
+  struct sigaction saved {};
+  ASSERT_EQ(sigaction(SIGALRM, &host, &saved), 0);
+  {
+    testing::TempDir dir;
+    testing::copy_shipped_rules(dir);
+    auto options = testing::options_for(dir);
+    options.time_limit_s = 0.3;
+    options.inference_limit = 1'000'000'000'000;  // only the time limit can stop the endless goal below
+    Engine engine(options);
+    engine.set_floor_plan(testing::demo_floor_plan());
+    struct sigaction now {};
+    ASSERT_EQ(sigaction(SIGALRM, nullptr, &now), 0);
+    EXPECT_EQ(now.sa_handler, &count_host_alarm) << "the runtime took SIGALRM over";
+
+    // A thread that blocks SIGALRM sends it to the process, so it lands on this (Prolog) thread while
+    // queries copy answers (findall), collect garbage and run under time limits.
+    std::atomic<bool> stop{false};
+    std::atomic<int> sent{0};
+    std::thread sender([&] {
+      sigset_t block;
+      sigemptyset(&block);
+      sigaddset(&block, SIGALRM);
+      pthread_sigmask(SIG_BLOCK, &block, nullptr);
+      while (!stop.load()) {
+        ::kill(::getpid(), SIGALRM);
+        sent.fetch_add(1);
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      }
+    });
+    int answered = 0;
+    for (int i = 0; i < 200; ++i) {
+      try {
+        const auto answer = engine.query("numlist(1, 300, L), findall(X-s(X), member(X, L), Xs), length(Xs, N)", 1);
+        if (answer.solutions.size() == 1 && answer.solutions[0].back().integer == 300) ++answered;
+      } catch (const RuleError& e) {
+        ADD_FAILURE() << "query " << i << ": " << e.what();
+      }
+    }
+    stop.store(true);
+    sender.join();
+    EXPECT_EQ(answered, 200);
+    EXPECT_GT(sent.load(), 0);
+    EXPECT_GT(host_alarms.load(), 0);
+    // The time limit still stops an endless goal.
+    try {
+      engine.query("between(1, inf, _), fail", 1);
+      ADD_FAILURE() << "an endless goal was not stopped";
+    } catch (const QueryError& e) {
+      EXPECT_EQ(e.reason(), QueryError::Reason::limit) << e.what();
+      EXPECT_TRUE(contains(e.what(), "time limit")) << e.what();
+    }
+    EXPECT_EQ(engine.decide(matched("w1_e0", "w1")).rule, "solid_confirmed");
+  }
+  sigaction(SIGALRM, &saved, nullptr);
 }
 
 }  // namespace
