@@ -13,7 +13,7 @@ packages=(
 # the ASan/UBSan build and the fuzzers).
 for extra in "$@"; do
   case "$extra" in
-    bench) packages+=(liboctomap-dev libopencv-dev libopencv-contrib-dev) ;;
+    bench) packages+=(liboctomap-dev libopencv-dev libopencv-contrib-dev wrk nginx-light) ;;
     web) packages+=(chromium nodejs) ;;  # npm comes with nodejs (Debian or NodeSource)
     sanitize) packages+=(clang libclang-rt-14-dev llvm) ;;  # ASan/UBSan and libFuzzer run-times, llvm-symbolizer
     *) echo "setup: unknown extra '$extra' (bench, web, sanitize)" >&2; exit 2 ;;

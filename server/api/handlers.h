@@ -8,6 +8,7 @@
 
 #include "server/api/api_options.h"
 #include "server/api/http_types.h"
+#include "server/api/map_cache.h"
 #include "server/api/request.h"
 #include "server/service/world_port.h"
 
@@ -20,6 +21,7 @@ struct Call {
   const std::string& param;  // what the route pattern's {placeholder} matched; empty when it has none
   const ApiOptions& options;
   service::WorldPort& world;
+  MapCache& map_cache;
 };
 
 using Handler = Response (*)(const Call&);

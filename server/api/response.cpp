@@ -1,5 +1,8 @@
 #include "server/api/response.h"
 
+#include <cctype>
+#include <string_view>
+
 #include "server/api/api_error.h"
 
 namespace wm::api {
@@ -26,6 +29,92 @@ Response raw_response(const Request& request, std::string body, const std::strin
   res.set(http::field::content_type, content_type);
   res.keep_alive(request.keep_alive());
   res.body() = std::move(body);
+  res.prepare_payload();
+  return res;
+}
+
+namespace {
+
+std::string_view trimmed(std::string_view text) {
+  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
+  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
+  return text;
+}
+
+bool iequals(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (std::tolower(static_cast<unsigned char>(a[i])) != std::tolower(static_cast<unsigned char>(b[i]))) return false;
+  return true;
+}
+
+// Calls `each` with every comma-separated item of a header list, trimmed.
+template <typename F>
+void for_each_item(std::string_view list, F&& each) {
+  while (!list.empty()) {
+    const auto comma = list.find(',');
+    each(trimmed(list.substr(0, comma)));
+    if (comma == std::string_view::npos) break;
+    list.remove_prefix(comma + 1);
+  }
+}
+
+// If-None-Match compares weakly (RFC 9110 13.1.2): W/ is ignored.
+bool none_match_names(std::string_view header_value, const std::string& identity, const std::string& gzip) {
+  bool found = false;
+  for_each_item(header_value, [&](std::string_view tag) {
+    if (tag == "*") found = true;
+    if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
+    if (tag == identity || tag == gzip) found = true;
+  });
+  return found;
+}
+
+}  // namespace
+
+bool accepts_gzip(const Request& request) {
+  const auto it = request.find(http::field::accept_encoding);
+  if (it == request.end()) return false;
+  bool gzip = false, refused = false;
+  for_each_item(std::string_view(it->value().data(), it->value().size()), [&](std::string_view item) {
+    const auto semicolon = item.find(';');
+    const auto coding = trimmed(item.substr(0, semicolon));
+    bool zero = false;
+    if (semicolon != std::string_view::npos) {
+      auto params = trimmed(item.substr(semicolon + 1));
+      if (params.size() >= 2 && (params[0] == 'q' || params[0] == 'Q') && params[1] == '=') {
+        const auto q = trimmed(params.substr(2));
+        zero = !q.empty() && q.find_first_not_of("0.") == std::string_view::npos;
+      }
+    }
+    if (iequals(coding, "gzip") || iequals(coding, "x-gzip")) (zero ? refused : gzip) = true;
+    if (coding == "*" && !zero) gzip = true;
+  });
+  return gzip && !refused;
+}
+
+Response tagged_response(const Request& request, const MapBody& body, const std::string& tag) {
+  const std::string identity = "\"" + tag + "\"", gzip_tag = "\"" + tag + "-gzip\"";
+  // Small bodies are not worth a compression step.
+  const bool gzip = body.bytes.size() >= 1024 && accepts_gzip(request);
+  Response res{http::status::ok, request.version()};
+  res.set(http::field::cache_control, "no-cache");
+  res.set(http::field::vary, "Accept-Encoding");
+  res.set(http::field::etag, gzip ? gzip_tag : identity);
+  res.keep_alive(request.keep_alive());
+  const auto none_match = request.find(http::field::if_none_match);
+  if (none_match != request.end() &&
+      none_match_names(std::string_view(none_match->value().data(), none_match->value().size()), identity, gzip_tag)) {
+    res.result(http::status::not_modified);
+    return res;  // no body, no Content-Length of the 200's
+  }
+  res.set(http::field::content_type, body.content_type);
+  if (gzip) {
+    res.set(http::field::content_encoding, "gzip");
+    res.body() = *MapCache::gzip_of(body);
+  } else {
+    res.body() = body.bytes;
+  }
   res.prepare_payload();
   return res;
 }

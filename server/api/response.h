@@ -6,6 +6,7 @@
 #include <string>
 
 #include "server/api/http_types.h"
+#include "server/api/map_cache.h"
 
 namespace wm::api {
 
@@ -18,6 +19,15 @@ Response json_response(const Request& request, const nlohmann::json& body,
 
 /// A 200 answer of `body` as is, with its Content-Type.
 Response raw_response(const Request& request, std::string body, const std::string& content_type);
+
+/// An answer whose bytes stay the same for `tag` (an entity tag without quotes, e.g. "<instance>-v12"): 304 Not
+/// Modified when If-None-Match names it (in either coding), the gzip form when Accept-Encoding allows it (tagged
+/// "<tag>-gzip", as RFC 9110 wants a coding to have its own tag), and Cache-Control: no-cache (a copy may be kept
+/// but must be revalidated: the map changes at any time).
+Response tagged_response(const Request& request, const MapBody& body, const std::string& tag);
+
+/// Whether Accept-Encoding allows gzip (named or "*", with a q-value above 0).
+bool accepts_gzip(const Request& request);
 
 /// The JSON error {"error", "detail"} with its status (also used by the connection code for 413, 431, 503).
 Response error_response(unsigned http_version, bool keep_alive, int status, const std::string& error,

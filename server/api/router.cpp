@@ -25,8 +25,17 @@ Response dispatch(const Request& request, Services& services) {
   if (request.method() != http::verb::get && request.method() != http::verb::head)
     require_allowed_origin(request, services.options);
   const Target target = parse_target(target_of(request));
-  if (const auto match = find_route(request.method(), target.path))
-    return match->route->handler(Call{request, target, match->param, services.options, services.world});
+  if (const auto match = find_route(request.method(), target.path)) {
+    auto response = match->route->handler(
+        Call{request, target, match->param, services.options, services.world, *services.map_cache});
+    if (request.method() == http::verb::head && !response.body().empty()) {
+      // The GET's headers, Content-Length included, without its body.
+      const auto size = response.body().size();
+      response.body().clear();
+      response.content_length(size);
+    }
+    return response;
+  }
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
   auto response =

@@ -1,10 +1,12 @@
 #pragma once
 
 // The api's entry points for the transport: answer a request, say where it runs, decide a WebSocket upgrade.
+#include <memory>
 #include <optional>
 
 #include "server/api/api_options.h"
 #include "server/api/http_types.h"
+#include "server/api/map_cache.h"
 #include "server/api/response.h"
 #include "server/service/world_port.h"
 
@@ -14,6 +16,7 @@ namespace wm::api {
 struct Services {
   ApiOptions options;
   service::WorldPort& world;
+  std::shared_ptr<MapCache> map_cache = std::make_shared<MapCache>();  // the map's bytes per version
 };
 
 /// The lane of the request's route (server/api/routes.cpp); a request no route answers (404, 405) is answered

@@ -76,8 +76,9 @@ bool pattern_matches(std::string_view pattern, std::string_view path, std::strin
 
 std::optional<RouteMatch> find_route(verb method, std::string_view path) {
   RouteMatch match;
+  const auto wanted = method == verb::head ? verb::get : method;  // HEAD is a GET without the body
   for (const auto& route : kRoutes) {
-    if (route.method == method && pattern_matches(route.pattern, path, match.param)) {
+    if (route.method == wanted && pattern_matches(route.pattern, path, match.param)) {
       match.route = &route;
       return match;
     }
@@ -96,6 +97,7 @@ std::string allowed_methods(std::string_view path) {
   for (const auto method : methods) {
     if (!allow.empty()) allow += ", ";
     allow += method_name(method);
+    if (method == verb::get) allow += ", HEAD";
   }
   return allow;
 }

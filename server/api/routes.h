@@ -38,7 +38,7 @@ struct RouteMatch {
   const Route* route = nullptr;
   std::string param;
 };
-/// The route for a method and a decoded path, nullopt when none.
+/// The route for a method and a decoded path, nullopt when none. HEAD finds the GET route.
 std::optional<RouteMatch> find_route(boost::beast::http::verb method, std::string_view path);
 /// The methods of the routes whose pattern matches `path`, in table order without repeats ("GET, PUT"); empty
 /// when no route has this path.

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -89,6 +90,12 @@ struct GridLayerValues {
   std::int64_t revision = 0;  // scans in the grid when it was read
 };
 
+/// The ids that left the map between two versions (GET /api/v1/map?since=).
+struct MapRemovals {
+  std::set<std::string> elements;  // "e<number>"
+  std::set<std::string> objects;   // CAD object ids
+};
+
 /// The world-model service as the HTTP handlers see it. Every call is safe from any thread. Writes are applied
 /// whole or not at all, in arrival order, and return after they are committed; reads never wait for the writer.
 class WorldPort {
@@ -158,6 +165,9 @@ class WorldPort {
   virtual GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const = 0;
   /// The processing network the writes run on: components, ports, queue depths, activity.
   virtual pipeline::NetworkStats network_stats() const = 0;
+  /// What left the map after version `since` up to version `up_to` (a snapshot's), nullopt when the service no
+  /// longer knows: `since` is older than the removals it keeps (the newest 100 000 ids) or than its start.
+  virtual std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const = 0;
 };
 
 }  // namespace wm::service

@@ -54,6 +54,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
                            events::EventHub* events)
     : options_(options), store_(store), engine_(engine), events_(events) {
   snapshot_ = std::make_shared<const world::WorldState>(store_.load(options_.world));
+  removals_base_ = snapshot_->version;  // what was removed before this start is not known
   head_ = snapshot_;
   // The grid as last flushed, then every scan journaled after that flush.
   auto grid_options = options_.grid;
@@ -332,10 +333,33 @@ std::shared_ptr<const world::WorldState> WorldService::snapshot() const {
   return snapshot_;
 }
 
-void WorldService::publish(world::WorldState state) {
+void WorldService::publish(world::WorldState state, MapRemovals removed) {
   auto next = std::make_shared<const world::WorldState>(std::move(state));
+  if (!removed.elements.empty() || !removed.objects.empty()) {
+    std::lock_guard lock(removals_mutex_);
+    removed_ids_kept_ += removed.elements.size() + removed.objects.size();
+    removals_.emplace_back(next->version, std::move(removed));
+    while (removed_ids_kept_ > kRemovedIdsKept && removals_.size() > 1) {
+      removals_base_ = removals_.front().first;
+      removed_ids_kept_ -= removals_.front().second.elements.size() + removals_.front().second.objects.size();
+      removals_.pop_front();
+    }
+  }
   std::lock_guard lock(snapshot_mutex_);
   snapshot_ = std::move(next);
+}
+
+std::optional<MapRemovals> WorldService::removed_since(std::int64_t since, std::int64_t up_to) const {
+  std::lock_guard lock(removals_mutex_);
+  if (since < removals_base_) return std::nullopt;
+  MapRemovals result;
+  for (const auto& [version, removed] : removals_) {
+    if (version <= since) continue;
+    if (version > up_to) break;
+    result.elements.insert(removed.elements.begin(), removed.elements.end());
+    result.objects.insert(removed.objects.begin(), removed.objects.end());
+  }
+  return result;
 }
 
 std::vector<rules::ObjectFacts> WorldService::object_facts(const world::WorldState& state) const {
@@ -453,7 +477,9 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
           {"removed", removed},
           {"objects", objects}});
   }
-  publish(std::move(update.state));
+  MapRemovals removed;
+  for (auto number : update.removed_elements) removed.elements.insert("e" + std::to_string(number));
+  publish(std::move(update.state), std::move(removed));
   // Committed and published: the request is answered as applied whatever happens here.
   try {
     engine_.add_decisions(logged, options_.decision_facts_kept);
@@ -470,7 +496,10 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
     auto new_facts = object_facts(update.state);
     store_.commit_floor_plan(update, plan);
     const auto version = update.state.version;
-    publish(std::move(update.state));
+    MapRemovals removed;  // the objects of the old plan that the new one does not have
+    for (const auto& object : current->objects) removed.objects.insert(object.plan->id);
+    for (const auto& object : update.state.objects) removed.objects.erase(object.plan->id);
+    publish(std::move(update.state), std::move(removed));
     engine_.set_floor_plan(new_facts);
     emit({{"type", "floorplan"}, {"version", version}, {"name", plan.name}, {"objects", plan.objects.size()}});
     return version;

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 #include <atomic>
 #include <chrono>
+#include <deque>
 #include <filesystem>
 #include <future>
 #include <map>
@@ -163,11 +164,14 @@ class WorldService final : public WorldPort {
   std::int64_t grid_revision() const { return grid_revision_.load(); }
   /// The processing network's components, ports, queues and activity.
   pipeline::NetworkStats network_stats() const override;
+  std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const override;
   /// Whether the network processes this sensor's scans ("laser", "sonar").
   bool accepts_scans(const std::string& sensor) const;
 
  private:
-  void publish(world::WorldState state);
+  /// Swaps in the new snapshot; `removed` (ids that left the map with it) goes into the removal log first, so that a
+  /// reader of the new version finds its removals.
+  void publish(world::WorldState state, MapRemovals removed = {});
   std::vector<rules::ObjectFacts> object_facts(const world::WorldState& state) const;
   void sync_all_facts(const world::WorldState& state);
   void on_rules_changed();
@@ -275,6 +279,13 @@ class WorldService final : public WorldPort {
 
   mutable std::mutex snapshot_mutex_;
   std::shared_ptr<const world::WorldState> snapshot_;
+  // The ids each published version removed, oldest first, for ?since= deltas: at most kRemovedIdsKept ids; every
+  // removal after removals_base_ is in removals_.
+  static constexpr std::size_t kRemovedIdsKept = 100000;
+  mutable std::mutex removals_mutex_;
+  std::int64_t removals_base_ = 0;
+  std::deque<std::pair<std::int64_t, MapRemovals>> removals_;
+  std::size_t removed_ids_kept_ = 0;
 
   mutable WriterPreferringMutex grid_mutex_;
   std::unique_ptr<fusion::OccupancyGrid> grid_;  // changed on the writer thread only

@@ -252,9 +252,12 @@ test('the viewer shows the grid, the plan and the elements, follows live decisio
     const plan = JSON.parse(fs.readFileSync(path.join(here, 'fixtures', 'plan.json'), 'utf8'));
     plan.objects.push({ id: 'crate-1', kind: 'crate', attributes: ['not_deformable'], pose: { x: 2, y: -5, theta: 0 },
       polygon: [[-0.3, -0.3], [0.3, -0.3], [0.3, 0.3], [-0.3, 0.3]] });
+    const deltaSyncsBefore = await page.evaluate(() => window.worldmodelViewer.deltaSyncs);
     await putJson(base, '/api/v1/floorplan', plan);
     await page.waitForFunction(() => window.worldmodelViewer.counts.objects === 10);
     await expectDrawnEqualsApi('after a new floor plan');
+    // The reload fetched only what changed (GET /api/v1/map?since=), not the whole map.
+    assert.ok(await page.evaluate(() => window.worldmodelViewer.deltaSyncs) > deltaSyncsBefore);
   });
 
   await t.test('the status shows the processing network: each executor\'s load and the queues', async () => {

@@ -48,8 +48,8 @@ export class Api {
     return new URL(path, this.base).href;
   }
 
-  async fetchOk(path) {
-    const res = await fetch(this.url(path), { cache: 'no-store' });
+  async fetchOk(path, cache = 'no-store') {
+    const res = await fetch(this.url(path), { cache });
     if (!res.ok) {
       let code = 'http_error', detail = '';
       try {
@@ -64,8 +64,8 @@ export class Api {
     return res;
   }
 
-  async json(path) {
-    return (await this.fetchOk(path)).json();
+  async json(path, cache = 'no-store') {
+    return (await this.fetchOk(path, cache)).json();
   }
 
   async text(path) {
@@ -78,7 +78,10 @@ export class Api {
 
   health() { return this.json('/api/v1/health'); }
   network() { return this.json('/api/v1/network'); }
-  map() { return this.json('/api/v1/map'); }
+  /** The whole map. The browser keeps its last copy and revalidates it (ETag): an unchanged map costs a 304. */
+  map() { return this.json('/api/v1/map', 'no-cache'); }
+  /** What changed after `version` (GET /api/v1/map?since=); an ApiError with status 410 when the server cannot tell. */
+  mapSince(version) { return this.json(`/api/v1/map?since=${encodeURIComponent(version)}`); }
   history(kind, id) {
     return this.json(`/api/v1/${kind === 'object' ? 'objects' : 'elements'}/${encodeURIComponent(id)}/history`);
   }

@@ -5,7 +5,7 @@
 // Events that arrive while a sync is running are buffered and applied after it (updates at or below the synced
 // map version are skipped, the rest are idempotent upserts).
 
-import { Api, apiBaseFromLocation, EventStream, eventsUrl } from './api.js';
+import { Api, ApiError, apiBaseFromLocation, EventStream, eventsUrl } from './api.js';
 import { RateMeter } from './geometry.js';
 import { GridLayers } from './grid_layers.js';
 import { MapView } from './map_view.js';
@@ -27,6 +27,7 @@ const state = {
   syncAgainGrid: false,
   buffered: [],
   syncs: 0,
+  deltaSyncs: 0,  // syncs that fetched only what changed (GET /api/v1/map?since=)
   ready: false,
   connection: 'connecting',
   lastEventSeq: null,
@@ -80,8 +81,7 @@ async function resync(reason, { withGrid = true } = {}) {
   state.buffered = [];
   if (withGrid) grid.resyncAll();
   try {
-    const [map, health] = await Promise.all([api.map(), api.health()]);
-    model.loadMap(map);
+    const [map, health] = await Promise.all([syncMap(), api.health()]);
     status.setHealth(health);
     status.setPlacement(map.placement);
     state.syncs++;
@@ -107,6 +107,28 @@ async function resync(reason, { withGrid = true } = {}) {
     state.syncAgainGrid = false;
     resync('requested during a sync', again);
   }
+}
+
+/**
+ * Brings the model to the server's map: only what changed since the model's version when the server can tell
+ * (GET /api/v1/map?since=), else the whole map. Returns the answer applied (both carry the placement).
+ */
+async function syncMap() {
+  if (model.version >= 0 && model.serverInstance) {
+    try {
+      const delta = await api.mapSince(model.version);
+      if (model.applyDelta(delta)) {
+        state.deltaSyncs++;
+        return delta;
+      }
+    } catch (error) {
+      // 410: older than the server remembers; 400: a version this server never had (another database).
+      if (!(error instanceof ApiError) || (error.status !== 410 && error.status !== 400)) throw error;
+    }
+  }
+  const map = await api.map();
+  model.loadMap(map);
+  return map;
 }
 
 // ---- events ----------------------------------------------------------------------------------------------
@@ -273,6 +295,7 @@ const hook = {
   get ready() { return state.ready; },
   get connection() { return state.connection; },
   get syncs() { return state.syncs; },
+  get deltaSyncs() { return state.deltaSyncs; },
   get lastEventSeq() { return state.lastEventSeq; },
   get lastDecision() { return state.lastDecision ? { ...state.lastDecision } : null; },
   get decisionsSeen() { return state.decisionsSeen; },

@@ -50,6 +50,7 @@ export class WorldModel {
 
   reset() {
     this.version = -1;         // map version of the last sync or applied update
+    this.serverInstance = null; // the server run the version counts in (deltas from another run do not apply)
     this.plan = null;
     this.objects = new Map();  // id -> object JSON (as in /api/v1/map)
     this.edges = new Map();    // edge id -> {objectId, edge}
@@ -65,6 +66,7 @@ export class WorldModel {
   /** Replaces objects and elements by a GET /api/v1/map answer (robots and recent decisions stay). */
   loadMap(map) {
     this.version = Number.isFinite(map.version) ? map.version : -1;
+    this.serverInstance = map.server_instance ?? null;
     this.plan = map.plan ?? null;
     this.objects.clear();
     this.edges.clear();
@@ -73,6 +75,30 @@ export class WorldModel {
     for (const e of map.elements || []) this.elements.set(e.id, e);
     this.objectsRevision++;
     this.elementsRevision++;
+  }
+
+  /**
+   * Applies a GET /api/v1/map?since= answer: the removals, then the upserts; the version and plan follow.
+   * Returns false (and changes nothing) when the delta is not for this map: another server run, or another base.
+   */
+  applyDelta(delta) {
+    if (delta.server_instance !== this.serverInstance || delta.since !== this.version) return false;
+    for (const id of delta.removed?.objects || []) {
+      const previous = this.objects.get(id);
+      if (previous) for (const e of previous.edges || []) this.edges.delete(e.id);
+      this.objects.delete(id);
+    }
+    for (const id of delta.removed?.elements || []) this.elements.delete(id);
+    for (const o of delta.objects || []) this.upsertObject(o);
+    for (const e of delta.elements || []) {
+      this.elements.set(e.id, e);
+      this.ghosts.delete(e.id);
+    }
+    this.version = delta.version;
+    this.plan = delta.plan ?? null;
+    this.objectsRevision++;
+    this.elementsRevision++;
+    return true;
   }
 
   upsertObject(object) {

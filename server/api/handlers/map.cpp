@@ -1,4 +1,7 @@
 // GET /api/v1/map: the map as JSON, or as CAD/GIS layers (DXF, GeoJSON); GET /api/v1/map/quality: how good it is.
+#include <limits>
+#include <memory>
+
 #include "apriori/export/dxf_writer.h"
 #include "apriori/export/geojson_writer.h"
 #include "server/api/api_error.h"
@@ -9,25 +12,85 @@
 
 namespace wm::api {
 
+namespace {
+
+// GET /api/v1/map?since=V: what changed after version V. Elements and objects whose updated_version is newer come
+// whole (upserts); ids that left the map are listed; the plan, placement and georeference always come.
+Response map_delta(const Call& call, const world::WorldState& snap, std::int64_t since) {
+  if (since > snap.version)
+    throw ApiError(400, "bad_since",
+                   "since=" + std::to_string(since) + " is after the map's version " + std::to_string(snap.version));
+  const auto removed = call.world.removed_since(since, snap.version);
+  if (!removed)
+    throw ApiError(410, "since_too_old",
+                   "this server no longer knows what was removed after version " + std::to_string(since) +
+                       " (it keeps the newest 100 000 removed ids, from its start on): GET /api/v1/map in full");
+  const auto& options = call.world.world_options();
+  nlohmann::json objects = nlohmann::json::array(), elements = nlohmann::json::array();
+  for (const auto& o : snap.objects)
+    if (o.updated_version > since) objects.push_back(json_codec::object_json(o, options));
+  for (const auto& [number, e] : snap.elements)
+    if (e.updated_version > since) elements.push_back(json_codec::element_json(e));
+  nlohmann::json body{{"since", since},
+                      {"version", snap.version},
+                      {"server_instance", call.map_cache.instance()},
+                      {"plan", snap.plan_name},
+                      {"placement", json_codec::placement_json(snap.placement, snap.placement_cov)},
+                      {"georeference", json_codec::georeference_json(snap.georeference)},
+                      {"objects", std::move(objects)},
+                      {"elements", std::move(elements)},
+                      {"removed", {{"elements", removed->elements}, {"objects", removed->objects}}}};
+  return json_response(call.request, body);
+}
+
+}  // namespace
+
 Response get_map(const Call& call) {
   const auto snap = call.world.snapshot();
   const auto& options = call.world.world_options();
   const auto format = call.target.param("format").value_or("json");
+  if (format != "json" && format != "dxf" && format != "geojson")
+    throw bad_request("format", "expected json, dxf or geojson");
   const auto bbox = query_bbox(call.target);
-  std::optional<world::MapExcerpt> excerpt;
-  if (bbox) excerpt = world::map_excerpt(*snap, world::Box{bbox->x0, bbox->y0, bbox->x1, bbox->y1});
-  if (format == "json") {
-    auto body = json_codec::map_json(*snap, options, excerpt);
-    if (bbox) body["bbox"] = {bbox->x0, bbox->y0, bbox->x1, bbox->y1};
-    return json_response(call.request, body);
+  if (call.target.param("since")) {
+    if (format != "json") throw bad_request("since", "deltas come as JSON only (format=json)");
+    if (bbox) throw bad_request("since", "a delta covers the whole map: leave out bbox");
+    return map_delta(call, *snap, query_int(call.target, "since", 0, 0, std::numeric_limits<std::int64_t>::max()));
   }
-  if (format == "dxf")
-    return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options, excerpt)), "image/vnd.dxf");
-  if (format == "geojson")
+  if (bbox) {
+    // A window is cut for each request (its bytes depend on the box); the whole map is made once per version.
+    const auto excerpt = world::map_excerpt(*snap, world::Box{bbox->x0, bbox->y0, bbox->x1, bbox->y1});
+    if (format == "json") {
+      auto body = json_codec::map_json(*snap, options, excerpt);
+      body["bbox"] = {bbox->x0, bbox->y0, bbox->x1, bbox->y1};
+      body["server_instance"] = call.map_cache.instance();
+      return json_response(call.request, body);
+    }
+    if (format == "dxf")
+      return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options, excerpt)),
+                          "image/vnd.dxf");
     return raw_response(call.request,
                         apriori::write_geojson(world::map_layers(*snap, options, excerpt), snap->georeference),
                         "application/geo+json");
-  throw bad_request("format", "expected json, dxf or geojson");
+  }
+  std::shared_ptr<const MapBody> body;
+  if (format == "json") {
+    body = call.map_cache.body(snap, format, "application/json", [&](const world::WorldState& state) {
+      auto map = json_codec::map_json(state, options, std::nullopt);
+      // Which server run the versions count in: a delta from another run's version is not applicable.
+      map["server_instance"] = call.map_cache.instance();
+      return map.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    });
+  } else if (format == "dxf") {
+    body = call.map_cache.body(snap, format, "image/vnd.dxf", [&](const world::WorldState& state) {
+      return apriori::write_dxf(world::map_layers(state, options, std::nullopt));
+    });
+  } else {
+    body = call.map_cache.body(snap, format, "application/geo+json", [&](const world::WorldState& state) {
+      return apriori::write_geojson(world::map_layers(state, options, std::nullopt), state.georeference);
+    });
+  }
+  return tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version));
 }
 
 Response get_map_quality(const Call& call) {

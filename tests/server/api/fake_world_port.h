@@ -151,6 +151,10 @@ class FakeWorldPort final : public service::WorldPort {
     stats.connections.push_back("matcher.decided -> store.in");
     return stats;
   }
+  std::optional<service::MapRemovals> removed_since(std::int64_t since, std::int64_t) const override {
+    if (since < 0) return std::nullopt;
+    return service::MapRemovals{};
+  }
 
   static world::DecisionRecord decision(rules::Action action, const std::string& element) {
     world::DecisionRecord d;

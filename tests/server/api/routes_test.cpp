@@ -73,9 +73,9 @@ TEST(RoutesTest, HistoryRoutesComeBeforeTheIdRoutesTheyOverlap) {
 }
 
 TEST(RoutesTest, AllowListsTheMethodsOfThePathInTableOrder) {
-  EXPECT_EQ(api::allowed_methods("/api/v1/floorplan"), "GET, PUT");
+  EXPECT_EQ(api::allowed_methods("/api/v1/floorplan"), "GET, HEAD, PUT");
   EXPECT_EQ(api::allowed_methods("/api/v1/primitives"), "POST");
-  EXPECT_EQ(api::allowed_methods("/api/v1/elements/e1"), "GET");
+  EXPECT_EQ(api::allowed_methods("/api/v1/elements/e1"), "GET, HEAD");
   EXPECT_EQ(api::allowed_methods("/api/v1/nothing"), "");
 }
 
@@ -125,6 +125,17 @@ TEST_F(RouteTableTest, EveryPathAnswersMethodsItDoesNotTakeWith405AndTheTablesAl
       EXPECT_EQ(response[http::field::allow], api::allowed_methods(target)) << target;
     }
   }
+}
+
+TEST_F(RouteTableTest, HeadIsTheGetWithoutItsBody) {
+  const auto get = send(http::verb::get, "/api/v1");
+  const auto head = send(http::verb::head, "/api/v1");
+  ASSERT_EQ(status_of(head), 200);
+  EXPECT_TRUE(head.body().empty());
+  ASSERT_FALSE(get.body().empty());
+  EXPECT_EQ(head[http::field::content_length], std::to_string(get.body().size()));
+  EXPECT_EQ(head[http::field::content_type], get[http::field::content_type]);
+  EXPECT_EQ(status_of(send(http::verb::head, "/api/v1/primitives")), 405);
 }
 
 TEST_F(RouteTableTest, AnUnknownPathIs404) {

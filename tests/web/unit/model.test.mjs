@@ -77,3 +77,25 @@ test('decisions highlight what they touched', () => {
   assert.deepEqual(highlightTargets({ action: 'trim', element: 'e8' }), [{ kind: 'element', id: 'e8', action: 'trim' }]);
   assert.deepEqual(highlightTargets(null), []);
 });
+
+test('a delta since the synced version removes, then upserts; another run\'s or base\'s delta is refused', () => {
+  const m = new WorldModel();
+  m.loadMap({ ...map, server_instance: 'run-1' });
+  const delta = {
+    since: 5, version: 9, server_instance: 'run-1', plan: 'lab-2',
+    objects: [{ id: 'crate-1', edges: [edge('crate-1/0', [5, 5], [6, 5])] }],
+    elements: [{ ...element('e1'), support: 4 }, element('e7', [3, 3], [4, 3])],
+    removed: { objects: ['table-1'], elements: ['e2'] },
+  };
+  assert.equal(m.applyDelta({ ...delta, server_instance: 'run-2' }), false);
+  assert.equal(m.applyDelta({ ...delta, since: 4 }), false);
+  assert.equal(m.version, 5, 'a refused delta changes nothing');
+  assert.equal(m.applyDelta(delta), true);
+  assert.equal(m.version, 9);
+  assert.equal(m.plan, 'lab-2');
+  assert.deepEqual([...m.objects.keys()].sort(), ['crate-1', 'wall-1']);
+  assert.equal(m.edges.has('table-1/0'), false, 'a removed object takes its edges along');
+  assert.equal(m.edges.get('crate-1/0').objectId, 'crate-1');
+  assert.deepEqual([...m.elements.keys()].sort(), ['e1', 'e7']);
+  assert.equal(m.elements.get('e1').support, 4);
+});
