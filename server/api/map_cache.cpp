@@ -15,27 +15,51 @@ MapCache::MapCache() {
   instance_ = text;
 }
 
+MapCache::~MapCache() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  work_.notify_all();
+  if (builder_.joinable()) builder_.join();
+}
+
 std::shared_ptr<const MapBody> MapCache::body(const std::shared_ptr<const world::WorldState>& snapshot,
                                               const std::string& format, const std::string& content_type,
-                                              const Build& build) {
+                                              const Build& build, std::chrono::milliseconds max_stale) {
   const auto version = snapshot->version;
+  const auto now = std::chrono::steady_clock::now();
   std::unique_lock lock(mutex_);
   auto& slot = slots_[format];
+  if (max_stale.count() > 0 && slot.done && slot.done->version < version && now - slot.done->taken <= max_stale) {
+    if (slot.building < version) {
+      auto& job = pending_[format];
+      if (!job.snapshot || job.snapshot->version < version) job = Job{snapshot, content_type, build, now};
+      if (!builder_.joinable()) builder_ = std::thread([this] { run_background_builds(); });
+      work_.notify_one();
+    }
+    return slot.done;
+  }
   for (;;) {
     if (slot.done && slot.done->version >= version) return slot.done;
     if (slot.building < version) break;
     built_.wait(lock);  // a build of this version or a newer one is under way
   }
-  // Build this version. A build already under way for an older version finishes and is kept only if nothing newer
-  // is there by then; waiters for this version wait for this build.
+  return build_into(slot, Job{snapshot, content_type, build, now}, lock);
+}
+
+std::shared_ptr<const MapBody> MapCache::build_into(Slot& slot, const Job& job, std::unique_lock<std::mutex>& lock) {
+  const auto version = job.snapshot->version;
+  // Waiters for this version wait for this build; an older build under way is kept only if nothing newer is there.
   slot.building = version;
   lock.unlock();
   std::shared_ptr<MapBody> made;
   try {
     made = std::make_shared<MapBody>();
     made->version = version;
-    made->content_type = content_type;
-    made->bytes = build(*snapshot);
+    made->taken = job.taken;
+    made->content_type = job.content_type;
+    made->bytes = job.build(*job.snapshot);
   } catch (...) {
     lock.lock();
     if (slot.building == version) slot.building = -1;
@@ -47,6 +71,26 @@ std::shared_ptr<const MapBody> MapCache::body(const std::shared_ptr<const world:
   if (slot.building == version) slot.building = -1;
   built_.notify_all();
   return made;
+}
+
+void MapCache::run_background_builds() {
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    work_.wait(lock, [this] { return stopping_ || !pending_.empty(); });
+    if (stopping_) return;
+    auto next = pending_.begin();
+    const auto format = next->first;
+    const Job job = std::move(next->second);
+    pending_.erase(next);
+    auto& slot = slots_[format];
+    const auto version = job.snapshot->version;
+    if ((slot.done && slot.done->version >= version) || slot.building >= version) continue;
+    try {
+      build_into(slot, job, lock);
+    } catch (...) {
+      // The next request that cannot take a stale body builds it again in its own path and reports the error.
+    }
+  }
 }
 
 std::shared_ptr<const std::string> MapCache::gzip_of(const MapBody& body) {

@@ -2,7 +2,10 @@
 
 // The map as bytes, made at most once per published version: GET /api/v1/map serves the same text to every client
 // that asks for that version (and its gzip form to those that accept it), instead of serialising the snapshot again
-// for each request.
+// for each request. A client that accepts a slightly older map (Cache-Control: max-stale) is answered at once from
+// the last body while a background thread makes the next one: under full-rate ingest every request would otherwise
+// find a new version and wait for its serialisation.
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <functional>
@@ -10,6 +13,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 
 #include "server/world/world_state.h"
 
@@ -18,6 +22,7 @@ namespace wm::api {
 /// One representation of one map version.
 struct MapBody {
   std::int64_t version = 0;
+  std::chrono::steady_clock::time_point taken;  // when its snapshot was read: the body shows the map as of then
   std::string content_type;
   std::string bytes;
   /// The gzip form of `bytes`, made on first demand (see MapCache::gzip_of).
@@ -28,18 +33,24 @@ struct MapBody {
 class MapCache {
  public:
   MapCache();
+  ~MapCache();  // waits for a background build under way
+  MapCache(const MapCache&) = delete;
+  MapCache& operator=(const MapCache&) = delete;
 
   /// A random token drawn at start, part of every ETag: a version number names another map after the database
   /// was replaced, so tags from before a restart never match.
   const std::string& instance() const { return instance_; }
 
+  /// Makes the bytes of a snapshot. Kept for a background build: must not refer to a request's objects.
   using Build = std::function<std::string(const world::WorldState&)>;
 
   /// The body of `format` for `snapshot`, built with `build` by the first request that needs it; requests that
-  /// ask meanwhile wait for that build rather than repeat it. Never older than `snapshot`: when a build of a newer
-  /// version is under way or done, its body is served.
-  std::shared_ptr<const MapBody> body(const std::shared_ptr<const world::WorldState>& snapshot, const std::string& format,
-                                      const std::string& content_type, const Build& build);
+  /// ask meanwhile wait for that build rather than repeat it. Never older than `snapshot` (a build of a newer version
+  /// under way or done is served), unless `max_stale` allows: then the last body is served at once when its snapshot
+  /// was read at most `max_stale` ago, and the current snapshot is built in the background.
+  std::shared_ptr<const MapBody> body(const std::shared_ptr<const world::WorldState>& snapshot,
+                                      const std::string& format, const std::string& content_type, const Build& build,
+                                      std::chrono::milliseconds max_stale = std::chrono::milliseconds(0));
 
   /// The gzip bytes of `body` (level 6), compressed once. @throw std::runtime_error when zlib fails.
   static std::shared_ptr<const std::string> gzip_of(const MapBody& body);
@@ -47,12 +58,27 @@ class MapCache {
  private:
   struct Slot {
     std::shared_ptr<const MapBody> done;
-    std::int64_t building = -1;  // the version a request is building, -1 when none
+    std::int64_t building = -1;  // the version being built (by a request or in the background), -1 when none
   };
+  struct Job {
+    std::shared_ptr<const world::WorldState> snapshot;
+    std::string content_type;
+    Build build;
+    std::chrono::steady_clock::time_point taken;  // when the request read the snapshot
+  };
+  // Builds `job` for `slot` (mutex_ held on entry and on return; released while building) and keeps the result
+  // unless a newer body is there by then.
+  std::shared_ptr<const MapBody> build_into(Slot& slot, const Job& job, std::unique_lock<std::mutex>& lock);
+  void run_background_builds();
+
   std::string instance_;
-  mutable std::mutex mutex_;
+  std::mutex mutex_;
   std::condition_variable built_;
-  std::map<std::string, Slot> slots_;  // by format
+  std::map<std::string, Slot> slots_;   // by format
+  std::map<std::string, Job> pending_;  // the newest snapshot to build in the background, by format
+  std::condition_variable work_;
+  bool stopping_ = false;
+  std::thread builder_;  // started on the first background build
 };
 
 }  // namespace wm::api

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <boost/beast/core/string.hpp>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -68,6 +69,30 @@ Target parse_target(std::string_view target) {
 std::string_view header(const Request& request, http::field field) {
   const auto value = request[field];
   return {value.data(), value.size()};
+}
+
+std::chrono::milliseconds accepted_staleness(const Request& request) {
+  auto list = header(request, http::field::cache_control);
+  while (!list.empty()) {
+    const auto comma = list.find(',');
+    auto item = list.substr(0, comma);
+    list = comma == std::string_view::npos ? std::string_view{} : list.substr(comma + 1);
+    while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
+    while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+    constexpr std::string_view kName = "max-stale";
+    if (item.size() < kName.size() || !std::equal(kName.begin(), kName.end(), item.begin(), [](char a, char b) {
+          return a == std::tolower(static_cast<unsigned char>(b));
+        }))
+      continue;
+    auto rest = item.substr(kName.size());
+    if (rest.empty()) return std::chrono::seconds(60);
+    if (rest.front() != '=') continue;
+    rest.remove_prefix(1);
+    if (rest.size() >= 2 && rest.front() == '"' && rest.back() == '"') rest = rest.substr(1, rest.size() - 2);
+    if (rest.empty() || rest.size() > 6 || rest.find_first_not_of("0123456789") != std::string_view::npos) return {};
+    return std::chrono::seconds(std::stoi(std::string(rest)));
+  }
+  return {};
 }
 
 bool has_content_type(const Request& request, std::string_view wanted) {

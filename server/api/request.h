@@ -2,6 +2,7 @@
 
 // Reading a request: its target, query parameters, headers and JSON body. Every refusal is an ApiError (400 or 415)
 // naming what is wrong.
+#include <chrono>
 #include <cstdint>
 #include <initializer_list>
 #include <map>
@@ -43,6 +44,10 @@ struct QueryBox {
 /// The bbox parameter, nullopt when absent. @throw ApiError(400, bbox) unless it is four finite numbers of at most
 /// 10⁶ m with x1 > x0 and y1 > y0.
 std::optional<QueryBox> query_bbox(const Target& target);
+
+/// How old a map the client accepts: Cache-Control: max-stale=N (seconds, RFC 9111 5.2.1.2); a bare max-stale ("any
+/// age") counts as 60 s. Zero without the directive or with a malformed value (then the answer is simply fresh).
+std::chrono::milliseconds accepted_staleness(const Request& request);
 
 /// @throw ApiError 400 for an empty body, 415 when it is not sent as application/json.
 void require_json_body(const Request& request);

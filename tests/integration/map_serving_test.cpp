@@ -6,6 +6,7 @@
 #include <map>
 #include <random>
 #include <stdexcept>
+#include <thread>
 
 #include "e2e_fixture.h"
 
@@ -115,6 +116,29 @@ TEST_F(MapServingTest, OneBodyPerVersionWithItsTagAnd304WhenTheClientHasIt) {
   EXPECT_EQ(after.result_int(), 200);
   EXPECT_EQ(json::parse(after.body())["version"], version + 1);
   EXPECT_NE(etag(after), before_restart);
+}
+
+TEST_F(MapServingTest, AClientThatAcceptsAStaleMapIsAnsweredAtOnceAndTheNewOneIsMadeMeanwhile) {
+  send_json("PUT", "/api/v1/floorplan", lab_plan());
+  const auto first = get("/api/v1/map");
+  const auto v1 = json::parse(first.body())["version"].get<std::int64_t>();
+  send_json("POST", "/api/v1/primitives", {{"source", "robot-1"}, {"segments", {segment(10, 3, 13, 3.02)}}});
+  // Allowed up to a minute: the body made before the write, and how old it is.
+  const auto stale = get("/api/v1/map", {{"Cache-Control", "max-stale=60"}});
+  ASSERT_EQ(stale.result_int(), 200);
+  EXPECT_EQ(json::parse(stale.body())["version"], v1);
+  EXPECT_EQ(etag(stale), etag(first));
+  EXPECT_FALSE(stale[bhttp::field::age].empty());
+  // Without the directive (or with a malformed one) the answer is the newest map.
+  EXPECT_EQ(json::parse(get("/api/v1/map", {{"Cache-Control", "max-stale=soon"}}).body())["version"], v1 + 1);
+  // The newer body was made in the background: a stale-accepting client gets it next without waiting.
+  send_json("POST", "/api/v1/primitives", {{"source", "robot-1"}, {"segments", {segment(10, 6, 13, 6.02)}}});
+  std::int64_t seen = 0;
+  for (int attempt = 0; attempt < 200 && seen != v1 + 2; ++attempt) {
+    seen = json::parse(get("/api/v1/map", {{"Cache-Control", "no-transform, max-stale=60"}}).body())["version"];
+    if (seen != v1 + 2) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(seen, v1 + 2) << "the background build never came";
 }
 
 TEST_F(MapServingTest, GzipBodiesDecodeToTheSameJson) {

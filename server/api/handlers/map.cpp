@@ -1,4 +1,5 @@
 // GET /api/v1/map: the map as JSON, or as CAD/GIS layers (DXF, GeoJSON); GET /api/v1/map/quality: how good it is.
+#include <chrono>
 #include <limits>
 #include <memory>
 
@@ -73,24 +74,42 @@ Response get_map(const Call& call) {
                         apriori::write_geojson(world::map_layers(*snap, options, excerpt), snap->georeference),
                         "application/geo+json");
   }
+  // The builders may run in the background (max-stale): they refer to nothing of this request.
+  const auto max_stale = accepted_staleness(call.request);
   std::shared_ptr<const MapBody> body;
   if (format == "json") {
-    body = call.map_cache.body(snap, format, "application/json", [&](const world::WorldState& state) {
-      auto map = json_codec::map_json(state, options, std::nullopt);
-      // Which server run the versions count in: a delta from another run's version is not applicable.
-      map["server_instance"] = call.map_cache.instance();
-      return map.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-    });
+    body = call.map_cache.body(
+        snap, format, "application/json",
+        [&options, instance = call.map_cache.instance()](const world::WorldState& state) {
+          auto map = json_codec::map_json(state, options, std::nullopt);
+          // Which server run the versions count in: a delta from another run's version is not applicable.
+          map["server_instance"] = instance;
+          return map.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+        },
+        max_stale);
   } else if (format == "dxf") {
-    body = call.map_cache.body(snap, format, "image/vnd.dxf", [&](const world::WorldState& state) {
-      return apriori::write_dxf(world::map_layers(state, options, std::nullopt));
-    });
+    body = call.map_cache.body(
+        snap, format, "image/vnd.dxf",
+        [&options](const world::WorldState& state) {
+          return apriori::write_dxf(world::map_layers(state, options, std::nullopt));
+        },
+        max_stale);
   } else {
-    body = call.map_cache.body(snap, format, "application/geo+json", [&](const world::WorldState& state) {
-      return apriori::write_geojson(world::map_layers(state, options, std::nullopt), state.georeference);
-    });
+    body = call.map_cache.body(
+        snap, format, "application/geo+json",
+        [&options](const world::WorldState& state) {
+          return apriori::write_geojson(world::map_layers(state, options, std::nullopt), state.georeference);
+        },
+        max_stale);
   }
-  return tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version));
+  auto response =
+      tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version));
+  if (body->version < snap->version) {
+    // An older map than the newest, as the client allowed: how old, in whole seconds (RFC 9111 5.1).
+    const auto age = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::steady_clock::now() - body->taken);
+    response.set(boost::beast::http::field::age, std::to_string(age.count()));
+  }
+  return response;
 }
 
 Response get_map_quality(const Call& call) {
