@@ -35,7 +35,8 @@ struct OccupancyGrid::Tile {
   TileIndex index;
   std::vector<BayesCell> bayes;
   std::vector<DsCell> ds;
-  std::uint32_t stamp = 0;  // last scan that touched the tile
+  std::uint32_t stamp = 0;     // last scan that touched the tile
+  std::uint64_t revision = 0;  // inserts and restores that changed it (never reset, unlike the stamp)
   bool dirty = false;
 };
 
@@ -230,6 +231,7 @@ void OccupancyGrid::walk(const internal::PreparedBeam& b) {
       cur_y = ty;
       if (tile->stamp != stamp_) {
         tile->stamp = stamp_;
+        ++tile->revision;
         if (!tile->dirty) {
           tile->dirty = true;
           dirty_.push_back(tile->index);
@@ -404,12 +406,25 @@ void OccupancyGrid::set_tile(TileIndex t, TileData data) {
     tile->ds[i].e = data.m_empty[i];
     tile->ds[i].k = data.conflict[i];
   }
+  ++tile->revision;
 }
 
 std::vector<TileIndex> OccupancyGrid::tiles() const {
   std::vector<TileIndex> out;
   out.reserve(tiles_.size());
   for (const auto& [index, tile] : tiles_) out.push_back(index);
+  return out;
+}
+
+std::uint64_t OccupancyGrid::tile_revision(TileIndex t) const {
+  const Tile* tile = find_tile(t.x, t.y);
+  return tile ? tile->revision : 0;
+}
+
+std::vector<std::pair<TileIndex, std::uint64_t>> OccupancyGrid::tile_revisions() const {
+  std::vector<std::pair<TileIndex, std::uint64_t>> out;
+  out.reserve(tiles_.size());
+  for (const auto& [index, tile] : tiles_) out.emplace_back(index, tile->revision);
   return out;
 }
 

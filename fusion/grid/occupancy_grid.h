@@ -6,6 +6,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "fusion/grid/grid_geometry.h"
@@ -122,6 +123,11 @@ class OccupancyGrid {
   void set_tile(TileIndex t, TileData data);
   /// Every touched tile, sorted.
   std::vector<TileIndex> tiles() const;
+  /// How many inserts (and restores) changed tile t; 0 when never touched. A tile's cells stay the same while this
+  /// number does, so it can name their content (an HTTP ETag, a reader's check).
+  std::uint64_t tile_revision(TileIndex t) const;
+  /// Every touched tile with its revision, sorted.
+  std::vector<std::pair<TileIndex, std::uint64_t>> tile_revisions() const;
   std::int64_t tile_size_cells() const { return options_.tile_size_cells; }
 
   enum class Layer { bayes_probability, ds_belief, ds_plausibility, ds_conflict };

@@ -58,6 +58,8 @@ Response post_scan(const Call& call);
 Response get_grid(const Call& call);
 Response get_grid_map_yaml(const Call& call);
 Response get_grid_map_pgm(const Call& call);
+Response get_grid_tiles(const Call& call);  // GET /api/v1/grid/tiles: the tiles and their revisions
+Response get_grid_tile(const Call& call);   // GET /api/v1/grid/tiles/{layer}/{tx}/{ty}: one tile, float32
 Response post_grid_extract(const Call& call);
 // handlers/rules.cpp, query.cpp, decisions.cpp, reports.cpp
 Response get_rules(const Call& call);

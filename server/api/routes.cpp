@@ -46,6 +46,8 @@ constexpr std::array kRoutes{
     Route{verb::post, "/api/v1/grid/extract", post_grid_extract, Lane::write},
     Route{verb::get, "/api/v1/grid/map.yaml", get_grid_map_yaml, Lane::read, "?bbox=x0,y0,x1,y1"},
     Route{verb::get, "/api/v1/grid/map.pgm", get_grid_map_pgm, Lane::read, "?bbox=x0,y0,x1,y1"},
+    Route{verb::get, "/api/v1/grid/tiles", get_grid_tiles, Lane::read},
+    Route{verb::get, "/api/v1/grid/tiles/{layer}/{tx}/{ty}", get_grid_tile, Lane::read},
     Route{verb::get, "/api/v1/events", get_events_without_upgrade, Lane::immediate, "?token=TOKEN", true},
     Route{verb::get, "/web/{path}", get_static, Lane::read},
 };
@@ -66,6 +68,23 @@ bool pattern_matches(std::string_view pattern, std::string_view path, std::strin
     return pattern == path;
   }
   const auto close = pattern.find('}', open);
+  if (pattern.find('{', close) != std::string_view::npos) {
+    // Several placeholders: one path segment each, given to the handler joined by '/'.
+    param.clear();
+    while (!pattern.empty() || !path.empty()) {
+      const auto pattern_end = pattern.find('/', 1), path_end = path.find('/', 1);
+      const auto p = pattern.substr(0, pattern_end), q = path.substr(0, path_end);
+      if (p.size() > 2 && p[1] == '{') {
+        if (q.size() < 2 || q[0] != '/') return false;
+        param += (param.empty() ? "" : "/") + std::string(q.substr(1));
+      } else if (p != q) {
+        return false;
+      }
+      pattern = pattern_end == std::string_view::npos ? std::string_view{} : pattern.substr(pattern_end);
+      path = path_end == std::string_view::npos ? std::string_view{} : path.substr(path_end);
+    }
+    return true;
+  }
   const auto prefix = pattern.substr(0, open);
   const auto suffix = pattern.substr(close + 1);
   if (path.size() <= prefix.size() + suffix.size() || !path.starts_with(prefix) || !path.ends_with(suffix))

@@ -31,7 +31,9 @@ struct Route {
 /// request's answers it.
 std::span<const Route> routes();
 
-/// Whether `pattern` matches `path`; the placeholder's text in `param` (empty for a pattern without one).
+/// Whether `pattern` matches `path`; the placeholder's text in `param` (empty for a pattern without one). A single
+/// placeholder matches one or more characters, slashes included (ids like "table-1/2"); with several, each matches
+/// one non-empty path segment and `param` holds them joined by '/'.
 bool pattern_matches(std::string_view pattern, std::string_view path, std::string& param);
 
 struct RouteMatch {

@@ -90,6 +90,25 @@ struct GridLayerValues {
   std::int64_t revision = 0;  // scans in the grid when it was read
 };
 
+/// The grid's tiles: tile (tx, ty) holds cells [tx·T, (tx+1)·T) × [ty·T, (ty+1)·T), cell (0, 0) having its lower-left
+/// corner at the world origin; `revision` counts the inserts that changed it (its content is the same while it is).
+struct GridTileRevision {
+  std::int64_t tx = 0;
+  std::int64_t ty = 0;
+  std::uint64_t revision = 0;
+};
+struct GridTiles {
+  std::int64_t tile_size_cells = 0;
+  double resolution_m = 0;
+  std::int64_t revision = 0;  // scans in the grid
+  std::vector<GridTileRevision> tiles;
+};
+/// One tile of one layer (tile_size² values, row-major from its lower-left cell, NaN unknown) and its revision.
+struct GridTileValues {
+  std::vector<float> values;
+  std::uint64_t revision = 0;
+};
+
 /// The ids that left the map between two versions (GET /api/v1/map?since=).
 struct MapRemovals {
   std::set<std::string> elements;  // "e<number>"
@@ -163,6 +182,11 @@ class WorldPort {
   /// One layer over `region` (cells never observed are NaN), read under the grid's shared lock: never during an
   /// insert, and a waiting insert goes first.
   virtual GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const = 0;
+  /// Every touched tile with its revision, read under one lock.
+  virtual GridTiles grid_tiles() const = 0;
+  /// One tile of a layer with its revision, read under one lock; nullopt for a tile never touched.
+  virtual std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
+                                                  std::int64_t ty) const = 0;
   /// The processing network the writes run on: components, ports, queue depths, activity.
   virtual pipeline::NetworkStats network_stats() const = 0;
   /// What left the map after version `since` up to version `up_to` (a snapshot's), nullopt when the service no

@@ -579,6 +579,27 @@ GridLayerValues WorldService::grid_layer(fusion::OccupancyGrid::Layer layer, con
   });
 }
 
+GridTiles WorldService::grid_tiles() const {
+  return read_grid([&](const fusion::OccupancyGrid& grid) {
+    GridTiles result{grid.tile_size_cells(), grid.resolution_m(), grid_revision_.load(), {}};
+    for (const auto& [index, revision] : grid.tile_revisions()) result.tiles.push_back({index.x, index.y, revision});
+    return result;
+  });
+}
+
+std::optional<GridTileValues> WorldService::grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
+                                                      std::int64_t ty) const {
+  return read_grid([&](const fusion::OccupancyGrid& grid) -> std::optional<GridTileValues> {
+    const auto revision = grid.tile_revision({tx, ty});
+    if (revision == 0) return std::nullopt;
+    const auto size = grid.tile_size_cells();
+    const double side = static_cast<double>(size) * grid.resolution_m();
+    const fusion::GridGeometry region({static_cast<double>(tx) * side, static_cast<double>(ty) * side},
+                                      grid.resolution_m(), size, size);
+    return GridTileValues{grid.export_layer(layer, region), revision};
+  });
+}
+
 }  // namespace wm::service
 
 namespace wm::service {

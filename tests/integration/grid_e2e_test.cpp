@@ -7,7 +7,10 @@
 #include <boost/beast/websocket.hpp>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <fstream>
+#include <limits>
+#include <map>
 #include <numbers>
 #include <optional>
 #include <set>
@@ -355,6 +358,91 @@ TEST_F(LaserOnlyNetworkTest, SonarScansAreRefusedAndTheLaserPathWorks) {
   }
   std::size_t executors = network["executors"].size();
   EXPECT_EQ(executors, 4u);
+}
+
+// GET /api/v1/grid/tiles and /{layer}/{tx}/{ty}: the tiles put back together are the layer GET /api/v1/grid gives,
+// and a tile's ETag changes exactly when a scan changed it.
+TEST_F(GridTest, TilesReassembleToTheWholeGridAndTheirTagsFollowTheirRevisions) {
+  namespace bhttp = boost::beast::http;
+  post_scan(room_scan(3, 3, 0.3));
+  post_scan(room_scan(5, 3, 1.0));
+  const auto whole = get_json("/api/v1/grid?layer=ds_belief");
+  const auto index = get_json("/api/v1/grid/tiles");
+  const auto size = index["tile_size_cells"].get<std::int64_t>();
+  const double resolution = index["resolution"].get<double>();
+  EXPECT_EQ(index["revision"], whole["revision"]);
+  const auto width = whole["width"].get<std::int64_t>(), height = whole["height"].get<std::int64_t>();
+  const auto x0 = std::llround(whole["origin"][0].get<double>() / resolution);
+  const auto y0 = std::llround(whole["origin"][1].get<double>() / resolution);
+  std::vector<float> assembled(static_cast<std::size_t>(width * height), std::numeric_limits<float>::quiet_NaN());
+  std::vector<bool> covered(assembled.size(), false);
+  std::map<std::pair<std::int64_t, std::int64_t>, std::string> tags;
+  ASSERT_FALSE(index["tiles"].empty());
+  for (const auto& t : index["tiles"]) {
+    const auto tx = t[0].get<std::int64_t>(), ty = t[1].get<std::int64_t>();
+    const auto tile = raw_request(server_->port(), bhttp::verb::get,
+                                  "/api/v1/grid/tiles/ds_belief/" + std::to_string(tx) + "/" + std::to_string(ty), {});
+    ASSERT_EQ(tile.result_int(), 200) << tile.body();
+    EXPECT_EQ(tile[bhttp::field::content_type], "application/octet-stream");
+    ASSERT_EQ(tile.body().size(), static_cast<std::size_t>(size * size) * sizeof(float));
+    tags[{tx, ty}] = std::string(tile[bhttp::field::etag]);
+    std::vector<float> values(static_cast<std::size_t>(size * size));
+    std::memcpy(values.data(), tile.body().data(), tile.body().size());
+    for (std::int64_t j = 0; j < size; ++j)
+      for (std::int64_t i = 0; i < size; ++i) {
+        const auto gx = tx * size + i - x0, gy = ty * size + j - y0;
+        ASSERT_TRUE(gx >= 0 && gx < width && gy >= 0 && gy < height) << "a tile outside the grid's bounds";
+        const auto at = static_cast<std::size_t>(gy * width + gx);
+        assembled[at] = values[static_cast<std::size_t>(j * size + i)];
+        covered[at] = true;
+      }
+  }
+  std::size_t known = 0;
+  for (std::size_t k = 0; k < assembled.size(); ++k) {
+    const auto& cell = whole["data"][k];
+    // The bounds are a rectangle of tiles; one that no beam reached is not listed, and all unknown.
+    if (!covered[k]) {
+      EXPECT_TRUE(cell.is_null()) << "cell " << k << " is known but in no listed tile";
+      continue;
+    }
+    if (cell.is_null()) {
+      EXPECT_TRUE(std::isnan(assembled[k])) << "cell " << k;
+    } else {
+      EXPECT_NEAR(assembled[k], cell.get<double>(), 6e-5) << "cell " << k;
+      ++known;
+    }
+  }
+  EXPECT_GT(known, 1000u);
+
+  // Unchanged tiles answer 304 to their tag; a scan far from the rooms changes only its own tiles.
+  const auto [some, some_tag] = *tags.begin();
+  const auto tile_path = [](const std::pair<std::int64_t, std::int64_t>& t) {
+    return "/api/v1/grid/tiles/ds_belief/" + std::to_string(t.first) + "/" + std::to_string(t.second);
+  };
+  EXPECT_EQ(raw_request(server_->port(), bhttp::verb::get, tile_path(some), {{"If-None-Match", some_tag}}).result_int(),
+            304);
+  post_scan(room_scan(3, 3, 0.3));  // the same room again: every tile it reaches changes
+  const auto after = get_json("/api/v1/grid/tiles");
+  std::size_t changed = 0, same = 0;
+  for (const auto& t : after["tiles"]) {
+    const std::pair<std::int64_t, std::int64_t> key{t[0].get<std::int64_t>(), t[1].get<std::int64_t>()};
+    if (!tags.count(key)) continue;
+    const auto again = raw_request(server_->port(), bhttp::verb::get, tile_path(key), {{"If-None-Match", tags[key]}});
+    const bool moved = std::find_if(index["tiles"].begin(), index["tiles"].end(), [&](const json& old) {
+                         return old[0] == t[0] && old[1] == t[1] && old[2] != t[2];
+                       }) != index["tiles"].end();
+    EXPECT_EQ(again.result_int(), moved ? 200 : 304) << t.dump();
+    (moved ? changed : same) += 1;
+  }
+  EXPECT_GT(changed, 0u);
+
+  // Bad tiles: the reason, or 404 for a tile nobody observed.
+  EXPECT_EQ(call("GET", "/api/v1/grid/tiles/nope/0/0").status, 400);
+  EXPECT_EQ(call("GET", "/api/v1/grid/tiles/bayes/x/0").status, 400);
+  EXPECT_EQ(call("GET", "/api/v1/grid/tiles/bayes/0/1e3").status, 400);
+  const auto missing = call("GET", "/api/v1/grid/tiles/bayes/100000/0");
+  EXPECT_EQ(missing.status, 404);
+  EXPECT_NE(missing.body.find("no observed cell"), std::string::npos) << missing.body;
 }
 
 TEST_F(GridTest, TheDefaultNetworkIsTheShippedFileAndServesEveryPath) {

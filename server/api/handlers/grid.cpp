@@ -1,4 +1,5 @@
 // The occupancy grids: a layer as JSON or PGM, the map_server pair, and the grid line extractor on request.
+#include <bit>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -97,6 +98,52 @@ Response get_grid(const Call& call) {
   append_cells(response.body(), cells.values);
   response.prepare_payload();
   return response;
+}
+
+Response get_grid_tiles(const Call& call) {
+  const auto tiles = call.world.grid_tiles();
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& t : tiles.tiles) list.push_back({t.tx, t.ty, t.revision});
+  return json_response(call.request,
+                       {{"tile_size_cells", tiles.tile_size_cells},
+                        {"resolution", tiles.resolution_m},
+                        {"revision", tiles.revision},
+                        {"layers", {"bayes", "ds_belief", "ds_plausibility", "ds_conflict"}},
+                        {"tiles", std::move(list)},
+                        {"order",
+                         "[tx, ty, tile revision]; tile (tx, ty) holds cells [tx*T, (tx+1)*T) x [ty*T, "
+                         "(ty+1)*T), cell (0, 0) at the world origin; GET /api/v1/grid/tiles/{layer}/{tx}/{ty}"},
+                        {"server_instance", call.map_cache.instance()}});
+}
+
+// GET /api/v1/grid/tiles/{layer}/{tx}/{ty}: T² little-endian float32, row-major from the tile's lower-left cell, NaN
+// for unknown; the ETag names the tile's revision in this server run.
+Response get_grid_tile(const Call& call) {
+  const auto& path = call.param;  // "layer/tx/ty": the route's three segments
+  const auto first = path.find('/');
+  const auto second = path.find('/', first + 1);
+  const auto layer = grid_layer(path.substr(0, first));
+  const auto index = [&](std::string_view text, const char* name) {
+    std::int64_t value = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+    if (ec != std::errc() || end != text.data() + text.size() || text.empty())
+      throw bad_request(name, "expected an integer tile index, got '" + std::string(text) + "'");
+    return value;
+  };
+  const std::string_view view(path);
+  const auto tx = index(view.substr(first + 1, second - first - 1), "tx");
+  const auto ty = index(view.substr(second + 1), "ty");
+  const auto tile = call.world.grid_tile(layer, tx, ty);
+  if (!tile)
+    throw ApiError(404, "no_tile",
+                   "tile (" + std::to_string(tx) + ", " + std::to_string(ty) +
+                       ") holds no observed cell; GET /api/v1/grid/tiles lists those that do");
+  static_assert(std::endian::native == std::endian::little, "tiles are sent as little-endian float32");
+  MapBody body;
+  body.version = static_cast<std::int64_t>(tile->revision);
+  body.content_type = "application/octet-stream";
+  body.bytes.assign(reinterpret_cast<const char*>(tile->values.data()), tile->values.size() * sizeof(float));
+  return tagged_response(call.request, body, call.map_cache.instance() + "-r" + std::to_string(tile->revision));
 }
 
 // The map_server pair: the YAML names map.pgm beside it; both describe the same region.

@@ -343,6 +343,33 @@ TEST(OccupancyGridTest, GrowsIntoNewTilesAndLeavesTheFirstRegionUnchanged) {
   EXPECT_EQ(b.width() % grid.tile_size_cells(), 0);
 }
 
+TEST(OccupancyGridTest, ATileRevisionCountsTheInsertsThatChangedItAndNothingElse) {
+  OccupancyGrid grid{GridOptions{}};
+  const LaserScan here = scan_at({0.5, 0.5, 0.0}, std::vector<double>(90, 2.0), -std::numbers::pi / 4, 1.0 * kDeg);
+  grid.insert(here);
+  const auto first = grid.tile_revisions();
+  ASSERT_FALSE(first.empty());
+  for (const auto& [tile, revision] : first) EXPECT_EQ(revision, 1u);
+  LaserScan far = here;
+  far.sensor_pose = {-100.0, -50.0, 2.0};
+  grid.insert(far);
+  grid.insert(here);
+  for (const auto& [tile, revision] : first) EXPECT_EQ(grid.tile_revision(tile), 2u) << "untouched by the far scan";
+  std::size_t far_tiles = 0;
+  for (const auto& [tile, revision] : grid.tile_revisions()) {
+    if (std::find_if(first.begin(), first.end(), [&](const auto& f) { return f.first == tile; }) != first.end())
+      continue;
+    EXPECT_EQ(revision, 1u);
+    ++far_tiles;
+  }
+  EXPECT_GT(far_tiles, 0u);
+  EXPECT_EQ(grid.tile_revision({1000, 1000}), 0u);  // never touched
+  // A restore changes the cells too.
+  const auto t = first.front().first;
+  grid.set_tile(t, *grid.tile(t));
+  EXPECT_EQ(grid.tile_revision(t), 3u);
+}
+
 TEST(OccupancyGridTest, RefusesScansThatWouldGrowTheGridBeyondTheLimit) {
   OccupancyGrid grid{GridOptions{}};
   grid.insert(scan_at({0.0, 0.0, 0.0}, {1.0}));

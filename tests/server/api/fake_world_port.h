@@ -142,6 +142,24 @@ class FakeWorldPort final : public service::WorldPort {
                                       const fusion::GridGeometry& region) const override {
     return {the_grid().export_layer(layer, region), 4};
   }
+  service::GridTiles grid_tiles() const override {
+    service::GridTiles result{the_grid().tile_size_cells(), the_grid().resolution_m(), 4, {}};
+    for (const auto& [index, revision] : the_grid().tile_revisions())
+      result.tiles.push_back({index.x, index.y, revision});
+    return result;
+  }
+  std::optional<service::GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
+                                                   std::int64_t ty) const override {
+    const auto revision = the_grid().tile_revision({tx, ty});
+    if (revision == 0) return std::nullopt;
+    const auto size = the_grid().tile_size_cells();
+    const double side = static_cast<double>(size) * the_grid().resolution_m();
+    return service::GridTileValues{
+        the_grid().export_layer(layer,
+                                fusion::GridGeometry({static_cast<double>(tx) * side, static_cast<double>(ty) * side},
+                                                     the_grid().resolution_m(), size, size)),
+        revision};
+  }
   pipeline::NetworkStats network_stats() const override {
     pipeline::NetworkStats stats;
     stats.source = "fake.yaml";

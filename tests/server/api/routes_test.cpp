@@ -64,6 +64,18 @@ TEST(RoutesTest, APlaceholderMatchesOneOrMoreCharactersSlashesIncluded) {
   EXPECT_FALSE(api::pattern_matches("/api/v1/elements/{id}/history", "/api/v1/elements/history", param));
 }
 
+TEST(RoutesTest, SeveralPlaceholdersMatchOneSegmentEach) {
+  std::string param;
+  const std::string_view tile = "/api/v1/grid/tiles/{layer}/{tx}/{ty}";
+  EXPECT_TRUE(api::pattern_matches(tile, "/api/v1/grid/tiles/bayes/-3/12", param));
+  EXPECT_EQ(param, "bayes/-3/12");
+  EXPECT_FALSE(api::pattern_matches(tile, "/api/v1/grid/tiles/bayes/-3", param));
+  EXPECT_FALSE(api::pattern_matches(tile, "/api/v1/grid/tiles/bayes/-3/12/4", param));
+  EXPECT_FALSE(api::pattern_matches(tile, "/api/v1/grid/tiles/bayes//12", param));
+  EXPECT_FALSE(api::pattern_matches(tile, "/api/v1/grid/tile/bayes/1/2", param));
+  EXPECT_FALSE(api::pattern_matches(tile, "/api/v1/grid/tiles", param));
+}
+
 TEST(RoutesTest, HistoryRoutesComeBeforeTheIdRoutesTheyOverlap) {
   const auto match = api::find_route(http::verb::get, "/api/v1/objects/table-1/history");
   ASSERT_TRUE(match);
