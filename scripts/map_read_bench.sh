@@ -70,12 +70,17 @@ measure() {
   /usr/bin/python3 - "$out" <<'PY'
 import re, sys
 text = sys.argv[1]
-def ms(v):
-    n, unit = float(re.match(r"[\d.]+", v).group()), re.sub(r"[\d.]", "", v)
-    return n * {"us": 1e-3, "ms": 1.0, "s": 1e3, "m": 6e4}[unit]
-rps = float(re.search(r"Requests/sec:\s+([\d.]+)", text).group(1))
-p50 = ms(re.search(r"50%\s+(\S+)", text).group(1))
-p99 = ms(re.search(r"99%\s+(\S+)", text).group(1))
+def ms(pattern):
+    found = re.search(pattern + r"\s+([\d.]+)(us|ms|s|m)\b", text)
+    if not found:
+        return float("nan")
+    return float(found.group(1)) * {"us": 1e-3, "ms": 1.0, "s": 1e3, "m": 6e4}[found.group(2)]
+found = re.search(r"Requests/sec:\s+([\d.]+)", text)
+rps = float(found.group(1)) if found else 0.0
+p50 = ms("50%")
+p99 = ms("99%")
+if not found:
+    sys.stderr.write(text + "\n")
 errors = re.search(r"Non-2xx or 3xx responses: (\d+)", text)
 print(f"{rps:.0f} {p50:.2f} {p99:.2f} {errors.group(1) if errors else 0}")
 PY

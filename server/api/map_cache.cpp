@@ -93,6 +93,31 @@ void MapCache::run_background_builds() {
   }
 }
 
+std::shared_ptr<const MapBody> MapCache::delta(const std::shared_ptr<const world::WorldState>& snapshot,
+                                               std::int64_t since, const Build& build) {
+  {
+    std::lock_guard lock(mutex_);
+    const auto it = deltas_.find(since);
+    if (it != deltas_.end() && it->second->version == snapshot->version) return it->second;
+  }
+  auto made = std::make_shared<MapBody>();
+  made->version = snapshot->version;
+  made->taken = std::chrono::steady_clock::now();
+  made->content_type = "application/json";
+  made->bytes = build(*snapshot);
+  std::lock_guard lock(mutex_);
+  auto& kept = deltas_[since];
+  if (!kept || kept->version < made->version) kept = made;
+  if (deltas_.size() > kDeltasKept) {
+    // The answer for the oldest version goes: its clients have moved on.
+    auto oldest = deltas_.begin();
+    for (auto it = deltas_.begin(); it != deltas_.end(); ++it)
+      if (it->second->version < oldest->second->version) oldest = it;
+    deltas_.erase(oldest);
+  }
+  return made;
+}
+
 std::shared_ptr<const std::string> MapCache::gzip_of(const MapBody& body) {
   std::call_once(body.gzip_once, [&body] {
     z_stream stream{};

@@ -7,6 +7,7 @@
 // find a new version and wait for its serialisation.
 #include <chrono>
 #include <condition_variable>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -52,6 +53,11 @@ class MapCache {
                                       const std::string& format, const std::string& content_type, const Build& build,
                                       std::chrono::milliseconds max_stale = std::chrono::milliseconds(0));
 
+  /// The answer to ?since=`since` for `snapshot`, made once per (since, version): polling clients that hold the same
+  /// version ask the same question. The newest kDeltasKept answers are kept.
+  std::shared_ptr<const MapBody> delta(const std::shared_ptr<const world::WorldState>& snapshot, std::int64_t since,
+                                       const Build& build);
+
   /// The gzip bytes of `body` (level 6), compressed once. @throw std::runtime_error when zlib fails.
   static std::shared_ptr<const std::string> gzip_of(const MapBody& body);
 
@@ -76,6 +82,8 @@ class MapCache {
   std::condition_variable built_;
   std::map<std::string, Slot> slots_;   // by format
   std::map<std::string, Job> pending_;  // the newest snapshot to build in the background, by format
+  static constexpr std::size_t kDeltasKept = 64;
+  std::map<std::int64_t, std::shared_ptr<const MapBody>> deltas_;  // by since
   std::condition_variable work_;
   bool stopping_ = false;
   std::thread builder_;  // started on the first background build

@@ -174,10 +174,19 @@ TEST_F(MapServingTest, BadSinceIsRefusedWithTheReason) {
   refused("since=0&format=dxf", 400, "JSON only");
   refused("since=0&bbox=0,0,1,1", 400, "whole map");
   EXPECT_EQ(get_json("/api/v1/map?since=" + std::to_string(version))["elements"].size(), 0u);
+  // A poller that holds the newest version gets 304 until something changes.
+  const auto since_now = "/api/v1/map?since=" + std::to_string(version);
+  const auto poll = get(since_now);
+  ASSERT_FALSE(etag(poll).empty());
+  EXPECT_EQ(get(since_now, {{"If-None-Match", etag(poll)}}).result_int(), 304);
+  send_json("POST", "/api/v1/primitives", {{"source", "robot-1"}, {"segments", {segment(10, 3, 13, 3.02)}}});
+  const auto changed = get(since_now, {{"If-None-Match", etag(poll)}});
+  ASSERT_EQ(changed.result_int(), 200);
+  EXPECT_EQ(json::parse(changed.body())["elements"].size(), 1u);
   // From before this start the server cannot tell what was removed.
   restart();
   refused("since=0", 410, "no longer knows");
-  EXPECT_EQ(call("GET", "/api/v1/map?since=" + std::to_string(version)).status, 200);
+  EXPECT_EQ(call("GET", "/api/v1/map?since=" + std::to_string(version + 1)).status, 200);
 }
 
 // The property: for random sequences of writes (adds, merges, joins, plan changes that drop objects, redecides that

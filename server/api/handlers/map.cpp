@@ -17,31 +17,38 @@ namespace {
 
 // GET /api/v1/map?since=V: what changed after version V. Elements and objects whose updated_version is newer come
 // whole (upserts); ids that left the map are listed; the plan, placement and georeference always come.
-Response map_delta(const Call& call, const world::WorldState& snap, std::int64_t since) {
-  if (since > snap.version)
+Response map_delta(const Call& call, const std::shared_ptr<const world::WorldState>& snap, std::int64_t since) {
+  if (since > snap->version)
     throw ApiError(400, "bad_since",
-                   "since=" + std::to_string(since) + " is after the map's version " + std::to_string(snap.version));
-  const auto removed = call.world.removed_since(since, snap.version);
+                   "since=" + std::to_string(since) + " is after the map's version " + std::to_string(snap->version));
+  const auto removed = call.world.removed_since(since, snap->version);
   if (!removed)
     throw ApiError(410, "since_too_old",
                    "this server no longer knows what was removed after version " + std::to_string(since) +
                        " (it keeps the newest 100 000 removed ids, from its start on): GET /api/v1/map in full");
   const auto& options = call.world.world_options();
-  nlohmann::json objects = nlohmann::json::array(), elements = nlohmann::json::array();
-  for (const auto& o : snap.objects)
-    if (o.updated_version > since) objects.push_back(json_codec::object_json(o, options));
-  for (const auto& [number, e] : snap.elements)
-    if (e.updated_version > since) elements.push_back(json_codec::element_json(e));
-  nlohmann::json body{{"since", since},
-                      {"version", snap.version},
-                      {"server_instance", call.map_cache.instance()},
-                      {"plan", snap.plan_name},
-                      {"placement", json_codec::placement_json(snap.placement, snap.placement_cov)},
-                      {"georeference", json_codec::georeference_json(snap.georeference)},
-                      {"objects", std::move(objects)},
-                      {"elements", std::move(elements)},
-                      {"removed", {{"elements", removed->elements}, {"objects", removed->objects}}}};
-  return json_response(call.request, body);
+  const auto body = call.map_cache.delta(
+      snap, since, [&options, &removed, since, instance = call.map_cache.instance()](const world::WorldState& state) {
+        nlohmann::json objects = nlohmann::json::array(), elements = nlohmann::json::array();
+        for (const auto& o : state.objects)
+          if (o.updated_version > since) objects.push_back(json_codec::object_json(o, options));
+        for (const auto& [number, e] : state.elements)
+          if (e.updated_version > since) elements.push_back(json_codec::element_json(e));
+        nlohmann::json delta{{"since", since},
+                             {"version", state.version},
+                             {"server_instance", instance},
+                             {"plan", state.plan_name},
+                             {"placement", json_codec::placement_json(state.placement, state.placement_cov)},
+                             {"georeference", json_codec::georeference_json(state.georeference)},
+                             {"objects", std::move(objects)},
+                             {"elements", std::move(elements)},
+                             {"removed", {{"elements", removed->elements}, {"objects", removed->objects}}}};
+        return delta.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+      });
+  // A poller that holds the newest version asks the same question again and again: 304 until something changes.
+  return tagged_response(
+      call.request, *body,
+      call.map_cache.instance() + "-v" + std::to_string(body->version) + "-since" + std::to_string(since));
 }
 
 }  // namespace
@@ -56,7 +63,7 @@ Response get_map(const Call& call) {
   if (call.target.param("since")) {
     if (format != "json") throw bad_request("since", "deltas come as JSON only (format=json)");
     if (bbox) throw bad_request("since", "a delta covers the whole map: leave out bbox");
-    return map_delta(call, *snap, query_int(call.target, "since", 0, 0, std::numeric_limits<std::int64_t>::max()));
+    return map_delta(call, snap, query_int(call.target, "since", 0, 0, std::numeric_limits<std::int64_t>::max()));
   }
   if (bbox) {
     // A window is cut for each request (its bytes depend on the box); the whole map is made once per version.
