@@ -16,6 +16,8 @@ import { fileURLToPath } from 'node:url';
 
 import { chromium } from 'playwright-core';
 
+import { fnv1a } from '../../clients/web/js/grid_layers.js';
+import { parsePgm, pgmToRgba } from '../../clients/web/js/pgm.js';
 import { readFlaserScans, scanRequest } from './lib/carmen.mjs';
 import { getJson, postJson, putJson, request, startWmd } from './lib/wmd.mjs';
 
@@ -142,6 +144,13 @@ test('the viewer shows the grid, the plan and the elements, follows live decisio
     assert.equal(grid.layers.bayes.height, h, 'grid height in cells');
     assert.ok(Math.abs(grid.layers.bayes.origin[0] - origin[0]) < 1e-6 && Math.abs(grid.layers.bayes.origin[1] - origin[1]) < 1e-6,
       `grid origin ${grid.layers.bayes.origin} vs ${origin}`);
+    // Read as tiles, the layer shows exactly the server's PGM of the same cells, pixel for pixel (when no scan
+    // came in between: the log replay is over by now).
+    const index = await getJson(base, '/api/v1/grid/tiles');
+    assert.equal(grid.tileSize, index.tile_size_cells);
+    const image = parsePgm(new Uint8Array(pgm));
+    const drawn = await page.evaluate(() => window.worldmodelViewer.gridDigest('bayes'));
+    assert.deepEqual(drawn, { width: image.width, height: image.height, digest: fnv1a(pgmToRgba(image.pixels, 'bayes')) });
     // Not a blank image: the canvas shows grey pixels lighter than unknown (205: free) and dark ones (occupied).
     const shades = await page.evaluate(() => {
       const c = document.getElementById('map-canvas');

@@ -1,23 +1,36 @@
 // The occupancy grid as images: one offscreen canvas per layer, one pixel per cell, covering a cell box
 // (`extent`) that grows as the robots explore. The view draws the active layer's canvas with a transform, so
-// pan and zoom never touch the pixels; scans only re-fetch the region they changed (the event's bbox),
-// throttled, one request at a time.
+// pan and zoom never touch the pixels. The grid comes as tiles (GET /api/v1/grid/tiles): each tile has a
+// revision, and after a scan only the tiles whose revision moved are read again, throttled, one sync at a time.
 
-import { ApiError } from './api.js';
-import {
-  bboxQueryForCells, cellBox, cellCount, containsCells, isBox, padCells, unionCells,
-} from './geometry.js';
-import { kUnknownRgb, parseMapYaml, parsePgm, pgmToRgba } from './pgm.js';
+import { cellCount, containsCells, padCells, unionCells } from './geometry.js';
+import { kUnknownRgb, pgmToRgba, tileToPgmPixels } from './pgm.js';
 
 export const kLayers = ['bayes', 'ds_belief', 'ds_plausibility', 'ds_conflict'];
 
 /** Minimum time between two region fetches of the active layer [ms]. */
 const kThrottleMs = 400;
-/** A changed region above this many cells is fetched as the whole grid instead. */
-const kMaxRegionCells = 16_000_000;
+/** Tiles read at once, and at most per sync (the rest follow in the next sync). */
+const kParallelTiles = 8;
+const kTilesPerSync = 512;
 /** Chromium refuses canvases above 16384 px a side or 268 M px; stay well below. */
 const kMaxCanvasSide = 16384;
 const kMaxCanvasCells = 120_000_000;
+
+/** 32-bit FNV-1a of bytes. */
+export function fnv1a(bytes) {
+  let h = 0x811c9dc5;
+  for (let i = 0; i < bytes.length; ++i) {
+    h ^= bytes[i];
+    h = Math.imul(h, 0x01000193) >>> 0;
+  }
+  return h;
+}
+
+/** The cells of tile (tx, ty): [tx·T, (tx+1)·T) × [ty·T, (ty+1)·T). */
+function tileCells(tx, ty, size) {
+  return { cx0: tx * size, cy0: ty * size, cx1: (tx + 1) * size, cy1: (ty + 1) * size };
+}
 
 export class GridLayers {
   /**
@@ -32,9 +45,12 @@ export class GridLayers {
     this.createCanvas = createCanvas;
     this.active = 'bayes';
     this.resolution = null;       // [m] per cell, from the server
+    this.tileSize = null;         // cells per tile side, from the server
+    this.serverInstance = null;   // the server run the tile revisions count in
     this.latestRevision = 0;      // highest grid_revision seen in events
     this.layers = new Map(kLayers.map((name) => [name, {
-      name, canvas: null, extent: null, cells: null, needsFull: true, dirty: null, revision: null, fetches: 0, empty: false,
+      name, canvas: null, extent: null, cells: null, needsFull: true, dirty: true, revision: null, fetches: 0, empty: false,
+      tiles: new Map(),  // "tx,ty" -> the revision drawn
     }]));
     this.busy = false;
     this.timer = null;
@@ -58,16 +74,10 @@ export class GridLayers {
     this.schedule(true);
   }
 
-  /** A scan event changed the world box `bbox` [x0, y0, x1, y1] (metres); `revision` is its grid_revision. */
-  markDirty(bbox, revision) {
+  /** A scan event changed the grid; `revision` is its grid_revision (the tiles say where). */
+  markDirty(_bbox, revision) {
     if (Number.isFinite(revision)) this.latestRevision = Math.max(this.latestRevision, revision);
-    for (const l of this.layers.values()) {
-      if (!isBox(bbox) || !this.resolution) {
-        l.needsFull = true;  // no box, or we do not know the cells yet: read it all
-        continue;
-      }
-      l.dirty = unionCells(l.dirty, cellBox(bbox, this.resolution));
-    }
+    for (const l of this.layers.values()) l.dirty = true;
     this.schedule();
   }
 
@@ -89,13 +99,7 @@ export class GridLayers {
     this.lastFetchMs = performance.now();
     let failed = false;
     try {
-      if (l.needsFull || (l.dirty && cellCount(l.dirty) > kMaxRegionCells)) {
-        await this.loadFull(l);
-      } else if (l.dirty) {
-        const region = l.dirty;
-        l.dirty = null;
-        await this.fetchRegion(l, region);
-      }
+      await this.syncTiles(l);
       this.onError(null);
     } catch (error) {
       this.onError(`grid ${l.name}: ${error.message}`);
@@ -112,73 +116,55 @@ export class GridLayers {
     }
   }
 
-  async ensureResolution() {
-    if (this.resolution) return;
-    // A one-cell JSON export names the exact resolution (the YAML prints it rounded).
-    const probe = await this.api.json('/api/v1/grid?layer=bayes&format=json&bbox=0,0,0.0001,0.0001');
-    if (!(probe.resolution > 0)) throw new Error('server sent no grid resolution');
-    this.resolution = probe.resolution;
-    if (Number.isFinite(probe.revision)) this.latestRevision = Math.max(this.latestRevision, probe.revision);
-  }
-
   /**
-   * Reads a whole layer. The PGM of the whole grid does not carry its origin, so the origin comes from
-   * map.yaml read before and after it: the observed bounds only ever grow, so when both agree the image
-   * starts there.
+   * Reads the tile index and the tiles of layer `l` whose revision is not the one drawn (all of them after a
+   * resync). A tile read after the index may be newer than the index said: it is then read once more next time.
    */
-  async loadFull(l) {
-    l.needsFull = false;
-    l.dirty = null;
-    await this.ensureResolution();
-    const revision = this.latestRevision;
-    for (let attempt = 0; attempt < 4; ++attempt) {
-      const before = await this.mapYaml();
-      if (!before) {
-        l.empty = true;  // no scan yet: the first scan event's bbox starts the canvas
-        l.revision = revision;
-        return;
-      }
-      const image = parsePgm(await this.api.bytes(`/api/v1/grid?layer=${l.name}&format=pgm`));
-      const after = await this.mapYaml();
-      if (!after || after.origin[0] !== before.origin[0] || after.origin[1] !== before.origin[1]) continue;
-      const cx0 = Math.round(before.origin[0] / this.resolution);
-      const cy0 = Math.round(before.origin[1] / this.resolution);
-      const cells = { cx0, cy0, cx1: cx0 + image.width, cy1: cy0 + image.height };
-      this.replaceCanvas(l, padCells(cells));
-      this.paint(l, cells, image);
-      l.cells = cells;
-      l.empty = false;
-      l.revision = revision;
-      l.fetches++;
+  async syncTiles(l) {
+    l.dirty = false;
+    if (l.needsFull) {
+      l.needsFull = false;
+      l.tiles.clear();
+    }
+    const index = await this.api.json('/api/v1/grid/tiles');
+    if (!(index.resolution > 0) || !(index.tile_size_cells > 0)) throw new Error('server sent no tile geometry');
+    this.resolution = index.resolution;
+    if (Number.isFinite(index.revision)) this.latestRevision = Math.max(this.latestRevision, index.revision);
+    const size = index.tile_size_cells;
+    if (this.serverInstance !== index.server_instance || this.tileSize !== size) {
+      // Another server run (or tile size): nothing drawn is known to be current.
+      this.serverInstance = index.server_instance;
+      this.tileSize = size;
+      for (const other of this.layers.values()) other.tiles.clear();
+    }
+    const tiles = index.tiles || [];
+    if (!tiles.length) {
+      l.empty = true;  // no scan yet
+      l.revision = index.revision;
       return;
     }
-    throw new Error('the grid kept growing while it was read; will retry');
-  }
-
-  async mapYaml() {
-    try {
-      return parseMapYaml(await this.api.text('/api/v1/grid/map.yaml'));
-    } catch (error) {
-      if (error instanceof ApiError && error.status === 404) return null;
-      throw error;
+    let bounds = null;
+    for (const [tx, ty] of tiles) bounds = unionCells(bounds, tileCells(tx, ty, size));
+    if (cellCount(bounds) > kMaxCanvasCells) throw new Error(`grid of ${cellCount(bounds)} cells is too large to draw`);
+    this.ensureExtent(l, bounds);
+    const stale = tiles.filter(([tx, ty, revision]) => l.tiles.get(`${tx},${ty}`) !== revision);
+    const now = stale.slice(0, kTilesPerSync);
+    for (let i = 0; i < now.length; i += kParallelTiles) {
+      const batch = now.slice(i, i + kParallelTiles);
+      const bodies = await Promise.all(batch.map(([tx, ty]) => this.api.bytes(`/api/v1/grid/tiles/${l.name}/${tx}/${ty}`)));
+      batch.forEach(([tx, ty, revision], k) => {
+        this.paint(l, tileCells(tx, ty, size), { width: size, height: size, pixels: tileToPgmPixels(bodies[k], size) });
+        l.tiles.set(`${tx},${ty}`, revision);
+      });
     }
-  }
-
-  async fetchRegion(l, cells) {
-    await this.ensureResolution();
-    const revision = this.latestRevision;
-    const query = bboxQueryForCells(cells, this.resolution);
-    const image = parsePgm(await this.api.bytes(`/api/v1/grid?layer=${l.name}&format=pgm&bbox=${query}`));
-    if (image.width !== cells.cx1 - cells.cx0 || image.height !== cells.cy1 - cells.cy0) {
-      l.needsFull = true;  // the server snapped differently than we did: read it all rather than misplace it
-      return;
-    }
-    this.ensureExtent(l, cells);
-    this.paint(l, cells, image);
-    l.cells = unionCells(l.cells, cells);
+    l.cells = bounds;
     l.empty = false;
-    l.revision = Math.max(l.revision ?? 0, revision);
-    l.fetches++;
+    if (now.length) l.fetches++;
+    if (stale.length > now.length) {
+      l.dirty = true;  // more next time
+    } else {
+      l.revision = Math.max(l.revision ?? 0, index.revision);
+    }
   }
 
   /** Grows the layer's canvas (keeping its pixels) so that it covers `cells`. */
@@ -208,6 +194,18 @@ export class GridLayers {
     const data = new ImageData(pgmToRgba(image.pixels, l.name), image.width, image.height);
     // Canvas rows run from the top (largest y), as the PGM's do.
     l.canvas.getContext('2d').putImageData(data, cells.cx0 - l.extent.cx0, l.extent.cy1 - cells.cy1);
+  }
+
+  /**
+   * A digest (32-bit FNV-1a) of the RGBA pixels a layer shows for its cells, top row first, and their size: what
+   * a test compares with the server's PGM of the same cells coloured the same way.
+   */
+  digest(name = this.active) {
+    const l = this.layers.get(name);
+    if (!l || !l.canvas || !l.cells) return null;
+    const width = l.cells.cx1 - l.cells.cx0, height = l.cells.cy1 - l.cells.cy0;
+    const data = l.canvas.getContext('2d').getImageData(l.cells.cx0 - l.extent.cx0, l.extent.cy1 - l.cells.cy1, width, height).data;
+    return { width, height, digest: fnv1a(data) };
   }
 
   /**

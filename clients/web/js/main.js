@@ -306,7 +306,9 @@ const hook = {
   get counts() {
     return { objects: model.objects.size, edges: model.edgeCount(), elements: model.elements.size, robots: model.robots.size };
   },
-  get grid() { return { active: grid.active, resolution: grid.resolution, layers: grid.summary() }; },
+  get grid() { return { active: grid.active, resolution: grid.resolution, tileSize: grid.tileSize, layers: grid.summary() }; },
+  /** The layer's pixels as a digest (see GridLayers.digest). */
+  gridDigest(name) { return grid.digest(name); },
   get highlights() { return [...view.highlights.values()].map(({ kind, id, action, seq }) => ({ kind, id, action, seq })); },
   get recentHighlights() { return view.recentHighlights.map((h) => ({ ...h })); },
   get selection() { return state.selection ? { ...state.selection } : null; },

@@ -85,3 +85,22 @@ export function parseMapYaml(text) {
   if (!(resolution > 0) || !Number.isFinite(x) || !Number.isFinite(y)) return null;
   return { origin: [x, y], resolution };
 }
+
+/**
+ * A grid tile as GET /api/v1/grid/tiles/{layer}/{tx}/{ty} sends it (size² little-endian float32, rows from the
+ * bottom, NaN unknown) → PGM pixels as the server's PGM would hold them (top row first, 255·(1−p), unknown 205).
+ */
+export function tileToPgmPixels(buffer, size) {
+  const bytes = buffer instanceof ArrayBuffer ? buffer : buffer.buffer.slice(buffer.byteOffset, buffer.byteOffset + buffer.byteLength);
+  if (bytes.byteLength !== size * size * 4) throw new Error(`a tile of ${bytes.byteLength} bytes, expected ${size * size * 4}`);
+  const view = new DataView(bytes);
+  const out = new Uint8Array(size * size);
+  for (let row = 0; row < size; ++row) {
+    const from = (size - 1 - row) * size;
+    for (let x = 0; x < size; ++x) {
+      const p = view.getFloat32((from + x) * 4, true);
+      out[row * size + x] = Number.isNaN(p) ? kUnknown : Math.round(255 * (1 - Math.min(1, Math.max(0, p))));
+    }
+  }
+  return out;
+}

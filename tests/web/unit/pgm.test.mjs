@@ -2,7 +2,9 @@
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
-import { displayGrey, kUnknown, kUnknownRgb, parseMapYaml, parsePgm, pgmToRgba } from '../../../clients/web/js/pgm.js';
+import {
+  displayGrey, kUnknown, kUnknownRgb, parseMapYaml, parsePgm, pgmToRgba, tileToPgmPixels,
+} from '../../../clients/web/js/pgm.js';
 
 const pgm = (header, pixels) => new Uint8Array([...Buffer.from(header, 'latin1'), ...pixels]);
 
@@ -41,4 +43,11 @@ test('reads origin and resolution from map.yaml', () => {
   const yaml = 'image: map.pgm\nmode: trinary\nresolution: 0.05\norigin: [-9.7, -23, 0.0]\nnegate: 0\n';
   assert.deepEqual(parseMapYaml(yaml), { origin: [-9.7, -23], resolution: 0.05 });
   assert.equal(parseMapYaml('resolution: 0.05\n'), null);
+});
+
+test('a binary tile becomes PGM pixels: top row first, 255(1-p), NaN unknown', () => {
+  const values = new Float32Array([0, 1, NaN, 0.5]);  // bottom row: 0, 1; top row: unknown, 0.5
+  const pixels = tileToPgmPixels(values.buffer, 2);
+  assert.deepEqual([...pixels], [kUnknown, 128, 255, 0]);
+  assert.throws(() => tileToPgmPixels(new ArrayBuffer(12), 2), /expected 16/);
 });
