@@ -95,26 +95,48 @@ void MapCache::run_background_builds() {
 
 std::shared_ptr<const MapBody> MapCache::delta(const std::shared_ptr<const world::WorldState>& snapshot,
                                                std::int64_t since, const Build& build) {
-  {
-    std::lock_guard lock(mutex_);
-    const auto it = deltas_.find(since);
-    if (it != deltas_.end() && it->second->version == snapshot->version) return it->second;
+  const auto version = snapshot->version;
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    const auto kept = deltas_.find(since);
+    if (kept != deltas_.end() && kept->second->version >= version) return kept->second;
+    const auto building = deltas_building_.find(since);
+    if (building == deltas_building_.end() || building->second < version) break;
+    built_.wait(lock);
   }
+  deltas_building_[since] = version;
+  lock.unlock();
   auto made = std::make_shared<MapBody>();
-  made->version = snapshot->version;
-  made->taken = std::chrono::steady_clock::now();
-  made->content_type = "application/json";
-  made->bytes = build(*snapshot);
-  std::lock_guard lock(mutex_);
+  try {
+    made->version = version;
+    made->taken = std::chrono::steady_clock::now();
+    made->content_type = "application/json";
+    made->bytes = build(*snapshot);
+  } catch (...) {
+    lock.lock();
+    if (const auto b = deltas_building_.find(since); b != deltas_building_.end() && b->second == version)
+      deltas_building_.erase(b);
+    built_.notify_all();
+    throw;
+  }
+  lock.lock();
+  if (const auto b = deltas_building_.find(since); b != deltas_building_.end() && b->second == version)
+    deltas_building_.erase(b);
   auto& kept = deltas_[since];
-  if (!kept || kept->version < made->version) kept = made;
-  if (deltas_.size() > kDeltasKept) {
-    // The answer for the oldest version goes: its clients have moved on.
+  if (!kept || kept->version < version) {
+    if (kept) delta_bytes_ -= kept->bytes.size();
+    kept = made;
+    delta_bytes_ += made->bytes.size();
+  }
+  // The answers for the oldest versions go first: their clients have moved on.
+  while (deltas_.size() > 1 && (deltas_.size() > kDeltasKept || delta_bytes_ > kDeltaBytesKept)) {
     auto oldest = deltas_.begin();
     for (auto it = deltas_.begin(); it != deltas_.end(); ++it)
       if (it->second->version < oldest->second->version) oldest = it;
+    delta_bytes_ -= oldest->second->bytes.size();
     deltas_.erase(oldest);
   }
+  built_.notify_all();
   return made;
 }
 

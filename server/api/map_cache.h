@@ -54,7 +54,9 @@ class MapCache {
                                       std::chrono::milliseconds max_stale = std::chrono::milliseconds(0));
 
   /// The answer to ?since=`since` for `snapshot`, made once per (since, version): polling clients that hold the same
-  /// version ask the same question. The newest kDeltasKept answers are kept.
+  /// version ask the same question, and those that ask while it is made wait for it (an answer for a newer version
+  /// serves them too). At most kDeltasKept answers and kDeltaBytesKept bytes are kept, the oldest versions going
+  /// first. `build` may throw (410): nothing is kept then.
   std::shared_ptr<const MapBody> delta(const std::shared_ptr<const world::WorldState>& snapshot, std::int64_t since,
                                        const Build& build);
 
@@ -83,7 +85,10 @@ class MapCache {
   std::map<std::string, Slot> slots_;   // by format
   std::map<std::string, Job> pending_;  // the newest snapshot to build in the background, by format
   static constexpr std::size_t kDeltasKept = 64;
+  static constexpr std::size_t kDeltaBytesKept = 32u << 20;
   std::map<std::int64_t, std::shared_ptr<const MapBody>> deltas_;  // by since
+  std::map<std::int64_t, std::int64_t> deltas_building_;           // since -> version being made
+  std::size_t delta_bytes_ = 0;
   std::condition_variable work_;
   bool stopping_ = false;
   std::thread builder_;  // started on the first background build

@@ -72,7 +72,10 @@ std::string_view header(const Request& request, http::field field) {
 }
 
 std::chrono::milliseconds accepted_staleness(const Request& request) {
-  auto list = header(request, http::field::cache_control);
+  std::string lines;  // every Cache-Control line, as one list
+  const auto [first, last] = request.equal_range(http::field::cache_control);
+  for (auto it = first; it != last; ++it) (lines += ',') += std::string_view(it->value().data(), it->value().size());
+  std::string_view list = lines;
   while (!list.empty()) {
     const auto comma = list.find(',');
     auto item = list.substr(0, comma);
@@ -89,7 +92,7 @@ std::chrono::milliseconds accepted_staleness(const Request& request) {
     if (rest.front() != '=') continue;
     rest.remove_prefix(1);
     if (rest.size() >= 2 && rest.front() == '"' && rest.back() == '"') rest = rest.substr(1, rest.size() - 2);
-    if (rest.empty() || rest.size() > 6 || rest.find_first_not_of("0123456789") != std::string_view::npos) return {};
+    if (rest.empty() || rest.size() > 6 || rest.find_first_not_of("0123456789") != std::string_view::npos) continue;
     return std::chrono::seconds(std::stoi(std::string(rest)));
   }
   return {};

@@ -59,54 +59,64 @@ void for_each_item(std::string_view list, F&& each) {
   }
 }
 
-// If-None-Match compares weakly (RFC 9110 13.1.2): W/ is ignored.
-bool none_match_names(std::string_view header_value, const std::string& identity, const std::string& gzip) {
-  bool found = false;
-  for_each_item(header_value, [&](std::string_view tag) {
-    if (tag == "*") found = true;
-    if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
-    if (tag == identity || tag == gzip) found = true;
-  });
+// The tag of `identity` or `gzip` that If-None-Match (every line of it) names, "" when none. Weak comparison
+// (RFC 9110 13.1.2): W/ is ignored; "*" names the one being sent.
+std::string none_match_tag(const Request& request, const std::string& identity, const std::string& gzip,
+                           const std::string& sending) {
+  std::string found;
+  const auto [first, last] = request.equal_range(http::field::if_none_match);
+  for (auto it = first; it != last; ++it) {
+    for_each_item(std::string_view(it->value().data(), it->value().size()), [&](std::string_view tag) {
+      if (tag == "*") found = sending;
+      if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
+      if (tag == identity || tag == gzip) found = std::string(tag);
+    });
+  }
   return found;
 }
 
 }  // namespace
 
 bool accepts_gzip(const Request& request) {
-  const auto it = request.find(http::field::accept_encoding);
-  if (it == request.end()) return false;
   bool gzip = false, refused = false;
-  for_each_item(std::string_view(it->value().data(), it->value().size()), [&](std::string_view item) {
-    const auto semicolon = item.find(';');
-    const auto coding = trimmed(item.substr(0, semicolon));
-    bool zero = false;
-    if (semicolon != std::string_view::npos) {
-      auto params = trimmed(item.substr(semicolon + 1));
-      if (params.size() >= 2 && (params[0] == 'q' || params[0] == 'Q') && params[1] == '=') {
-        const auto q = trimmed(params.substr(2));
-        zero = !q.empty() && q.find_first_not_of("0.") == std::string_view::npos;
+  const auto [first, last] = request.equal_range(http::field::accept_encoding);
+  for (auto it = first; it != last; ++it) {
+    for_each_item(std::string_view(it->value().data(), it->value().size()), [&](std::string_view item) {
+      auto rest = item;
+      const auto semicolon = rest.find(';');
+      const auto coding = trimmed(rest.substr(0, semicolon));
+      bool zero = false;
+      // Parameters: "q=0" (or 0.0, 0.000) anywhere among them refuses the coding.
+      while (semicolon != std::string_view::npos && !rest.empty()) {
+        const auto next = rest.find(';');
+        if (next == std::string_view::npos) break;
+        rest.remove_prefix(next + 1);
+        const auto param = trimmed(rest.substr(0, rest.find(';')));
+        if (param.size() >= 2 && (param[0] == 'q' || param[0] == 'Q') && param[1] == '=') {
+          const auto q = trimmed(param.substr(2));
+          zero = !q.empty() && q.find_first_not_of("0.") == std::string_view::npos;
+        }
       }
-    }
-    if (iequals(coding, "gzip") || iequals(coding, "x-gzip")) (zero ? refused : gzip) = true;
-    if (coding == "*" && !zero) gzip = true;
-  });
+      if (iequals(coding, "gzip") || iequals(coding, "x-gzip")) (zero ? refused : gzip) = true;
+      if (coding == "*" && !zero) gzip = true;
+    });
+  }
   return gzip && !refused;
 }
 
-Response tagged_response(const Request& request, const MapBody& body, const std::string& tag) {
+Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip) {
   const std::string identity = "\"" + tag + "\"", gzip_tag = "\"" + tag + "-gzip\"";
   // Small bodies are not worth a compression step.
-  const bool gzip = body.bytes.size() >= 1024 && accepts_gzip(request);
+  const bool gzip = may_gzip && body.bytes.size() >= 1024 && accepts_gzip(request);
   Response res{http::status::ok, request.version()};
   res.set(http::field::cache_control, "no-cache");
   res.set(http::field::vary, "Accept-Encoding");
   res.set(http::field::etag, gzip ? gzip_tag : identity);
   res.keep_alive(request.keep_alive());
-  const auto none_match = request.find(http::field::if_none_match);
-  if (none_match != request.end() &&
-      none_match_names(std::string_view(none_match->value().data(), none_match->value().size()), identity, gzip_tag)) {
+  if (const auto matched = none_match_tag(request, identity, gzip_tag, gzip ? gzip_tag : identity); !matched.empty()) {
     res.result(http::status::not_modified);
-    return res;  // no body, no Content-Length of the 200's
+    res.set(http::field::etag, matched);  // the copy the client holds is still good
+    return res;                           // no body, no Content-Length of the 200's
   }
   res.set(http::field::content_type, body.content_type);
   if (gzip) {
@@ -117,6 +127,15 @@ Response tagged_response(const Request& request, const MapBody& body, const std:
   }
   res.prepare_payload();
   return res;
+}
+
+Response for_request_method(const Request& request, Response response) {
+  if (request.method() == http::verb::head && !response.body().empty()) {
+    const auto size = response.body().size();
+    response.body().clear();
+    response.content_length(size);
+  }
+  return response;
 }
 
 Response error_response(unsigned http_version, bool keep_alive, int status, const std::string& error,

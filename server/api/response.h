@@ -24,10 +24,15 @@ Response raw_response(const Request& request, std::string body, const std::strin
 /// Modified when If-None-Match names it (in either coding), the gzip form when Accept-Encoding allows it (tagged
 /// "<tag>-gzip", as RFC 9110 wants a coding to have its own tag), and Cache-Control: no-cache (a copy may be kept
 /// but must be revalidated: the map changes at any time).
-Response tagged_response(const Request& request, const MapBody& body, const std::string& tag);
+/// `may_gzip` false: never compressed (binary tiles, made for each request, would be compressed again each time).
+Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip = true);
 
 /// Whether Accept-Encoding allows gzip (named or "*", with a q-value above 0).
 bool accepts_gzip(const Request& request);
+
+/// `response` as the answer to `request`: for HEAD the same headers, Content-Length included, without the body
+/// (RFC 9110 9.3.2: a client reads no content after them, so bytes sent would be taken for the next answer).
+Response for_request_method(const Request& request, Response response);
 
 /// The JSON error {"error", "detail"} with its status (also used by the connection code for 413, 431, 503).
 Response error_response(unsigned http_version, bool keep_alive, int status, const std::string& error,

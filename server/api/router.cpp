@@ -26,15 +26,8 @@ Response dispatch(const Request& request, Services& services) {
     require_allowed_origin(request, services.options);
   const Target target = parse_target(target_of(request));
   if (const auto match = find_route(request.method(), target.path)) {
-    auto response = match->route->handler(
+    return match->route->handler(
         Call{request, target, match->param, services.options, services.world, *services.map_cache});
-    if (request.method() == http::verb::head && !response.body().empty()) {
-      // The GET's headers, Content-Length included, without its body.
-      const auto size = response.body().size();
-      response.body().clear();
-      response.content_length(size);
-    }
-    return response;
   }
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
@@ -67,10 +60,11 @@ std::optional<Response> authorize_events(const Request& request, const Services&
 
 Response handle_request(const Request& request, Services& services) {
   try {
-    return dispatch(request, services);
+    return for_request_method(request, dispatch(request, services));
   } catch (...) {
     const auto failure = http_error(std::current_exception());
-    return error_response(request.version(), request.keep_alive(), failure.status, failure.error, failure.detail);
+    return for_request_method(request, error_response(request.version(), request.keep_alive(), failure.status,
+                                                      failure.error, failure.detail));
   }
 }
 

@@ -259,7 +259,7 @@ class Session : public std::enable_shared_from_this<Session> {
       auto busy = api::error_response(version, keep_alive, 503, "busy",
                                       "every request handler is taken and the queue is full; retry later");
       busy.set(bhttp::field::retry_after, "1");
-      write(std::move(busy));
+      write(api::for_request_method(*request, std::move(busy)));
     }
   }
 
@@ -267,7 +267,8 @@ class Session : public std::enable_shared_from_this<Session> {
     try {
       return handlers_.handle(request);
     } catch (const std::exception& e) {  // handlers do not throw; should one, the client still gets an answer
-      return api::error_response(request.version(), false, 500, "internal_error", e.what());
+      return api::for_request_method(request,
+                                     api::error_response(request.version(), false, 500, "internal_error", e.what()));
     }
   }
 

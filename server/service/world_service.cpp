@@ -336,12 +336,13 @@ std::shared_ptr<const world::WorldState> WorldService::snapshot() const {
 void WorldService::publish(world::WorldState state, MapRemovals removed) {
   auto next = std::make_shared<const world::WorldState>(std::move(state));
   if (!removed.elements.empty() || !removed.objects.empty()) {
+    auto entry = std::make_shared<const MapRemovals>(std::move(removed));
     std::lock_guard lock(removals_mutex_);
-    removed_ids_kept_ += removed.elements.size() + removed.objects.size();
-    removals_.emplace_back(next->version, std::move(removed));
+    removed_ids_kept_ += entry->elements.size() + entry->objects.size();
+    removals_.emplace_back(next->version, std::move(entry));
     while (removed_ids_kept_ > kRemovedIdsKept && removals_.size() > 1) {
       removals_base_ = removals_.front().first;
-      removed_ids_kept_ -= removals_.front().second.elements.size() + removals_.front().second.objects.size();
+      removed_ids_kept_ -= removals_.front().second->elements.size() + removals_.front().second->objects.size();
       removals_.pop_front();
     }
   }
@@ -350,14 +351,21 @@ void WorldService::publish(world::WorldState state, MapRemovals removed) {
 }
 
 std::optional<MapRemovals> WorldService::removed_since(std::int64_t since, std::int64_t up_to) const {
-  std::lock_guard lock(removals_mutex_);
-  if (since < removals_base_) return std::nullopt;
+  // The entries are taken under the lock and merged outside it: the matcher publishing next never waits for that.
+  std::vector<std::shared_ptr<const MapRemovals>> entries;
+  {
+    std::lock_guard lock(removals_mutex_);
+    if (since < removals_base_) return std::nullopt;
+    for (const auto& [version, removed] : removals_) {
+      if (version <= since) continue;
+      if (version > up_to) break;
+      entries.push_back(removed);
+    }
+  }
   MapRemovals result;
-  for (const auto& [version, removed] : removals_) {
-    if (version <= since) continue;
-    if (version > up_to) break;
-    result.elements.insert(removed.elements.begin(), removed.elements.end());
-    result.objects.insert(removed.objects.begin(), removed.objects.end());
+  for (const auto& removed : entries) {
+    result.elements.insert(removed->elements.begin(), removed->elements.end());
+    result.objects.insert(removed->objects.begin(), removed->objects.end());
   }
   return result;
 }

@@ -287,7 +287,7 @@ class WorldService final : public WorldPort {
   static constexpr std::size_t kRemovedIdsKept = 100000;
   mutable std::mutex removals_mutex_;
   std::int64_t removals_base_ = 0;
-  std::deque<std::pair<std::int64_t, MapRemovals>> removals_;
+  std::deque<std::pair<std::int64_t, std::shared_ptr<const MapRemovals>>> removals_;  // merged outside the lock
   std::size_t removed_ids_kept_ = 0;
 
   mutable WriterPreferringMutex grid_mutex_;

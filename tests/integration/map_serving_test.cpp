@@ -156,6 +156,7 @@ TEST_F(MapServingTest, GzipBodiesDecodeToTheSameJson) {
   EXPECT_EQ(get("/api/v1/map", {{"Accept-Encoding", "gzip"}, {"If-None-Match", etag(zipped)}}).result_int(), 304);
   // Refused or not asked for: identity.
   EXPECT_TRUE(get("/api/v1/map", {{"Accept-Encoding", "gzip;q=0"}})[bhttp::field::content_encoding].empty());
+  EXPECT_TRUE(get("/api/v1/map", {{"Accept-Encoding", "gzip;level=1;q=0.0"}})[bhttp::field::content_encoding].empty());
   EXPECT_TRUE(get("/api/v1/map", {{"Accept-Encoding", "identity"}})[bhttp::field::content_encoding].empty());
   EXPECT_EQ(get("/api/v1/map", {{"Accept-Encoding", "*"}})[bhttp::field::content_encoding], "gzip");
 }

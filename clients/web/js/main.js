@@ -27,6 +27,7 @@ const state = {
   syncAgainGrid: false,
   buffered: [],
   syncs: 0,
+  dropBuffered: false,  // a resync was asked for during a sync: its buffered events wait for that one
   deltaSyncs: 0,  // syncs that fetched only what changed (GET /api/v1/map?since=)
   ready: false,
   connection: 'connecting',
@@ -75,6 +76,9 @@ async function resync(reason, { withGrid = true } = {}) {
   if (state.syncing) {
     state.syncAgain = true;
     state.syncAgainGrid ||= withGrid;
+    // The sync under way may read a map older than events after a hole; applied on it, they would move the
+    // model's version past the hole and the next delta would skip it. The next sync brings them all.
+    state.dropBuffered = true;
     return;
   }
   state.syncing = true;
@@ -93,8 +97,9 @@ async function resync(reason, { withGrid = true } = {}) {
   } finally {
     state.syncing = false;
   }
-  const buffered = state.buffered;
+  const buffered = state.dropBuffered ? [] : state.buffered;
   state.buffered = [];
+  state.dropBuffered = false;
   for (const event of buffered) handle(event);
   state.ready = state.syncs > 0;
   document.documentElement.dataset.viewerReady = state.ready ? '1' : '0';

@@ -143,7 +143,8 @@ Response get_grid_tile(const Call& call) {
   body.version = static_cast<std::int64_t>(tile->revision);
   body.content_type = "application/octet-stream";
   body.bytes.assign(reinterpret_cast<const char*>(tile->values.data()), tile->values.size() * sizeof(float));
-  return tagged_response(call.request, body, call.map_cache.instance() + "-r" + std::to_string(tile->revision));
+  return tagged_response(call.request, body, call.map_cache.instance() + "-r" + std::to_string(tile->revision),
+                         /*may_gzip=*/false);
 }
 
 // The map_server pair: the YAML names map.pgm beside it; both describe the same region.

@@ -21,14 +21,15 @@ Response map_delta(const Call& call, const std::shared_ptr<const world::WorldSta
   if (since > snap->version)
     throw ApiError(400, "bad_since",
                    "since=" + std::to_string(since) + " is after the map's version " + std::to_string(snap->version));
-  const auto removed = call.world.removed_since(since, snap->version);
-  if (!removed)
-    throw ApiError(410, "since_too_old",
-                   "this server no longer knows what was removed after version " + std::to_string(since) +
-                       " (it keeps the newest 100 000 removed ids, from its start on): GET /api/v1/map in full");
   const auto& options = call.world.world_options();
+  auto& world = call.world;
   const auto body = call.map_cache.delta(
-      snap, since, [&options, &removed, since, instance = call.map_cache.instance()](const world::WorldState& state) {
+      snap, since, [&options, &world, since, instance = call.map_cache.instance()](const world::WorldState& state) {
+        const auto removed = world.removed_since(since, state.version);
+        if (!removed)
+          throw ApiError(410, "since_too_old",
+                         "this server no longer knows what was removed after version " + std::to_string(since) +
+                             " (it keeps the newest 100 000 removed ids, from its start on): GET /api/v1/map in full");
         nlohmann::json objects = nlohmann::json::array(), elements = nlohmann::json::array();
         for (const auto& o : state.objects)
           if (o.updated_version > since) objects.push_back(json_codec::object_json(o, options));
