@@ -26,7 +26,8 @@ MapCache::~MapCache() {
 
 std::shared_ptr<const MapBody> MapCache::body(const std::shared_ptr<const world::WorldState>& snapshot,
                                               const std::string& format, const std::string& content_type,
-                                              const Build& build, std::chrono::milliseconds max_stale) {
+                                              const Build& build, std::chrono::milliseconds max_stale,
+                                              const Latest& latest) {
   const auto version = snapshot->version;
   const auto now = std::chrono::steady_clock::now();
   std::unique_lock lock(mutex_);
@@ -42,10 +43,15 @@ std::shared_ptr<const MapBody> MapCache::body(const std::shared_ptr<const world:
   }
   for (;;) {
     if (slot.done && slot.done->version >= version) return slot.done;
-    if (slot.building < version) break;
-    built_.wait(lock);  // a build of this version or a newer one is under way
+    if (slot.building < 0) break;
+    // One build at a time: a build of an older version under way is waited for too, and the next one then takes
+    // the newest snapshot, so it serves every request that came meanwhile (under ingest each request finds a
+    // newer version, and builds of their own would only share the cores).
+    built_.wait(lock);
   }
-  return build_into(slot, Job{snapshot, content_type, build, now}, lock);
+  auto newest = latest ? latest() : snapshot;
+  if (!newest || newest->version < version) newest = snapshot;
+  return build_into(slot, Job{newest, content_type, build, now}, lock);
 }
 
 std::shared_ptr<const MapBody> MapCache::build_into(Slot& slot, const Job& job, std::unique_lock<std::mutex>& lock) {

@@ -46,12 +46,17 @@ class MapCache {
   using Build = std::function<std::string(const world::WorldState&)>;
 
   /// The body of `format` for `snapshot`, built with `build` by the first request that needs it; requests that
-  /// ask meanwhile wait for that build rather than repeat it. Never older than `snapshot` (a build of a newer version
-  /// under way or done is served), unless `max_stale` allows: then the last body is served at once when its snapshot
-  /// was read at most `max_stale` ago, and the current snapshot is built in the background.
+  /// ask meanwhile wait for that build rather than repeat it; one build runs at a time, on `latest()` when given.
+  /// Never older than `snapshot` (a newer body is served), unless `max_stale` allows: then the last body is served
+  /// at once when its snapshot was read at most `max_stale` ago, and the current snapshot is built in the
+  /// background.
+  /// The newest published snapshot (what a build started now should show).
+  using Latest = std::function<std::shared_ptr<const world::WorldState>()>;
+
   std::shared_ptr<const MapBody> body(const std::shared_ptr<const world::WorldState>& snapshot,
                                       const std::string& format, const std::string& content_type, const Build& build,
-                                      std::chrono::milliseconds max_stale = std::chrono::milliseconds(0));
+                                      std::chrono::milliseconds max_stale = std::chrono::milliseconds(0),
+                                      const Latest& latest = {});
 
   /// The answer to ?since=`since` for `snapshot`, made once per (since, version): polling clients that hold the same
   /// version ask the same question, and those that ask while it is made wait for it (an answer for a newer version

@@ -84,6 +84,8 @@ Response get_map(const Call& call) {
   }
   // The builders may run in the background (max-stale): they refer to nothing of this request.
   const auto max_stale = accepted_staleness(call.request);
+  auto& world = call.world;
+  const MapCache::Latest latest = [&world] { return world.snapshot(); };
   std::shared_ptr<const MapBody> body;
   if (format == "json") {
     body = call.map_cache.body(
@@ -94,21 +96,21 @@ Response get_map(const Call& call) {
           map["server_instance"] = instance;
           return map.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
         },
-        max_stale);
+        max_stale, latest);
   } else if (format == "dxf") {
     body = call.map_cache.body(
         snap, format, "image/vnd.dxf",
         [&options](const world::WorldState& state) {
           return apriori::write_dxf(world::map_layers(state, options, std::nullopt));
         },
-        max_stale);
+        max_stale, latest);
   } else {
     body = call.map_cache.body(
         snap, format, "application/geo+json",
         [&options](const world::WorldState& state) {
           return apriori::write_geojson(world::map_layers(state, options, std::nullopt), state.georeference);
         },
-        max_stale);
+        max_stale, latest);
   }
   auto response =
       tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version));
