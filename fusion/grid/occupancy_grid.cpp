@@ -314,10 +314,14 @@ void OccupancyGrid::walk(const internal::PreparedBeam& b) {
 std::optional<GridGeometry> OccupancyGrid::bounds() const {
   if (!tile_bounds_) return std::nullopt;
   const auto& b = *tile_bounds_;
+  return tiles_geometry({b[0], b[1]}, {b[2], b[3]});
+}
+
+GridGeometry OccupancyGrid::tiles_geometry(TileIndex first, TileIndex last) const {
   const std::int64_t t = options_.tile_size_cells;
   const double tile_m = options_.resolution_m * static_cast<double>(t);
-  return GridGeometry({static_cast<double>(b[0]) * tile_m, static_cast<double>(b[1]) * tile_m}, options_.resolution_m,
-                      (b[2] - b[0] + 1) * t, (b[3] - b[1] + 1) * t);
+  return GridGeometry({static_cast<double>(first.x) * tile_m, static_cast<double>(first.y) * tile_m},
+                      options_.resolution_m, (last.x - first.x + 1) * t, (last.y - first.y + 1) * t);
 }
 
 const OccupancyGrid::Tile* OccupancyGrid::find_tile(std::int64_t tx, std::int64_t ty) const {

@@ -123,6 +123,9 @@ class OccupancyGrid {
   void set_tile(TileIndex t, TileData data);
   /// Every touched tile, sorted.
   std::vector<TileIndex> tiles() const;
+  /// The cells of the tiles from `first` to `last` (inclusive, x and y): cell (0, 0) has its lower-left corner at the
+  /// world origin, so tile (tx, ty) starts at (tx·T·resolution, ty·T·resolution).
+  GridGeometry tiles_geometry(TileIndex first, TileIndex last) const;
   /// How many inserts (and restores) changed tile t; 0 when never touched. A tile's cells stay the same while this
   /// number does, so it can name their content (an HTTP ETag, a reader's check).
   std::uint64_t tile_revision(TileIndex t) const;

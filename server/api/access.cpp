@@ -21,12 +21,6 @@ std::string lower(std::string_view text) {
   return out;
 }
 
-std::string_view trimmed(std::string_view text) {
-  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
-  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
-  return text;
-}
-
 // The host of a Host header or an origin's authority, lower case, without port or trailing dot; IPv6 keeps its
 // brackets ("[::1]").
 std::string host_of_authority(std::string_view authority) {

@@ -102,47 +102,33 @@ void MapCache::run_background_builds() {
 std::shared_ptr<const MapBody> MapCache::delta(const std::shared_ptr<const world::WorldState>& snapshot,
                                                std::int64_t since, const Build& build) {
   const auto version = snapshot->version;
+  const auto now = std::chrono::steady_clock::now();
   std::unique_lock lock(mutex_);
+  auto& slot = deltas_[since];
   for (;;) {
-    const auto kept = deltas_.find(since);
-    if (kept != deltas_.end() && kept->second->version >= version) return kept->second;
-    const auto building = deltas_building_.find(since);
-    if (building == deltas_building_.end() || building->second < version) break;
-    built_.wait(lock);
+    if (slot.done && slot.done->version >= version) return slot.done;
+    if (slot.building < version) break;
+    built_.wait(lock);  // the answer for this version or a newer one is being made
   }
-  deltas_building_[since] = version;
-  lock.unlock();
-  auto made = std::make_shared<MapBody>();
-  try {
-    made->version = version;
-    made->taken = std::chrono::steady_clock::now();
-    made->content_type = "application/json";
-    made->bytes = build(*snapshot);
-  } catch (...) {
-    lock.lock();
-    if (const auto b = deltas_building_.find(since); b != deltas_building_.end() && b->second == version)
-      deltas_building_.erase(b);
-    built_.notify_all();
-    throw;
-  }
-  lock.lock();
-  if (const auto b = deltas_building_.find(since); b != deltas_building_.end() && b->second == version)
-    deltas_building_.erase(b);
-  auto& kept = deltas_[since];
-  if (!kept || kept->version < version) {
-    if (kept) delta_bytes_ -= kept->bytes.size();
-    kept = made;
-    delta_bytes_ += made->bytes.size();
-  }
-  // The answers for the oldest versions go first: their clients have moved on.
-  while (deltas_.size() > 1 && (deltas_.size() > kDeltasKept || delta_bytes_ > kDeltaBytesKept)) {
-    auto oldest = deltas_.begin();
-    for (auto it = deltas_.begin(); it != deltas_.end(); ++it)
-      if (it->second->version < oldest->second->version) oldest = it;
-    delta_bytes_ -= oldest->second->bytes.size();
+  auto made = build_into(slot, Job{snapshot, "application/json", build, now}, lock);
+  // The answers for the oldest versions go first: their clients have moved on. Slots being built stay (a builder
+  // holds them).
+  const auto kept_bytes = [this] {
+    std::size_t bytes = 0;
+    for (const auto& [key, kept] : deltas_)
+      if (kept.done) bytes += kept.done->bytes.size();
+    return bytes;
+  };
+  while (deltas_.size() > kDeltasKept || kept_bytes() > kDeltaBytesKept) {
+    auto oldest = deltas_.end();
+    for (auto it = deltas_.begin(); it != deltas_.end(); ++it) {
+      if (it->second.building >= 0 || it->first == since) continue;
+      const auto age = it->second.done ? it->second.done->version : -1;
+      if (oldest == deltas_.end() || age < (oldest->second.done ? oldest->second.done->version : -1)) oldest = it;
+    }
+    if (oldest == deltas_.end()) break;
     deltas_.erase(oldest);
   }
-  built_.notify_all();
   return made;
 }
 

@@ -91,9 +91,7 @@ class MapCache {
   std::map<std::string, Job> pending_;  // the newest snapshot to build in the background, by format
   static constexpr std::size_t kDeltasKept = 64;
   static constexpr std::size_t kDeltaBytesKept = 32u << 20;
-  std::map<std::int64_t, std::shared_ptr<const MapBody>> deltas_;  // by since
-  std::map<std::int64_t, std::int64_t> deltas_building_;           // since -> version being made
-  std::size_t delta_bytes_ = 0;
+  std::map<std::int64_t, Slot> deltas_;  // by since
   std::condition_variable work_;
   bool stopping_ = false;
   std::thread builder_;  // started on the first background build

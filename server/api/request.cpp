@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <boost/beast/core/string.hpp>
-#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -71,38 +70,41 @@ std::string_view header(const Request& request, http::field field) {
   return {value.data(), value.size()};
 }
 
+std::string_view trimmed(std::string_view text) {
+  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
+  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
+  return text;
+}
+
+bool iequals(std::string_view a, std::string_view b) {
+  return boost::beast::iequals(boost::beast::string_view(a.data(), a.size()),
+                               boost::beast::string_view(b.data(), b.size()));
+}
+
 std::chrono::milliseconds accepted_staleness(const Request& request) {
-  std::string lines;  // every Cache-Control line, as one list
-  const auto [first, last] = request.equal_range(http::field::cache_control);
-  for (auto it = first; it != last; ++it) (lines += ',') += std::string_view(it->value().data(), it->value().size());
-  std::string_view list = lines;
-  while (!list.empty()) {
-    const auto comma = list.find(',');
-    auto item = list.substr(0, comma);
-    list = comma == std::string_view::npos ? std::string_view{} : list.substr(comma + 1);
-    while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
-    while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+  std::optional<std::chrono::milliseconds> accepted;  // the first well-formed max-stale
+  for_each_list_item(request, http::field::cache_control, [&](std::string_view item) {
     constexpr std::string_view kName = "max-stale";
-    if (item.size() < kName.size() || !std::equal(kName.begin(), kName.end(), item.begin(), [](char a, char b) {
-          return a == std::tolower(static_cast<unsigned char>(b));
-        }))
-      continue;
+    if (accepted || item.size() < kName.size() || !iequals(item.substr(0, kName.size()), kName)) return;
     auto rest = item.substr(kName.size());
-    if (rest.empty()) return std::chrono::seconds(60);
-    if (rest.front() != '=') continue;
+    if (rest.empty()) {
+      accepted = std::chrono::seconds(60);
+      return;
+    }
+    if (rest.front() != '=') return;
     rest.remove_prefix(1);
     if (rest.size() >= 2 && rest.front() == '"' && rest.back() == '"') rest = rest.substr(1, rest.size() - 2);
-    if (rest.empty() || rest.size() > 6 || rest.find_first_not_of("0123456789") != std::string_view::npos) continue;
-    return std::chrono::seconds(std::stoi(std::string(rest)));
-  }
-  return {};
+    if (rest.empty() || rest.size() > 6 || rest.find_first_not_of("0123456789") != std::string_view::npos) return;
+    accepted = std::chrono::seconds(std::stoi(std::string(rest)));
+  });
+  return accepted.value_or(std::chrono::milliseconds(0));
 }
 
 bool has_content_type(const Request& request, std::string_view wanted) {
   const auto value = request[http::field::content_type];
   auto type = value.substr(0, value.find(';'));
   while (!type.empty() && type.back() == ' ') type.remove_suffix(1);
-  return boost::beast::iequals(type, boost::beast::string_view(wanted.data(), wanted.size()));
+  return iequals(std::string_view(type.data(), type.size()), wanted);
 }
 
 std::int64_t query_int(const Target& target, const std::string& key, std::int64_t fallback, std::int64_t min,

@@ -30,6 +30,27 @@ Target parse_target(std::string_view target);
 
 /// The value of `field`, empty when absent.
 std::string_view header(const Request& request, boost::beast::http::field field);
+/// `text` without the optional whitespace (spaces, tabs) around it, as header values carry it (RFC 9110 5.6.3).
+std::string_view trimmed(std::string_view text);
+/// ASCII case-insensitive equality, as header tokens compare.
+bool iequals(std::string_view a, std::string_view b);
+/// Calls `each` with every `separator`-separated part of `text`, trimmed.
+template <typename F>
+void for_each_part(std::string_view text, char separator, F&& each) {
+  for (;;) {
+    const auto end = text.find(separator);
+    each(trimmed(text.substr(0, end)));
+    if (end == std::string_view::npos) return;
+    text.remove_prefix(end + 1);
+  }
+}
+/// Calls `each` with every item of a comma-separated header list (RFC 9110 5.6.1), over every line of the header.
+template <typename F>
+void for_each_list_item(const Request& request, boost::beast::http::field field, F&& each) {
+  const auto [first, last] = request.equal_range(field);
+  for (auto it = first; it != last; ++it)
+    for_each_part(std::string_view(it->value().data(), it->value().size()), ',', each);
+}
 /// Whether the Content-Type (without parameters, case-insensitive) is `wanted`.
 bool has_content_type(const Request& request, std::string_view wanted);
 

@@ -1,9 +1,9 @@
 #include "server/api/response.h"
 
-#include <cctype>
 #include <string_view>
 
 #include "server/api/api_error.h"
+#include "server/api/request.h"
 
 namespace wm::api {
 
@@ -35,43 +35,16 @@ Response raw_response(const Request& request, std::string body, const std::strin
 
 namespace {
 
-std::string_view trimmed(std::string_view text) {
-  while (!text.empty() && (text.front() == ' ' || text.front() == '\t')) text.remove_prefix(1);
-  while (!text.empty() && (text.back() == ' ' || text.back() == '\t')) text.remove_suffix(1);
-  return text;
-}
-
-bool iequals(std::string_view a, std::string_view b) {
-  if (a.size() != b.size()) return false;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    if (std::tolower(static_cast<unsigned char>(a[i])) != std::tolower(static_cast<unsigned char>(b[i]))) return false;
-  return true;
-}
-
-// Calls `each` with every comma-separated item of a header list, trimmed.
-template <typename F>
-void for_each_item(std::string_view list, F&& each) {
-  while (!list.empty()) {
-    const auto comma = list.find(',');
-    each(trimmed(list.substr(0, comma)));
-    if (comma == std::string_view::npos) break;
-    list.remove_prefix(comma + 1);
-  }
-}
-
 // The tag of `identity` or `gzip` that If-None-Match (every line of it) names, "" when none. Weak comparison
 // (RFC 9110 13.1.2): W/ is ignored; "*" names the one being sent.
 std::string none_match_tag(const Request& request, const std::string& identity, const std::string& gzip,
                            const std::string& sending) {
   std::string found;
-  const auto [first, last] = request.equal_range(http::field::if_none_match);
-  for (auto it = first; it != last; ++it) {
-    for_each_item(std::string_view(it->value().data(), it->value().size()), [&](std::string_view tag) {
-      if (tag == "*") found = sending;
-      if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
-      if (tag == identity || tag == gzip) found = std::string(tag);
-    });
-  }
+  for_each_list_item(request, http::field::if_none_match, [&](std::string_view tag) {
+    if (tag == "*") found = sending;
+    if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
+    if (tag == identity || tag == gzip) found = std::string(tag);
+  });
   return found;
 }
 
@@ -79,28 +52,21 @@ std::string none_match_tag(const Request& request, const std::string& identity, 
 
 bool accepts_gzip(const Request& request) {
   bool gzip = false, refused = false;
-  const auto [first, last] = request.equal_range(http::field::accept_encoding);
-  for (auto it = first; it != last; ++it) {
-    for_each_item(std::string_view(it->value().data(), it->value().size()), [&](std::string_view item) {
-      auto rest = item;
-      const auto semicolon = rest.find(';');
-      const auto coding = trimmed(rest.substr(0, semicolon));
-      bool zero = false;
-      // Parameters: "q=0" (or 0.0, 0.000) anywhere among them refuses the coding.
-      while (semicolon != std::string_view::npos && !rest.empty()) {
-        const auto next = rest.find(';');
-        if (next == std::string_view::npos) break;
-        rest.remove_prefix(next + 1);
-        const auto param = trimmed(rest.substr(0, rest.find(';')));
+  for_each_list_item(request, http::field::accept_encoding, [&](std::string_view item) {
+    const auto semicolon = item.find(';');
+    const auto coding = trimmed(item.substr(0, semicolon));
+    bool zero = false;  // "q=0" (or 0.0, 0.000) among the parameters refuses the coding
+    if (semicolon != std::string_view::npos) {
+      for_each_part(item.substr(semicolon + 1), ';', [&](std::string_view param) {
         if (param.size() >= 2 && (param[0] == 'q' || param[0] == 'Q') && param[1] == '=') {
           const auto q = trimmed(param.substr(2));
           zero = !q.empty() && q.find_first_not_of("0.") == std::string_view::npos;
         }
-      }
-      if (iequals(coding, "gzip") || iequals(coding, "x-gzip")) (zero ? refused : gzip) = true;
-      if (coding == "*" && !zero) gzip = true;
-    });
-  }
+      });
+    }
+    if (iequals(coding, "gzip") || iequals(coding, "x-gzip")) (zero ? refused : gzip) = true;
+    if (coding == "*" && !zero) gzip = true;
+  });
   return gzip && !refused;
 }
 

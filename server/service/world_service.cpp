@@ -281,7 +281,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(std::int6
     engine_.update_elements(upserts, {});
     std::vector<rules::ElementGridFacts> grid_facts;
     grid_facts.reserve(checked.size());
-    for (const auto& c : checked) grid_facts.push_back({"e" + std::to_string(c.number), c.backed, c.contrary});
+    for (const auto& c : checked) grid_facts.push_back({world::element_id(c.number), c.backed, c.contrary});
     engine_.set_element_grid(grid_facts);
     const auto orders = engine_.prune_orders(options_.max_prune_per_update);
     if (!orders.empty()) {
@@ -291,7 +291,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(std::int6
       }
       world::apply_prune(p.update, orders, p.seq, p.observation.observer);
       std::vector<std::string> removed;
-      for (auto number : p.update.removed_elements) removed.push_back("e" + std::to_string(number));
+      for (auto number : p.update.removed_elements) removed.push_back(world::element_id(number));
       engine_.update_elements({}, removed);
     }
     if (p.update.decisions.empty()) return std::nullopt;
@@ -426,13 +426,13 @@ WorldService::PreparedUpdate WorldService::prepare_update(world::Observation obs
     std::vector<rules::ElementFacts> upserts;
     for (auto number : p.update.changed_elements) upserts.push_back(element_facts(p.update.state.elements.at(number)));
     std::vector<std::string> joined_away;  // elements a join removed
-    for (auto number : p.update.removed_elements) joined_away.push_back("e" + std::to_string(number));
+    for (auto number : p.update.removed_elements) joined_away.push_back(world::element_id(number));
     engine_.update_elements(upserts, joined_away);
     const auto orders = engine_.prune_orders(options_.max_prune_per_update);
     if (!orders.empty()) {
       world::apply_prune(p.update, orders, p.seq, observation.observer);
       std::vector<std::string> removed;
-      for (auto number : p.update.removed_elements) removed.push_back("e" + std::to_string(number));
+      for (auto number : p.update.removed_elements) removed.push_back(world::element_id(number));
       engine_.update_elements({}, removed);
     }
     // Edge facts are in the world frame: a moved object must be seen where it is now by the next rule call.
@@ -467,13 +467,14 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
     if (d.fallback) std::cerr << "wmd: decision " << d.seq << " fell back to add: " << d.explanation << "\n";
   }
   PrimitivesOutcome outcome{seq, update.state.version, update.decisions, false};
+  std::vector<std::string> removed;  // ids, in element order
+  for (auto number : update.removed_elements) removed.push_back(world::element_id(number));
   if (events_ && events_->subscriber_count() > 0) {
     nlohmann::json decisions = nlohmann::json::array(), elements = nlohmann::json::array(),
-                   removed = nlohmann::json::array(), objects = nlohmann::json::array();
+                   objects = nlohmann::json::array();
     for (const auto& d : update.decisions) decisions.push_back(json_codec::decision_json(d));
     for (auto number : update.changed_elements)
       elements.push_back(json_codec::element_json(update.state.elements.at(number)));
-    for (auto number : update.removed_elements) removed.push_back("e" + std::to_string(number));
     for (auto index : update.changed_objects)
       objects.push_back(json_codec::object_json(update.state.objects.at(index), options_.world));
     emit({{"type", "update"},
@@ -485,9 +486,7 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
           {"removed", removed},
           {"objects", objects}});
   }
-  MapRemovals removed;
-  for (auto number : update.removed_elements) removed.elements.insert("e" + std::to_string(number));
-  publish(std::move(update.state), std::move(removed));
+  publish(std::move(update.state), MapRemovals{{removed.begin(), removed.end()}, {}});
   // Committed and published: the request is answered as applied whatever happens here.
   try {
     engine_.add_decisions(logged, options_.decision_facts_kept);
@@ -600,11 +599,7 @@ std::optional<GridTileValues> WorldService::grid_tile(fusion::OccupancyGrid::Lay
   return read_grid([&](const fusion::OccupancyGrid& grid) -> std::optional<GridTileValues> {
     const auto revision = grid.tile_revision({tx, ty});
     if (revision == 0) return std::nullopt;
-    const auto size = grid.tile_size_cells();
-    const double side = static_cast<double>(size) * grid.resolution_m();
-    const fusion::GridGeometry region({static_cast<double>(tx) * side, static_cast<double>(ty) * side},
-                                      grid.resolution_m(), size, size);
-    return GridTileValues{grid.export_layer(layer, region), revision};
+    return GridTileValues{grid.export_layer(layer, grid.tiles_geometry({tx, ty}, {tx, ty})), revision};
   });
 }
 

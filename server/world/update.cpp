@@ -66,7 +66,7 @@ rules::DecisionQuery make_query(const WorldState& state, const Observation& obse
       q.element_id = edge_id(id, ref.edge);
       q.object_id = id;
     } else {
-      q.element_id = "e" + std::to_string(ref.element);
+      q.element_id = element_id(ref.element);
     }
     q.mahalanobis_sq = match->mahalanobis_sq;
   }

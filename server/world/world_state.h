@@ -58,6 +58,9 @@ struct ObjectState {
   std::int64_t updated_version = 0;
 };
 
+/// The id of element `number` ("e12"), as the API, the rules and the store name it.
+inline std::string element_id(std::int64_t number) { return "e" + std::to_string(number); }
+
 /// An observed element that belongs to no CAD object.
 struct Element {
   std::int64_t number = 0;  // id is "e<number>"
@@ -70,7 +73,7 @@ struct Element {
   std::int64_t updated_version = 0;
   double updated_at_unix_s = 0;  // wall-clock time of the last change (rules prune by age)
 
-  std::string id() const { return "e" + std::to_string(number); }
+  std::string id() const { return element_id(number); }
 };
 
 /// The observed elements by number, with their spatial index kept in step. Copies share what they have not

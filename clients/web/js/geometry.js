@@ -74,24 +74,6 @@ export function unionBox(a, b) {
   return [Math.min(a[0], b[0]), Math.min(a[1], b[1]), Math.max(a[2], b[2]), Math.max(a[3], b[3])];
 }
 
-/** True when `box` is a finite, non-empty [x0, y0, x1, y1]. */
-export function isBox(box) {
-  return Array.isArray(box) && box.length === 4 && box.every(Number.isFinite) && box[2] > box[0] && box[3] > box[1];
-}
-
-/**
- * The cells covering a world box, snapped outwards as the server does (floor of the lower corner, ceil of the
- * upper one): {cx0, cy0, cx1, cy1}, upper bounds exclusive, in cells of `resolution` [m].
- */
-export function cellBox(box, resolution) {
-  return {
-    cx0: Math.floor(box[0] / resolution),
-    cy0: Math.floor(box[1] / resolution),
-    cx1: Math.ceil(box[2] / resolution),
-    cy1: Math.ceil(box[3] / resolution),
-  };
-}
-
 /** Union of two cell boxes; null is the empty box. */
 export function unionCells(a, b) {
   if (!a) return b ? { ...b } : null;
@@ -110,16 +92,6 @@ export function containsCells(outer, inner) {
 /** Number of cells of a cell box. */
 export function cellCount(c) {
   return Math.max(0, c.cx1 - c.cx0) * Math.max(0, c.cy1 - c.cy0);
-}
-
-/**
- * The `bbox` query value [m] that makes the server export exactly cell box `c`: each bound is moved a quarter
- * cell inwards, so the server's floor/ceil land on the intended cell whatever the floating-point round-off.
- */
-export function bboxQueryForCells(c, resolution) {
-  const q = resolution / 4;
-  return [c.cx0 * resolution + q, c.cy0 * resolution + q, c.cx1 * resolution - q, c.cy1 * resolution - q]
-    .map((v) => String(v)).join(',');
 }
 
 /**

@@ -75,7 +75,7 @@ export class GridLayers {
   }
 
   /** A scan event changed the grid; `revision` is its grid_revision (the tiles say where). */
-  markDirty(_bbox, revision) {
+  markDirty(revision) {
     if (Number.isFinite(revision)) this.latestRevision = Math.max(this.latestRevision, revision);
     for (const l of this.layers.values()) l.dirty = true;
     this.schedule();

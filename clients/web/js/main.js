@@ -170,7 +170,7 @@ function handle(event) {
     }
     case 'scan':
       model.applyScan(event, now);
-      grid.markDirty(event.bbox, event.grid_revision);
+      grid.markDirty(event.grid_revision);
       view.requestDraw();
       if (state.selection?.kind === 'robot') renderDetails(state.selection, model);
       break;

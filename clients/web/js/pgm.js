@@ -75,17 +75,6 @@ export function pgmToRgba(pixels, layer = 'bayes') {
   return out;
 }
 
-/** {origin: [x, y], resolution} from a ROS map_server YAML text (the server's map.yaml), or null. */
-export function parseMapYaml(text) {
-  const res = /^resolution:\s*([-+0-9.eE]+)\s*$/m.exec(text);
-  const origin = /^origin:\s*\[\s*([-+0-9.eE]+)\s*,\s*([-+0-9.eE]+)/m.exec(text);
-  if (!res || !origin) return null;
-  const resolution = Number(res[1]);
-  const x = Number(origin[1]), y = Number(origin[2]);
-  if (!(resolution > 0) || !Number.isFinite(x) || !Number.isFinite(y)) return null;
-  return { origin: [x, y], resolution };
-}
-
 /**
  * A grid tile as GET /api/v1/grid/tiles/{layer}/{tx}/{ty} sends it (size² little-endian float32, rows from the
  * bottom, NaN unknown) → PGM pixels as the server's PGM would hold them (top row first, 255·(1−p), unknown 205).

@@ -15,6 +15,25 @@ namespace wm::api {
 
 namespace {
 
+// The map in `format` (json, dxf or geojson), whole or cut to `excerpt`. JSON names the server run its versions
+// count in (`instance`): a delta from another run's version is not applicable.
+std::string map_text(const world::WorldState& state, const world::WorldOptions& options, const std::string& format,
+                     const std::optional<world::MapExcerpt>& excerpt, const std::string& instance) {
+  if (format == "json") {
+    auto map = json_codec::map_json(state, options, excerpt);
+    map["server_instance"] = instance;
+    return map.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  }
+  if (format == "dxf") return apriori::write_dxf(world::map_layers(state, options, excerpt));
+  return apriori::write_geojson(world::map_layers(state, options, excerpt), state.georeference);
+}
+
+std::string content_type_of(const std::string& format) {
+  if (format == "json") return "application/json";
+  if (format == "dxf") return "image/vnd.dxf";
+  return "application/geo+json";
+}
+
 // GET /api/v1/map?since=V: what changed after version V. Elements and objects whose updated_version is newer come
 // whole (upserts); ids that left the map are listed; the plan, placement and georeference always come.
 Response map_delta(const Call& call, const std::shared_ptr<const world::WorldState>& snap, std::int64_t since) {
@@ -75,43 +94,17 @@ Response get_map(const Call& call) {
       body["server_instance"] = call.map_cache.instance();
       return json_response(call.request, body);
     }
-    if (format == "dxf")
-      return raw_response(call.request, apriori::write_dxf(world::map_layers(*snap, options, excerpt)),
-                          "image/vnd.dxf");
-    return raw_response(call.request,
-                        apriori::write_geojson(world::map_layers(*snap, options, excerpt), snap->georeference),
-                        "application/geo+json");
+    return raw_response(call.request, map_text(*snap, options, format, excerpt, call.map_cache.instance()),
+                        content_type_of(format));
   }
-  // The builders may run in the background (max-stale): they refer to nothing of this request.
-  const auto max_stale = accepted_staleness(call.request);
+  // The builder may run in the background (max-stale): it refers to nothing of this request.
   auto& world = call.world;
-  const MapCache::Latest latest = [&world] { return world.snapshot(); };
-  std::shared_ptr<const MapBody> body;
-  if (format == "json") {
-    body = call.map_cache.body(
-        snap, format, "application/json",
-        [&options, instance = call.map_cache.instance()](const world::WorldState& state) {
-          auto map = json_codec::map_json(state, options, std::nullopt);
-          // Which server run the versions count in: a delta from another run's version is not applicable.
-          map["server_instance"] = instance;
-          return map.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-        },
-        max_stale, latest);
-  } else if (format == "dxf") {
-    body = call.map_cache.body(
-        snap, format, "image/vnd.dxf",
-        [&options](const world::WorldState& state) {
-          return apriori::write_dxf(world::map_layers(state, options, std::nullopt));
-        },
-        max_stale, latest);
-  } else {
-    body = call.map_cache.body(
-        snap, format, "application/geo+json",
-        [&options](const world::WorldState& state) {
-          return apriori::write_geojson(world::map_layers(state, options, std::nullopt), state.georeference);
-        },
-        max_stale, latest);
-  }
+  const auto body = call.map_cache.body(
+      snap, format, content_type_of(format),
+      [&options, format, instance = call.map_cache.instance()](const world::WorldState& state) {
+        return map_text(state, options, format, std::nullopt, instance);
+      },
+      accepted_staleness(call.request), [&world] { return world.snapshot(); });
   auto response =
       tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version));
   if (body->version < snap->version) {

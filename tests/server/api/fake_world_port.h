@@ -152,13 +152,8 @@ class FakeWorldPort final : public service::WorldPort {
                                                    std::int64_t ty) const override {
     const auto revision = the_grid().tile_revision({tx, ty});
     if (revision == 0) return std::nullopt;
-    const auto size = the_grid().tile_size_cells();
-    const double side = static_cast<double>(size) * the_grid().resolution_m();
-    return service::GridTileValues{
-        the_grid().export_layer(layer,
-                                fusion::GridGeometry({static_cast<double>(tx) * side, static_cast<double>(ty) * side},
-                                                     the_grid().resolution_m(), size, size)),
-        revision};
+    return service::GridTileValues{the_grid().export_layer(layer, the_grid().tiles_geometry({tx, ty}, {tx, ty})),
+                                   revision};
   }
   pipeline::NetworkStats network_stats() const override {
     pipeline::NetworkStats stats;

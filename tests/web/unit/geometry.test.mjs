@@ -1,9 +1,9 @@
-// The viewer's pure geometry: covariance bands, picking distances, cell snapping, rates.
+// The viewer's pure geometry: covariance bands, picking distances, cell boxes, rates.
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
 import {
-  bboxQueryForCells, cellBox, containsCells, covarianceBand, elementCategory, kBand95, lateralSigma,
+  containsCells, covarianceBand, elementCategory, kBand95, lateralSigma,
   objectCategory, padCells, pointSegmentDistance, RateMeter, unionBox, unionCells,
 } from '../../../clients/web/js/geometry.js';
 
@@ -57,23 +57,13 @@ test('categories follow attributes and sources, with other for the rest', () => 
   assert.equal(elementCategory({ source: 'robot-7' }), 'other');
 });
 
-test('cell boxes snap outwards like the server and unions cover both', () => {
-  assert.deepEqual(cellBox([0.01, -0.01, 0.11, 0.05], 0.05), { cx0: 0, cy0: -1, cx1: 3, cy1: 1 });
+test('unions of cell boxes cover both', () => {
   const u = unionCells({ cx0: 0, cy0: 0, cx1: 2, cy1: 2 }, { cx0: -1, cy0: 1, cx1: 1, cy1: 5 });
   assert.deepEqual(u, { cx0: -1, cy0: 0, cx1: 2, cy1: 5 });
   assert.ok(containsCells(u, { cx0: 0, cy0: 0, cx1: 2, cy1: 2 }));
   assert.ok(!containsCells(u, { cx0: 0, cy0: 0, cx1: 3, cy1: 2 }));
   assert.equal(unionCells(null, null), null);
   assert.deepEqual(unionBox(null, [0, 0, 1, 1]), [0, 0, 1, 1]);
-});
-
-test('bbox query lands on exactly the intended cells despite round-off', () => {
-  for (const resolution of [0.05, 0.1, 0.03, 0.025]) {
-    for (const c of [{ cx0: 3, cy0: -7, cx1: 41, cy1: 13 }, { cx0: -1000, cy0: -999, cx1: 1000, cy1: 1001 }]) {
-      const v = bboxQueryForCells(c, resolution).split(',').map(Number);
-      assert.deepEqual(cellBox(v, resolution), c, `resolution ${resolution}`);
-    }
-  }
 });
 
 test('padding grows a cell box to chunk multiples without shrinking it', () => {

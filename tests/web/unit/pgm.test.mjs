@@ -3,7 +3,7 @@ import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
 import {
-  displayGrey, kUnknown, kUnknownRgb, parseMapYaml, parsePgm, pgmToRgba, tileToPgmPixels,
+  displayGrey, kUnknown, kUnknownRgb, parsePgm, pgmToRgba, tileToPgmPixels,
 } from '../../../clients/web/js/pgm.js';
 
 const pgm = (header, pixels) => new Uint8Array([...Buffer.from(header, 'latin1'), ...pixels]);
@@ -37,12 +37,6 @@ test('display grey keeps the order of probabilities and makes p = 0.1 nearly whi
   for (let v = 1; v < 256; ++v) assert.ok(displayGrey(v) >= displayGrey(v - 1), `monotonic at ${v}`);
   assert.ok(displayGrey(Math.round(255 * 0.9)) >= 245);
   assert.equal(displayGrey(Math.round(255 * 0.5)), 215);
-});
-
-test('reads origin and resolution from map.yaml', () => {
-  const yaml = 'image: map.pgm\nmode: trinary\nresolution: 0.05\norigin: [-9.7, -23, 0.0]\nnegate: 0\n';
-  assert.deepEqual(parseMapYaml(yaml), { origin: [-9.7, -23], resolution: 0.05 });
-  assert.equal(parseMapYaml('resolution: 0.05\n'), null);
 });
 
 test('a binary tile becomes PGM pixels: top row first, 255(1-p), NaN unknown', () => {
