@@ -6,6 +6,7 @@
 #include <csignal>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -14,6 +15,7 @@
 #include "server/config/server_config.h"
 #include "server/http/http_server.h"
 #include "server/service/world_service.h"
+#include "server/shm/shared_map_export.h"
 #include "server/storage/store.h"
 
 #ifndef WM_DEFAULT_WEB_DIR
@@ -72,6 +74,17 @@ int main(int argc, char** argv) {
       world.load_floor_plan(std::move(plan));
     }
     api::Services services{cfg.api, world};
+    // Before the HTTP server, which hands it to handlers, and after the world it reads.
+    std::optional<shm::SharedMapExport> shared_memory;
+    if (cfg.shm.enabled) {
+      shared_memory.emplace(world, cfg.shm, services.map_cache->instance());
+      services.shm = &*shared_memory;
+      const auto status = shared_memory->status();
+      if (status.available)
+        std::cout << "wmd: shared memory /dev/shm/" << status.name << " (GET /api/v1/shm)\n";
+      else
+        std::cerr << "wmd: warning: no shared memory export: " << status.error << "\n";
+    }
     http::HttpServer::Handlers handlers{
         [&services](const api::Request& r) { return api::handle_request(r, services); },
         [](const api::Request& r) { return api::handler_lane(r); },

@@ -31,6 +31,9 @@ int rules_reload(const Invocation& in);
 int rules_dry_run(const Invocation& in);
 int query(const Invocation& in);
 
+// The shared-memory export (shm_command.cpp).
+int shm_check(const Invocation& in);
+
 // Laser logs (replay_command.cpp).
 int replay(const Invocation& in);
 

@@ -50,7 +50,8 @@ HttpResult HttpClient::request(const std::string& method, const std::string& tar
     const auto& res = parser.get();
     beast::error_code ignored;
     stream.socket().shutdown(net::ip::tcp::socket::shutdown_both, ignored);
-    return {static_cast<int>(res.result_int()), std::string(res[http::field::content_type]), res.body()};
+    return {static_cast<int>(res.result_int()), std::string(res[http::field::content_type]), res.body(),
+            std::string(res[http::field::etag])};
   } catch (const boost::system::system_error& e) {
     throw ConnectionError("cannot reach the server at http://" + host_ + ":" + port_ + ": " + e.code().message());
   }

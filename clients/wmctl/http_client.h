@@ -16,6 +16,7 @@ struct HttpResult {
   int status = 0;
   std::string content_type;
   std::string body;
+  std::string etag;  // "" when the answer has none
 };
 
 /// A minimal blocking HTTP/1.1 client for http://host:port URLs (one connection per request).

@@ -118,6 +118,12 @@ std::vector<Command> command_table() {
        "with the bayes layer also FILE.yaml for ROS map_server",
        grid},
       {"grid extract", {}, {}, "run the grid line extractor now; its lines are decided like primitives", grid_extract},
+      {"shm",
+       {},
+       {{"--tiles", "N"}},
+       "check the shared-memory export on this machine: open the segment GET /api/v1/shm names,\n"
+       "read every tile, compare N of them (default 64) bit for bit with GET /api/v1/grid/tiles",
+       shm_check},
   };
 }
 

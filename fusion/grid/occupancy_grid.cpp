@@ -461,29 +461,43 @@ std::vector<float> OccupancyGrid::export_layer(Layer layer, const GridGeometry& 
         cur_y = ty;
       }
       if (tile == nullptr) continue;
-      const auto i = static_cast<std::size_t>(((c.y & mask_) << shift_) | (c.x & mask_));
-      const float o = tile->ds[i].o;
-      const float e = tile->ds[i].e;
-      const bool ds_unknown = o == 0.f && e == 0.f;
-      float v = std::numeric_limits<float>::quiet_NaN();
-      switch (layer) {
-        case Layer::bayes_probability:
-          if (tile->bayes[i].log_odds != 0.f) v = 1.f - 1.f / (1.f + std::exp(tile->bayes[i].log_odds));
-          break;
-        case Layer::ds_belief:
-          if (!ds_unknown) v = o;
-          break;
-        case Layer::ds_plausibility:
-          if (!ds_unknown) v = 1.f - e;
-          break;
-        case Layer::ds_conflict:
-          if (!ds_unknown) v = tile->ds[i].k;
-          break;
-      }
-      out[row * w + col] = v;
+      out[row * w + col] =
+          layer_value(*tile, static_cast<std::size_t>(((c.y & mask_) << shift_) | (c.x & mask_)), layer);
     }
   }
   return out;
+}
+
+std::vector<float> OccupancyGrid::export_tile_layers(TileIndex t) const {
+  const auto n = static_cast<std::size_t>(options_.tile_size_cells * options_.tile_size_cells);
+  std::vector<float> out(4 * n, std::numeric_limits<float>::quiet_NaN());
+  const Tile* tile = find_tile(t.x, t.y);
+  if (tile == nullptr) return out;
+  const Layer layers[4] = {Layer::bayes_probability, Layer::ds_belief, Layer::ds_plausibility, Layer::ds_conflict};
+  for (std::size_t l = 0; l < 4; ++l)
+    for (std::size_t i = 0; i < n; ++i) out[l * n + i] = layer_value(*tile, i, layers[l]);
+  return out;
+}
+
+float OccupancyGrid::layer_value(const Tile& tile, std::size_t i, Layer layer) {
+  const float o = tile.ds[i].o;
+  const float e = tile.ds[i].e;
+  const bool ds_unknown = o == 0.f && e == 0.f;
+  switch (layer) {
+    case Layer::bayes_probability:
+      if (tile.bayes[i].log_odds != 0.f) return 1.f - 1.f / (1.f + std::exp(tile.bayes[i].log_odds));
+      break;
+    case Layer::ds_belief:
+      if (!ds_unknown) return o;
+      break;
+    case Layer::ds_plausibility:
+      if (!ds_unknown) return 1.f - e;
+      break;
+    case Layer::ds_conflict:
+      if (!ds_unknown) return tile.ds[i].k;
+      break;
+  }
+  return std::numeric_limits<float>::quiet_NaN();
 }
 
 DempsterResult dempster_combine(const OccupancyGrid::Masses& a, const OccupancyGrid::Masses& b) {

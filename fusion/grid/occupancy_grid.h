@@ -141,6 +141,9 @@ class OccupancyGrid {
   /// Unknown cells (Bayes: log-odds 0; DS: m(Θ) = 1) are NaN.
   /// @throw std::invalid_argument when the region has more than kMaxExportCells cells.
   std::vector<float> export_layer(Layer layer, const GridGeometry& region) const;
+  /// Every layer of tile t, in Layer order, tile_size² values each (row-major from the tile's lower-left cell, NaN
+  /// unknown): the same values as export_layer over tiles_geometry(t, t), read straight from the tile.
+  std::vector<float> export_tile_layers(TileIndex t) const;
 
  private:
   struct BayesCell;
@@ -158,6 +161,8 @@ class OccupancyGrid {
   void check_growth(std::int64_t tx0, std::int64_t ty0, std::int64_t tx1, std::int64_t ty1) const;
   Tile* tile_for_write(std::int64_t tx, std::int64_t ty);
   const Tile* find_tile(std::int64_t tx, std::int64_t ty) const;
+  /// Cell i of `tile` in `layer`, NaN when unknown there.
+  static float layer_value(const Tile& tile, std::size_t i, Layer layer);
   /// The tile holding c and c's index in it, or nullptr.
   std::pair<const Tile*, std::size_t> locate(CellIndex c) const;
 

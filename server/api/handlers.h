@@ -11,6 +11,7 @@
 #include "server/api/map_cache.h"
 #include "server/api/request.h"
 #include "server/service/world_port.h"
+#include "server/shm/shared_map_export.h"
 
 namespace wm::api {
 
@@ -22,6 +23,7 @@ struct Call {
   const ApiOptions& options;
   service::WorldPort& world;
   MapCache& map_cache;
+  const shm::SharedMapExport* shm = nullptr;  // nullptr when wmd runs with --no-shm
 };
 
 using Handler = Response (*)(const Call&);
@@ -60,6 +62,8 @@ Response get_grid_map_yaml(const Call& call);
 Response get_grid_map_pgm(const Call& call);
 Response get_grid_tiles(const Call& call);  // GET /api/v1/grid/tiles: the tiles and their revisions
 Response get_grid_tile(const Call& call);   // GET /api/v1/grid/tiles/{layer}/{tx}/{ty}: one tile, float32
+// handlers/shm.cpp
+Response get_shm(const Call& call);  // GET /api/v1/shm: the shared-memory segment's name and layout
 Response post_grid_extract(const Call& call);
 // handlers/rules.cpp, query.cpp, decisions.cpp, reports.cpp
 Response get_rules(const Call& call);

@@ -27,7 +27,7 @@ Response dispatch(const Request& request, Services& services) {
   const Target target = parse_target(target_of(request));
   if (const auto match = find_route(request.method(), target.path)) {
     return match->route->handler(
-        Call{request, target, match->param, services.options, services.world, *services.map_cache});
+        Call{request, target, match->param, services.options, services.world, *services.map_cache, services.shm});
   }
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");

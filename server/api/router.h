@@ -9,6 +9,7 @@
 #include "server/api/map_cache.h"
 #include "server/api/response.h"
 #include "server/service/world_port.h"
+#include "server/shm/shared_map_export.h"
 
 namespace wm::api {
 
@@ -17,6 +18,7 @@ struct Services {
   ApiOptions options;
   service::WorldPort& world;
   std::shared_ptr<MapCache> map_cache = std::make_shared<MapCache>();  // the map's bytes per version
+  const shm::SharedMapExport* shm = nullptr;                           // the shared-memory export, when on
 };
 
 /// The lane of the request's route (server/api/routes.cpp); a request no route answers (404, 405) is answered

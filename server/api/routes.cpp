@@ -48,6 +48,7 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1/grid/map.pgm", get_grid_map_pgm, Lane::read, "?bbox=x0,y0,x1,y1"},
     Route{verb::get, "/api/v1/grid/tiles", get_grid_tiles, Lane::read},
     Route{verb::get, "/api/v1/grid/tiles/{layer}/{tx}/{ty}", get_grid_tile, Lane::read},
+    Route{verb::get, "/api/v1/shm", get_shm, Lane::read},
     Route{verb::get, "/api/v1/events", get_events_without_upgrade, Lane::immediate, "?token=TOKEN", true},
     Route{verb::get, "/web/{path}", get_static, Lane::read},
 };

@@ -82,6 +82,10 @@ std::string usage() {
          "  --rule-inferences N    inference limit per decision and query (default 200000)\n"
          "  --rule-time-limit S    time limit per decision and query [s] (default 1)\n"
          "  --sync normal|full     SQLite synchronous mode (default full: durable across power loss)\n"
+         "  --no-shm               do not export the grid and the map to shared memory (GET /api/v1/shm)\n"
+         "  --shm-max-mb N         largest shared memory segment [MB] (default 1024; never more than half of\n"
+         "                         /dev/shm's free space)\n"
+         "  --shm-period-ms N      copy changes into shared memory every N ms (default 20)\n"
          "  --help                 this text\n";
 }
 
@@ -109,6 +113,10 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     }
     if (flag == "--no-scan-lines") {
       c.service.extract_scan_lines = false;
+      continue;
+    }
+    if (flag == "--no-shm") {
+      c.shm.enabled = false;
       continue;
     }
     if (flag == "--insecure-no-token") {
@@ -192,6 +200,10 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.service.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
     else if (flag == "--usable-range")
       c.service.grid.sensor.max_usable_range_m = parse_number<double>(flag, value, 0.1, 1000.0);
+    else if (flag == "--shm-max-mb")
+      c.shm.max_bytes = parse_number<std::uint64_t>(flag, value, 1, 1'048'576) << 20;
+    else if (flag == "--shm-period-ms")
+      c.shm.period = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 1, 10'000));
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";

@@ -10,6 +10,7 @@
 #include "server/api/router.h"
 #include "server/http/http_server.h"
 #include "server/service/world_service.h"
+#include "server/shm/shared_map_export.h"
 #include "server/storage/store.h"
 
 namespace wm::config {
@@ -27,6 +28,7 @@ struct ServerConfig {
   service::ServiceOptions service;
   api::ApiOptions api;
   http::HttpOptions http;
+  shm::ShmOptions shm;
   std::optional<std::filesystem::path> floor_plan_file;  // loaded at start (demo), replacing the stored plan
   bool help = false;
   bool print_network = false;

@@ -187,6 +187,9 @@ class WorldPort {
   /// One tile of a layer with its revision, read under one lock; nullopt for a tile never touched.
   virtual std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
                                                   std::int64_t ty) const = 0;
+  /// Every layer of one tile, in Layer order (tile_size² values each, one after the other), read under one lock so
+  /// all four are of one revision; nullopt for a tile never touched.
+  virtual std::optional<GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const = 0;
   /// The processing network the writes run on: components, ports, queue depths, activity.
   virtual pipeline::NetworkStats network_stats() const = 0;
   /// What left the map after version `since` up to version `up_to` (a snapshot's), nullopt when the service no

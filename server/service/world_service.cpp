@@ -603,6 +603,14 @@ std::optional<GridTileValues> WorldService::grid_tile(fusion::OccupancyGrid::Lay
   });
 }
 
+std::optional<GridTileValues> WorldService::grid_tile_layers(std::int64_t tx, std::int64_t ty) const {
+  return read_grid([&](const fusion::OccupancyGrid& grid) -> std::optional<GridTileValues> {
+    const auto revision = grid.tile_revision({tx, ty});
+    if (revision == 0) return std::nullopt;
+    return GridTileValues{grid.export_tile_layers({tx, ty}), revision};
+  });
+}
+
 }  // namespace wm::service
 
 namespace wm::service {

@@ -161,6 +161,7 @@ class WorldService final : public WorldPort {
   std::optional<fusion::GridGeometry> grid_bounds() const override;
   GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const override;
   GridTiles grid_tiles() const override;
+  std::optional<GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override;
   std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
                                           std::int64_t ty) const override;
   /// Scans in the grid: the journal sequence of the last one inserted.

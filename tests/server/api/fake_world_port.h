@@ -155,6 +155,11 @@ class FakeWorldPort final : public service::WorldPort {
     return service::GridTileValues{the_grid().export_layer(layer, the_grid().tiles_geometry({tx, ty}, {tx, ty})),
                                    revision};
   }
+  std::optional<service::GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override {
+    const auto revision = the_grid().tile_revision({tx, ty});
+    if (revision == 0) return std::nullopt;
+    return service::GridTileValues{the_grid().export_tile_layers({tx, ty}), revision};
+  }
   pipeline::NetworkStats network_stats() const override {
     pipeline::NetworkStats stats;
     stats.source = "fake.yaml";

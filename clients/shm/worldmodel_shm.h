@@ -1,0 +1,395 @@
+// worldmodel_shm.h: the layout of wmd's shared-memory export, and a reader for it. Header-only, C++17, POSIX
+// (shm_open, mmap); no dependency beyond the standard library. wmd writes the segment with the same structs.
+//
+// The segment (docs/shm.md has the byte table):
+//   [0, 4096)             SegmentHeader
+//   [tiles_offset, ...)   tile_capacity slots of slot_bytes: TileSlotHeader, then 4 layers of T² float32 each
+//                         (bayes, ds_belief, ds_plausibility, ds_conflict; row-major from the tile's lower-left
+//                         cell, NaN = never observed), the same values as GET /api/v1/grid/tiles/{layer}/{tx}/{ty}
+//   [map_offset, ...)     MapHeader, then element_count ElementRecord, object_count ObjectRecord, edge_count
+//                         EdgeRecord
+//
+// Consistency: every tile slot, and the map as a whole, carries a sequence counter (a seqlock). The writer makes it
+// odd, writes, and makes it even again; a reader copies, then checks that the counter was even and unchanged, and
+// copies again otherwise. The writer never waits for a reader, and a reader that stalls or dies holds nothing.
+// Slots are only appended: a slot's (tx, ty) never changes once tile_count counts it.
+//
+// Typical use:
+//   worldmodel::shm::Reader reader(name);   // name from GET /api/v1/shm, e.g. "wm-0b5c…"
+//   auto layer = reader.read_layer(worldmodel::shm::Layer::bayes);
+//   auto map = reader.read_map();
+#pragma once
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cerrno>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace worldmodel::shm {
+
+inline constexpr char kMagic[8] = {'W', 'M', 'S', 'H', 'M', '0', '1', '\0'};
+inline constexpr std::uint32_t kLayoutVersion = 1;
+inline constexpr std::uint64_t kHeaderBytes = 4096;
+inline constexpr std::uint32_t kLayerCount = 4;
+/// Segment names: this prefix and a UUID ("wm-0b5c2f9e-…"); the file is /dev/shm/<name> on Linux.
+inline constexpr char kNamePrefix[] = "wm-";
+
+/// The grid layers, in slot order; the names are those of GET /api/v1/grid?layer=.
+enum class Layer : std::uint32_t { bayes = 0, ds_belief = 1, ds_plausibility = 2, ds_conflict = 3 };
+inline const char* layer_name(Layer layer) {
+  static const char* const names[kLayerCount] = {"bayes", "ds_belief", "ds_plausibility", "ds_conflict"};
+  return names[static_cast<std::uint32_t>(layer)];
+}
+
+enum class SegmentState : std::uint32_t {
+  live = 0,     // the server writes it
+  retired = 1,  // the server moved to a larger segment: `successor` names it
+  stopped = 2,  // the server stopped cleanly; the content is its last state
+};
+
+/// Bits of SegmentHeader::truncated: what did not fit under the server's size cap (--shm-max-mb, /dev/shm's room).
+inline constexpr std::uint32_t kTilesTruncated = 1;
+inline constexpr std::uint32_t kMapTruncated = 2;
+
+static_assert(std::atomic<std::uint64_t>::is_always_lock_free && std::atomic<std::uint32_t>::is_always_lock_free &&
+                  std::atomic<std::int64_t>::is_always_lock_free,
+              "the segment's counters must be lock-free atomics to be shared between processes");
+
+struct SegmentHeader {
+  char magic[8];                             // kMagic
+  std::uint32_t layout_version;              // kLayoutVersion
+  std::uint32_t header_bytes;                // kHeaderBytes
+  std::atomic<std::uint32_t> state;          // SegmentState
+  std::atomic<std::uint32_t> truncated;      // kTilesTruncated | kMapTruncated
+  std::int64_t owner_pid;                    // the wmd process
+  std::uint64_t owner_start_ticks;           // its start time (/proc/<pid>/stat field 22): tells a reused pid
+  char server_instance[48];                  // the run's token, as in GET /api/v1/map's server_instance
+  char successor[64];                        // when retired: the next segment's name (NUL-terminated)
+  std::int64_t tile_size_cells;              // T
+  double resolution_m;                       // cell side
+  std::uint32_t layer_count;                 // kLayerCount
+  std::uint32_t reserved0;
+  std::uint64_t slot_bytes;                  // one tile slot: TileSlotHeader + 4·T² floats, rounded up to 64
+  std::uint64_t tiles_offset;                // first slot, from the segment's start
+  std::uint64_t tile_capacity;               // slots
+  std::atomic<std::uint64_t> tile_count;     // slots in use; a slot is whole before it is counted
+  std::atomic<std::uint64_t> grid_revision;  // scans in the grid; every tile is at least this new
+  std::uint64_t map_offset;                  // the MapHeader
+  std::uint64_t map_capacity_bytes;          // MapHeader and records
+  std::atomic<std::int64_t> updated_unix_ns; // the end of the server's last pass
+  std::uint64_t segment_bytes;               // the whole segment
+};
+
+struct TileSlotHeader {
+  std::atomic<std::uint64_t> sequence;  // odd while the writer changes the slot
+  std::int64_t tx;                      // tile (tx, ty) holds cells [tx·T, (tx+1)·T) × [ty·T, (ty+1)·T)
+  std::int64_t ty;
+  std::uint64_t revision;  // the tile's revision (as GET /api/v1/grid/tiles lists it), under the sequence
+  std::uint64_t reserved[4];
+};
+
+struct MapHeader {
+  std::atomic<std::uint64_t> sequence;  // odd while the writer changes the map
+  std::int64_t version;                 // the map version (GET /api/v1/map's "version")
+  std::uint64_t element_count;
+  std::uint64_t object_count;
+  std::uint64_t edge_count;
+  std::uint64_t reserved[3];
+};
+
+/// An observed element ("e<number>"), a segment the floor plan does not explain.
+struct ElementRecord {
+  std::int64_t number;
+  double x1, y1, x2, y2;  // world frame [m]
+  std::int64_t support;   // observations fused into it
+  std::int64_t updated_version;
+  std::uint32_t origin;  // 0 client, 1 scan, 2 grid, 3 other
+  std::uint32_t reserved;
+};
+
+/// A CAD object of the floor plan, as placed and posed now.
+struct ObjectRecord {
+  double x, y, theta;        // pose in the world [m, m, rad]
+  std::uint32_t first_edge;  // its edges are edges[first_edge, first_edge + edge_count)
+  std::uint32_t edge_count;
+  std::uint32_t flags;      // 1 solid, 2 not_deformable, 4 id truncated to 127 bytes
+  std::uint32_t id_length;  // bytes of id used
+  char id[128];             // not NUL-terminated when 128 long
+  char kind[24];            // NUL-padded, truncated
+};
+inline constexpr std::uint32_t kObjectSolid = 1;
+inline constexpr std::uint32_t kObjectNotDeformable = 2;
+inline constexpr std::uint32_t kObjectIdTruncated = 4;
+
+/// One edge of a CAD object in the world frame.
+struct EdgeRecord {
+  double x1, y1, x2, y2;
+  std::uint32_t object_index;  // into the objects
+  std::uint32_t edge_index;    // within its object
+  std::uint64_t reserved;
+};
+
+static_assert(sizeof(TileSlotHeader) == 64 && sizeof(MapHeader) == 64 && sizeof(ElementRecord) == 64 &&
+                  sizeof(ObjectRecord) == 192 && sizeof(EdgeRecord) == 48 && sizeof(SegmentHeader) <= kHeaderBytes,
+              "the segment layout is fixed: docs/shm.md");
+static_assert(offsetof(SegmentHeader, state) == 16 && offsetof(SegmentHeader, owner_pid) == 24 &&
+                  offsetof(SegmentHeader, server_instance) == 40 && offsetof(SegmentHeader, successor) == 88 &&
+                  offsetof(SegmentHeader, tile_size_cells) == 152 && offsetof(SegmentHeader, slot_bytes) == 176 &&
+                  offsetof(SegmentHeader, tile_count) == 200 && offsetof(SegmentHeader, grid_revision) == 208 &&
+                  offsetof(SegmentHeader, map_offset) == 216 && offsetof(SegmentHeader, updated_unix_ns) == 232 &&
+                  offsetof(SegmentHeader, segment_bytes) == 240,
+              "the segment layout is fixed: docs/shm.md");
+
+/// Bytes of one tile slot for tiles of `tile_size_cells`.
+inline std::uint64_t slot_bytes_for(std::int64_t tile_size_cells) {
+  const auto bytes = sizeof(TileSlotHeader) + kLayerCount * static_cast<std::uint64_t>(tile_size_cells) *
+                                                  static_cast<std::uint64_t>(tile_size_cells) * sizeof(float);
+  return (bytes + 63) / 64 * 64;
+}
+
+/// Thrown for a segment that cannot be opened or does not hold the expected layout, and for a slot or map that
+/// stays in an update far longer than any write takes (a writer that died mid-write).
+class Error : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A read-only mapping of one segment. Every read copies out under the seqlock, so the values returned are one
+/// whole state of the tile (or the map), never a mix of two.
+class Reader {
+ public:
+  struct TileKey {
+    std::int64_t tx = 0;
+    std::int64_t ty = 0;
+  };
+  /// A layer over the smallest block of tiles holding every exported one (the region GET /api/v1/grid answers
+  /// without a bbox): cell (col, row) is values[row·width + col], row 0 at the bottom; its lower-left corner is at
+  /// ((x0_cells + col)·resolution, (y0_cells + row)·resolution).
+  struct Dense {
+    std::int64_t x0_cells = 0;
+    std::int64_t y0_cells = 0;
+    std::int64_t width = 0;
+    std::int64_t height = 0;
+    double resolution_m = 0;
+    std::uint64_t grid_revision = 0;  // every tile read is at least this new
+    std::vector<float> values;
+  };
+  struct Map {
+    std::int64_t version = 0;
+    std::vector<ElementRecord> elements;
+    std::vector<ObjectRecord> objects;
+    std::vector<EdgeRecord> edges;
+  };
+
+  /// Opens "wm-<uuid>" (or "/dev/shm/wm-<uuid>"). @throw Error when it does not exist, cannot be mapped, or is not
+  /// a worldmodel segment of this layout version.
+  explicit Reader(std::string name) : name_(strip(std::move(name))) {
+    const int fd = ::shm_open(("/" + name_).c_str(), O_RDONLY, 0);
+    if (fd < 0) throw Error("cannot open shared memory '" + name_ + "': " + std::strerror(errno));
+    struct stat info {};
+    if (::fstat(fd, &info) != 0 || info.st_size < static_cast<off_t>(kHeaderBytes)) {
+      ::close(fd);
+      throw Error("shared memory '" + name_ + "' is too small to be a worldmodel segment");
+    }
+    size_ = static_cast<std::size_t>(info.st_size);
+    void* base = ::mmap(nullptr, size_, PROT_READ, MAP_SHARED, fd, 0);
+    ::close(fd);  // the mapping stays valid (and so does the memory, even after the server unlinks the name)
+    if (base == MAP_FAILED) throw Error("cannot map '" + name_ + "': " + std::strerror(errno));
+    base_ = static_cast<const unsigned char*>(base);
+    const auto& h = header();
+    if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0 || h.layout_version != kLayoutVersion ||
+        h.layer_count != kLayerCount || h.segment_bytes > size_ || h.tiles_offset + h.tile_capacity * h.slot_bytes > size_ ||
+        h.map_offset + h.map_capacity_bytes > size_ || h.slot_bytes < slot_bytes_for(h.tile_size_cells)) {
+      release();
+      throw Error("'" + name_ + "' is not a worldmodel segment of layout version " + std::to_string(kLayoutVersion));
+    }
+  }
+  ~Reader() { release(); }
+  Reader(const Reader&) = delete;
+  Reader& operator=(const Reader&) = delete;
+  Reader(Reader&& other) noexcept : name_(std::move(other.name_)), base_(other.base_), size_(other.size_) {
+    other.base_ = nullptr;
+  }
+  Reader& operator=(Reader&& other) noexcept {
+    if (this != &other) {
+      release();
+      name_ = std::move(other.name_);
+      base_ = other.base_;
+      size_ = other.size_;
+      other.base_ = nullptr;
+    }
+    return *this;
+  }
+
+  const std::string& name() const { return name_; }
+  const SegmentHeader& header() const { return *reinterpret_cast<const SegmentHeader*>(base_); }
+  SegmentState state() const { return static_cast<SegmentState>(header().state.load(std::memory_order_acquire)); }
+  /// The segment that replaced this one (state() == retired), else nullopt. Open it to keep reading.
+  std::optional<std::string> successor() const {
+    if (state() != SegmentState::retired) return std::nullopt;
+    const auto& s = header().successor;
+    return std::string(s, strnlen(s, sizeof s));
+  }
+  std::int64_t tile_size_cells() const { return header().tile_size_cells; }
+  double resolution_m() const { return header().resolution_m; }
+  std::uint64_t grid_revision() const { return header().grid_revision.load(std::memory_order_acquire); }
+  std::size_t tile_count() const {
+    const auto count = header().tile_count.load(std::memory_order_acquire);
+    return static_cast<std::size_t>(count < header().tile_capacity ? count : header().tile_capacity);
+  }
+  /// The tile in slot `slot` (< tile_count()).
+  TileKey tile_key(std::size_t slot) const {
+    const auto& s = slot_header(slot);
+    return {s.tx, s.ty};
+  }
+
+  /// Copies one layer of slot `slot` into out[0 .. T²) and returns the tile's revision.
+  std::uint64_t read_tile(std::size_t slot, Layer layer, float* out) const {
+    const auto cells = cells_per_tile();
+    return read_slot(slot, static_cast<std::size_t>(layer) * cells, cells, out);
+  }
+  /// Copies all four layers of slot `slot` (layer by layer, T² each) into out[0 .. 4·T²); one revision for all.
+  std::uint64_t read_tile_layers(std::size_t slot, float* out) const {
+    return read_slot(slot, 0, kLayerCount * cells_per_tile(), out);
+  }
+
+  Dense read_layer(Layer layer) const {
+    Dense dense;
+    dense.resolution_m = resolution_m();
+    dense.grid_revision = grid_revision();  // before the tiles: each is at least this new
+    const auto count = tile_count();
+    if (count == 0) return dense;
+    const std::int64_t t = tile_size_cells();
+    auto min_x = std::numeric_limits<std::int64_t>::max(), min_y = min_x;
+    auto max_x = std::numeric_limits<std::int64_t>::min(), max_y = max_x;
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto key = tile_key(i);
+      min_x = key.tx < min_x ? key.tx : min_x;
+      min_y = key.ty < min_y ? key.ty : min_y;
+      max_x = key.tx > max_x ? key.tx : max_x;
+      max_y = key.ty > max_y ? key.ty : max_y;
+    }
+    dense.x0_cells = min_x * t;
+    dense.y0_cells = min_y * t;
+    dense.width = (max_x - min_x + 1) * t;
+    dense.height = (max_y - min_y + 1) * t;
+    dense.values.assign(static_cast<std::size_t>(dense.width * dense.height), std::nanf(""));
+    std::vector<float> tile(cells_per_tile());
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto key = tile_key(i);
+      read_tile(i, layer, tile.data());
+      const auto col = (key.tx - min_x) * t;
+      for (std::int64_t row = 0; row < t; ++row) {
+        const auto dense_row = (key.ty - min_y) * t + row;
+        std::memcpy(&dense.values[static_cast<std::size_t>(dense_row * dense.width + col)],
+                    &tile[static_cast<std::size_t>(row * t)], static_cast<std::size_t>(t) * sizeof(float));
+      }
+    }
+    return dense;
+  }
+
+  /// A copy of the vector map, one version of it.
+  Map read_map() const {
+    const auto& h = header();
+    const auto* map = reinterpret_cast<const MapHeader*>(base_ + h.map_offset);
+    const auto* records = base_ + h.map_offset + sizeof(MapHeader);
+    Map result;
+    for (Backoff backoff("the map");; backoff.wait()) {
+      const auto before = map->sequence.load(std::memory_order_acquire);
+      if (before % 2 == 0) {
+        result.version = map->version;
+        const std::uint64_t elements = map->element_count, objects = map->object_count, edges = map->edge_count;
+        const auto bytes =
+            elements * sizeof(ElementRecord) + objects * sizeof(ObjectRecord) + edges * sizeof(EdgeRecord);
+        // Counts read mid-update may be garbage: copy only what the region can hold, and check afterwards.
+        const auto room = h.map_capacity_bytes - sizeof(MapHeader);
+        if (elements <= room / sizeof(ElementRecord) && objects <= room / sizeof(ObjectRecord) &&
+            edges <= room / sizeof(EdgeRecord) && bytes <= room) {
+          result.elements.resize(elements);
+          result.objects.resize(objects);
+          result.edges.resize(edges);
+          std::memcpy(result.elements.data(), records, elements * sizeof(ElementRecord));
+          std::memcpy(result.objects.data(), records + elements * sizeof(ElementRecord), objects * sizeof(ObjectRecord));
+          std::memcpy(result.edges.data(),
+                      records + elements * sizeof(ElementRecord) + objects * sizeof(ObjectRecord),
+                      edges * sizeof(EdgeRecord));
+          std::atomic_thread_fence(std::memory_order_acquire);
+          if (map->sequence.load(std::memory_order_relaxed) == before) return result;
+        }
+      }
+    }
+  }
+
+ private:
+  static std::string strip(std::string name) {
+    const std::string dir = "/dev/shm/";
+    if (name.rfind(dir, 0) == 0) name.erase(0, dir.size());
+    if (!name.empty() && name.front() == '/') name.erase(0, 1);
+    return name;
+  }
+  void release() {
+    if (base_ != nullptr) ::munmap(const_cast<unsigned char*>(base_), size_);
+    base_ = nullptr;
+  }
+  std::size_t cells_per_tile() const {
+    return static_cast<std::size_t>(tile_size_cells()) * static_cast<std::size_t>(tile_size_cells());
+  }
+  const TileSlotHeader& slot_header(std::size_t slot) const {
+    if (slot >= tile_count()) throw std::out_of_range("no tile slot " + std::to_string(slot));
+    return *reinterpret_cast<const TileSlotHeader*>(base_ + header().tiles_offset + slot * header().slot_bytes);
+  }
+  // Seqlock read (Boehm, "Can seqlocks get along with programming language memory models?", 2012): the copy is
+  // bracketed by an acquire load of the counter and an acquire fence before its second load.
+  std::uint64_t read_slot(std::size_t slot, std::size_t first_value, std::size_t values, float* out) const {
+    const auto& s = slot_header(slot);
+    const auto* data = reinterpret_cast<const float*>(reinterpret_cast<const unsigned char*>(&s) + sizeof(TileSlotHeader));
+    for (Backoff backoff("tile slot " + std::to_string(slot));; backoff.wait()) {
+      const auto before = s.sequence.load(std::memory_order_acquire);
+      if (before % 2 == 0) {
+        const auto revision = s.revision;
+        std::memcpy(out, data + first_value, values * sizeof(float));
+        std::atomic_thread_fence(std::memory_order_acquire);
+        if (s.sequence.load(std::memory_order_relaxed) == before) return revision;
+      }
+    }
+  }
+  // Retries spin a little, then yield. A write takes microseconds; a counter odd for two seconds means the writer
+  // died in the middle.
+  class Backoff {
+   public:
+    explicit Backoff(std::string what) : what_(std::move(what)) {}
+    void wait() {
+      if (++attempts_ < 64) return;
+      const auto now = std::chrono::steady_clock::now();
+      if (attempts_ == 64) since_ = now;
+      if (now - since_ > std::chrono::seconds(2))
+        throw Error(what_ + " stayed in an update for 2 s: has the server died mid-write?");
+      std::this_thread::yield();
+    }
+
+   private:
+    std::string what_;
+    std::uint64_t attempts_ = 0;
+    std::chrono::steady_clock::time_point since_{};
+  };
+
+  std::string name_;
+  const unsigned char* base_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+}  // namespace worldmodel::shm

@@ -1,0 +1,460 @@
+#include "server/shm/shared_map_export.h"
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
+#include <boost/interprocess/mapped_region.hpp>
+#include <boost/interprocess/shared_memory_object.hpp>
+#include <boost/uuid/uuid_generators.hpp>
+#include <boost/uuid/uuid_io.hpp>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <regex>
+#include <sstream>
+
+#include "clients/shm/worldmodel_shm.h"
+
+namespace wm::shm {
+namespace {
+
+namespace bip = boost::interprocess;
+namespace layout = worldmodel::shm;
+
+constexpr std::uint64_t kPage = 4096;
+constexpr std::uint64_t kMinTileBytes = std::uint64_t{4} << 20;  // a first segment's tiles: 64 tiles of 64²
+constexpr std::uint64_t kMinMapBytes = std::uint64_t{256} << 10;
+const char* const kShmDir = "/dev/shm";
+
+std::uint64_t round_up(std::uint64_t n, std::uint64_t to) { return (n + to - 1) / to * to; }
+
+std::int64_t unix_ns_now() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+/// A process as /proc/<pid>/stat tells it: its state letter (field 3) and its start time (field 22, clock ticks after
+/// boot). nullopt when unreadable (gone, or /proc not mounted).
+struct ProcessStat {
+  char state = '?';
+  std::uint64_t start_ticks = 0;
+};
+std::optional<ProcessStat> process_stat(std::int64_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto close = text.rfind(')');  // the command name may hold spaces and parentheses
+  if (close == std::string::npos) return std::nullopt;
+  std::istringstream fields(text.substr(close + 1));
+  ProcessStat stat;
+  std::string field;
+  if (!(fields >> stat.state)) return std::nullopt;
+  for (int i = 4; i <= 22; ++i)
+    if (!(fields >> field)) return std::nullopt;
+  try {
+    stat.start_ticks = std::stoull(field);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  return stat;
+}
+
+/// Whether the process that made a segment still runs: its pid exists, is no zombie (killed, not yet reaped), and
+/// started when the segment says (not a later process that got the pid again).
+bool process_alive(std::int64_t pid, std::uint64_t start_ticks) {
+  if (pid <= 0 || (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)) return false;
+  const auto stat = process_stat(pid);
+  if (!stat) return true;  // unreadable /proc: trust the pid
+  return stat->state != 'Z' && stat->state != 'X' && stat->start_ticks == start_ticks;
+}
+
+std::uint64_t free_shm_bytes() {
+  struct statvfs info {};
+  if (::statvfs(kShmDir, &info) != 0) return 0;
+  return static_cast<std::uint64_t>(info.f_bavail) * info.f_frsize;
+}
+
+void copy_text(char* to, std::size_t size, const std::string& text) {
+  std::memset(to, 0, size);
+  std::memcpy(to, text.data(), std::min(text.size(), size - 1));
+}
+
+std::uint32_t origin_code(const std::string& origin) {
+  if (origin == "client") return 0;
+  if (origin == "scan") return 1;
+  if (origin == "grid") return 2;
+  return 3;
+}
+
+}  // namespace
+
+/// One segment this process made: created, its pages reserved, mapped read-write.
+class SharedMapExport::Segment {
+ public:
+  Segment(std::string name, std::uint64_t bytes) : name_(std::move(name)) {
+    bip::permissions permissions;
+    permissions.set_permissions(0644);  // others may read, as they may GET the map over loopback
+    object_ = bip::shared_memory_object(bip::create_only, name_.c_str(), bip::read_write, permissions);
+    try {
+      object_.truncate(static_cast<bip::offset_t>(bytes));
+      // tmpfs hands out pages on first write; a full /dev/shm would then kill the server with SIGBUS mid-copy.
+      // Reserving every page now turns that into an error here.
+      if (const int error = ::posix_fallocate(object_.get_mapping_handle().handle, 0, static_cast<off_t>(bytes)))
+        throw std::runtime_error("cannot reserve " + std::to_string(bytes >> 20) + " MB in /dev/shm: " +
+                                 std::strerror(error));
+      region_ = bip::mapped_region(object_, bip::read_write);
+    } catch (...) {
+      bip::shared_memory_object::remove(name_.c_str());
+      throw;
+    }
+  }
+  ~Segment() = default;
+
+  const std::string& name() const { return name_; }
+  std::uint64_t bytes() const { return region_.get_size(); }
+  unsigned char* base() { return static_cast<unsigned char*>(region_.get_address()); }
+  layout::SegmentHeader& header() { return *reinterpret_cast<layout::SegmentHeader*>(base()); }
+  layout::TileSlotHeader& slot(std::uint64_t index) {
+    return *reinterpret_cast<layout::TileSlotHeader*>(base() + header().tiles_offset + index * header().slot_bytes);
+  }
+  layout::MapHeader& map() { return *reinterpret_cast<layout::MapHeader*>(base() + header().map_offset); }
+  void unlink() { bip::shared_memory_object::remove(name_.c_str()); }
+
+ private:
+  std::string name_;
+  bip::shared_memory_object object_;
+  bip::mapped_region region_;
+};
+
+SharedMapExport::SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance)
+    : world_(world), options_(options), server_instance_(std::move(server_instance)) {
+  const auto tiles = world_.grid_tiles();
+  tile_size_cells_ = tiles.tile_size_cells;
+  resolution_m_ = tiles.resolution_m;
+  for (const auto& name : remove_stale_segments())
+    std::cerr << "wmd: removed shared memory " << name << " left by a server that is gone\n";
+  sync();
+  thread_ = std::thread([this] { run(); });
+}
+
+SharedMapExport::~SharedMapExport() {
+  {
+    std::lock_guard lock(wake_mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  std::lock_guard lock(mutex_);
+  if (segment_) {
+    segment_->header().state.store(static_cast<std::uint32_t>(layout::SegmentState::stopped),
+                                   std::memory_order_release);
+    segment_->unlink();
+  }
+}
+
+void SharedMapExport::run() {
+  std::unique_lock lock(wake_mutex_);
+  while (!wake_.wait_for(lock, options_.period, [this] { return stopping_; })) {
+    lock.unlock();
+    sync();
+    lock.lock();
+  }
+}
+
+void SharedMapExport::sync() {
+  std::lock_guard lock(mutex_);
+  try {
+    sync_locked();
+  } catch (const std::exception& e) {
+    // The service keeps serving HTTP; the next pass tries again. Said once per distinct reason.
+    if (error_ != e.what()) std::cerr << "wmd: shared memory export: " << e.what() << "\n";
+    error_ = e.what();
+  }
+}
+
+void SharedMapExport::sync_locked() {
+  const auto tiles = world_.grid_tiles();
+  const auto state = world_.snapshot();
+
+  // The map's records, made before any segment is touched, so its size is known.
+  std::vector<unsigned char> records;
+  std::uint64_t element_count = 0, object_count = 0, edge_count = 0;
+  const bool map_changed = state->version != map_version_;
+  if (map_changed) {
+    std::vector<layout::ElementRecord> elements;
+    elements.reserve(state->elements.size());
+    for (const auto& [number, element] : state->elements) {
+      const auto p0 = element.segment.p0(), p1 = element.segment.p1();
+      elements.push_back({number, p0.x(), p0.y(), p1.x(), p1.y(), element.support, element.updated_version,
+                          origin_code(element.origin), 0});
+    }
+    std::vector<layout::ObjectRecord> objects;
+    std::vector<layout::EdgeRecord> edges;
+    for (const auto& object : state->objects) {
+      layout::ObjectRecord record{};
+      const auto& pose = object.body.pose();
+      record.x = pose.x_m;
+      record.y = pose.y_m;
+      record.theta = pose.theta_rad;
+      record.first_edge = static_cast<std::uint32_t>(edges.size());
+      const auto world_edges = object.body.world_edges(Eigen::Matrix2d::Zero());
+      record.edge_count = static_cast<std::uint32_t>(world_edges.size());
+      const auto& id = object.plan->id;
+      record.flags = (object.plan->has_attribute("solid") ? layout::kObjectSolid : 0) |
+                     (object.plan->has_attribute("not_deformable") ? layout::kObjectNotDeformable : 0) |
+                     (id.size() > sizeof record.id ? layout::kObjectIdTruncated : 0);
+      record.id_length = static_cast<std::uint32_t>(std::min(id.size(), sizeof record.id));
+      std::memcpy(record.id, id.data(), record.id_length);
+      copy_text(record.kind, sizeof record.kind, object.plan->kind);
+      for (std::size_t k = 0; k < world_edges.size(); ++k) {
+        const auto a = world_edges[k].p0(), b = world_edges[k].p1();
+        edges.push_back({a.x(), a.y(), b.x(), b.y(), static_cast<std::uint32_t>(objects.size()),
+                         static_cast<std::uint32_t>(k), 0});
+      }
+      objects.push_back(record);
+    }
+    element_count = elements.size();
+    object_count = objects.size();
+    edge_count = edges.size();
+    const auto append = [&records](const auto& items) {
+      const auto* bytes = reinterpret_cast<const unsigned char*>(items.data());
+      records.insert(records.end(), bytes, bytes + items.size() * sizeof items[0]);
+    };
+    append(elements);
+    append(objects);
+    append(edges);
+    map_bytes_needed_ = sizeof(layout::MapHeader) + records.size();
+  }
+
+  const auto new_tiles = [&] {
+    std::uint64_t count = 0;
+    for (const auto& t : tiles.tiles) count += slots_.count({t.tx, t.ty}) == 0 ? 1 : 0;
+    return count;
+  }();
+  const auto tiles_needed = slots_.size() + new_tiles;
+  if (!segment_ || tiles_needed > segment_->header().tile_capacity ||
+      map_bytes_needed_ > segment_->header().map_capacity_bytes) {
+    if (!grow(tiles_needed, map_bytes_needed_) && !segment_) return;  // nothing fits at all: status() says why
+  }
+  auto& header = segment_->header();
+
+  bool tiles_truncated = false;
+  for (const auto& t : tiles.tiles) {
+    auto slot = slots_.find({t.tx, t.ty});
+    if (slot != slots_.end() && slot->second.revision == t.revision) continue;
+    const bool fresh = slot == slots_.end();
+    if (fresh && slots_.size() >= header.tile_capacity) {
+      tiles_truncated = true;
+      continue;
+    }
+    const auto values = world_.grid_tile_layers(t.tx, t.ty);  // may be newer than t.revision: never older
+    if (!values) continue;
+    if (fresh) slot = slots_.emplace(std::pair{t.tx, t.ty}, Slot{slots_.size(), 0}).first;
+    auto& target = segment_->slot(slot->second.index);
+    if (fresh) {
+      target.tx = t.tx;
+      target.ty = t.ty;
+    }
+    // Seqlock write: odd, a release fence, the data, even with release (docs/shm.md).
+    const auto sequence = target.sequence.load(std::memory_order_relaxed);
+    target.sequence.store(sequence + 1, std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_release);
+    target.revision = values->revision;
+    std::memcpy(reinterpret_cast<unsigned char*>(&target) + sizeof(layout::TileSlotHeader), values->values.data(),
+                values->values.size() * sizeof(float));
+    target.sequence.store(sequence + 2, std::memory_order_release);
+    if (fresh) header.tile_count.store(slots_.size(), std::memory_order_release);  // counted once whole
+    slot->second.revision = values->revision;
+  }
+
+  if (map_changed) {
+    // Objects and edges first when the map does not fit: the plan is bounded, the elements are what grows.
+    const auto room = header.map_capacity_bytes - sizeof(layout::MapHeader);
+    const auto plan_bytes =
+        object_count * sizeof(layout::ObjectRecord) + edge_count * sizeof(layout::EdgeRecord);
+    const auto element_bytes = element_count * sizeof(layout::ElementRecord);
+    bool map_truncated = false;
+    if (plan_bytes + element_bytes > room) {
+      map_truncated = true;
+      const auto kept = plan_bytes <= room ? (room - plan_bytes) / sizeof(layout::ElementRecord) : 0;
+      records.erase(records.begin() + static_cast<std::ptrdiff_t>(kept * sizeof(layout::ElementRecord)),
+                    records.begin() + static_cast<std::ptrdiff_t>(element_bytes));
+      element_count = kept;
+      if (plan_bytes > room) {
+        records.clear();
+        object_count = edge_count = 0;
+      }
+    }
+    write_map(records, state->version, element_count, object_count, edge_count);
+    map_version_ = state->version;
+    counts_.elements = element_count;
+    counts_.objects = object_count;
+    counts_.edges = edge_count;
+    counts_.map_complete = !map_truncated;
+  }
+  counts_.tiles_complete = !tiles_truncated;
+  header.truncated.store((tiles_truncated ? layout::kTilesTruncated : 0) |
+                             (counts_.map_complete ? 0 : layout::kMapTruncated),
+                         std::memory_order_release);
+  if (!tiles_truncated) header.grid_revision.store(static_cast<std::uint64_t>(tiles.revision), std::memory_order_release);
+  header.updated_unix_ns.store(unix_ns_now(), std::memory_order_release);
+  if (!tiles_truncated && counts_.map_complete) error_.clear();
+}
+
+void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::int64_t version,
+                                std::uint64_t elements, std::uint64_t objects, std::uint64_t edges) {
+  auto& map = segment_->map();
+  const auto sequence = map.sequence.load(std::memory_order_relaxed);
+  map.sequence.store(sequence + 1, std::memory_order_relaxed);
+  std::atomic_thread_fence(std::memory_order_release);
+  map.version = version;
+  map.element_count = elements;
+  map.object_count = objects;
+  map.edge_count = edges;
+  std::memcpy(reinterpret_cast<unsigned char*>(&map) + sizeof(layout::MapHeader), records.data(), records.size());
+  map.sequence.store(sequence + 2, std::memory_order_release);
+}
+
+bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
+  const auto slot_bytes = layout::slot_bytes_for(tile_size_cells_);
+  const std::uint64_t old_tiles = segment_ ? segment_->header().tile_capacity : 0;
+  const std::uint64_t old_map = segment_ ? segment_->header().map_capacity_bytes : 0;
+  // Half of what is free, plus half of the old segment, whose pages come back when it is unlinked (unless a reader
+  // still maps it).
+  const auto cap = std::min(options_.max_bytes, free_shm_bytes() / 2 + (segment_ ? segment_->bytes() / 2 : 0));
+  // Twice what is needed, so that growing stays rare; else what is needed; else what fits, never less than now.
+  auto tile_capacity = std::max(2 * tiles, std::max<std::uint64_t>(1, kMinTileBytes / slot_bytes));
+  auto map_capacity = round_up(std::max(2 * map_bytes, kMinMapBytes), kPage);
+  const auto bytes_for = [&] { return layout::kHeaderBytes + tile_capacity * slot_bytes + map_capacity; };
+  if (bytes_for() > cap) {
+    tile_capacity = std::max(tiles, old_tiles);
+    map_capacity = round_up(std::max(map_bytes, std::max(old_map, kMinMapBytes)), kPage);
+  }
+  if (bytes_for() > cap) {
+    const auto room = cap > layout::kHeaderBytes ? cap - layout::kHeaderBytes : 0;
+    map_capacity = std::max(std::max(old_map, kMinMapBytes),
+                            std::min(map_capacity, (room > old_tiles * slot_bytes ? room - old_tiles * slot_bytes : 0) /
+                                                       kPage * kPage));
+    tile_capacity = std::max(old_tiles, room > map_capacity ? (room - map_capacity) / slot_bytes : 0);
+    if (bytes_for() > cap || (tile_capacity == old_tiles && map_capacity == old_map)) {
+      if (!segment_)
+        error_ = "the shared memory segment would need " + std::to_string((bytes_for() + (1 << 20) - 1) >> 20) +
+                 " MB; the cap is " + std::to_string(cap >> 20) + " MB (--shm-max-mb, half of /dev/shm's free space)";
+      return false;  // keep the segment there is, and flag what is left out
+    }
+  }
+
+  const auto name = layout::kNamePrefix + boost::uuids::to_string(boost::uuids::random_generator()());
+  std::unique_ptr<Segment> next;
+  try {
+    next = std::make_unique<Segment>(name, bytes_for());
+  } catch (const std::exception& e) {
+    error_ = std::string("cannot make the shared memory segment: ") + e.what();
+    return false;  // keep the segment there is, and flag what is left out
+  }
+  auto& header = *new (next->base()) layout::SegmentHeader{};
+  std::memcpy(header.magic, layout::kMagic, sizeof header.magic);
+  header.layout_version = layout::kLayoutVersion;
+  header.header_bytes = layout::kHeaderBytes;
+  header.owner_pid = ::getpid();
+  header.owner_start_ticks = process_stat(::getpid()).value_or(ProcessStat{}).start_ticks;
+  copy_text(header.server_instance, sizeof header.server_instance, server_instance_);
+  header.tile_size_cells = tile_size_cells_;
+  header.resolution_m = resolution_m_;
+  header.layer_count = layout::kLayerCount;
+  header.slot_bytes = slot_bytes;
+  header.tiles_offset = layout::kHeaderBytes;
+  header.tile_capacity = tile_capacity;
+  header.map_offset = layout::kHeaderBytes + tile_capacity * slot_bytes;
+  header.map_capacity_bytes = map_capacity;
+  header.segment_bytes = next->bytes();
+  new (next->base() + header.map_offset) layout::MapHeader{};
+  if (segment_) {
+    // Only this thread writes, so the old slots and map are whole (their counters even) and copy as they are.
+    auto& old = segment_->header();
+    const auto used = slots_.size();
+    std::memcpy(next->base() + header.tiles_offset, segment_->base() + old.tiles_offset, used * slot_bytes);
+    std::memcpy(static_cast<void*>(&next->map()), &segment_->map(),
+                std::min(old.map_capacity_bytes, map_capacity));
+    header.tile_count.store(used, std::memory_order_relaxed);
+    header.grid_revision.store(old.grid_revision.load(), std::memory_order_relaxed);
+    header.truncated.store(old.truncated.load(), std::memory_order_relaxed);
+    header.updated_unix_ns.store(old.updated_unix_ns.load(), std::memory_order_relaxed);
+  }
+  header.state.store(static_cast<std::uint32_t>(layout::SegmentState::live), std::memory_order_release);
+  if (segment_) {
+    copy_text(segment_->header().successor, sizeof segment_->header().successor, name);
+    segment_->header().state.store(static_cast<std::uint32_t>(layout::SegmentState::retired),
+                                   std::memory_order_release);
+    segment_->unlink();
+  }
+  segment_ = std::move(next);
+  ++generation_;
+  return true;
+}
+
+ShmStatus SharedMapExport::status() const {
+  std::lock_guard lock(mutex_);
+  ShmStatus status = counts_;
+  status.period = options_.period;
+  status.generation = generation_;
+  status.tile_size_cells = tile_size_cells_;
+  status.resolution_m = resolution_m_;
+  status.map_version = map_version_;
+  if (!segment_) {
+    status.error = error_.empty() ? "the segment has not been made yet" : error_;
+    return status;
+  }
+  auto& segment = const_cast<Segment&>(*segment_);
+  const auto& header = segment.header();
+  status.available = true;
+  status.error = error_;
+  status.name = segment.name();
+  status.bytes = segment.bytes();
+  status.owner_pid = header.owner_pid;
+  status.tiles_offset = header.tiles_offset;
+  status.slot_bytes = header.slot_bytes;
+  status.tile_capacity = header.tile_capacity;
+  status.tile_count = header.tile_count.load();
+  status.map_offset = header.map_offset;
+  status.map_capacity_bytes = header.map_capacity_bytes;
+  status.grid_revision = header.grid_revision.load();
+  status.updated_unix_ns = header.updated_unix_ns.load();
+  return status;
+}
+
+std::vector<std::string> SharedMapExport::remove_stale_segments() {
+  static const std::regex ours("wm-[0-9a-f]{8}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{4}-[0-9a-f]{12}");
+  std::vector<std::string> removed;
+  DIR* dir = ::opendir(kShmDir);
+  if (dir == nullptr) return removed;
+  std::vector<std::string> names;
+  while (const dirent* entry = ::readdir(dir))
+    if (std::regex_match(entry->d_name, ours)) names.emplace_back(entry->d_name);
+  ::closedir(dir);
+  for (const auto& name : names) {
+    const auto path = std::string(kShmDir) + "/" + name;
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) continue;
+    layout::SegmentHeader header{};
+    struct stat info {};
+    const bool whole = ::fstat(fd, &info) == 0 &&
+                       ::pread(fd, &header, sizeof header, 0) == static_cast<ssize_t>(sizeof header);
+    ::close(fd);
+    bool stale = false;
+    if (whole && std::memcmp(header.magic, layout::kMagic, sizeof header.magic) == 0) {
+      stale = !process_alive(header.owner_pid, header.owner_start_ticks);
+    } else {
+      // Made but never filled: its maker died between creating and writing the header, or is doing so now.
+      stale = ::time(nullptr) - info.st_mtime > 60;
+    }
+    if (stale && ::shm_unlink(("/" + name).c_str()) == 0) removed.push_back(name);
+  }
+  return removed;
+}
+
+}  // namespace wm::shm
