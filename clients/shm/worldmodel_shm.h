@@ -26,8 +26,8 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <chrono>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -36,6 +36,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -70,28 +71,28 @@ static_assert(std::atomic<std::uint64_t>::is_always_lock_free && std::atomic<std
               "the segment's counters must be lock-free atomics to be shared between processes");
 
 struct SegmentHeader {
-  char magic[8];                             // kMagic
-  std::uint32_t layout_version;              // kLayoutVersion
-  std::uint32_t header_bytes;                // kHeaderBytes
-  std::atomic<std::uint32_t> state;          // SegmentState
-  std::atomic<std::uint32_t> truncated;      // kTilesTruncated | kMapTruncated
-  std::int64_t owner_pid;                    // the wmd process
-  std::uint64_t owner_start_ticks;           // its start time (/proc/<pid>/stat field 22): tells a reused pid
-  char server_instance[48];                  // the run's token, as in GET /api/v1/map's server_instance
-  char successor[64];                        // when retired: the next segment's name (NUL-terminated)
-  std::int64_t tile_size_cells;              // T
-  double resolution_m;                       // cell side
-  std::uint32_t layer_count;                 // kLayerCount
+  char magic[8];                         // kMagic
+  std::uint32_t layout_version;          // kLayoutVersion
+  std::uint32_t header_bytes;            // kHeaderBytes
+  std::atomic<std::uint32_t> state;      // SegmentState
+  std::atomic<std::uint32_t> truncated;  // kTilesTruncated | kMapTruncated
+  std::int64_t owner_pid;                // the wmd process
+  std::uint64_t owner_start_ticks;       // its start time (/proc/<pid>/stat field 22): tells a reused pid
+  char server_instance[48];              // the run's token, as in GET /api/v1/map's server_instance
+  char successor[64];                    // when retired: the next segment's name (NUL-terminated)
+  std::int64_t tile_size_cells;          // T
+  double resolution_m;                   // cell side
+  std::uint32_t layer_count;             // kLayerCount
   std::uint32_t reserved0;
-  std::uint64_t slot_bytes;                  // one tile slot: TileSlotHeader + 4·T² floats, rounded up to 64
-  std::uint64_t tiles_offset;                // first slot, from the segment's start
-  std::uint64_t tile_capacity;               // slots
-  std::atomic<std::uint64_t> tile_count;     // slots in use; a slot is whole before it is counted
-  std::atomic<std::uint64_t> grid_revision;  // scans in the grid; every tile is at least this new
-  std::uint64_t map_offset;                  // the MapHeader
-  std::uint64_t map_capacity_bytes;          // MapHeader and records
-  std::atomic<std::int64_t> updated_unix_ns; // the end of the server's last pass
-  std::uint64_t segment_bytes;               // the whole segment
+  std::uint64_t slot_bytes;                   // one tile slot: TileSlotHeader + 4·T² floats, rounded up to 64
+  std::uint64_t tiles_offset;                 // first slot, from the segment's start
+  std::uint64_t tile_capacity;                // slots
+  std::atomic<std::uint64_t> tile_count;      // slots in use; a slot is whole before it is counted
+  std::atomic<std::uint64_t> grid_revision;   // scans in the grid; every tile is at least this new
+  std::uint64_t map_offset;                   // the MapHeader
+  std::uint64_t map_capacity_bytes;           // MapHeader and records
+  std::atomic<std::int64_t> updated_unix_ns;  // the end of the server's last pass
+  std::uint64_t segment_bytes;                // the whole segment
 };
 
 struct TileSlotHeader {
@@ -126,7 +127,7 @@ struct ObjectRecord {
   double x, y, theta;        // pose in the world [m, m, rad]
   std::uint32_t first_edge;  // its edges are edges[first_edge, first_edge + edge_count)
   std::uint32_t edge_count;
-  std::uint32_t flags;      // 1 solid, 2 not_deformable, 4 id truncated to 127 bytes
+  std::uint32_t flags;      // 1 solid, 2 not_deformable, 4 id longer than 128 bytes, truncated
   std::uint32_t id_length;  // bytes of id used
   char id[128];             // not NUL-terminated when 128 long
   char kind[24];            // NUL-padded, truncated
@@ -210,10 +211,7 @@ class Reader {
     ::close(fd);  // the mapping stays valid (and so does the memory, even after the server unlinks the name)
     if (base == MAP_FAILED) throw Error("cannot map '" + name_ + "': " + std::strerror(errno));
     base_ = static_cast<const unsigned char*>(base);
-    const auto& h = header();
-    if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0 || h.layout_version != kLayoutVersion ||
-        h.layer_count != kLayerCount || h.segment_bytes > size_ || h.tiles_offset + h.tile_capacity * h.slot_bytes > size_ ||
-        h.map_offset + h.map_capacity_bytes > size_ || h.slot_bytes < slot_bytes_for(h.tile_size_cells)) {
+    if (!layout_fits(header(), size_)) {
       release();
       throw Error("'" + name_ + "' is not a worldmodel segment of layout version " + std::to_string(kLayoutVersion));
     }
@@ -242,7 +240,7 @@ class Reader {
   std::optional<std::string> successor() const {
     if (state() != SegmentState::retired) return std::nullopt;
     const auto& s = header().successor;
-    return std::string(s, strnlen(s, sizeof s));
+    return std::string(s, ::strnlen(s, sizeof s));
   }
   std::int64_t tile_size_cells() const { return header().tile_size_cells; }
   double resolution_m() const { return header().resolution_m; }
@@ -302,13 +300,25 @@ class Reader {
     return dense;
   }
 
+  /// The map's version, without copying the map (to poll for a change before read_map()).
+  std::int64_t map_version() const {
+    const auto* map = reinterpret_cast<const MapHeader*>(base_ + header().map_offset);
+    for (Backoff backoff("the map", 0);; backoff.wait()) {
+      const auto before = map->sequence.load(std::memory_order_acquire);
+      if (before % 2 != 0) continue;
+      const auto version = map->version;
+      std::atomic_thread_fence(std::memory_order_acquire);
+      if (map->sequence.load(std::memory_order_relaxed) == before) return version;
+    }
+  }
+
   /// A copy of the vector map, one version of it.
   Map read_map() const {
     const auto& h = header();
     const auto* map = reinterpret_cast<const MapHeader*>(base_ + h.map_offset);
     const auto* records = base_ + h.map_offset + sizeof(MapHeader);
     Map result;
-    for (Backoff backoff("the map");; backoff.wait()) {
+    for (Backoff backoff("the map", 0);; backoff.wait()) {
       const auto before = map->sequence.load(std::memory_order_acquire);
       if (before % 2 == 0) {
         result.version = map->version;
@@ -323,9 +333,9 @@ class Reader {
           result.objects.resize(objects);
           result.edges.resize(edges);
           std::memcpy(result.elements.data(), records, elements * sizeof(ElementRecord));
-          std::memcpy(result.objects.data(), records + elements * sizeof(ElementRecord), objects * sizeof(ObjectRecord));
-          std::memcpy(result.edges.data(),
-                      records + elements * sizeof(ElementRecord) + objects * sizeof(ObjectRecord),
+          std::memcpy(result.objects.data(), records + elements * sizeof(ElementRecord),
+                      objects * sizeof(ObjectRecord));
+          std::memcpy(result.edges.data(), records + elements * sizeof(ElementRecord) + objects * sizeof(ObjectRecord),
                       edges * sizeof(EdgeRecord));
           std::atomic_thread_fence(std::memory_order_acquire);
           if (map->sequence.load(std::memory_order_relaxed) == before) return result;
@@ -335,6 +345,19 @@ class Reader {
   }
 
  private:
+  // Any local user may put a "wm-…" file in /dev/shm: every size and offset is checked against the mapping, without
+  // overflow, before anything is read through it.
+  static bool layout_fits(const SegmentHeader& h, std::size_t size) {
+    if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0 || h.layout_version != kLayoutVersion ||
+        h.layer_count != kLayerCount || h.tile_size_cells < 1 || h.tile_size_cells > 1024 || h.segment_bytes > size)
+      return false;
+    if (h.tiles_offset % 64 != 0 || h.map_offset % 64 != 0 || h.slot_bytes % 64 != 0 ||
+        h.slot_bytes < slot_bytes_for(h.tile_size_cells) || h.tiles_offset < kHeaderBytes || h.tiles_offset > size ||
+        h.tile_capacity > (size - h.tiles_offset) / h.slot_bytes)
+      return false;
+    return h.map_offset <= size && h.map_capacity_bytes >= sizeof(MapHeader) &&
+           h.map_capacity_bytes <= size - h.map_offset;
+  }
   static std::string strip(std::string name) {
     const std::string dir = "/dev/shm/";
     if (name.rfind(dir, 0) == 0) name.erase(0, dir.size());
@@ -356,8 +379,9 @@ class Reader {
   // bracketed by an acquire load of the counter and an acquire fence before its second load.
   std::uint64_t read_slot(std::size_t slot, std::size_t first_value, std::size_t values, float* out) const {
     const auto& s = slot_header(slot);
-    const auto* data = reinterpret_cast<const float*>(reinterpret_cast<const unsigned char*>(&s) + sizeof(TileSlotHeader));
-    for (Backoff backoff("tile slot " + std::to_string(slot));; backoff.wait()) {
+    const auto* data =
+        reinterpret_cast<const float*>(reinterpret_cast<const unsigned char*>(&s) + sizeof(TileSlotHeader));
+    for (Backoff backoff("tile slot ", slot);; backoff.wait()) {
       const auto before = s.sequence.load(std::memory_order_acquire);
       if (before % 2 == 0) {
         const auto revision = s.revision;
@@ -371,18 +395,20 @@ class Reader {
   // died in the middle.
   class Backoff {
    public:
-    explicit Backoff(std::string what) : what_(std::move(what)) {}
+    Backoff(const char* what, std::size_t slot) : what_(what), slot_(slot) {}
     void wait() {
       if (++attempts_ < 64) return;
       const auto now = std::chrono::steady_clock::now();
       if (attempts_ == 64) since_ = now;
       if (now - since_ > std::chrono::seconds(2))
-        throw Error(what_ + " stayed in an update for 2 s: has the server died mid-write?");
+        throw Error(std::string(what_) + (what_.back() == ' ' ? std::to_string(slot_) : std::string()) +
+                    " stayed in an update for 2 s: has the server died mid-write?");
       std::this_thread::yield();
     }
 
    private:
-    std::string what_;
+    std::string_view what_;
+    std::size_t slot_;
     std::uint64_t attempts_ = 0;
     std::chrono::steady_clock::time_point since_{};
   };

@@ -52,11 +52,11 @@ int shm_check(const Invocation& in) {
     problems.push_back("the segment belongs to server run " + instance + ", the server is run " +
                        info.at("server_instance").get<std::string>());
   if (reader.state() != shm::SegmentState::live) problems.push_back("the segment is not live (retired or stopped)");
-  const auto age_ms = (std::chrono::duration_cast<std::chrono::nanoseconds>(
-                           std::chrono::system_clock::now().time_since_epoch())
-                           .count() -
-                       header.updated_unix_ns.load()) /
-                      1'000'000;
+  const auto age_ms =
+      (std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+           .count() -
+       header.updated_unix_ns.load()) /
+      1'000'000;
   const auto period_ms = info.at("period_ms").get<std::int64_t>();
   if (age_ms > std::max<std::int64_t>(1000, 10 * period_ms))
     problems.push_back("the exporter has not finished a pass for " + std::to_string(age_ms) + " ms");
@@ -76,8 +76,8 @@ int shm_check(const Invocation& in) {
       const auto answer = in.client.request("GET", "/api/v1/grid/tiles/" + std::string(shm::layer_name(layer)) + "/" +
                                                        std::to_string(key.tx) + "/" + std::to_string(key.ty));
       if (answer.status != 200) {
-        problems.push_back("tile (" + std::to_string(key.tx) + ", " + std::to_string(key.ty) + ") is in the segment but GET answers " +
-                           std::to_string(answer.status));
+        problems.push_back("tile (" + std::to_string(key.tx) + ", " + std::to_string(key.ty) +
+                           ") is in the segment but GET answers " + std::to_string(answer.status));
         break;
       }
       if (tile_revision(answer.etag) != revision) {

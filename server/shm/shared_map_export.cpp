@@ -104,8 +104,8 @@ class SharedMapExport::Segment {
       // tmpfs hands out pages on first write; a full /dev/shm would then kill the server with SIGBUS mid-copy.
       // Reserving every page now turns that into an error here.
       if (const int error = ::posix_fallocate(object_.get_mapping_handle().handle, 0, static_cast<off_t>(bytes)))
-        throw std::runtime_error("cannot reserve " + std::to_string(bytes >> 20) + " MB in /dev/shm: " +
-                                 std::strerror(error));
+        throw std::runtime_error("cannot reserve " + std::to_string(bytes >> 20) +
+                                 " MB in /dev/shm: " + std::strerror(error));
       region_ = bip::mapped_region(object_, bip::read_write);
     } catch (...) {
       bip::shared_memory_object::remove(name_.c_str());
@@ -167,13 +167,13 @@ void SharedMapExport::run() {
 
 void SharedMapExport::sync() {
   std::lock_guard lock(mutex_);
+  const auto before = error_;
   try {
     sync_locked();
   } catch (const std::exception& e) {
-    // The service keeps serving HTTP; the next pass tries again. Said once per distinct reason.
-    if (error_ != e.what()) std::cerr << "wmd: shared memory export: " << e.what() << "\n";
-    error_ = e.what();
+    error_ = e.what();  // the service keeps serving HTTP; the next pass tries again
   }
+  if (!error_.empty() && error_ != before) std::cerr << "wmd: shared memory export: " << error_ << "\n";
 }
 
 void SharedMapExport::sync_locked() {
@@ -212,8 +212,8 @@ void SharedMapExport::sync_locked() {
       copy_text(record.kind, sizeof record.kind, object.plan->kind);
       for (std::size_t k = 0; k < world_edges.size(); ++k) {
         const auto a = world_edges[k].p0(), b = world_edges[k].p1();
-        edges.push_back({a.x(), a.y(), b.x(), b.y(), static_cast<std::uint32_t>(objects.size()),
-                         static_cast<std::uint32_t>(k), 0});
+        edges.push_back(
+            {a.x(), a.y(), b.x(), b.y(), static_cast<std::uint32_t>(objects.size()), static_cast<std::uint32_t>(k), 0});
       }
       objects.push_back(record);
     }
@@ -274,8 +274,7 @@ void SharedMapExport::sync_locked() {
   if (map_changed) {
     // Objects and edges first when the map does not fit: the plan is bounded, the elements are what grows.
     const auto room = header.map_capacity_bytes - sizeof(layout::MapHeader);
-    const auto plan_bytes =
-        object_count * sizeof(layout::ObjectRecord) + edge_count * sizeof(layout::EdgeRecord);
+    const auto plan_bytes = object_count * sizeof(layout::ObjectRecord) + edge_count * sizeof(layout::EdgeRecord);
     const auto element_bytes = element_count * sizeof(layout::ElementRecord);
     bool map_truncated = false;
     if (plan_bytes + element_bytes > room) {
@@ -297,16 +296,20 @@ void SharedMapExport::sync_locked() {
     counts_.map_complete = !map_truncated;
   }
   counts_.tiles_complete = !tiles_truncated;
-  header.truncated.store((tiles_truncated ? layout::kTilesTruncated : 0) |
-                             (counts_.map_complete ? 0 : layout::kMapTruncated),
-                         std::memory_order_release);
-  if (!tiles_truncated) header.grid_revision.store(static_cast<std::uint64_t>(tiles.revision), std::memory_order_release);
+  header.truncated.store(
+      (tiles_truncated ? layout::kTilesTruncated : 0) | (counts_.map_complete ? 0 : layout::kMapTruncated),
+      std::memory_order_release);
+  if (!tiles_truncated)
+    header.grid_revision.store(static_cast<std::uint64_t>(tiles.revision), std::memory_order_release);
   header.updated_unix_ns.store(unix_ns_now(), std::memory_order_release);
-  if (!tiles_truncated && counts_.map_complete) error_.clear();
+  if (tiles_truncated || !counts_.map_complete)
+    error_ = full_message(tiles_needed, map_bytes_needed_, size_cap());
+  else
+    error_.clear();
 }
 
-void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::int64_t version,
-                                std::uint64_t elements, std::uint64_t objects, std::uint64_t edges) {
+void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::int64_t version, std::uint64_t elements,
+                                std::uint64_t objects, std::uint64_t edges) {
   auto& map = segment_->map();
   const auto sequence = map.sequence.load(std::memory_order_relaxed);
   map.sequence.store(sequence + 1, std::memory_order_relaxed);
@@ -319,13 +322,24 @@ void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::
   map.sequence.store(sequence + 2, std::memory_order_release);
 }
 
+std::uint64_t SharedMapExport::size_cap() const {
+  // Half of what is free, plus half of the segment there is, whose pages come back when it is unlinked (unless a
+  // reader still maps it).
+  return std::min(options_.max_bytes, free_shm_bytes() / 2 + (segment_ ? segment_->bytes() / 2 : 0));
+}
+
+std::string SharedMapExport::full_message(std::uint64_t tiles, std::uint64_t map_bytes, std::uint64_t cap) const {
+  const auto needed = layout::kHeaderBytes + tiles * layout::slot_bytes_for(tile_size_cells_) + map_bytes;
+  return std::to_string(tiles) + " tiles and the map need " + std::to_string((needed + (1 << 20) - 1) >> 20) +
+         " MB of shared memory; the cap is " + std::to_string(cap >> 20) +
+         " MB (--shm-max-mb, half of /dev/shm's free space): what does not fit is left out";
+}
+
 bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
   const auto slot_bytes = layout::slot_bytes_for(tile_size_cells_);
   const std::uint64_t old_tiles = segment_ ? segment_->header().tile_capacity : 0;
   const std::uint64_t old_map = segment_ ? segment_->header().map_capacity_bytes : 0;
-  // Half of what is free, plus half of the old segment, whose pages come back when it is unlinked (unless a reader
-  // still maps it).
-  const auto cap = std::min(options_.max_bytes, free_shm_bytes() / 2 + (segment_ ? segment_->bytes() / 2 : 0));
+  const auto cap = size_cap();
   // Twice what is needed, so that growing stays rare; else what is needed; else what fits, never less than now.
   auto tile_capacity = std::max(2 * tiles, std::max<std::uint64_t>(1, kMinTileBytes / slot_bytes));
   auto map_capacity = round_up(std::max(2 * map_bytes, kMinMapBytes), kPage);
@@ -336,15 +350,13 @@ bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
   }
   if (bytes_for() > cap) {
     const auto room = cap > layout::kHeaderBytes ? cap - layout::kHeaderBytes : 0;
-    map_capacity = std::max(std::max(old_map, kMinMapBytes),
-                            std::min(map_capacity, (room > old_tiles * slot_bytes ? room - old_tiles * slot_bytes : 0) /
-                                                       kPage * kPage));
+    map_capacity = std::max(
+        std::max(old_map, kMinMapBytes),
+        std::min(map_capacity, (room > old_tiles * slot_bytes ? room - old_tiles * slot_bytes : 0) / kPage * kPage));
     tile_capacity = std::max(old_tiles, room > map_capacity ? (room - map_capacity) / slot_bytes : 0);
     if (bytes_for() > cap || (tile_capacity == old_tiles && map_capacity == old_map)) {
-      if (!segment_)
-        error_ = "the shared memory segment would need " + std::to_string((bytes_for() + (1 << 20) - 1) >> 20) +
-                 " MB; the cap is " + std::to_string(cap >> 20) + " MB (--shm-max-mb, half of /dev/shm's free space)";
-      return false;  // keep the segment there is, and flag what is left out
+      if (!segment_) error_ = full_message(tiles, map_bytes, cap);
+      return false;  // keep the segment there is; sync_locked flags what is left out
     }
   }
 
@@ -378,8 +390,7 @@ bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
     auto& old = segment_->header();
     const auto used = slots_.size();
     std::memcpy(next->base() + header.tiles_offset, segment_->base() + old.tiles_offset, used * slot_bytes);
-    std::memcpy(static_cast<void*>(&next->map()), &segment_->map(),
-                std::min(old.map_capacity_bytes, map_capacity));
+    std::memcpy(static_cast<void*>(&next->map()), &segment_->map(), std::min(old.map_capacity_bytes, map_capacity));
     header.tile_count.store(used, std::memory_order_relaxed);
     header.grid_revision.store(old.grid_revision.load(), std::memory_order_relaxed);
     header.truncated.store(old.truncated.load(), std::memory_order_relaxed);
@@ -442,8 +453,8 @@ std::vector<std::string> SharedMapExport::remove_stale_segments() {
     if (fd < 0) continue;
     layout::SegmentHeader header{};
     struct stat info {};
-    const bool whole = ::fstat(fd, &info) == 0 &&
-                       ::pread(fd, &header, sizeof header, 0) == static_cast<ssize_t>(sizeof header);
+    const bool whole =
+        ::fstat(fd, &info) == 0 && ::pread(fd, &header, sizeof header, 0) == static_cast<ssize_t>(sizeof header);
     ::close(fd);
     bool stale = false;
     if (whole && std::memcmp(header.magic, layout::kMagic, sizeof header.magic) == 0) {

@@ -95,6 +95,9 @@ class SharedMapExport {
   /// Replaces the segment by one with room for `tiles` slots and `map_bytes` of map, within the size cap; false
   /// when that much does not fit (the segment stays).
   bool grow(std::uint64_t tiles, std::uint64_t map_bytes);
+  /// The largest segment allowed now [bytes].
+  std::uint64_t size_cap() const;
+  std::string full_message(std::uint64_t tiles, std::uint64_t map_bytes, std::uint64_t cap) const;
   void write_map(const std::vector<unsigned char>& records, std::int64_t version, std::uint64_t elements,
                  std::uint64_t objects, std::uint64_t edges);
 

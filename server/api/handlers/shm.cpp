@@ -39,8 +39,9 @@ Response get_shm(const Call& call) {
       {"grid_revision", s.grid_revision},
       {"period_ms", s.period.count()},
       {"updated_unix_ns", s.updated_unix_ns},
-      {"consistency", "a sequence counter (seqlock) per tile and one for the map: copy, then check it was even and "
-                      "unchanged (docs/shm.md)"}};
+      {"consistency",
+       "a sequence counter (seqlock) per tile and one for the map: copy, then check it was even and "
+       "unchanged (docs/shm.md)"}};
   if (!s.error.empty()) answer["warning"] = s.error;
   return json_response(call.request, answer);
 }

@@ -13,7 +13,7 @@
 
 namespace wm::testing {
 
-class FakeWorldPort final : public service::WorldPort {
+class FakeWorldPort : public service::WorldPort {
  public:
   FakeWorldPort() : state_(std::make_shared<world::WorldState>()) {}
 

@@ -1,0 +1,118 @@
+// read_grid: prints what a wmd shared-memory segment holds, using the header-only reader.
+//
+//   read_grid wm-<uuid> [--watch]
+//
+// The name comes from GET /api/v1/shm ("name"). With --watch it polls, prints a line whenever grid_revision or the
+// map version changes, follows the successor when the server moves to a larger segment (state retired), and exits
+// when the server stops cleanly (state stopped).
+//
+// Build: g++ -std=c++17 -O2 -I<repo> clients/shm/examples/read_grid.cpp -o read_grid
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <string>
+#include <thread>
+
+#include "clients/shm/worldmodel_shm.h"
+
+namespace {
+
+namespace shm = worldmodel::shm;
+
+const char* state_name(shm::SegmentState state) {
+  switch (state) {
+    case shm::SegmentState::live:
+      return "live";
+    case shm::SegmentState::retired:
+      return "retired";
+    case shm::SegmentState::stopped:
+      return "stopped";
+  }
+  return "unknown";
+}
+
+// One line: what the segment holds now. Returns the map version, to tell a change when watching.
+std::int64_t print_summary(const shm::Reader& reader) {
+  const auto dense = reader.read_layer(shm::Layer::bayes);
+  std::size_t known = 0, occupied = 0;
+  for (const float p : dense.values) {
+    if (std::isnan(p)) continue;
+    ++known;
+    if (p > 0.65f) ++occupied;
+  }
+  const auto map = reader.read_map();
+  const auto truncated = reader.header().truncated.load(std::memory_order_relaxed);
+  std::printf(
+      "%s [%s] revision %llu: %lld x %lld cells at %.3f m, origin (%lld, %lld) cells, %zu tiles, %zu known, "
+      "%zu occupied; map version %lld: %zu elements, %zu objects, %zu edges%s%s\n",
+      reader.name().c_str(), state_name(reader.state()), static_cast<unsigned long long>(dense.grid_revision),
+      static_cast<long long>(dense.width), static_cast<long long>(dense.height), dense.resolution_m,
+      static_cast<long long>(dense.x0_cells), static_cast<long long>(dense.y0_cells), reader.tile_count(), known,
+      occupied, static_cast<long long>(map.version), map.elements.size(), map.objects.size(), map.edges.size(),
+      (truncated & shm::kTilesTruncated) != 0 ? " (tiles truncated)" : "",
+      (truncated & shm::kMapTruncated) != 0 ? " (map truncated)" : "");
+  std::fflush(stdout);
+  return map.version;
+}
+
+int watch(shm::Reader reader) {
+  std::uint64_t revision = reader.grid_revision();
+  std::int64_t map_version = print_summary(reader);
+  for (;;) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const auto state = reader.state();
+    if (state == shm::SegmentState::stopped) {
+      print_summary(reader);  // the server's last state
+      std::printf("%s: the server stopped\n", reader.name().c_str());
+      return 0;
+    }
+    if (state == shm::SegmentState::retired) {
+      const auto next = reader.successor();
+      std::printf("%s: retired, following %s\n", reader.name().c_str(), next ? next->c_str() : "(none)");
+      if (!next || next->empty()) return 1;
+      reader = shm::Reader(*next);  // the old mapping stays valid until here, even though its name is gone
+      revision = reader.grid_revision();
+      map_version = print_summary(reader);
+      continue;
+    }
+    const auto now = reader.grid_revision();
+    const auto version = reader.read_map().version;
+    if (now != revision || version != map_version) {
+      revision = now;
+      map_version = print_summary(reader);
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string name;
+  bool watching = false;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--watch") == 0) {
+      watching = true;
+    } else if (name.empty() && argv[i][0] != '-') {
+      name = argv[i];
+    } else {
+      name.clear();
+      break;
+    }
+  }
+  if (name.empty()) {
+    std::fprintf(stderr, "usage: %s wm-<uuid> [--watch]   (the name from GET /api/v1/shm)\n", argv[0]);
+    return 2;
+  }
+  try {
+    shm::Reader reader(name);
+    if (watching) return watch(std::move(reader));
+    print_summary(reader);
+    return 0;
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "read_grid: %s\n", error.what());
+    return 1;
+  }
+}

@@ -1,0 +1,272 @@
+// The shared-memory export with the real segment in /dev/shm and the real header-only reader, fed by a port whose
+// tiles the test controls.
+#include "server/shm/shared_map_export.h"
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sys/mman.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <boost/uuid/uuid_generators.hpp>
+#include <boost/uuid/uuid_io.hpp>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "clients/shm/worldmodel_shm.h"
+#include "tests/server/api/fake_world_port.h"
+#include "tests/support/lab_plan.h"
+
+namespace wm::testing {
+namespace {
+
+namespace reader = worldmodel::shm;
+using namespace std::chrono_literals;
+
+/// Tiles of T² cells whose every value tells the tile's revision and the layer: cell value = 4·revision + layer, so
+/// a copy mixing two revisions (or two layers) shows at once. Thread-safe, like the real service.
+class CountingGridPort : public FakeWorldPort {
+ public:
+  static constexpr std::int64_t kTile = 16;
+
+  void bump(std::int64_t tx, std::int64_t ty) {
+    std::lock_guard lock(mutex_);
+    ++revisions_[{tx, ty}];
+    ++grid_revision_;
+  }
+  service::GridTiles grid_tiles() const override {
+    std::lock_guard lock(mutex_);
+    service::GridTiles tiles{kTile, 0.05, grid_revision_, {}};
+    for (const auto& [key, revision] : revisions_) tiles.tiles.push_back({key.first, key.second, revision});
+    return tiles;
+  }
+  std::optional<service::GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override {
+    std::lock_guard lock(mutex_);
+    const auto it = revisions_.find({tx, ty});
+    if (it == revisions_.end()) return std::nullopt;
+    service::GridTileValues values{std::vector<float>(4 * kTile * kTile), it->second};
+    for (std::size_t i = 0; i < values.values.size(); ++i)
+      values.values[i] = static_cast<float>(4 * it->second + i / (kTile * kTile));
+    return values;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<std::pair<std::int64_t, std::int64_t>, std::uint64_t> revisions_;
+  std::int64_t grid_revision_ = 0;
+};
+
+bool segment_exists(const std::string& name) { return std::filesystem::exists("/dev/shm/" + name); }
+
+shm::ShmOptions fast(std::uint64_t max_bytes = std::uint64_t{1} << 30) {
+  shm::ShmOptions options;
+  options.period = 1ms;
+  options.max_bytes = max_bytes;
+  return options;
+}
+
+TEST(SharedMapExportTest, ReadersNeverSeeATornTileWhileTheWriterHammersTheSlots) {
+  CountingGridPort port;
+  for (int i = 0; i < 8; ++i) port.bump(i, -i);
+  shm::SharedMapExport exporter(port, fast(), "test-run");
+  const auto name = exporter.status().name;
+
+  std::atomic<bool> done{false};
+  std::thread writer([&] {  // as fast as it can: bump a tile, copy it in
+    for (std::uint64_t n = 0; !done; ++n) {
+      port.bump(static_cast<std::int64_t>(n % 8), -static_cast<std::int64_t>(n % 8));
+      exporter.sync();
+    }
+  });
+  std::atomic<std::uint64_t> reads{0}, torn{0}, backwards{0};
+  std::vector<std::thread> readers;
+  for (int r = 0; r < 2; ++r) {
+    readers.emplace_back([&] {
+      reader::Reader segment(name);  // its own mapping, as another process has
+      std::vector<float> cells(4 * CountingGridPort::kTile * CountingGridPort::kTile);
+      std::vector<std::uint64_t> last(8, 0);
+      const auto until = std::chrono::steady_clock::now() + 1500ms;
+      while (std::chrono::steady_clock::now() < until) {
+        for (std::size_t slot = 0; slot < segment.tile_count(); ++slot) {
+          const auto revision = segment.read_tile_layers(slot, cells.data());
+          for (std::size_t i = 0; i < cells.size(); ++i) {
+            if (cells[i] != static_cast<float>(4 * revision + i / (cells.size() / 4))) {
+              ++torn;
+              break;
+            }
+          }
+          if (revision < last[slot]) ++backwards;
+          last[slot] = revision;
+          ++reads;
+        }
+      }
+    });
+  }
+  for (auto& t : readers) t.join();
+  done = true;
+  writer.join();
+  EXPECT_GT(reads.load(), 10'000u);
+  EXPECT_EQ(torn.load(), 0u);
+  EXPECT_EQ(backwards.load(), 0u);
+}
+
+TEST(SharedMapExportTest, GrowsIntoALargerSegmentAndTheOldOneNamesIt) {
+  CountingGridPort port;
+  port.bump(0, 0);
+  shm::SharedMapExport exporter(port, fast(), "test-run");
+  const auto first = exporter.status();
+  ASSERT_TRUE(first.available) << first.error;
+  reader::Reader old_segment(first.name);
+  const auto capacity = first.tile_capacity;
+  for (std::int64_t i = 0; i < static_cast<std::int64_t>(capacity) + 10; ++i) port.bump(i, 7);
+  exporter.sync();
+
+  const auto second = exporter.status();
+  EXPECT_NE(second.name, first.name);
+  EXPECT_EQ(second.generation, first.generation + 1);
+  EXPECT_GE(second.tile_capacity, capacity + 11);
+  EXPECT_EQ(old_segment.state(), reader::SegmentState::retired);
+  ASSERT_EQ(old_segment.successor(), second.name);
+  EXPECT_FALSE(segment_exists(first.name)) << "the retired name is unlinked";
+  reader::Reader next(*old_segment.successor());
+  EXPECT_EQ(next.tile_count(), capacity + 11);  // (0, 0) and the new ones, each once
+  std::vector<float> cells(4 * 16 * 16);
+  for (std::size_t slot = 0; slot < next.tile_count(); ++slot) {
+    const auto key = next.tile_key(slot);
+    const auto revision = next.read_tile_layers(slot, cells.data());
+    EXPECT_EQ(revision, 1u) << key.tx << "," << key.ty;
+    EXPECT_EQ(cells[0], 4.f * static_cast<float>(revision));
+  }
+  EXPECT_EQ(next.grid_revision(), capacity + 11);
+}
+
+TEST(SharedMapExportTest, ASizeCapLeavesTilesOutAndSaysSo) {
+  CountingGridPort port;
+  shm::SharedMapExport exporter(port, fast(std::uint64_t{1} << 20), "test-run");  // 1 MB: about 180 slots of 16²
+  for (std::int64_t i = 0; i < 1000; ++i) port.bump(i, 0);
+  exporter.sync();
+  const auto status = exporter.status();
+  ASSERT_TRUE(status.available) << status.error;
+  EXPECT_LE(status.bytes, std::uint64_t{1} << 20);
+  EXPECT_FALSE(status.tiles_complete);
+  EXPECT_GT(status.tile_count, 100u);
+  EXPECT_LT(status.tile_count, 1000u);
+  EXPECT_EQ(status.tile_count, status.tile_capacity);
+  EXPECT_NE(status.error.find("cap"), std::string::npos) << status.error;
+  reader::Reader segment(status.name);
+  EXPECT_EQ(segment.header().truncated.load() & reader::kTilesTruncated, reader::kTilesTruncated);
+  EXPECT_EQ(segment.tile_count(), status.tile_count);
+}
+
+TEST(SharedMapExportTest, AStopMarksTheSegmentStoppedAndRemovesItsName) {
+  CountingGridPort port;
+  port.bump(1, 1);
+  std::optional<shm::SharedMapExport> exporter(std::in_place, port, fast(), "test-run");
+  const auto name = exporter->status().name;
+  ASSERT_TRUE(segment_exists(name));
+  reader::Reader segment(name);
+  exporter.reset();
+  EXPECT_FALSE(segment_exists(name));
+  EXPECT_EQ(segment.state(), reader::SegmentState::stopped);
+  std::vector<float> cells(4 * 16 * 16);
+  EXPECT_EQ(segment.read_tile_layers(0, cells.data()), 1u) << "a mapped reader keeps the last state";
+}
+
+TEST(SharedMapExportTest, TheMapRecordsAreThePlanAsPlacedAndTheElements) {
+  CountingGridPort port;
+  port.load_plan(lab_plan());
+  world::Element e;
+  e.number = 12;
+  e.segment = fusion::LineSegment::from_points({1, 2}, {4, 2}, Eigen::Matrix2d::Identity() * 1e-4);
+  e.support = 3;
+  e.origin = "scan";
+  e.updated_version = 5;
+  port.state().elements.put(e);
+  port.state().version = 5;
+  shm::SharedMapExport exporter(port, fast(), "test-run");
+  reader::Reader segment(exporter.status().name);
+  const auto map = segment.read_map();
+  EXPECT_EQ(map.version, 5);
+  EXPECT_EQ(segment.map_version(), 5);
+  ASSERT_EQ(map.elements.size(), 1u);
+  EXPECT_EQ(map.elements[0].number, 12);
+  EXPECT_EQ(map.elements[0].support, 3);
+  EXPECT_EQ(map.elements[0].origin, 1u);
+  EXPECT_DOUBLE_EQ(std::min(map.elements[0].x1, map.elements[0].x2), 1.0);
+  EXPECT_DOUBLE_EQ(std::max(map.elements[0].x1, map.elements[0].x2), 4.0);
+  ASSERT_EQ(map.objects.size(), 2u);
+  EXPECT_EQ(std::string(map.objects[0].id, map.objects[0].id_length), "wall-n");
+  EXPECT_EQ(map.objects[0].flags, reader::kObjectSolid);
+  EXPECT_STREQ(map.objects[1].kind, "table");
+  EXPECT_EQ(map.objects[1].flags, reader::kObjectNotDeformable);
+  EXPECT_NEAR(map.objects[1].theta, 0.3, 1e-12);
+  ASSERT_EQ(map.edges.size(), 5u);  // the wall, the table's four sides
+  EXPECT_EQ(map.objects[1].first_edge, 1u);
+  EXPECT_EQ(map.objects[1].edge_count, 4u);
+  for (std::size_t k = 1; k < 5; ++k) {  // the table's corners lie 0.721 m from its centre (5, 5)
+    EXPECT_EQ(map.edges[k].object_index, 1u);
+    EXPECT_NEAR(std::hypot(map.edges[k].x1 - 5, map.edges[k].y1 - 5), std::hypot(0.6, 0.4), 1e-9);
+  }
+  EXPECT_NEAR(map.edges[0].y1, 10.0, 1e-12);
+}
+
+// A segment file as a server would leave it, owned by `pid`.
+std::string leave_segment(std::int64_t pid, std::uint64_t start_ticks, bool with_header = true) {
+  const auto name = std::string(reader::kNamePrefix) + boost::uuids::to_string(boost::uuids::random_generator()());
+  const int fd = ::shm_open(("/" + name).c_str(), O_CREAT | O_EXCL | O_RDWR, 0600);
+  EXPECT_GE(fd, 0);
+  if (with_header) {
+    reader::SegmentHeader header{};
+    std::memcpy(header.magic, reader::kMagic, sizeof header.magic);
+    header.owner_pid = pid;
+    header.owner_start_ticks = start_ticks;
+    EXPECT_EQ(::ftruncate(fd, reader::kHeaderBytes), 0);
+    EXPECT_EQ(::pwrite(fd, &header, sizeof header, 0), static_cast<ssize_t>(sizeof header));
+  }
+  ::close(fd);
+  return name;
+}
+
+TEST(SharedMapExportTest, StaleSegmentsOfDeadOwnersGoAndOthersStay) {
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ::waitpid(child, nullptr, 0);  // a pid whose process is gone
+  const auto left_before_start = leave_segment(child, 1);
+  CountingGridPort port;
+  std::optional<shm::SharedMapExport> alive(std::in_place, port, fast(), "test-run");  // this process: alive
+  EXPECT_FALSE(segment_exists(left_before_start)) << "a starting exporter removes what dead servers left";
+  const auto own = alive->status().name;
+  const auto dead = leave_segment(child, 1);
+  const auto reused_pid = leave_segment(::getpid(), 1);  // this pid, but a process started at another time
+  const auto unfilled = leave_segment(0, 0, false);      // made a moment ago, header not written yet
+  const auto foreign = std::string("wm-not-ours-") + std::to_string(::getpid());
+  const int fd = ::shm_open(("/" + foreign).c_str(), O_CREAT | O_RDWR, 0600);
+  ASSERT_GE(fd, 0);
+  ::close(fd);
+
+  const auto removed = shm::SharedMapExport::remove_stale_segments();
+  EXPECT_NE(std::find(removed.begin(), removed.end(), dead), removed.end());
+  EXPECT_NE(std::find(removed.begin(), removed.end(), reused_pid), removed.end());
+  EXPECT_FALSE(segment_exists(dead));
+  EXPECT_FALSE(segment_exists(reused_pid));
+  EXPECT_TRUE(segment_exists(own));
+  EXPECT_TRUE(segment_exists(unfilled)) << "younger than a minute: its maker may be writing the header now";
+  EXPECT_TRUE(segment_exists(foreign)) << "not a name wmd makes";
+  ::shm_unlink(("/" + unfilled).c_str());
+  ::shm_unlink(("/" + foreign).c_str());
+  alive.reset();
+  EXPECT_FALSE(segment_exists(own));
+}
+
+TEST(SharedMapExportTest, TheReaderRefusesFilesThatAreNotSegments) {
+  const auto name = leave_segment(::getpid(), 0);  // a header with zero sizes: no tile size, no map
+  EXPECT_THROW(reader::Reader{name}, reader::Error);
+  ::shm_unlink(("/" + name).c_str());
+  EXPECT_THROW(reader::Reader{"wm-does-not-exist"}, reader::Error);
+}
+
+}  // namespace
+}  // namespace wm::testing
