@@ -6,7 +6,7 @@ packages=(
   libeigen3-dev libboost-dev libboost-system-dev nlohmann-json3-dev libsqlite3-dev sqlite3
   swi-prolog-core swi-prolog-core-packages
   libgtest-dev libgmock-dev googletest libbenchmark-dev
-  zlib1g-dev libyaml-cpp-dev curl python3 python3-ezdxf gdal-bin
+  zlib1g-dev libyaml-cpp-dev curl python3 python3-ezdxf python3-numpy gdal-bin
 )
 # Extra packages for a purpose: `scripts/setup.sh bench` (benchmarks' baselines), `scripts/setup.sh web`
 # (the browser test: Debian's Chromium and Node.js for playwright-core), `scripts/setup.sh sanitize` (clang for

@@ -25,6 +25,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -267,10 +268,19 @@ class Reader {
 
   Dense read_layer(Layer layer) const {
     Dense dense;
+    read_layer(layer, dense);
+    return dense;
+  }
+  /// The same into `dense`, reusing its memory: a reader polling the grid allocates (and faults in) nothing after
+  /// the first call. Each tile's rows go straight into place under its seqlock; only the blocks no tile holds are
+  /// filled with NaN.
+  void read_layer(Layer layer, Dense& dense) const {
     dense.resolution_m = resolution_m();
     dense.grid_revision = grid_revision();  // before the tiles: each is at least this new
-    const auto count = tile_count();
-    if (count == 0) return dense;
+    const auto count = tile_count();        // later slots are left for the next call
+    dense.x0_cells = dense.y0_cells = dense.width = dense.height = 0;
+    dense.values.clear();
+    if (count == 0) return;
     const std::int64_t t = tile_size_cells();
     auto min_x = std::numeric_limits<std::int64_t>::max(), min_y = min_x;
     auto max_x = std::numeric_limits<std::int64_t>::min(), max_y = max_x;
@@ -281,23 +291,27 @@ class Reader {
       max_x = key.tx > max_x ? key.tx : max_x;
       max_y = key.ty > max_y ? key.ty : max_y;
     }
+    const auto blocks_x = max_x - min_x + 1, blocks_y = max_y - min_y + 1;
     dense.x0_cells = min_x * t;
     dense.y0_cells = min_y * t;
-    dense.width = (max_x - min_x + 1) * t;
-    dense.height = (max_y - min_y + 1) * t;
-    dense.values.assign(static_cast<std::size_t>(dense.width * dense.height), std::nanf(""));
-    std::vector<float> tile(cells_per_tile());
+    dense.width = blocks_x * t;
+    dense.height = blocks_y * t;
+    dense.values.resize(static_cast<std::size_t>(dense.width * dense.height));
+    std::vector<bool> held(static_cast<std::size_t>(blocks_x * blocks_y), false);
+    const auto at = [&](std::int64_t bx, std::int64_t by) {
+      return dense.values.data() + static_cast<std::size_t>(by * t * dense.width + bx * t);
+    };
     for (std::size_t i = 0; i < count; ++i) {
       const auto key = tile_key(i);
-      read_tile(i, layer, tile.data());
-      const auto col = (key.tx - min_x) * t;
-      for (std::int64_t row = 0; row < t; ++row) {
-        const auto dense_row = (key.ty - min_y) * t + row;
-        std::memcpy(&dense.values[static_cast<std::size_t>(dense_row * dense.width + col)],
-                    &tile[static_cast<std::size_t>(row * t)], static_cast<std::size_t>(t) * sizeof(float));
-      }
+      held[static_cast<std::size_t>((key.ty - min_y) * blocks_x + (key.tx - min_x))] = true;
+      read_slot_rows(i, static_cast<std::size_t>(layer) * cells_per_tile(), at(key.tx - min_x, key.ty - min_y),
+                     static_cast<std::size_t>(dense.width));
     }
-    return dense;
+    for (std::int64_t by = 0; by < blocks_y; ++by)
+      for (std::int64_t bx = 0; bx < blocks_x; ++bx)
+        if (!held[static_cast<std::size_t>(by * blocks_x + bx)])
+          for (std::int64_t row = 0; row < t; ++row)
+            std::fill_n(at(bx, by) + row * dense.width, t, std::numeric_limits<float>::quiet_NaN());
   }
 
   /// The map's version, without copying the map (to poll for a change before read_map()).
@@ -386,6 +400,23 @@ class Reader {
       if (before % 2 == 0) {
         const auto revision = s.revision;
         std::memcpy(out, data + first_value, values * sizeof(float));
+        std::atomic_thread_fence(std::memory_order_acquire);
+        if (s.sequence.load(std::memory_order_relaxed) == before) return revision;
+      }
+    }
+  }
+  // read_slot for one layer, row by row into a destination `stride` floats wide.
+  std::uint64_t read_slot_rows(std::size_t slot, std::size_t first_value, float* out, std::size_t stride) const {
+    const auto& s = slot_header(slot);
+    const auto* data =
+        reinterpret_cast<const float*>(reinterpret_cast<const unsigned char*>(&s) + sizeof(TileSlotHeader)) +
+        first_value;
+    const auto t = static_cast<std::size_t>(tile_size_cells());
+    for (Backoff backoff("tile slot ", slot);; backoff.wait()) {
+      const auto before = s.sequence.load(std::memory_order_acquire);
+      if (before % 2 == 0) {
+        const auto revision = s.revision;
+        for (std::size_t row = 0; row < t; ++row) std::memcpy(out + row * stride, data + row * t, t * sizeof(float));
         std::atomic_thread_fence(std::memory_order_acquire);
         if (s.sequence.load(std::memory_order_relaxed) == before) return revision;
       }

@@ -63,8 +63,8 @@ class ShmTest : public ServerFixture {
       layers.resize(shm::kLayerCount * t * t);
       for (std::size_t slot = 0; slot < reader.tile_count() && slot < 24; ++slot) {
         const auto key = reader.tile_key(slot);
-        const auto tile = call("GET", "/api/v1/grid/tiles/bayes/" + std::to_string(key.tx) + "/" +
-                                          std::to_string(key.ty));
+        const auto tile =
+            call("GET", "/api/v1/grid/tiles/bayes/" + std::to_string(key.tx) + "/" + std::to_string(key.ty));
         ASSERT_EQ(tile.status, 200) << tile.body;
         const auto revision = reader.read_tile_layers(slot, layers.data());
         ++compared_reads;
