@@ -89,7 +89,8 @@ int main(int argc, char** argv) {
         [&services](const api::Request& r) { return api::handle_request(r, services); },
         [](const api::Request& r) { return api::handler_lane(r); },
         [](const api::Request& r) { return api::is_websocket_upgrade(r); },
-        [&services](const api::Request& r) { return api::authorize_events(r, services); }};
+        [&services](const api::Request& r) { return api::authorize_events(r, services); },
+        [&services](const api::Request& r) { return api::answer_at_once(r, services); }};
     http::HttpServer server(cfg.http, std::move(handlers), &events);
     std::thread signal_waiter([&server, signals] {
       int signal = 0;

@@ -24,6 +24,8 @@ struct Call {
   service::WorldPort& world;
   MapCache& map_cache;
   const shm::SharedMapExport* shm = nullptr;  // nullptr when wmd runs with --no-shm
+  /// Run on an I/O thread (routes marked at_once): answer from what is ready or throw NotAtOnce.
+  bool at_once = false;
 };
 
 using Handler = Response (*)(const Call&);

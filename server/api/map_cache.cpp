@@ -27,7 +27,7 @@ MapCache::~MapCache() {
 std::shared_ptr<const MapBody> MapCache::body(const std::shared_ptr<const world::WorldState>& snapshot,
                                               const std::string& format, const std::string& content_type,
                                               const Build& build, std::chrono::milliseconds max_stale,
-                                              const Latest& latest) {
+                                              const Latest& latest, bool at_once) {
   const auto version = snapshot->version;
   const auto now = std::chrono::steady_clock::now();
   std::unique_lock lock(mutex_);
@@ -43,6 +43,7 @@ std::shared_ptr<const MapBody> MapCache::body(const std::shared_ptr<const world:
   }
   for (;;) {
     if (slot.done && slot.done->version >= version) return slot.done;
+    if (at_once) return nullptr;
     if (slot.building < 0) break;
     // One build at a time: a build of an older version under way is waited for too, and the next one then takes
     // the newest snapshot, so it serves every request that came meanwhile (under ingest each request finds a
@@ -100,13 +101,17 @@ void MapCache::run_background_builds() {
 }
 
 std::shared_ptr<const MapBody> MapCache::delta(const std::shared_ptr<const world::WorldState>& snapshot,
-                                               std::int64_t since, const Build& build) {
+                                               std::int64_t since, const Build& build, bool at_once) {
   const auto version = snapshot->version;
   const auto now = std::chrono::steady_clock::now();
   std::unique_lock lock(mutex_);
   auto& slot = deltas_[since];
   for (;;) {
     if (slot.done && slot.done->version >= version) return slot.done;
+    if (at_once) {
+      if (!slot.done && slot.building < 0) deltas_.erase(since);  // asked, not made: no empty slot left behind
+      return nullptr;
+    }
     if (slot.building < version) break;
     built_.wait(lock);  // the answer for this version or a newer one is being made
   }
@@ -149,8 +154,13 @@ std::shared_ptr<const std::string> MapCache::gzip_of(const MapBody& body) {
     if (rc != Z_STREAM_END) throw std::runtime_error("gzip: deflate did not finish");
     out.resize(written);
     body.gzip = std::make_shared<const std::string>(std::move(out));
+    body.gzip_made.store(true, std::memory_order_release);
   });
   return body.gzip;
+}
+
+std::shared_ptr<const std::string> MapCache::gzip_if_made(const MapBody& body) {
+  return body.gzip_made.load(std::memory_order_acquire) ? body.gzip : nullptr;
 }
 
 }  // namespace wm::api

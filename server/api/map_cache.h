@@ -5,6 +5,7 @@
 // for each request. A client that accepts a slightly older map (Cache-Control: max-stale) is answered at once from
 // the last body while a background thread makes the next one: under full-rate ingest every request would otherwise
 // find a new version and wait for its serialisation.
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
@@ -29,6 +30,7 @@ struct MapBody {
   /// The gzip form of `bytes`, made on first demand (see MapCache::gzip_of).
   mutable std::shared_ptr<const std::string> gzip;
   mutable std::once_flag gzip_once;
+  mutable std::atomic<bool> gzip_made{false};  // set once `gzip` is there (gzip_if_made reads it without the flag)
 };
 
 class MapCache {
@@ -53,20 +55,24 @@ class MapCache {
   /// The newest published snapshot (what a build started now should show).
   using Latest = std::function<std::shared_ptr<const world::WorldState>()>;
 
+  /// `at_once`: never wait nor build on the caller's thread (an I/O thread): nullptr when the body is not there
+  /// yet (a stale one is still served as max_stale allows, its successor queued for the background builder).
   std::shared_ptr<const MapBody> body(const std::shared_ptr<const world::WorldState>& snapshot,
                                       const std::string& format, const std::string& content_type, const Build& build,
                                       std::chrono::milliseconds max_stale = std::chrono::milliseconds(0),
-                                      const Latest& latest = {});
+                                      const Latest& latest = {}, bool at_once = false);
 
   /// The answer to ?since=`since` for `snapshot`, made once per (since, version): polling clients that hold the same
   /// version ask the same question, and those that ask while it is made wait for it (an answer for a newer version
   /// serves them too). At most kDeltasKept answers and kDeltaBytesKept bytes are kept, the oldest versions going
   /// first. `build` may throw (410): nothing is kept then.
   std::shared_ptr<const MapBody> delta(const std::shared_ptr<const world::WorldState>& snapshot, std::int64_t since,
-                                       const Build& build);
+                                       const Build& build, bool at_once = false);
 
   /// The gzip bytes of `body` (level 6), compressed once. @throw std::runtime_error when zlib fails.
   static std::shared_ptr<const std::string> gzip_of(const MapBody& body);
+  /// The gzip bytes when gzip_of has made them, else nullptr (never compresses).
+  static std::shared_ptr<const std::string> gzip_if_made(const MapBody& body);
 
  private:
   struct Slot {

@@ -70,7 +70,8 @@ bool accepts_gzip(const Request& request) {
   return gzip && !refused;
 }
 
-Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip) {
+Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip,
+                         bool at_once) {
   const std::string identity = "\"" + tag + "\"", gzip_tag = "\"" + tag + "-gzip\"";
   // Small bodies are not worth a compression step.
   const bool gzip = may_gzip && body.bytes.size() >= 1024 && accepts_gzip(request);
@@ -86,8 +87,10 @@ Response tagged_response(const Request& request, const MapBody& body, const std:
   }
   res.set(http::field::content_type, body.content_type);
   if (gzip) {
+    const auto compressed = at_once ? MapCache::gzip_if_made(body) : MapCache::gzip_of(body);
+    if (!compressed) throw NotAtOnce{};
     res.set(http::field::content_encoding, "gzip");
-    res.body() = *MapCache::gzip_of(body);
+    res.body() = *compressed;
   } else {
     res.body() = body.bytes;
   }

@@ -25,7 +25,13 @@ Response raw_response(const Request& request, std::string body, const std::strin
 /// "<tag>-gzip", as RFC 9110 wants a coding to have its own tag), and Cache-Control: no-cache (a copy may be kept
 /// but must be revalidated: the map changes at any time).
 /// `may_gzip` false: never compressed (binary tiles, made for each request, would be compressed again each time).
-Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip = true);
+/// Thrown by a handler run with Call::at_once when it cannot answer without waiting or heavy work (a body not
+/// built, a gzip form not made): the request then goes to a handler thread as usual.
+struct NotAtOnce {};
+
+/// `at_once`: throw NotAtOnce rather than compress on this thread.
+Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip = true,
+                         bool at_once = false);
 
 /// Whether Accept-Encoding allows gzip (named or "*", with a q-value above 0).
 bool accepts_gzip(const Request& request);

@@ -18,7 +18,7 @@ std::string_view target_of(const Request& request) {
   return {target.data(), target.size()};
 }
 
-Response dispatch(const Request& request, Services& services) {
+Response dispatch(const Request& request, Services& services, bool at_once = false) {
   require_allowed_host(request, services.options);
   // Browsers send simple cross-site POSTs (a form, text/plain) without asking first: whatever changes state
   // must come from our own pages or an allowed origin.
@@ -26,8 +26,9 @@ Response dispatch(const Request& request, Services& services) {
     require_allowed_origin(request, services.options);
   const Target target = parse_target(target_of(request));
   if (const auto match = find_route(request.method(), target.path)) {
-    return match->route->handler(
-        Call{request, target, match->param, services.options, services.world, *services.map_cache, services.shm});
+    if (at_once && !match->route->at_once) throw NotAtOnce{};
+    return match->route->handler(Call{request, target, match->param, services.options, services.world,
+                                      *services.map_cache, services.shm, at_once});
   }
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
@@ -56,6 +57,21 @@ bool is_websocket_upgrade(const Request& request) {
 
 std::optional<Response> authorize_events(const Request& request, const Services& services) {
   return authorize_upgrade(request, services.options);
+}
+
+std::optional<Response> answer_at_once(const Request& request, Services& services) {
+  const auto target = target_of(request);
+  const auto match = find_route(request.method(), target.substr(0, target.find('?')));
+  if (!match || !match->route->at_once) return std::nullopt;  // the common case: one table lookup, nothing else
+  try {
+    return for_request_method(request, dispatch(request, services, /*at_once=*/true));
+  } catch (const NotAtOnce&) {
+    return std::nullopt;
+  } catch (...) {  // a refused Host, a bad parameter: answered at once, as on a handler thread
+    const auto failure = http_error(std::current_exception());
+    return for_request_method(request, error_response(request.version(), request.keep_alive(), failure.status,
+                                                      failure.error, failure.detail));
+  }
 }
 
 Response handle_request(const Request& request, Services& services) {

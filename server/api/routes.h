@@ -25,6 +25,9 @@ struct Route {
   std::string_view query = {};
   /// A WebSocket route: an upgrade request is taken over by the transport; `handler` answers a plain GET.
   bool websocket = false;
+  /// Tried first on the I/O thread with Call::at_once (answers from bytes already made: no queue, no lower CPU
+  /// priority), and queued on `lane` only when the handler throws NotAtOnce.
+  bool at_once = false;
 };
 
 /// The table, in matching order: the first route whose pattern matches the path and whose method is the

@@ -43,7 +43,8 @@ Response map_delta(const Call& call, const std::shared_ptr<const world::WorldSta
   const auto& options = call.world.world_options();
   auto& world = call.world;
   const auto body = call.map_cache.delta(
-      snap, since, [&options, &world, since, instance = call.map_cache.instance()](const world::WorldState& state) {
+      snap, since,
+      [&options, &world, since, instance = call.map_cache.instance()](const world::WorldState& state) {
         const auto removed = world.removed_since(since, state.version);
         if (!removed)
           throw ApiError(410, "since_too_old",
@@ -64,11 +65,14 @@ Response map_delta(const Call& call, const std::shared_ptr<const world::WorldSta
                              {"elements", std::move(elements)},
                              {"removed", {{"elements", removed->elements}, {"objects", removed->objects}}}};
         return delta.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-      });
+      },
+      call.at_once);
+  if (!body) throw NotAtOnce{};
   // A poller that holds the newest version asks the same question again and again: 304 until something changes.
   return tagged_response(
       call.request, *body,
-      call.map_cache.instance() + "-v" + std::to_string(body->version) + "-since" + std::to_string(since));
+      call.map_cache.instance() + "-v" + std::to_string(body->version) + "-since" + std::to_string(since),
+      /*may_gzip=*/true, call.at_once);
 }
 
 }  // namespace
@@ -86,6 +90,7 @@ Response get_map(const Call& call) {
     return map_delta(call, snap, query_int(call.target, "since", 0, 0, std::numeric_limits<std::int64_t>::max()));
   }
   if (bbox) {
+    if (call.at_once) throw NotAtOnce{};
     // A window is cut for each request (its bytes depend on the box); the whole map is made once per version.
     const auto excerpt = world::map_excerpt(*snap, world::Box{bbox->x0, bbox->y0, bbox->x1, bbox->y1});
     if (format == "json") {
@@ -104,9 +109,10 @@ Response get_map(const Call& call) {
       [&options, format, instance = call.map_cache.instance()](const world::WorldState& state) {
         return map_text(state, options, format, std::nullopt, instance);
       },
-      accepted_staleness(call.request), [&world] { return world.snapshot(); });
-  auto response =
-      tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version));
+      accepted_staleness(call.request), [&world] { return world.snapshot(); }, call.at_once);
+  if (!body) throw NotAtOnce{};
+  auto response = tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version),
+                                  /*may_gzip=*/true, call.at_once);
   if (body->version < snap->version) {
     // An older map than the newest, as the client allowed: how old, in whole seconds (RFC 9111 5.1).
     const auto age = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::steady_clock::now() - body->taken);

@@ -179,3 +179,61 @@ TEST_F(RouteTableTest, TheReadmeApiReferenceListsTheRoutesOfTheTable) { EXPECT_E
 
 }  // namespace
 }  // namespace wm::testing
+
+namespace wm::testing {
+namespace {
+
+// The I/O thread's try: GET /api/v1/map from bytes already made (or 304), everything else queued.
+TEST_F(RouteTableTest, TheMapIsAnsweredAtOnceFromBytesAlreadyMadeAndQueuedOtherwise) {
+  load_demo_plan();
+  api::Services services{options_, world_};  // one map cache for every request below
+  const auto get = make_request(http::verb::get, "/api/v1/map");
+  EXPECT_FALSE(api::answer_at_once(get, services)) << "not made yet: a handler thread makes it";
+  const auto built = api::handle_request(get, services);
+  ASSERT_EQ(status_of(built), 200);
+  const auto at_once = api::answer_at_once(get, services);
+  ASSERT_TRUE(at_once);
+  EXPECT_EQ(at_once->body(), built.body());
+  EXPECT_EQ((*at_once)[http::field::etag], built[http::field::etag]);
+
+  auto conditional = get;
+  conditional.set(http::field::if_none_match, built[http::field::etag]);
+  const auto not_modified = api::answer_at_once(conditional, services);
+  ASSERT_TRUE(not_modified);
+  EXPECT_EQ(status_of(*not_modified), 304);
+
+  auto head = make_request(http::verb::head, "/api/v1/map");
+  const auto head_answer = api::answer_at_once(head, services);
+  ASSERT_TRUE(head_answer);
+  EXPECT_TRUE(head_answer->body().empty());
+  EXPECT_EQ((*head_answer)[http::field::content_length], std::to_string(built.body().size()));
+
+  // The gzip form is compressed on a handler thread, once; then it too is served at once.
+  auto gzip = get;
+  gzip.set(http::field::accept_encoding, "gzip");
+  EXPECT_FALSE(api::answer_at_once(gzip, services));
+  ASSERT_EQ(api::handle_request(gzip, services)[http::field::content_encoding], "gzip");
+  const auto gzip_at_once = api::answer_at_once(gzip, services);
+  ASSERT_TRUE(gzip_at_once);
+  EXPECT_EQ((*gzip_at_once)[http::field::content_encoding], "gzip");
+
+  // A new version: queued (read-your-writes) unless the client accepts the older map.
+  world_.state().version += 1;
+  EXPECT_FALSE(api::answer_at_once(get, services));
+  auto stale_ok = get;
+  stale_ok.set(http::field::cache_control, "max-stale=60");
+  const auto stale = api::answer_at_once(stale_ok, services);
+  ASSERT_TRUE(stale);
+  EXPECT_EQ(stale->body(), built.body());
+  EXPECT_EQ((*stale)[http::field::age], "0");
+
+  // Windows are cut per request, and no other route runs on the I/O thread; a bad parameter is answered there.
+  EXPECT_FALSE(api::answer_at_once(make_request(http::verb::get, "/api/v1/map?bbox=0,0,1,1"), services));
+  EXPECT_FALSE(api::answer_at_once(make_request(http::verb::get, "/api/v1/elements"), services));
+  const auto bad = api::answer_at_once(make_request(http::verb::get, "/api/v1/map?since=soon"), services);
+  ASSERT_TRUE(bad);
+  EXPECT_EQ(status_of(*bad), 400);
+}
+
+}  // namespace
+}  // namespace wm::testing
