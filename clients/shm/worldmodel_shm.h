@@ -89,7 +89,7 @@ struct SegmentHeader {
   std::uint64_t tiles_offset;                 // first slot, from the segment's start
   std::uint64_t tile_capacity;                // slots
   std::atomic<std::uint64_t> tile_count;      // slots in use; a slot is whole before it is counted
-  std::atomic<std::uint64_t> grid_revision;   // scans in the grid; every tile is at least this new
+  std::atomic<std::uint64_t> grid_revision;   // scans in the grid: the slots hold every scan up to this one
   std::uint64_t map_offset;                   // the MapHeader
   std::uint64_t map_capacity_bytes;           // MapHeader and records
   std::atomic<std::int64_t> updated_unix_ns;  // the end of the server's last pass
@@ -187,7 +187,7 @@ class Reader {
     std::int64_t width = 0;
     std::int64_t height = 0;
     double resolution_m = 0;
-    std::uint64_t grid_revision = 0;  // every tile read is at least this new
+    std::uint64_t grid_revision = 0;  // the tiles read hold every scan up to this one
     std::vector<float> values;
   };
   struct Map {
@@ -216,11 +216,16 @@ class Reader {
       release();
       throw Error("'" + name_ + "' is not a worldmodel segment of layout version " + std::to_string(kLayoutVersion));
     }
+    // Kept as checked: the file's owner could change the header afterwards, and no read goes by it again.
+    const auto& h = header();
+    geometry_ = {h.tile_size_cells, h.resolution_m, h.tiles_offset,      h.slot_bytes,
+                 h.tile_capacity,   h.map_offset,   h.map_capacity_bytes};
   }
   ~Reader() { release(); }
   Reader(const Reader&) = delete;
   Reader& operator=(const Reader&) = delete;
-  Reader(Reader&& other) noexcept : name_(std::move(other.name_)), base_(other.base_), size_(other.size_) {
+  Reader(Reader&& other) noexcept
+      : name_(std::move(other.name_)), base_(other.base_), size_(other.size_), geometry_(other.geometry_) {
     other.base_ = nullptr;
   }
   Reader& operator=(Reader&& other) noexcept {
@@ -229,6 +234,7 @@ class Reader {
       name_ = std::move(other.name_);
       base_ = other.base_;
       size_ = other.size_;
+      geometry_ = other.geometry_;
       other.base_ = nullptr;
     }
     return *this;
@@ -243,12 +249,12 @@ class Reader {
     const auto& s = header().successor;
     return std::string(s, ::strnlen(s, sizeof s));
   }
-  std::int64_t tile_size_cells() const { return header().tile_size_cells; }
-  double resolution_m() const { return header().resolution_m; }
+  std::int64_t tile_size_cells() const { return geometry_.tile_size_cells; }
+  double resolution_m() const { return geometry_.resolution_m; }
   std::uint64_t grid_revision() const { return header().grid_revision.load(std::memory_order_acquire); }
   std::size_t tile_count() const {
     const auto count = header().tile_count.load(std::memory_order_acquire);
-    return static_cast<std::size_t>(count < header().tile_capacity ? count : header().tile_capacity);
+    return static_cast<std::size_t>(count < geometry_.tile_capacity ? count : geometry_.tile_capacity);
   }
   /// The tile in slot `slot` (< tile_count()).
   TileKey tile_key(std::size_t slot) const {
@@ -274,24 +280,36 @@ class Reader {
   /// The same into `dense`, reusing its memory: a reader polling the grid allocates (and faults in) nothing after
   /// the first call. Each tile's rows go straight into place under its seqlock; only the blocks no tile holds are
   /// filled with NaN.
+  /// Largest region read_layer() makes [cells] (1 GiB of floats).
+  static constexpr std::uint64_t kMaxDenseCells = std::uint64_t{1} << 28;
+
   void read_layer(Layer layer, Dense& dense) const {
     dense.resolution_m = resolution_m();
-    dense.grid_revision = grid_revision();  // before the tiles: each is at least this new
+    dense.grid_revision = grid_revision();  // before the tiles: they hold at least the scans up to this one
     const auto count = tile_count();        // later slots are left for the next call
     dense.x0_cells = dense.y0_cells = dense.width = dense.height = 0;
     dense.values.clear();
     if (count == 0) return;
     const std::int64_t t = tile_size_cells();
+    // The keys are read once: everything below uses these, whatever the mapping holds meanwhile.
+    std::vector<TileKey> keys(count);
     auto min_x = std::numeric_limits<std::int64_t>::max(), min_y = min_x;
     auto max_x = std::numeric_limits<std::int64_t>::min(), max_y = max_x;
     for (std::size_t i = 0; i < count; ++i) {
-      const auto key = tile_key(i);
+      const auto key = keys[i] = tile_key(i);
       min_x = key.tx < min_x ? key.tx : min_x;
       min_y = key.ty < min_y ? key.ty : min_y;
       max_x = key.tx > max_x ? key.tx : max_x;
       max_y = key.ty > max_y ? key.ty : max_y;
     }
-    const auto blocks_x = max_x - min_x + 1, blocks_y = max_y - min_y + 1;
+    // Spans in unsigned arithmetic (no overflow for any keys), then a bound on the cells before any allocation.
+    const auto span_x = static_cast<std::uint64_t>(max_x) - static_cast<std::uint64_t>(min_x) + 1;
+    const auto span_y = static_cast<std::uint64_t>(max_y) - static_cast<std::uint64_t>(min_y) + 1;
+    const auto cells = static_cast<std::uint64_t>(t) * static_cast<std::uint64_t>(t);
+    if (span_x == 0 || span_y == 0 || span_x > kMaxDenseCells / cells || span_y > kMaxDenseCells / cells ||
+        span_x * span_y > kMaxDenseCells / cells)
+      throw Error("the tiles span more than " + std::to_string(kMaxDenseCells) + " cells: read them one by one");
+    const auto blocks_x = static_cast<std::int64_t>(span_x), blocks_y = static_cast<std::int64_t>(span_y);
     dense.x0_cells = min_x * t;
     dense.y0_cells = min_y * t;
     dense.width = blocks_x * t;
@@ -302,7 +320,7 @@ class Reader {
       return dense.values.data() + static_cast<std::size_t>(by * t * dense.width + bx * t);
     };
     for (std::size_t i = 0; i < count; ++i) {
-      const auto key = tile_key(i);
+      const auto& key = keys[i];
       held[static_cast<std::size_t>((key.ty - min_y) * blocks_x + (key.tx - min_x))] = true;
       read_slot_rows(i, static_cast<std::size_t>(layer) * cells_per_tile(), at(key.tx - min_x, key.ty - min_y),
                      static_cast<std::size_t>(dense.width));
@@ -316,7 +334,7 @@ class Reader {
 
   /// The map's version, without copying the map (to poll for a change before read_map()).
   std::int64_t map_version() const {
-    const auto* map = reinterpret_cast<const MapHeader*>(base_ + header().map_offset);
+    const auto* map = reinterpret_cast<const MapHeader*>(base_ + geometry_.map_offset);
     for (Backoff backoff("the map", 0);; backoff.wait()) {
       const auto before = map->sequence.load(std::memory_order_acquire);
       if (before % 2 != 0) continue;
@@ -328,9 +346,8 @@ class Reader {
 
   /// A copy of the vector map, one version of it.
   Map read_map() const {
-    const auto& h = header();
-    const auto* map = reinterpret_cast<const MapHeader*>(base_ + h.map_offset);
-    const auto* records = base_ + h.map_offset + sizeof(MapHeader);
+    const auto* map = reinterpret_cast<const MapHeader*>(base_ + geometry_.map_offset);
+    const auto* records = base_ + geometry_.map_offset + sizeof(MapHeader);
     Map result;
     for (Backoff backoff("the map", 0);; backoff.wait()) {
       const auto before = map->sequence.load(std::memory_order_acquire);
@@ -340,7 +357,7 @@ class Reader {
         const auto bytes =
             elements * sizeof(ElementRecord) + objects * sizeof(ObjectRecord) + edges * sizeof(EdgeRecord);
         // Counts read mid-update may be garbage: copy only what the region can hold, and check afterwards.
-        const auto room = h.map_capacity_bytes - sizeof(MapHeader);
+        const auto room = geometry_.map_capacity_bytes - sizeof(MapHeader);
         if (elements <= room / sizeof(ElementRecord) && objects <= room / sizeof(ObjectRecord) &&
             edges <= room / sizeof(EdgeRecord) && bytes <= room) {
           result.elements.resize(elements);
@@ -387,7 +404,7 @@ class Reader {
   }
   const TileSlotHeader& slot_header(std::size_t slot) const {
     if (slot >= tile_count()) throw std::out_of_range("no tile slot " + std::to_string(slot));
-    return *reinterpret_cast<const TileSlotHeader*>(base_ + header().tiles_offset + slot * header().slot_bytes);
+    return *reinterpret_cast<const TileSlotHeader*>(base_ + geometry_.tiles_offset + slot * geometry_.slot_bytes);
   }
   // Seqlock read (Boehm, "Can seqlocks get along with programming language memory models?", 2012): the copy is
   // bracketed by an acquire load of the counter and an acquire fence before its second load.
@@ -444,9 +461,20 @@ class Reader {
     std::chrono::steady_clock::time_point since_{};
   };
 
+  struct Geometry {
+    std::int64_t tile_size_cells = 0;
+    double resolution_m = 0;
+    std::uint64_t tiles_offset = 0;
+    std::uint64_t slot_bytes = 0;
+    std::uint64_t tile_capacity = 0;
+    std::uint64_t map_offset = 0;
+    std::uint64_t map_capacity_bytes = 0;
+  };
+
   std::string name_;
   const unsigned char* base_ = nullptr;
   std::size_t size_ = 0;
+  Geometry geometry_;
 };
 
 }  // namespace worldmodel::shm

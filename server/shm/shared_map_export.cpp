@@ -2,7 +2,7 @@
 
 #include <dirent.h>
 #include <fcntl.h>
-#include <signal.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
@@ -63,15 +63,6 @@ std::optional<ProcessStat> process_stat(std::int64_t pid) {
   return stat;
 }
 
-/// Whether the process that made a segment still runs: its pid exists, is no zombie (killed, not yet reaped), and
-/// started when the segment says (not a later process that got the pid again).
-bool process_alive(std::int64_t pid, std::uint64_t start_ticks) {
-  if (pid <= 0 || (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)) return false;
-  const auto stat = process_stat(pid);
-  if (!stat) return true;  // unreadable /proc: trust the pid
-  return stat->state != 'Z' && stat->state != 'X' && stat->start_ticks == start_ticks;
-}
-
 std::uint64_t free_shm_bytes() {
   struct statvfs info {};
   if (::statvfs(kShmDir, &info) != 0) return 0;
@@ -100,6 +91,9 @@ class SharedMapExport::Segment {
     permissions.set_permissions(0644);  // others may read, as they may GET the map over loopback
     object_ = bip::shared_memory_object(bip::create_only, name_.c_str(), bip::read_write, permissions);
     try {
+      // Held while this process runs (remove_stale_segments takes what no one holds); the fd stays open in object_.
+      if (::flock(object_.get_mapping_handle().handle, LOCK_SH) != 0)
+        throw std::runtime_error(std::string("cannot lock the segment: ") + std::strerror(errno));
       object_.truncate(static_cast<bip::offset_t>(bytes));
       // tmpfs hands out pages on first write; a full /dev/shm would then kill the server with SIGBUS mid-copy.
       // Reserving every page now turns that into an error here.
@@ -135,10 +129,16 @@ SharedMapExport::SharedMapExport(const service::WorldPort& world, ShmOptions opt
   const auto tiles = world_.grid_tiles();
   tile_size_cells_ = tiles.tile_size_cells;
   resolution_m_ = tiles.resolution_m;
+  owner_start_ticks_ = process_stat(::getpid()).value_or(ProcessStat{}).start_ticks;
   for (const auto& name : remove_stale_segments())
-    std::cerr << "wmd: removed shared memory " << name << " left by a server that is gone\n";
+    std::cout << "wmd: removed shared memory " << name << " left by a server that is gone\n";
   sync();
-  thread_ = std::thread([this] { run(); });
+  try {
+    thread_ = std::thread([this] { run(); });
+  } catch (...) {
+    if (segment_) segment_->unlink();
+    throw;
+  }
 }
 
 SharedMapExport::~SharedMapExport() {
@@ -183,7 +183,8 @@ void SharedMapExport::sync_locked() {
   // The map's records, made before any segment is touched, so its size is known.
   std::vector<unsigned char> records;
   std::uint64_t element_count = 0, object_count = 0, edge_count = 0;
-  const bool map_changed = state->version != map_version_;
+  // A map clipped to a full segment is written again once a larger one may hold it.
+  const bool map_changed = state->version != map_version_ || !counts_.map_complete;
   if (map_changed) {
     std::vector<layout::ElementRecord> elements;
     elements.reserve(state->elements.size());
@@ -299,8 +300,9 @@ void SharedMapExport::sync_locked() {
   header.truncated.store(
       (tiles_truncated ? layout::kTilesTruncated : 0) | (counts_.map_complete ? 0 : layout::kMapTruncated),
       std::memory_order_release);
-  if (!tiles_truncated)
-    header.grid_revision.store(static_cast<std::uint64_t>(tiles.revision), std::memory_order_release);
+  // Advances even when tiles were left out (the truncated bit says so), so that readers polling it see the changes
+  // of the tiles that are there.
+  header.grid_revision.store(static_cast<std::uint64_t>(tiles.revision), std::memory_order_release);
   header.updated_unix_ns.store(unix_ns_now(), std::memory_order_release);
   if (tiles_truncated || !counts_.map_complete)
     error_ = full_message(tiles_needed, map_bytes_needed_, size_cap());
@@ -323,38 +325,35 @@ void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::
 }
 
 std::uint64_t SharedMapExport::size_cap() const {
-  // Half of what is free, plus half of the segment there is, whose pages come back when it is unlinked (unless a
-  // reader still maps it).
-  return std::min(options_.max_bytes, free_shm_bytes() / 2 + (segment_ ? segment_->bytes() / 2 : 0));
+  // Half of what is free now: the new segment is reserved while the old one still holds its pages, and /dev/shm
+  // stays usable by others.
+  return std::min(options_.max_bytes, free_shm_bytes() / 2);
 }
 
 std::string SharedMapExport::full_message(std::uint64_t tiles, std::uint64_t map_bytes, std::uint64_t cap) const {
   const auto needed = layout::kHeaderBytes + tiles * layout::slot_bytes_for(tile_size_cells_) + map_bytes;
   return std::to_string(tiles) + " tiles and the map need " + std::to_string((needed + (1 << 20) - 1) >> 20) +
          " MB of shared memory; the cap is " + std::to_string(cap >> 20) +
-         " MB (--shm-max-mb, half of /dev/shm's free space): what does not fit is left out";
+         " MB (--shm-max-mb, half of /dev/shm's free space): what does not fit is left out" +
+         (creation_error_.empty() ? "" : " (" + creation_error_ + ")");
 }
 
 bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
+  if (std::chrono::steady_clock::now() < retry_after_) return false;  // a creation failed a moment ago
   const auto slot_bytes = layout::slot_bytes_for(tile_size_cells_);
   const std::uint64_t old_tiles = segment_ ? segment_->header().tile_capacity : 0;
   const std::uint64_t old_map = segment_ ? segment_->header().map_capacity_bytes : 0;
   const auto cap = size_cap();
-  // Twice what is needed, so that growing stays rare; else what is needed; else what fits, never less than now.
+  // Twice what is needed, so that growing stays rare; when that does not fit, as large as the cap allows (never
+  // less than now), so that a server near its cap does not make a new segment for each new tile.
   auto tile_capacity = std::max(2 * tiles, std::max<std::uint64_t>(1, kMinTileBytes / slot_bytes));
   auto map_capacity = round_up(std::max(2 * map_bytes, kMinMapBytes), kPage);
   const auto bytes_for = [&] { return layout::kHeaderBytes + tile_capacity * slot_bytes + map_capacity; };
   if (bytes_for() > cap) {
-    tile_capacity = std::max(tiles, old_tiles);
-    map_capacity = round_up(std::max(map_bytes, std::max(old_map, kMinMapBytes)), kPage);
-  }
-  if (bytes_for() > cap) {
     const auto room = cap > layout::kHeaderBytes ? cap - layout::kHeaderBytes : 0;
-    map_capacity = std::max(
-        std::max(old_map, kMinMapBytes),
-        std::min(map_capacity, (room > old_tiles * slot_bytes ? room - old_tiles * slot_bytes : 0) / kPage * kPage));
-    tile_capacity = std::max(old_tiles, room > map_capacity ? (room - map_capacity) / slot_bytes : 0);
-    if (bytes_for() > cap || (tile_capacity == old_tiles && map_capacity == old_map)) {
+    map_capacity = std::max(old_map, round_up(std::max(map_bytes, kMinMapBytes), kPage));
+    tile_capacity = room > map_capacity ? (room - map_capacity) / slot_bytes : 0;
+    if (tile_capacity < old_tiles || bytes_for() > cap || (tile_capacity == old_tiles && map_capacity == old_map)) {
       if (!segment_) error_ = full_message(tiles, map_bytes, cap);
       return false;  // keep the segment there is; sync_locked flags what is left out
     }
@@ -365,15 +364,19 @@ bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
   try {
     next = std::make_unique<Segment>(name, bytes_for());
   } catch (const std::exception& e) {
-    error_ = std::string("cannot make the shared memory segment: ") + e.what();
+    creation_error_ =
+        std::string("cannot make a shared memory segment of ") + std::to_string(bytes_for() >> 20) + " MB: " + e.what();
+    error_ = creation_error_;
+    retry_after_ = std::chrono::steady_clock::now() + std::chrono::seconds(5);
     return false;  // keep the segment there is, and flag what is left out
   }
+  creation_error_.clear();
   auto& header = *new (next->base()) layout::SegmentHeader{};
   std::memcpy(header.magic, layout::kMagic, sizeof header.magic);
   header.layout_version = layout::kLayoutVersion;
   header.header_bytes = layout::kHeaderBytes;
   header.owner_pid = ::getpid();
-  header.owner_start_ticks = process_stat(::getpid()).value_or(ProcessStat{}).start_ticks;
+  header.owner_start_ticks = owner_start_ticks_;
   copy_text(header.server_instance, sizeof header.server_instance, server_instance_);
   header.tile_size_cells = tile_size_cells_;
   header.resolution_m = resolution_m_;
@@ -448,22 +451,26 @@ std::vector<std::string> SharedMapExport::remove_stale_segments() {
     if (std::regex_match(entry->d_name, ours)) names.emplace_back(entry->d_name);
   ::closedir(dir);
   for (const auto& name : names) {
+    // Anyone may put a file of that name here: no blocking open (a FIFO), no symlink, only our own regular files.
     const auto path = std::string(kShmDir) + "/" + name;
-    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_NOFOLLOW | O_CLOEXEC);
     if (fd < 0) continue;
-    layout::SegmentHeader header{};
     struct stat info {};
-    const bool whole =
-        ::fstat(fd, &info) == 0 && ::pread(fd, &header, sizeof header, 0) == static_cast<ssize_t>(sizeof header);
-    ::close(fd);
-    bool stale = false;
-    if (whole && std::memcmp(header.magic, layout::kMagic, sizeof header.magic) == 0) {
-      stale = !process_alive(header.owner_pid, header.owner_start_ticks);
-    } else {
-      // Made but never filled: its maker died between creating and writing the header, or is doing so now.
-      stale = ::time(nullptr) - info.st_mtime > 60;
+    if (::fstat(fd, &info) != 0 || !S_ISREG(info.st_mode) || info.st_uid != ::geteuid()) {
+      ::close(fd);
+      continue;
     }
-    if (stale && ::shm_unlink(("/" + name).c_str()) == 0) removed.push_back(name);
+    // Its maker holds a shared lock for as long as it runs: the kernel drops it when the process ends, however it
+    // ends (kill -9 included), so a lock we can take means no server owns the segment, whatever pid it names.
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) {
+      char magic[5] = {};
+      const bool filled = ::pread(fd, magic, sizeof magic, 0) == static_cast<ssize_t>(sizeof magic) &&
+                          std::memcmp(magic, layout::kMagic, sizeof magic) == 0;  // "WMSHM": any layout version
+      // Without a header, its maker may be between creating the file and taking the lock: wait a minute.
+      if ((filled || ::time(nullptr) - info.st_mtime > 60) && ::shm_unlink(("/" + name).c_str()) == 0)
+        removed.push_back(name);
+    }
+    ::close(fd);
   }
   return removed;
 }

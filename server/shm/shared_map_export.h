@@ -64,7 +64,7 @@ struct ShmStatus {
 /// The segment is named "wm-<uuid>". When a slot or the map does not fit, a segment twice the size replaces it: the
 /// old one is marked retired with the new name in it, then unlinked (mapped readers keep their memory). At
 /// destruction the segment is marked stopped and unlinked. At construction, segments left by dead wmd processes
-/// are removed.
+/// (no one holds their lock) are removed.
 class SharedMapExport {
  public:
   /// Removes stale segments, makes the segment, fills it once and starts the thread. Never throws for a segment
@@ -78,9 +78,9 @@ class SharedMapExport {
   /// One pass now, on the caller's thread (waits for a running pass).
   void sync();
 
-  /// Removes every "wm-…" segment in /dev/shm whose owner process is gone (its pid is dead or belongs to a process
-  /// started at another time), and those a process left before writing the header, when older than a minute.
-  /// Returns the names removed.
+  /// Removes every "wm-<uuid>" segment in /dev/shm that is this user's regular file and whose lock no process holds
+  /// (each server holds a shared flock on its segment while it runs; the kernel drops it when the process ends,
+  /// kill -9 included), unless it has no header yet and is younger than a minute. Returns the names removed.
   static std::vector<std::string> remove_stale_segments();
 
  private:
@@ -115,6 +115,9 @@ class SharedMapExport {
   ShmStatus counts_;  // elements/objects/edges/truncation of the last pass
   std::uint64_t generation_ = 0;
   std::string error_;
+  std::string creation_error_;  // why the last segment could not be made ("" after one was)
+  std::chrono::steady_clock::time_point retry_after_{};
+  std::uint64_t owner_start_ticks_ = 0;
 
   std::mutex wake_mutex_;
   std::condition_variable wake_;

@@ -139,7 +139,7 @@ class Dense(NamedTuple):
     width: int
     height: int
     resolution_m: float
-    grid_revision: int  # every tile read is at least this new
+    grid_revision: int  # the tiles read hold every scan up to this one
     values: Any  # numpy float32 array or array('f'), width * height
 
 
@@ -456,7 +456,7 @@ class Reader:
         """
         index = _layer_index(layer)
         resolution = self.resolution_m
-        revision = self.grid_revision  # before the tiles: each is at least this new
+        revision = self.grid_revision  # before the tiles: they hold every scan up to this one
         count = self.tile_count
         if count == 0:
             return Dense(0, 0, 0, 0, resolution, revision, _float_buffer(0))

@@ -4,7 +4,9 @@
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
 #include <sys/mman.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -213,58 +215,72 @@ TEST(SharedMapExportTest, TheMapRecordsAreThePlanAsPlacedAndTheElements) {
   EXPECT_NEAR(map.edges[0].y1, 10.0, 1e-12);
 }
 
-// A segment file as a server would leave it, owned by `pid`.
-std::string leave_segment(std::int64_t pid, std::uint64_t start_ticks, bool with_header = true) {
-  const auto name = std::string(reader::kNamePrefix) + boost::uuids::to_string(boost::uuids::random_generator()());
-  const int fd = ::shm_open(("/" + name).c_str(), O_CREAT | O_EXCL | O_RDWR, 0600);
+// A segment file as a server leaves it (header with `pid`); its descriptor, which holds the owner's shared lock when
+// `locked` (as a running server does), else closed.
+struct LeftSegment {
+  std::string name;
+  int fd = -1;
+  ~LeftSegment() {
+    if (fd >= 0) ::close(fd);
+    ::shm_unlink(("/" + name).c_str());
+  }
+};
+std::unique_ptr<LeftSegment> leave_segment(std::int64_t pid, bool locked, bool with_header = true) {
+  auto left = std::make_unique<LeftSegment>();
+  left->name = std::string(reader::kNamePrefix) + boost::uuids::to_string(boost::uuids::random_generator()());
+  const int fd = ::shm_open(("/" + left->name).c_str(), O_CREAT | O_EXCL | O_RDWR, 0600);
   EXPECT_GE(fd, 0);
+  if (locked) {
+    EXPECT_EQ(::flock(fd, LOCK_SH), 0);
+  }
   if (with_header) {
     reader::SegmentHeader header{};
     std::memcpy(header.magic, reader::kMagic, sizeof header.magic);
     header.owner_pid = pid;
-    header.owner_start_ticks = start_ticks;
     EXPECT_EQ(::ftruncate(fd, reader::kHeaderBytes), 0);
     EXPECT_EQ(::pwrite(fd, &header, sizeof header, 0), static_cast<ssize_t>(sizeof header));
   }
-  ::close(fd);
-  return name;
+  if (locked) {
+    left->fd = fd;
+  } else {
+    ::close(fd);
+  }
+  return left;
 }
 
-TEST(SharedMapExportTest, StaleSegmentsOfDeadOwnersGoAndOthersStay) {
-  const pid_t child = ::fork();
-  if (child == 0) ::_exit(0);
-  ::waitpid(child, nullptr, 0);  // a pid whose process is gone
-  const auto left_before_start = leave_segment(child, 1);
+TEST(SharedMapExportTest, SegmentsNoServerHoldsGoAndOthersStay) {
+  // (Other test processes clean /dev/shm too, so what must go is checked by its absence, not by who removed it.)
+  const auto left_before_start = leave_segment(12345, /*locked=*/false);
   CountingGridPort port;
-  std::optional<shm::SharedMapExport> alive(std::in_place, port, fast(), "test-run");  // this process: alive
-  EXPECT_FALSE(segment_exists(left_before_start)) << "a starting exporter removes what dead servers left";
+  std::optional<shm::SharedMapExport> alive(std::in_place, port, fast(), "test-run");
+  EXPECT_FALSE(segment_exists(left_before_start->name)) << "a starting exporter removes what dead servers left";
   const auto own = alive->status().name;
-  const auto dead = leave_segment(child, 1);
-  const auto reused_pid = leave_segment(::getpid(), 1);  // this pid, but a process started at another time
-  const auto unfilled = leave_segment(0, 0, false);      // made a moment ago, header not written yet
+  const auto unlocked = leave_segment(::getpid(), false);  // names a live pid, but no process holds its lock
+  const auto held = leave_segment(1, true);                // names another pid, but its lock is held: a live server
+  const auto unfilled = leave_segment(0, false, false);    // made a moment ago, header not written yet
   const auto foreign = std::string("wm-not-ours-") + std::to_string(::getpid());
   const int fd = ::shm_open(("/" + foreign).c_str(), O_CREAT | O_RDWR, 0600);
   ASSERT_GE(fd, 0);
   ::close(fd);
+  const auto fifo = std::string(reader::kNamePrefix) + boost::uuids::to_string(boost::uuids::random_generator()());
+  ASSERT_EQ(::mkfifo(("/dev/shm/" + fifo).c_str(), 0600), 0);  // opening it for reading would block
 
-  const auto removed = shm::SharedMapExport::remove_stale_segments();
-  EXPECT_NE(std::find(removed.begin(), removed.end(), dead), removed.end());
-  EXPECT_NE(std::find(removed.begin(), removed.end(), reused_pid), removed.end());
-  EXPECT_FALSE(segment_exists(dead));
-  EXPECT_FALSE(segment_exists(reused_pid));
+  shm::SharedMapExport::remove_stale_segments();
+  EXPECT_FALSE(segment_exists(unlocked->name));
+  EXPECT_TRUE(segment_exists(held->name));
   EXPECT_TRUE(segment_exists(own));
-  EXPECT_TRUE(segment_exists(unfilled)) << "younger than a minute: its maker may be writing the header now";
+  EXPECT_TRUE(segment_exists(unfilled->name)) << "younger than a minute: its maker may be writing the header now";
   EXPECT_TRUE(segment_exists(foreign)) << "not a name wmd makes";
-  ::shm_unlink(("/" + unfilled).c_str());
+  EXPECT_TRUE(std::filesystem::exists("/dev/shm/" + fifo)) << "not a regular file: skipped, without blocking";
   ::shm_unlink(("/" + foreign).c_str());
+  ::unlink(("/dev/shm/" + fifo).c_str());
   alive.reset();
   EXPECT_FALSE(segment_exists(own));
 }
 
 TEST(SharedMapExportTest, TheReaderRefusesFilesThatAreNotSegments) {
-  const auto name = leave_segment(::getpid(), 0);  // a header with zero sizes: no tile size, no map
-  EXPECT_THROW(reader::Reader{name}, reader::Error);
-  ::shm_unlink(("/" + name).c_str());
+  const auto empty_geometry = leave_segment(::getpid(), true);  // a header with zero sizes: no tile size, no map
+  EXPECT_THROW(reader::Reader{empty_geometry->name}, reader::Error);
   EXPECT_THROW(reader::Reader{"wm-does-not-exist"}, reader::Error);
 }
 
