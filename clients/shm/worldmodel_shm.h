@@ -363,11 +363,13 @@ class Reader {
           result.elements.resize(elements);
           result.objects.resize(objects);
           result.edges.resize(edges);
-          std::memcpy(result.elements.data(), records, elements * sizeof(ElementRecord));
-          std::memcpy(result.objects.data(), records + elements * sizeof(ElementRecord),
-                      objects * sizeof(ObjectRecord));
-          std::memcpy(result.edges.data(), records + elements * sizeof(ElementRecord) + objects * sizeof(ObjectRecord),
-                      edges * sizeof(EdgeRecord));
+          // memcpy must not get the null data() of an empty vector, even for 0 bytes.
+          const auto copy = [](auto& to, const unsigned char* from) {
+            if (!to.empty()) std::memcpy(to.data(), from, to.size() * sizeof to[0]);
+          };
+          copy(result.elements, records);
+          copy(result.objects, records + elements * sizeof(ElementRecord));
+          copy(result.edges, records + elements * sizeof(ElementRecord) + objects * sizeof(ObjectRecord));
           std::atomic_thread_fence(std::memory_order_acquire);
           if (map->sequence.load(std::memory_order_relaxed) == before) return result;
         }

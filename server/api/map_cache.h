@@ -17,6 +17,7 @@
 #include <string>
 #include <thread>
 
+#include "server/api/map_json_writer.h"
 #include "server/world/world_state.h"
 
 namespace wm::api {
@@ -43,6 +44,8 @@ class MapCache {
   /// A random token drawn at start, part of every ETag: a version number names another map after the database
   /// was replaced, so tags from before a restart never match.
   const std::string& instance() const { return instance_; }
+  /// The whole map's JSON writer, which keeps each element's text between versions (for builds of format json).
+  MapJsonWriter& json_writer() { return json_writer_; }
 
   /// Makes the bytes of a snapshot. Kept for a background build: must not refer to a request's objects.
   using Build = std::function<std::string(const world::WorldState&)>;
@@ -91,6 +94,7 @@ class MapCache {
   void run_background_builds();
 
   std::string instance_;
+  MapJsonWriter json_writer_;
   std::mutex mutex_;
   std::condition_variable built_;
   std::map<std::string, Slot> slots_;   // by format

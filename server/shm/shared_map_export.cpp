@@ -320,7 +320,8 @@ void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::
   map.element_count = elements;
   map.object_count = objects;
   map.edge_count = edges;
-  std::memcpy(reinterpret_cast<unsigned char*>(&map) + sizeof(layout::MapHeader), records.data(), records.size());
+  if (!records.empty())  // an empty vector's data() may be null, which memcpy must not get
+    std::memcpy(reinterpret_cast<unsigned char*>(&map) + sizeof(layout::MapHeader), records.data(), records.size());
   map.sequence.store(sequence + 2, std::memory_order_release);
 }
 

@@ -6,6 +6,10 @@
 // map version changes, follows the successor when the server moves to a larger segment (state retired), and exits
 // when the server stops cleanly (state stopped).
 //
+// The server unlinks a retired segment's name at once: a reader that missed two growths (A -> B -> C while it
+// still maps A) finds B gone too. A client that knows the server's URL asks GET /api/v1/shm again then; this
+// example knows only a name, so it says so and exits 1.
+//
 // Build: g++ -std=c++17 -O2 -I<repo> clients/shm/examples/read_grid.cpp -o read_grid
 #include <chrono>
 #include <cmath>
@@ -13,6 +17,7 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -72,14 +77,24 @@ int watch(shm::Reader reader) {
     if (state == shm::SegmentState::retired) {
       const auto next = reader.successor();
       std::printf("%s: retired, following %s\n", reader.name().c_str(), next ? next->c_str() : "(none)");
-      if (!next || next->empty()) return 1;
-      reader = shm::Reader(*next);  // the old mapping stays valid until here, even though its name is gone
+      std::fflush(stdout);
+      try {
+        if (!next || next->empty()) throw shm::Error("it names no successor");
+        reader = shm::Reader(*next);  // the old mapping stays valid until here, even though its name is gone
+      } catch (const shm::Error& error) {
+        std::fprintf(stderr,
+                     "read_grid: cannot follow %s: %s\n"
+                     "read_grid: the server has moved on since (it grew the segment again, or stopped): ask GET "
+                     "/api/v1/shm for the current name and start again\n",
+                     reader.name().c_str(), error.what());
+        return 1;
+      }
       revision = reader.grid_revision();
       map_version = print_summary(reader);
       continue;
     }
     const auto now = reader.grid_revision();
-    const auto version = reader.read_map().version;
+    const auto version = reader.map_version();  // the version alone, under the seqlock: no copy of the map
     if (now != revision || version != map_version) {
       revision = now;
       map_version = print_summary(reader);
@@ -106,10 +121,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "usage: %s wm-<uuid> [--watch]   (the name from GET /api/v1/shm)\n", argv[0]);
     return 2;
   }
+  std::optional<shm::Reader> reader;
   try {
-    shm::Reader reader(name);
-    if (watching) return watch(std::move(reader));
-    print_summary(reader);
+    reader.emplace(name);
+  } catch (const shm::Error& error) {  // e.g. the name is gone: the server grew the segment or stopped since
+    std::fprintf(stderr, "read_grid: %s\nread_grid: ask GET /api/v1/shm for the current name\n", error.what());
+    return 1;
+  }
+  try {
+    if (watching) return watch(std::move(*reader));
+    print_summary(*reader);
     return 0;
   } catch (const std::exception& error) {
     std::fprintf(stderr, "read_grid: %s\n", error.what());

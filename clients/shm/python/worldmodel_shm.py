@@ -4,9 +4,15 @@ The layout is defined by clients/shm/worldmodel_shm.h (the single source of trut
 module reads the same bytes with the standard library (mmap, struct). When numpy can be imported, tile and layer
 reads return numpy float32 arrays; otherwise array('f'). Set WM_SHM_NO_NUMPY=1 to force the fallback.
 
-    reader = worldmodel_shm.from_server("http://127.0.0.1:8080")   # or Reader("wm-0b5c...")
+    reader = worldmodel_shm.open_live("http://127.0.0.1:8080")   # or Reader("wm-0b5c...")
     dense = reader.read_layer("bayes")      # values[row * width + col], row 0 at the bottom, NaN = unknown
     world_map = reader.read_map()
+    reader = reader.follow("http://127.0.0.1:8080")   # after the server grew the segment: its successor
+
+Trust: the segment is a file the server owns (mode 0644). Only its owner can change or truncate it, and a truncated
+mapping kills the reader with SIGBUS: open only names the server gave (GET /api/v1/shm, or the successor written in
+its segment), and check Reader.owner_uid when in doubt. Every size and offset in the header is checked against the
+mapping at open, and the geometry is kept from then on.
 
 Consistency: each tile slot and the map carry a sequence counter (a seqlock). A read loads the counter, skips when
 it is odd (a write in progress), copies the bytes, loads the counter again and accepts the copy when it did not
@@ -26,6 +32,7 @@ import json
 import math
 import mmap
 import os
+import stat
 import struct
 import time
 import urllib.error
@@ -45,6 +52,7 @@ __all__ = [
     "LAYERS",
     "LAYOUT_VERSION",
     "ShmError",
+    "SegmentGone",
     "TileKey",
     "Dense",
     "Element",
@@ -53,8 +61,10 @@ __all__ = [
     "Map",
     "Reader",
     "from_server",
+    "open_live",
     "HAVE_NUMPY",
     "known_count",
+    "MAX_DENSE_CELLS",
     "shm_info",
 ]
 
@@ -113,12 +123,20 @@ _OBJECT = struct.Struct("<dddIIII128s24s")
 _EDGE = struct.Struct("<ddddIIQ")
 assert (_ELEMENT.size, _OBJECT.size, _EDGE.size) == (64, 192, 48)
 
+# Largest region read_layer() makes [cells] (1 GiB of float32), as the C++ reader's kMaxDenseCells.
+MAX_DENSE_CELLS = 1 << 28
+
 _GIVE_UP_S = 2.0
 _SPINS = 64  # retries before the clock starts: a write takes microseconds
 
 
 class ShmError(RuntimeError):
     """A segment that cannot be opened or is not of this layout, or a slot stuck in an update."""
+
+
+class SegmentGone(ShmError):
+    """The name is not there (ENOENT), or no longer the server's: the segment was unlinked because the server grew
+    it again or stopped. Ask GET /api/v1/shm for the current name (open_live, Reader.follow with a URL)."""
 
 
 class TileKey(NamedTuple):
@@ -247,6 +265,10 @@ class Reader:
 
     Every read copies out under the seqlock, so the values returned are one whole state of the tile (or the map),
     never a mix of two. The mapping stays valid after the server unlinks the name (on growth or stop).
+
+    Raises SegmentGone when the name does not exist, ShmError when it is not a regular file or not a worldmodel
+    segment of this layout (every offset is checked against the mapping here; the geometry is kept from then on:
+    whoever owns the file could change the header later).
     """
 
     def __init__(self, name: str) -> None:
@@ -254,12 +276,20 @@ class Reader:
         if not self._name or "/" in self._name:
             raise ShmError(f"invalid shared memory name {name!r}")
         self._path = SHM_DIR + self._name
+        # Anyone may put a file of that name in /dev/shm: no symlink, and no blocking open (a FIFO).
+        flags = os.O_RDONLY | getattr(os, "O_CLOEXEC", 0) | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
         try:
-            fd = os.open(self._path, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
+            fd = os.open(self._path, flags)
+        except FileNotFoundError as error:
+            raise SegmentGone(f"cannot open shared memory '{self._name}': {error.strerror}") from error
         except OSError as error:
             raise ShmError(f"cannot open shared memory '{self._name}': {error.strerror}") from error
         try:
-            size = os.fstat(fd).st_size
+            info = os.fstat(fd)
+            if not stat.S_ISREG(info.st_mode):
+                raise ShmError(f"'{self._name}' is not a regular file")
+            size = info.st_size
+            self._owner_uid = info.st_uid
             if size < HEADER_BYTES:
                 raise ShmError(f"shared memory '{self._name}' is too small to be a worldmodel segment")
             try:
@@ -279,31 +309,40 @@ class Reader:
 
     def _check_layout(self) -> None:
         mm = self._mm
-        # Fixed at creation: read once.
-        self._tile_size = self._i64(_H_TILE_SIZE_CELLS)
-        self._slot_bytes = self._u64(_H_SLOT_BYTES)
-        self._tiles_offset = self._u64(_H_TILES_OFFSET)
-        self._tile_capacity = self._u64(_H_TILE_CAPACITY)
-        self._map_offset = self._u64(_H_MAP_OFFSET)
-        self._map_capacity = self._u64(_H_MAP_CAPACITY_BYTES)
-        t = self._tile_size
+        # The geometry is read once, checked, and kept: no read goes by the mapping's copy of it again (its owner
+        # could change it afterwards). Python's integers do not overflow, so the sums below are exact.
+        t = self._i64(_H_TILE_SIZE_CELLS)
+        slot_bytes = self._u64(_H_SLOT_BYTES)
+        tiles_offset = self._u64(_H_TILES_OFFSET)
+        tile_capacity = self._u64(_H_TILE_CAPACITY)
+        map_offset = self._u64(_H_MAP_OFFSET)
+        map_capacity = self._u64(_H_MAP_CAPACITY_BYTES)
+        resolution = _F64.unpack_from(mm, _H_RESOLUTION_M)[0]
         valid = (
             mm[_H_MAGIC : _H_MAGIC + 8] == MAGIC
             and _U32.unpack_from(mm, _H_LAYOUT_VERSION)[0] == LAYOUT_VERSION
             and _U32.unpack_from(mm, _H_LAYER_COUNT)[0] == len(LAYERS)
             and self._u64(_H_SEGMENT_BYTES) <= self._size
-            and self._tiles_offset + self._tile_capacity * self._slot_bytes <= self._size
-            and self._map_offset + self._map_capacity <= self._size
-            # As the C++ reader, plus what Python needs to stay in bounds and 8-aligned for the counters.
-            and t > 0
-            and self._slot_bytes >= _SLOT_HEADER_BYTES + len(LAYERS) * t * t * 4
-            and self._map_capacity >= _MAP_HEADER_BYTES
-            and self._tiles_offset % 8 == 0
-            and self._slot_bytes % 8 == 0
-            and self._map_offset % 8 == 0
+            # As the C++ reader's layout_fits().
+            and 1 <= t <= 1024
+            and tiles_offset % 64 == 0
+            and map_offset % 64 == 0
+            and slot_bytes % 64 == 0
+            and slot_bytes >= _SLOT_HEADER_BYTES + len(LAYERS) * t * t * 4
+            and HEADER_BYTES <= tiles_offset <= self._size
+            and tiles_offset + tile_capacity * slot_bytes <= self._size
+            and map_capacity >= _MAP_HEADER_BYTES
+            and map_offset + map_capacity <= self._size
         )
         if not valid:
             raise ShmError(f"'{self._name}' is not a worldmodel segment of layout version {LAYOUT_VERSION}")
+        self._tile_size = t
+        self._slot_bytes = slot_bytes
+        self._tiles_offset = tiles_offset
+        self._tile_capacity = tile_capacity
+        self._map_offset = map_offset
+        self._map_capacity = map_capacity
+        self._resolution = resolution
         self._cells = t * t
 
     def close(self) -> None:
@@ -343,6 +382,11 @@ class Reader:
         return self._size
 
     @property
+    def owner_uid(self) -> int:
+        """The uid owning the file when it was opened: trust a segment only when this is the server's user."""
+        return self._owner_uid
+
+    @property
     def state(self) -> str:
         """"live" (the server writes it), "retired" (see successor) or "stopped" (the server's last state)."""
         value = _U32.unpack_from(self._mm, _H_STATE)[0]
@@ -370,10 +414,12 @@ class Reader:
 
     @property
     def owner_pid(self) -> int:
+        """The wmd process that made the segment (for information: stale segments are told by a lock, not a pid)."""
         return self._i64(_H_OWNER_PID)
 
     @property
     def owner_start_ticks(self) -> int:
+        """Its start time, field 22 of /proc/<pid>/stat (for information)."""
         return self._u64(_H_OWNER_START_TICKS)
 
     @property
@@ -386,10 +432,12 @@ class Reader:
 
     @property
     def resolution_m(self) -> float:
-        return _F64.unpack_from(self._mm, _H_RESOLUTION_M)[0]
+        return self._resolution
 
     @property
     def grid_revision(self) -> int:
+        """Scans in the grid: the slots hold every scan up to this one. Not comparable with a tile's revision (the
+        inserts that changed that tile). Advances even when tiles were left out (tiles_truncated)."""
         return self._u64(_H_GRID_REVISION)
 
     @property
@@ -452,20 +500,26 @@ class Reader:
     def read_layer(self, layer: LayerArg) -> Dense:
         """The layer over the smallest block of tiles covering every exported tile, NaN elsewhere.
 
-        Note: sparse tiles far apart make a large block (width * height floats), as in the C++ reader.
+        Tiles far apart make a large block (width * height floats): over MAX_DENSE_CELLS cells it raises ShmError
+        before allocating anything (read the tiles one by one then), as the C++ reader does.
         """
         index = _layer_index(layer)
-        resolution = self.resolution_m
+        resolution = self._resolution
         revision = self.grid_revision  # before the tiles: they hold every scan up to this one
-        count = self.tile_count
+        count = self.tile_count  # later slots are left for the next call
         if count == 0:
             return Dense(0, 0, 0, 0, resolution, revision, _float_buffer(0))
         t = self._tile_size
+        # The keys are read once: the region, its bound and the placement below all use these.
         keys = [self.tile_key(i) for i in range(count)]
         min_x = min(k.tx for k in keys)
         min_y = min(k.ty for k in keys)
-        width = (max(k.tx for k in keys) - min_x + 1) * t
-        height = (max(k.ty for k in keys) - min_y + 1) * t
+        span_x = max(k.tx for k in keys) - min_x + 1
+        span_y = max(k.ty for k in keys) - min_y + 1
+        if span_x * span_y * t * t > MAX_DENSE_CELLS:
+            raise ShmError(f"the tiles span more than {MAX_DENSE_CELLS} cells: read them one by one")
+        width = span_x * t
+        height = span_y * t
         values = _nan_buffer(width * height)
         grid = values.reshape(height, width) if np is not None else None
         for slot, key in enumerate(keys):
@@ -479,6 +533,46 @@ class Reader:
                     start = (row0 + row) * width + col
                     values[start : start + t] = tile[row * t : (row + 1) * t]
         return Dense(min_x * t, min_y * t, width, height, resolution, revision, values)
+
+    # --- successors -------------------------------------------------------------------------------------------
+
+    def follow(self, url: Optional[str] = None, timeout: float = 5.0) -> "Reader":
+        """The reader to keep reading with: self while the segment is not retired; else its successor's, and so on.
+
+        When the server grew the segment, it named the next one in `successor` and unlinked this one's name at once.
+        A reader that missed two growths (A -> B -> C while it still maps A) finds B's name gone too: then, with
+        `url`, this asks GET <url>/api/v1/shm for the current segment (open_live); without, it raises SegmentGone.
+        A successor owned by another user than this segment is not followed (a name unlinked may be taken again).
+        On success the readers left behind are closed, this one included; on failure this one stays open.
+
+            reader = reader.follow(url)   # in a polling loop, when reader.state == "retired"
+        """
+        current = self
+        try:
+            while current.state == "retired":
+                name = current.successor or ""
+                following = Reader(name)
+                if following.owner_uid != current.owner_uid:
+                    following.close()
+                    raise SegmentGone(
+                        f"'{name}' is owned by uid {following.owner_uid}, not by the server's uid {current.owner_uid}"
+                    )
+                if current is not self:
+                    current.close()
+                current = following
+        except ShmError as error:
+            if current is not self:
+                current.close()
+            if url is None:
+                raise type(error)(
+                    f"following '{self._name}': {error}; ask GET /api/v1/shm for the current segment"
+                ) from error
+            fresh = open_live(url, timeout)
+            self.close()
+            return fresh
+        if current is not self:
+            self.close()
+        return current
 
     # --- map --------------------------------------------------------------------------------------------------
 
@@ -541,7 +635,7 @@ def shm_info(url: str = "http://127.0.0.1:8080", timeout: float = 5.0) -> Dict[s
 
 
 def from_server(url: str = "http://127.0.0.1:8080", timeout: float = 5.0) -> Reader:
-    """Asks the wmd at `url` (on this machine) for its segment's name and opens it."""
+    """Asks the wmd at `url` (on this machine) for its segment's name and opens it (once: see open_live)."""
     info = shm_info(url, timeout)
     if info.get("layout_version") != LAYOUT_VERSION:
         version = info.get("layout_version")
@@ -550,6 +644,28 @@ def from_server(url: str = "http://127.0.0.1:8080", timeout: float = 5.0) -> Rea
     if not isinstance(name, str) or not name:
         raise ShmError(f"GET {url.rstrip('/')}/api/v1/shm named no segment")
     return Reader(name)
+
+
+def open_live(url: str = "http://127.0.0.1:8080", timeout: float = 5.0, attempts: int = 3) -> Reader:
+    """Asks the wmd at `url` for its segment and opens it, following successors: the segment the server writes now.
+
+    The name GET /api/v1/shm gives may be gone by the time it is opened (the server grew the segment meanwhile):
+    then it asks again, up to `attempts` times, before raising SegmentGone.
+    """
+    for attempt in range(attempts):
+        try:
+            reader = from_server(url, timeout)
+        except SegmentGone:
+            if attempt + 1 == attempts:
+                raise
+            continue
+        try:
+            return reader.follow()
+        except ShmError as error:
+            reader.close()
+            if not isinstance(error, SegmentGone) or attempt + 1 == attempts:
+                raise
+    raise ShmError("open_live: attempts must be at least 1")
 
 
 def known_count(values: Sequence[float]) -> int:

@@ -106,7 +106,9 @@ Response get_map(const Call& call) {
   auto& world = call.world;
   const auto body = call.map_cache.body(
       snap, format, content_type_of(format),
-      [&options, format, instance = call.map_cache.instance()](const world::WorldState& state) {
+      [&options, format, instance = call.map_cache.instance(),
+       &writer = call.map_cache.json_writer()](const world::WorldState& state) {
+        if (format == "json") return writer.write(state, options, instance);
         return map_text(state, options, format, std::nullopt, instance);
       },
       accepted_staleness(call.request), [&world] { return world.snapshot(); }, call.at_once);

@@ -3,7 +3,9 @@
 
     read_grid.py [--server URL | --name wm-...] [--layer bayes] [--pgm out.pgm]
 
-Without --name it asks the server (GET /api/v1/shm) for the segment's name; the segment must be on this machine.
+Without --name it asks the server (GET /api/v1/shm) for the segment's name, and asks again when that name is gone
+by the time it is opened (the server grew the segment); the segment must be on this machine. A retired segment's
+successor is followed.
 """
 
 from __future__ import annotations
@@ -58,6 +60,29 @@ def _pixels(dense: worldmodel_shm.Dense) -> bytearray:
     return pixels
 
 
+def open_segment(name: str | None, server: str) -> worldmodel_shm.Reader:
+    """The segment the server writes now.
+
+    With a server URL, open_live asks GET /api/v1/shm and opens that name, following successors; a name already
+    gone (the server grew the segment meanwhile, or twice since a successor was named) is asked for again. With
+    only a name, a retired segment's successors are followed; when one is gone, SegmentGone says to ask
+    GET /api/v1/shm.
+    """
+    if not name:
+        return worldmodel_shm.open_live(server)
+    try:
+        reader = worldmodel_shm.Reader(name)
+    except worldmodel_shm.SegmentGone as error:
+        raise worldmodel_shm.SegmentGone(
+            f"{error}: the server replaced or removed it; ask GET /api/v1/shm for the current name (or use --server)"
+        ) from error
+    try:
+        return reader.follow()
+    except worldmodel_shm.ShmError:
+        reader.close()
+        raise
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     source = parser.add_mutually_exclusive_group()
@@ -68,7 +93,7 @@ def main() -> int:
     args = parser.parse_args()
 
     try:
-        reader = worldmodel_shm.Reader(args.name) if args.name else worldmodel_shm.from_server(args.server)
+        reader = open_segment(args.name, args.server)
         with reader:
             dense = reader.read_layer(args.layer)
             tiles = reader.tile_count

@@ -2,6 +2,8 @@
 """Prints the vector map held in wmd's shared-memory segment: its version, the counts, and the first elements.
 
     read_map.py [--server URL | --name wm-...] [--first N]
+
+Without --name it asks the server (GET /api/v1/shm) for the segment, as read_grid.py does.
 """
 
 from __future__ import annotations
@@ -17,6 +19,29 @@ import worldmodel_shm  # noqa: E402
 ORIGINS = {0: "client", 1: "scan", 2: "grid", 3: "other"}
 
 
+def open_segment(name: str | None, server: str) -> worldmodel_shm.Reader:
+    """The segment the server writes now.
+
+    With a server URL, open_live asks GET /api/v1/shm and opens that name, following successors; a name already
+    gone (the server grew the segment meanwhile, or twice since a successor was named) is asked for again. With
+    only a name, a retired segment's successors are followed; when one is gone, SegmentGone says to ask
+    GET /api/v1/shm.
+    """
+    if not name:
+        return worldmodel_shm.open_live(server)
+    try:
+        reader = worldmodel_shm.Reader(name)
+    except worldmodel_shm.SegmentGone as error:
+        raise worldmodel_shm.SegmentGone(
+            f"{error}: the server replaced or removed it; ask GET /api/v1/shm for the current name (or use --server)"
+        ) from error
+    try:
+        return reader.follow()
+    except worldmodel_shm.ShmError:
+        reader.close()
+        raise
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     source = parser.add_mutually_exclusive_group()
@@ -26,7 +51,7 @@ def main() -> int:
     args = parser.parse_args()
 
     try:
-        reader = worldmodel_shm.Reader(args.name) if args.name else worldmodel_shm.from_server(args.server)
+        reader = open_segment(args.name, args.server)
         with reader:
             world_map = reader.read_map()
             truncated = reader.map_truncated
