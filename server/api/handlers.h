@@ -24,8 +24,10 @@ struct Call {
   service::WorldPort& world;
   MapCache& map_cache;
   const shm::SharedMapExport* shm = nullptr;  // nullptr when wmd runs with --no-shm
-  /// Run on an I/O thread (routes marked at_once): answer from what is ready or throw NotAtOnce.
+  /// Run on an I/O thread (routes marked at_once): answer from what is ready or throw NotAtOnce; a body of bytes
+  /// kept elsewhere goes to *shared_body, not into the response.
   bool at_once = false;
+  std::shared_ptr<const std::string>* shared_body = nullptr;  // set when at_once
 };
 
 using Handler = Response (*)(const Call&);

@@ -70,8 +70,9 @@ bool accepts_gzip(const Request& request) {
   return gzip && !refused;
 }
 
-Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip,
-                         bool at_once) {
+Response tagged_response(const Request& request, const std::shared_ptr<const MapBody>& shared, const std::string& tag,
+                         bool may_gzip, std::shared_ptr<const std::string>* share_into) {
+  const MapBody& body = *shared;
   const std::string identity = "\"" + tag + "\"", gzip_tag = "\"" + tag + "-gzip\"";
   // Small bodies are not worth a compression step.
   const bool gzip = may_gzip && body.bytes.size() >= 1024 && accepts_gzip(request);
@@ -86,14 +87,18 @@ Response tagged_response(const Request& request, const MapBody& body, const std:
     return res;                           // no body, no Content-Length of the 200's
   }
   res.set(http::field::content_type, body.content_type);
+  std::shared_ptr<const std::string> bytes(shared, &body.bytes);  // shares the cached body's ownership
   if (gzip) {
-    const auto compressed = at_once ? MapCache::gzip_if_made(body) : MapCache::gzip_of(body);
-    if (!compressed) throw NotAtOnce{};
+    bytes = share_into ? MapCache::gzip_if_made(body) : MapCache::gzip_of(body);
+    if (!bytes) throw NotAtOnce{};
     res.set(http::field::content_encoding, "gzip");
-    res.body() = *compressed;
-  } else {
-    res.body() = body.bytes;
   }
+  if (share_into) {
+    res.content_length(bytes->size());
+    *share_into = std::move(bytes);
+    return res;
+  }
+  res.body() = *bytes;
   res.prepare_payload();
   return res;
 }

@@ -29,9 +29,11 @@ Response raw_response(const Request& request, std::string body, const std::strin
 /// built, a gzip form not made): the request then goes to a handler thread as usual.
 struct NotAtOnce {};
 
-/// `at_once`: throw NotAtOnce rather than compress on this thread.
-Response tagged_response(const Request& request, const MapBody& body, const std::string& tag, bool may_gzip = true,
-                         bool at_once = false);
+/// `share_into` (an answer made on the I/O thread): throw NotAtOnce rather than compress on this thread, and hand
+/// the body's bytes out there instead of copying them into the response (which then carries the headers, its
+/// Content-Length included).
+Response tagged_response(const Request& request, const std::shared_ptr<const MapBody>& body, const std::string& tag,
+                         bool may_gzip = true, std::shared_ptr<const std::string>* share_into = nullptr);
 
 /// Whether Accept-Encoding allows gzip (named or "*", with a q-value above 0).
 bool accepts_gzip(const Request& request);

@@ -18,7 +18,10 @@ std::string_view target_of(const Request& request) {
   return {target.data(), target.size()};
 }
 
-Response dispatch(const Request& request, Services& services, bool at_once = false) {
+// `shared_body`: run at once (on the I/O thread), a cached body handed out there; nullptr: on a handler thread.
+Response dispatch(const Request& request, Services& services,
+                  std::shared_ptr<const std::string>* shared_body = nullptr) {
+  const bool at_once = shared_body != nullptr;
   require_allowed_host(request, services.options);
   // Browsers send simple cross-site POSTs (a form, text/plain) without asking first: whatever changes state
   // must come from our own pages or an allowed origin.
@@ -28,7 +31,7 @@ Response dispatch(const Request& request, Services& services, bool at_once = fal
   if (const auto match = find_route(request.method(), target.path)) {
     if (at_once && !match->route->at_once) throw NotAtOnce{};
     return match->route->handler(Call{request, target, match->param, services.options, services.world,
-                                      *services.map_cache, services.shm, at_once});
+                                      *services.map_cache, services.shm, at_once, shared_body});
   }
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
@@ -59,19 +62,31 @@ std::optional<Response> authorize_events(const Request& request, const Services&
   return authorize_upgrade(request, services.options);
 }
 
-std::optional<Response> answer_at_once(const Request& request, Services& services) {
+std::optional<SharedResponse> answer_at_once(const Request& request, Services& services) {
   const auto target = target_of(request);
   const auto match = find_route(request.method(), target.substr(0, target.find('?')));
   if (!match || !match->route->at_once) return std::nullopt;  // the common case: one table lookup, nothing else
+  std::shared_ptr<const std::string> shared;
+  Response response;
   try {
-    return for_request_method(request, dispatch(request, services, /*at_once=*/true));
+    response = for_request_method(request, dispatch(request, services, &shared));
   } catch (const NotAtOnce&) {
     return std::nullopt;
   } catch (...) {  // a refused Host, a bad parameter: answered at once, as on a handler thread
+    shared.reset();
     const auto failure = http_error(std::current_exception());
-    return for_request_method(request, error_response(request.version(), request.keep_alive(), failure.status,
-                                                      failure.error, failure.detail));
+    response = for_request_method(request, error_response(request.version(), request.keep_alive(), failure.status,
+                                                          failure.error, failure.detail));
   }
+  // The headers as made; the body shared (a HEAD has its Content-Length and no body) or, when the handler made one
+  // of its own, moved in.
+  SharedResponse answer{std::move(response.base())};
+  if (shared) {
+    if (request.method() != http::verb::head) answer.body() = std::move(shared);
+  } else if (!response.body().empty()) {
+    answer.body() = std::make_shared<const std::string>(std::move(response.body()));
+  }
+  return answer;
 }
 
 Response handle_request(const Request& request, Services& services) {

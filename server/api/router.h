@@ -23,7 +23,7 @@ struct Services {
 
 /// The answer to a request whose route is marked at_once, when it can be given on the calling (I/O) thread without
 /// waiting or heavy work: the map's bytes already made, a 304. nullopt: queue it on its lane as usual. Never throws.
-std::optional<Response> answer_at_once(const Request& request, Services& services);
+std::optional<SharedResponse> answer_at_once(const Request& request, Services& services);
 
 /// The lane of the request's route (server/api/routes.cpp); a request no route answers (404, 405) is answered
 /// at once.

@@ -247,7 +247,7 @@ class Session : public std::enable_shared_from_this<Session> {
     // Bytes already made (the map of the current version, a 304) need no handler thread: served here, they skip
     // the queue and the handlers' lower CPU priority, which under ingest is most of their latency.
     if (lane == api::Lane::read && handlers_.at_once) {
-      if (auto ready = handlers_.at_once(parser_->get())) return write(std::move(*ready));
+      if (auto ready = handlers_.at_once(parser_->get())) return write_shared(std::move(*ready));
     }
     // The handler may wait for the writer or Prolog for long: the I/O thread goes back to other connections,
     // and the answer comes back to this connection's strand.
@@ -284,9 +284,18 @@ class Session : public std::enable_shared_from_this<Session> {
                        beast::bind_front_handler(&Session::on_write, shared_from_this(), response_->need_eof()));
   }
 
+  // The same for an answer whose body is shared with the map cache: no copy of the bytes.
+  void write_shared(api::SharedResponse response) {
+    stream_.expires_after(options_.read_timeout);
+    shared_response_ = std::make_shared<api::SharedResponse>(std::move(response));
+    bhttp::async_write(stream_, *shared_response_,
+                       beast::bind_front_handler(&Session::on_write, shared_from_this(), shared_response_->need_eof()));
+  }
+
   void on_write(bool close_after, beast::error_code ec, std::size_t) {
     if (ec || close_after) return close();
     response_.reset();
+    shared_response_.reset();
     read();
   }
 
@@ -319,6 +328,7 @@ class Session : public std::enable_shared_from_this<Session> {
   beast::flat_buffer buffer_;
   std::optional<bhttp::request_parser<bhttp::string_body>> parser_;
   std::shared_ptr<api::Response> response_;
+  std::shared_ptr<api::SharedResponse> shared_response_;
   const HttpOptions& options_;
   const HttpServer::Handlers& handlers_;
   HandlerPool& pool_;

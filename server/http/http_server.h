@@ -53,7 +53,7 @@ class HttpServer {
     std::function<std::optional<api::Response>(const api::Request&)> authorize_upgrade;
     /// Tried on the I/O thread before a read-lane request is queued: an answer that is ready at once (bytes
     /// already made), or nullopt to queue it. Must not block. Empty: every request is queued.
-    std::function<std::optional<api::Response>(const api::Request&)> at_once;
+    std::function<std::optional<api::SharedResponse>(const api::Request&)> at_once;
   };
   /// Binds and listens. WebSocket upgrades that `handlers.is_websocket` accepts subscribe to `events` (when
   /// given).

@@ -139,10 +139,10 @@ Response get_grid_tile(const Call& call) {
                    "tile (" + std::to_string(tx) + ", " + std::to_string(ty) +
                        ") holds no observed cell; GET /api/v1/grid/tiles lists those that do");
   static_assert(std::endian::native == std::endian::little, "tiles are sent as little-endian float32");
-  MapBody body;
-  body.version = static_cast<std::int64_t>(tile->revision);
-  body.content_type = "application/octet-stream";
-  body.bytes.assign(reinterpret_cast<const char*>(tile->values.data()), tile->values.size() * sizeof(float));
+  auto body = std::make_shared<MapBody>();
+  body->version = static_cast<std::int64_t>(tile->revision);
+  body->content_type = "application/octet-stream";
+  body->bytes.assign(reinterpret_cast<const char*>(tile->values.data()), tile->values.size() * sizeof(float));
   return tagged_response(call.request, body, call.map_cache.instance() + "-r" + std::to_string(tile->revision),
                          /*may_gzip=*/false);
 }

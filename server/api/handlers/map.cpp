@@ -70,9 +70,9 @@ Response map_delta(const Call& call, const std::shared_ptr<const world::WorldSta
   if (!body) throw NotAtOnce{};
   // A poller that holds the newest version asks the same question again and again: 304 until something changes.
   return tagged_response(
-      call.request, *body,
+      call.request, body,
       call.map_cache.instance() + "-v" + std::to_string(body->version) + "-since" + std::to_string(since),
-      /*may_gzip=*/true, call.at_once);
+      /*may_gzip=*/true, call.shared_body);
 }
 
 }  // namespace
@@ -113,8 +113,8 @@ Response get_map(const Call& call) {
       },
       accepted_staleness(call.request), [&world] { return world.snapshot(); }, call.at_once);
   if (!body) throw NotAtOnce{};
-  auto response = tagged_response(call.request, *body, call.map_cache.instance() + "-v" + std::to_string(body->version),
-                                  /*may_gzip=*/true, call.at_once);
+  auto response = tagged_response(call.request, body, call.map_cache.instance() + "-v" + std::to_string(body->version),
+                                  /*may_gzip=*/true, call.shared_body);
   if (body->version < snap->version) {
     // An older map than the newest, as the client allowed: how old, in whole seconds (RFC 9111 5.1).
     const auto age = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::steady_clock::now() - body->taken);
