@@ -105,8 +105,8 @@ void BM_GetEveryTile(benchmark::State& state) {
   Connection c(fixture().wmd.port());
   for (auto _ : state) {
     for (const auto& [tx, ty] : fixture().tiles) {
-      auto answer = c.request(http::verb::get,
-                              "/api/v1/grid/tiles/bayes/" + std::to_string(tx) + "/" + std::to_string(ty));
+      auto answer =
+          c.request(http::verb::get, "/api/v1/grid/tiles/bayes/" + std::to_string(tx) + "/" + std::to_string(ty));
       benchmark::DoNotOptimize(answer.body.data());
     }
   }
@@ -134,6 +134,5 @@ BENCHMARK(BM_GetEveryTile)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SharedMemoryReadLayer)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 int main(int argc, char** argv) {
-  return wm::bench::run_with_ratios(argc, argv,
-                                    {{"1000 x 1000 grid layer read", "BM_GetGridJson/real_time"}});
+  return wm::bench::run_with_ratios(argc, argv, {{"1000 x 1000 grid layer read", "BM_GetGridJson/real_time"}});
 }
