@@ -22,6 +22,7 @@ int map_quality(const Invocation& in);
 int report(const Invocation& in);
 int grid(const Invocation& in);
 int grid_extract(const Invocation& in);
+int robots(const Invocation& in);
 
 // The decision log, the rules and queries (rules_commands.cpp).
 int decisions(const Invocation& in);

@@ -118,6 +118,7 @@ std::vector<Command> command_table() {
        "with the bayes layer also FILE.yaml for ROS map_server",
        grid},
       {"grid extract", {}, {}, "run the grid line extractor now; its lines are decided like primitives", grid_extract},
+      {"robots", {}, {}, "the robots heard from: status, pose, what they sent", robots},
       {"shm",
        {},
        {{"--tiles", "N"}},

@@ -200,6 +200,26 @@ int grid(const Invocation& in) {
   return kExitOk;
 }
 
+int robots(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/robots")), [](const json& r) {
+    if (r["robots"].empty()) std::cout << "no robot has sent anything yet\n";
+    for (const auto& robot : r["robots"]) {
+      std::cout << std::left << std::setw(16) << robot["id"].get<std::string>() << " " << std::setw(7)
+                << robot["status"].get<std::string>();
+      if (robot["pose"].is_null()) {
+        std::cout << " no pose";
+      } else {
+        const auto& p = robot["pose"];
+        std::cout << " at (" << fixed(p["x"].get<double>()) << ", " << fixed(p["y"].get<double>()) << ") θ "
+                  << fixed(p["theta"].get<double>()) << " from " << p["source"].get<std::string>();
+      }
+      std::cout << ", silent " << fixed(robot["silent_s"].get<double>()) << " s;";
+      for (const auto& [sensor, count] : robot["scans"].items()) std::cout << " " << count << " " << sensor << " scans";
+      std::cout << ", " << robot["primitives"] << " primitives, " << robot["poses"] << " poses\n";
+    }
+  });
+}
+
 int grid_extract(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("POST", "/api/v1/grid/extract", "{}", "application/json", in.token)),
                  [](const json& r) {

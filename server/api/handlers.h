@@ -66,6 +66,10 @@ Response get_grid_map_yaml(const Call& call);
 Response get_grid_map_pgm(const Call& call);
 Response get_grid_tiles(const Call& call);  // GET /api/v1/grid/tiles: the tiles and their revisions
 Response get_grid_tile(const Call& call);   // GET /api/v1/grid/tiles/{layer}/{tx}/{ty}: one tile, float32
+// handlers/robots.cpp
+Response get_robots(const Call& call);
+Response get_robot(const Call& call);
+Response put_robot_pose(const Call& call);  // PUT /api/v1/robots/{id}/pose: a pose reported without a scan
 // handlers/shm.cpp
 Response get_shm(const Call& call);  // GET /api/v1/shm: the shared-memory segment's name and layout
 Response post_grid_extract(const Call& call);

@@ -50,6 +50,9 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1/grid/tiles", get_grid_tiles, Lane::read},
     Route{verb::get, "/api/v1/grid/tiles/{layer}/{tx}/{ty}", get_grid_tile, Lane::read},
     Route{verb::get, "/api/v1/shm", get_shm, Lane::read},
+    Route{verb::get, "/api/v1/robots", get_robots, Lane::read},
+    Route{verb::put, "/api/v1/robots/{id}/pose", put_robot_pose, Lane::write},
+    Route{verb::get, "/api/v1/robots/{id}", get_robot, Lane::read},
     Route{verb::get, "/api/v1/events", get_events_without_upgrade, Lane::immediate, "?token=TOKEN", true},
     Route{verb::get, "/web/{path}", get_static, Lane::read},
 };

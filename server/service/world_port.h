@@ -19,6 +19,7 @@
 #include "pipeline/network.h"
 #include "rules/types.h"
 #include "server/json/codec.h"
+#include "server/service/robot_registry.h"
 #include "server/service/service_errors.h"
 #include "server/world/update.h"
 
@@ -195,6 +196,14 @@ class WorldPort {
   /// What left the map after version `since` up to version `up_to` (a snapshot's), nullopt when the service no
   /// longer knows: `since` is older than the removals it keeps (the newest 100 000 ids) or than its start.
   virtual std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const = 0;
+
+  /// The robots heard from (scans, primitives, reported poses), by id; restored from the journal at start.
+  virtual std::vector<RobotState> robots() const = 0;
+  virtual std::optional<RobotState> robot(const std::string& id) const = 0;
+  /// Journals a pose a robot reports without a scan (odometry, a localiser), then applies it.
+  /// @throw storage::StorageError (nothing applied then).
+  virtual RobotState put_robot_pose(const std::string& id, RobotPose pose, bool stopped) = 0;
+  virtual const RobotOptions& robot_options() const = 0;
 };
 
 }  // namespace wm::service

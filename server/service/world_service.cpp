@@ -80,6 +80,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
                                 " but the grid was rebuilt to " + std::to_string(last_scan_seq_));
   // Replayed tiles stay dirty: the next flush (or the one at shutdown) writes them.
   next_scan_seq_ = committed_scan_seq_ = last_scan_seq_;
+  restore_robots();
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
   const auto spec = options_.network_file ? pipeline::read_task_file(options_.network_file->string())
                                           : pipeline::parse_task(default_network_yaml(), "<default network>");
@@ -601,6 +602,58 @@ std::optional<GridTileValues> WorldService::grid_tile(fusion::OccupancyGrid::Lay
     if (revision == 0) return std::nullopt;
     return GridTileValues{grid.export_layer(layer, grid.tiles_geometry({tx, ty}, {tx, ty})), revision};
   });
+}
+
+void WorldService::restore_robots() {
+  for (auto& journal : store_.robot_journal(robots_.options().track_points)) {
+    RobotState robot;
+    robot.id = journal.robot;
+    robot.scans = std::move(journal.scans);
+    robot.primitives = journal.primitives;
+    robot.poses = journal.poses;
+    robot.first_seen_unix_s = journal.first_seen;
+    robot.last_seen_unix_s = journal.last_seen;
+    std::optional<RobotPose> from_scan;
+    if (journal.last_scan_payload) {
+      try {
+        const auto scan = json_codec::parse_scan(*journal.last_scan_payload, json_codec::ScanLimits{});
+        const auto pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
+        from_scan = RobotPose{pose.x_m,
+                              pose.y_m,
+                              pose.theta_rad,
+                              scan.pose_cov.isZero() ? std::nullopt : std::optional<Eigen::Matrix3d>(scan.pose_cov),
+                              scan.stamp_s,
+                              journal.last_scan_received_at,
+                              std::string("scan:") + scan.sensor()};
+      } catch (const std::exception&) {
+        // A payload this build no longer reads: the robot comes back without its scan pose.
+      }
+    }
+    for (auto it = journal.poses_newest_first.rbegin(); it != journal.poses_newest_first.rend(); ++it)
+      robot.track.push_back(RobotPose{it->x, it->y, it->theta, it->cov, it->stamp, it->received_at, "reported"});
+    const auto* reported = robot.track.empty() ? nullptr : &robot.track.back();
+    if (reported && (!from_scan || reported->received_at_unix_s >= from_scan->received_at_unix_s)) {
+      robot.pose = *reported;
+      robot.stopped = journal.poses_newest_first.front().state == "stopped";
+    } else {
+      robot.pose = from_scan;
+    }
+    robots_.restore(std::move(robot));
+  }
+}
+
+void WorldService::emit_robot(const std::optional<RobotState>& robot) {
+  if (!robot) return;
+  const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  emit({{"type", "robot"}, {"robot", json_codec::robot_json(*robot, to_string(robots_.status(*robot, now)), now)}});
+}
+
+RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {
+  pose.received_at_unix_s = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  store_.commit_robot_pose({id, pose.x, pose.y, pose.theta, pose.cov, pose.stamp_s, pose.received_at_unix_s,
+                            stopped ? "stopped" : "moving"});
+  emit_robot(robots_.on_pose(id, pose, stopped));
+  return *robots_.find(id);
 }
 
 std::optional<GridTileValues> WorldService::grid_tile_layers(std::int64_t tx, std::int64_t ty) const {

@@ -24,6 +24,7 @@
 #include "rules/engine.h"
 #include "server/events/event_hub.h"
 #include "server/json/codec.h"
+#include "server/json/robots_json.h"
 #include "server/service/prolog_worker.h"
 #include "server/service/rules_watcher.h"
 #include "server/service/world_port.h"
@@ -169,6 +170,10 @@ class WorldService final : public WorldPort {
   /// The processing network's components, ports, queues and activity.
   pipeline::NetworkStats network_stats() const override;
   std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const override;
+  std::vector<RobotState> robots() const override { return robots_.list(); }
+  std::optional<RobotState> robot(const std::string& id) const override { return robots_.find(id); }
+  RobotState put_robot_pose(const std::string& id, RobotPose pose, bool stopped) override;
+  const RobotOptions& robot_options() const override { return robots_.options(); }
   /// Whether the network processes this sensor's scans ("laser", "sonar").
   bool accepts_scans(const std::string& sensor) const;
 
@@ -188,6 +193,9 @@ class WorldService final : public WorldPort {
     return read(*grid_);
   }
   void insert_scan(const json_codec::ScanRequest& scan, std::int64_t seq);
+  /// The robots as the journal left them (at start).
+  void restore_robots();
+  void emit_robot(const std::optional<RobotState>& robot);
   /// An observation decided and applied in memory (the rules' facts already follow it), not yet committed.
   struct PreparedUpdate {
     std::shared_ptr<const world::WorldState> base;  // the state it was decided against
@@ -281,6 +289,7 @@ class WorldService final : public WorldPort {
   rules::Engine& engine_;
   events::EventHub* events_;
 
+  RobotRegistry robots_;
   mutable std::mutex snapshot_mutex_;
   std::shared_ptr<const world::WorldState> snapshot_;
   // The ids each published version removed, oldest first, for ?since= deltas: at most kRemovedIdsKept ids; every

@@ -238,6 +238,15 @@ ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string pa
   if (!accepts_scans(sensor))
     throw std::invalid_argument("the processing network (" + network_->source() + ") does not process " + sensor +
                                 " scans");
+  const auto sensor_pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
+  RobotPose pose{sensor_pose.x_m,
+                 sensor_pose.y_m,
+                 sensor_pose.theta_rad,
+                 scan.pose_cov.isZero() ? std::nullopt : std::optional<Eigen::Matrix3d>(scan.pose_cov),
+                 scan.stamp_s,
+                 0,
+                 ""};
+  const std::string observer = scan.observer;
   auto job = std::make_shared<ScanJob>(
       ScanJob{std::move(scan), std::move(payload_json), std::move(request_id), std::make_shared<ScanTicket>()});
   auto future = job->ticket->future();
@@ -246,11 +255,18 @@ ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string pa
   } catch (const pipeline::QueueFull& e) {
     throw Busy(std::string("the world model's scan queue is full; retry later (") + e.what() + ")");
   }
-  return future.get();
+  auto outcome = future.get();
+  if (!outcome.replayed) {  // committed: the robot is where this scan was taken
+    pose.received_at_unix_s =
+        std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    emit_robot(robots_.on_scan(observer, sensor, std::move(pose)));
+  }
+  return outcome;
 }
 
 PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
                                                 std::optional<std::string> request_id) {
+  const std::string observer = observation.observer;
   auto job = std::make_shared<PrimitivesJob>(PrimitivesJob{std::move(observation), std::move(payload_json),
                                                            std::move(request_id), std::make_shared<PrimitivesTicket>(),
                                                            nullptr});
@@ -260,7 +276,11 @@ PrimitivesOutcome WorldService::post_primitives(world::Observation observation, 
   } catch (const pipeline::QueueFull& e) {
     throw Busy(std::string("the world model's primitives queue is full; retry later (") + e.what() + ")");
   }
-  return future.get();
+  auto outcome = future.get();
+  if (!outcome.replayed)
+    emit_robot(robots_.on_primitives(
+        observer, std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count()));
+  return outcome;
 }
 
 bool WorldService::accepts_scans(const std::string& sensor) const { return network_->consumes("matcher", sensor); }

@@ -80,6 +80,15 @@ CREATE TABLE placements(ord INTEGER PRIMARY KEY, x REAL NOT NULL, y REAL NOT NUL
 CREATE TABLE georeference(id INTEGER PRIMARY KEY CHECK (id = 1), latitude REAL NOT NULL, longitude REAL NOT NULL,
                           heading REAL NOT NULL);
 )sql",
+    // v7: poses robots report without a scan (PUT /api/v1/robots/{id}/pose), journaled; the robots' scans and
+    // primitives are already in scans and observations.
+    R"sql(
+CREATE TABLE robot_poses(seq INTEGER PRIMARY KEY, robot TEXT NOT NULL, x REAL NOT NULL, y REAL NOT NULL,
+                         theta REAL NOT NULL, cov BLOB, stamp REAL NOT NULL, received_at REAL NOT NULL,
+                         state TEXT NOT NULL);
+CREATE INDEX robot_poses_by_robot ON robot_poses(robot, seq);
+CREATE INDEX scans_by_observer ON scans(observer, seq);
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);
@@ -532,6 +541,90 @@ void Store::write_scan(const ScanEntry& scan, const std::optional<ObservationEnt
   else
     s.bind_null(7);
   s.run();
+}
+
+void Store::commit_robot_pose(const RobotPoseEntry& pose) {
+  std::lock_guard lock(writer_mutex_);
+  Transaction tx(writer_);
+  Statement s(writer_,
+              "INSERT INTO robot_poses(robot, x, y, theta, cov, stamp, received_at, state) "
+              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
+  bind_all(s, std::string_view(pose.robot), pose.x, pose.y, pose.theta);
+  if (pose.cov)
+    bind_matrix(s, 5, *pose.cov);
+  else
+    s.bind_null(5);
+  s.bind(6, pose.stamp);
+  s.bind(7, pose.received_at);
+  s.bind(8, std::string_view(pose.state));
+  s.run();
+  tx.commit();
+}
+
+std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) {
+  std::lock_guard lock(writer_mutex_);
+  std::map<std::string, RobotJournal> robots;
+  const auto robot = [&robots](const std::string& id) -> RobotJournal& {
+    auto& r = robots[id];
+    r.robot = id;
+    return r;
+  };
+  const auto seen = [](RobotJournal& r, double first, double last) {
+    r.first_seen = r.first_seen == 0 ? first : std::min(r.first_seen, first);
+    r.last_seen = std::max(r.last_seen, last);
+  };
+  {
+    Statement s(writer_,
+                "SELECT observer, sensor, COUNT(*), MIN(received_at), MAX(received_at) FROM scans "
+                "GROUP BY observer, sensor");
+    while (s.step()) {
+      auto& r = robot(s.column_text(0));
+      r.scans[s.column_text(1)] = s.column_int(2);
+      seen(r, s.column_double(3), s.column_double(4));
+    }
+  }
+  {
+    Statement s(writer_,
+                "SELECT observer, COUNT(*), MIN(received_at), MAX(received_at) FROM observations "
+                "WHERE kind = 'client' GROUP BY observer");
+    while (s.step()) {
+      auto& r = robot(s.column_text(0));
+      r.primitives = s.column_int(1);
+      seen(r, s.column_double(2), s.column_double(3));
+    }
+  }
+  {
+    Statement s(writer_, "SELECT robot, COUNT(*), MIN(received_at), MAX(received_at) FROM robot_poses GROUP BY robot");
+    while (s.step()) {
+      auto& r = robot(s.column_text(0));
+      r.poses = s.column_int(1);
+      seen(r, s.column_double(2), s.column_double(3));
+    }
+  }
+  for (auto& [id, r] : robots) {
+    if (!r.scans.empty()) {
+      Statement s(writer_, "SELECT payload, received_at FROM scans WHERE observer = ?1 ORDER BY seq DESC LIMIT 1");
+      s.bind(1, std::string_view(id));
+      if (s.step()) {
+        r.last_scan_payload = s.column_text(0);
+        r.last_scan_received_at = s.column_double(1);
+      }
+    }
+    Statement s(writer_,
+                "SELECT x, y, theta, cov, stamp, received_at, state FROM robot_poses WHERE robot = ?1 "
+                "ORDER BY seq DESC LIMIT ?2");
+    s.bind(1, std::string_view(id));
+    s.bind(2, static_cast<std::int64_t>(track_points));
+    while (s.step()) {
+      RobotPoseEntry pose{id,           s.column_double(0), s.column_double(1), s.column_double(2),
+                          std::nullopt, s.column_double(4), s.column_double(5), s.column_text(6)};
+      if (!s.column_doubles(3).empty()) pose.cov = read_matrix<Eigen::Matrix3d>(s, 3);
+      r.poses_newest_first.push_back(std::move(pose));
+    }
+  }
+  std::vector<RobotJournal> out;
+  for (auto& [id, r] : robots) out.push_back(std::move(r));
+  return out;
 }
 
 std::int64_t Store::last_scan_seq() {

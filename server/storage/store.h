@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -67,7 +68,7 @@ class Store {
   /// Opens or creates the file and migrates it. @throw StorageError (also for a file newer than this build).
   explicit Store(const StoreOptions& options);
 
-  static constexpr int kSchemaVersion = 6;
+  static constexpr int kSchemaVersion = 7;
   int schema_version();
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
@@ -108,6 +109,32 @@ class Store {
   /// The sequence of the last journaled scan, 0 for none. Scans are never deleted and numbered 1, 2, …, so
   /// this is also the number of scans ever accepted: the grid revision.
   std::int64_t last_scan_seq();
+
+  /// A pose a robot reported without a scan (PUT /api/v1/robots/{id}/pose).
+  struct RobotPoseEntry {
+    std::string robot;
+    double x = 0, y = 0, theta = 0;
+    std::optional<Eigen::Matrix3d> cov;
+    double stamp = 0;        // the robot's clock [s]
+    double received_at = 0;  // the server's wall clock [s since the epoch]
+    std::string state;       // "moving" | "stopped"
+  };
+  /// Journals one reported pose in its own transaction. @throw StorageError.
+  void commit_robot_pose(const RobotPoseEntry& pose);
+  /// What the journal says of each robot (an observer of scans or primitives, or a robot that reported poses), to
+  /// restore the robots after a restart: counts, first and last time seen, the last scan's payload, and its newest
+  /// `track_points` reported poses.
+  struct RobotJournal {
+    std::string robot;
+    std::map<std::string, std::int64_t> scans;  // by sensor
+    std::int64_t primitives = 0;
+    std::int64_t poses = 0;
+    double first_seen = 0, last_seen = 0;
+    std::optional<std::string> last_scan_payload;
+    double last_scan_received_at = 0;
+    std::vector<RobotPoseEntry> poses_newest_first;
+  };
+  std::vector<RobotJournal> robot_journal(std::size_t track_points);
   struct ScanRecord {
     std::int64_t seq = 0;
     std::string payload;

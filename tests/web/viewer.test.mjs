@@ -131,6 +131,11 @@ test('the viewer shows the grid, the plan and the elements, follows live decisio
     const rules = await page.$$eval('#status-rules li', (items) => items.map((li) => li.dataset.path));
     const health = await getJson(base, '/api/v1/health');
     assert.deepEqual(rules, health.rules.files.map((f) => f.path), 'rule files listed as the health answer has them');
+    // The scans were posted before the page loaded: the robot comes from GET /api/v1/robots, with its track.
+    const robots = await getJson(base, '/api/v1/robots');
+    assert.equal(robots.robots.length, 1);
+    assert.ok(robots.robots[0].track.length > 1, 'the robot has a track');
+    await page.waitForFunction(() => window.worldmodelViewer.drawn.robots === 1);
   });
 
   await t.test('the grid image appears with the size and origin of the API grid', async () => {

@@ -80,6 +80,7 @@ export class Api {
   network() { return this.json('/api/v1/network'); }
   /** The whole map. The browser keeps its last copy and revalidates it (ETag): an unchanged map costs a 304. */
   map() { return this.json('/api/v1/map', 'no-cache'); }
+  robots() { return this.json('/api/v1/robots'); }
   /** What changed after `version` (GET /api/v1/map?since=); an ApiError with status 410 when the server cannot tell. */
   mapSince(version) { return this.json(`/api/v1/map?since=${encodeURIComponent(version)}`); }
   history(kind, id) {

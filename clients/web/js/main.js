@@ -85,7 +85,8 @@ async function resync(reason, { withGrid = true } = {}) {
   state.buffered = [];
   if (withGrid) grid.resyncAll();
   try {
-    const [map, health] = await Promise.all([syncMap(), api.health()]);
+    const [map, health, robots] = await Promise.all([syncMap(), api.health(), api.robots().catch(() => null)]);
+    if (robots) model.loadRobots(robots, performance.now());
     status.setHealth(health);
     status.setPlacement(map.placement);
     state.syncs++;
@@ -173,6 +174,11 @@ function handle(event) {
       grid.markDirty(event.grid_revision);
       view.requestDraw();
       if (state.selection?.kind === 'robot') renderDetails(state.selection, model);
+      break;
+    case 'robot':
+      model.applyRobot(event.robot, now);
+      view.requestDraw();
+      if (state.selection?.kind === 'robot' && state.selection.id === event.robot?.id) renderDetails(state.selection, model);
       break;
     case 'floorplan':
       resync('new floor plan', { withGrid: false });

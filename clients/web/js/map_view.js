@@ -334,6 +334,17 @@ export class MapView {
       let i = 0;
       for (const r of this.model.robots.values()) {
         const color = kColors.robots[i++ % kColors.robots.length];
+        // Its recent track, thin; a robot that is stale or stopped is drawn faded.
+        if (r.track?.length > 1) {
+          ctx.strokeStyle = color;
+          ctx.globalAlpha = 0.5;
+          ctx.lineWidth = 1.5 * px;
+          ctx.beginPath();
+          ctx.moveTo(r.track[0][0], r.track[0][1]);
+          for (const q of r.track) ctx.lineTo(q[0], q[1]);
+          ctx.stroke();
+        }
+        ctx.globalAlpha = r.status === 'stale' || r.status === 'stopped' ? 0.45 : 1;
         ctx.fillStyle = color;
         const dot = 2.2 * px;
         for (const q of r.points) {
@@ -351,6 +362,7 @@ export class MapView {
         ctx.strokeStyle = '#ffffff';
         ctx.lineWidth = 1.5 * px;
         ctx.stroke();
+        ctx.globalAlpha = 1;
         ++drawn.robots;
       }
     }

@@ -141,13 +141,41 @@ export class WorldModel {
     const id = event.observer || event.source || 'robot';
     const pose = event.pose || {};
     if (!Number.isFinite(pose.x) || !Number.isFinite(pose.y)) return;
+    const known = this.robots.get(id);
     this.robots.set(id, {
+      status: known?.status ?? 'alive',
+      track: known?.track ?? [],
       id,
       pose: { x: pose.x, y: pose.y, theta: Number.isFinite(pose.theta) ? pose.theta : 0 },
       points: Array.isArray(event.points) ? event.points : [],
       sensor: event.sensor ?? null,
       scanSeq: event.scan_seq ?? null,
       gridRevision: event.grid_revision ?? null,
+      at: nowMs,
+    });
+    this.robotsRevision++;
+  }
+
+  /** Puts the robots of a GET /api/v1/robots answer in place (those with a pose): where they are before any scan. */
+  loadRobots(answer, nowMs = 0) {
+    for (const robot of answer?.robots ?? []) this.applyRobot(robot, nowMs);
+  }
+
+  /** Applies a robot as GET /api/v1/robots and "robot" events give it: pose, status and recent track (its last
+   * scan's points stay). */
+  applyRobot(robot, nowMs = 0) {
+    const pose = robot?.pose;
+    if (!robot?.id || !pose || !Number.isFinite(pose.x) || !Number.isFinite(pose.y)) return;
+    const known = this.robots.get(robot.id);
+    this.robots.set(robot.id, {
+      points: known?.points ?? [],
+      sensor: known?.sensor ?? null,
+      scanSeq: known?.scanSeq ?? null,
+      gridRevision: known?.gridRevision ?? null,
+      id: robot.id,
+      pose: { x: pose.x, y: pose.y, theta: Number.isFinite(pose.theta) ? pose.theta : 0 },
+      status: robot.status ?? 'alive',
+      track: Array.isArray(robot.track) ? robot.track.filter((p) => Number.isFinite(p?.[0]) && Number.isFinite(p?.[1])) : [],
       at: nowMs,
     });
     this.robotsRevision++;

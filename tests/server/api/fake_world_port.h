@@ -2,6 +2,7 @@
 
 // A WorldPort for handler tests: a world state the test sets, canned answers, the calls it received, and an
 // exception to throw from the next call when the test wants one. No thread, no store, no Prolog.
+#include <chrono>
 #include <exception>
 #include <functional>
 #include <optional>
@@ -160,6 +161,17 @@ class FakeWorldPort : public service::WorldPort {
     if (revision == 0) return std::nullopt;
     return service::GridTileValues{the_grid().export_tile_layers({tx, ty}), revision};
   }
+  std::vector<service::RobotState> robots() const override { return registry.list(); }
+  std::optional<service::RobotState> robot(const std::string& id) const override { return registry.find(id); }
+  service::RobotState put_robot_pose(const std::string& id, service::RobotPose pose, bool stopped) override {
+    enter("put_robot_pose");
+    pose.received_at_unix_s =  // as the service does: the server's clock
+        std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    registry.on_pose(id, std::move(pose), stopped);
+    return *registry.find(id);
+  }
+  const service::RobotOptions& robot_options() const override { return registry.options(); }
+  service::RobotRegistry registry;  // what the robots routes read and write
   pipeline::NetworkStats network_stats() const override {
     pipeline::NetworkStats stats;
     stats.source = "fake.yaml";

@@ -64,6 +64,25 @@ test('a scan sets its observer pose and points', () => {
   assert.equal(m.robots.size, 1);
 });
 
+test('robots come from GET /api/v1/robots and robot events, and keep the points of their last scan', () => {
+  const m = new WorldModel();
+  m.loadRobots({ robots: [
+    { id: 'r1', status: 'stale', pose: { x: 1, y: 2, theta: 0.5 }, track: [[0, 0, 0, 1], [1, 2, 0.5, 2], [NaN, 0, 0, 3]] },
+    { id: 'listener', status: 'alive', pose: null, track: [] },  // primitives only: nowhere to draw it
+  ] });
+  assert.equal(m.robots.size, 1);
+  assert.equal(m.robots.get('r1').status, 'stale');
+  assert.equal(m.robots.get('r1').track.length, 2);
+  m.applyScan({ type: 'scan', observer: 'r1', sensor: 'laser', pose: { x: 3, y: 2, theta: 0 }, points: [[4, 2]] });
+  assert.equal(m.robots.get('r1').track.length, 2, 'a scan keeps the track');
+  m.applyRobot({ id: 'r1', status: 'alive', pose: { x: 3, y: 2, theta: 0 }, track: [[0, 0, 0, 1], [1, 2, 0.5, 2], [3, 2, 0, 4]] });
+  assert.deepEqual(m.robots.get('r1').points, [[4, 2]]);
+  assert.equal(m.robots.get('r1').status, 'alive');
+  assert.equal(m.robots.get('r1').track.length, 3);
+  m.applyRobot({ id: 'r1', pose: { x: NaN, y: 0 } });
+  assert.equal(m.robots.get('r1').pose.x, 3, 'a robot without a finite pose changes nothing');
+});
+
 test('decisions highlight what they touched', () => {
   assert.equal(objectOfEdge('wall-3/0'), 'wall-3');
   assert.equal(objectOfEdge('e12'), null);

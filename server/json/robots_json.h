@@ -1,0 +1,30 @@
+#pragma once
+
+// JSON of the robots resource (GET /api/v1/robots, the `robot` events) and of a reported pose
+// (PUT /api/v1/robots/{id}/pose).
+#include <nlohmann/json.hpp>
+#include <string_view>
+
+#include "server/service/robot_registry.h"
+
+namespace wm::json_codec {
+
+/// {"id", "status", "pose": {"x", "y", "theta", "cov"?, "stamp", "received_at", "source"} | null, "first_seen",
+///  "last_seen", "silent_s", "sensors": [...], "scans": {sensor: n}, "primitives", "poses",
+///  "track": [[x, y, theta, received_at], ...] (oldest first)} — times in Unix seconds.
+nlohmann::json robot_json(const service::RobotState& robot, const char* status, double now_unix_s);
+
+struct ReportedPose {
+  service::RobotPose pose;
+  bool stopped = false;
+};
+/// Parses {"x", "y", "theta", "cov"?: 3×3 over (x, y, θ), "stamp"?, "state"?: "moving" | "stopped"}.
+/// @throw CodecError (bad_request) naming the bad field: missing or non-finite numbers, |x| or |y| over 1e5 m, a
+///        covariance that is not 3×3, not symmetric or with a negative variance, an unknown state.
+ReportedPose parse_reported_pose(std::string_view body);
+
+/// Robot ids in URLs: 1 to 128 of [A-Za-z0-9._:-]. Scans and primitives name their robot ("source", "observer")
+/// with the same rule when they are to be found under /api/v1/robots/{id}.
+bool valid_robot_id(std::string_view id);
+
+}  // namespace wm::json_codec
