@@ -5,6 +5,7 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -77,6 +78,31 @@ inline json lab_plan() {
       {"id": "table-1", "kind": "table", "attributes": ["not_deformable"], "pose": {"x": 5, "y": 5, "theta": 0.3},
        "polygon": [[-0.6, -0.4], [0.6, -0.4], [0.6, 0.4], [-0.6, 0.4]]}]})");
 }
+
+/// A client of GET /api/v1/events (the WebSocket): next() blocks for the next event.
+class EventClient {
+ public:
+  explicit EventClient(int port) : ws_(ioc_) {
+    boost::asio::ip::tcp::resolver resolver(ioc_);
+    boost::asio::connect(ws_.next_layer(), resolver.resolve("127.0.0.1", std::to_string(port)));
+    ws_.handshake("127.0.0.1", "/api/v1/events");
+  }
+  json next() {
+    boost::beast::flat_buffer buffer;
+    ws_.read(buffer);
+    return json::parse(boost::beast::buffers_to_string(buffer.data()));
+  }
+  /// The next event of `type`, skipping others (at most `limit` of them).
+  json next_of(const std::string& type, int limit = 100) {
+    for (int i = 0; i < limit; ++i)
+      if (auto event = next(); event["type"] == type) return event;
+    throw std::runtime_error("no " + type + " event among the next " + std::to_string(limit));
+  }
+
+ private:
+  boost::asio::io_context ioc_;
+  boost::beast::websocket::stream<boost::asio::ip::tcp::socket> ws_;
+};
 
 /// Starts wmd on a fresh database in a temporary directory; restart() keeps the file.
 class ServerFixture : public ::testing::Test {

@@ -554,24 +554,6 @@ namespace net = boost::asio;
 namespace beast = boost::beast;
 namespace websocket = boost::beast::websocket;
 
-class EventClient {
- public:
-  explicit EventClient(int port) : ws_(ioc_) {
-    net::ip::tcp::resolver resolver(ioc_);
-    net::connect(ws_.next_layer(), resolver.resolve("127.0.0.1", std::to_string(port)));
-    ws_.handshake("127.0.0.1", "/api/v1/events");
-  }
-  json next() {
-    beast::flat_buffer buffer;
-    ws_.read(buffer);
-    return json::parse(beast::buffers_to_string(buffer.data()));
-  }
-
- private:
-  net::io_context ioc_;
-  websocket::stream<net::ip::tcp::socket> ws_;
-};
-
 TEST_F(GridTest, EventsArriveInOrderAndASlowClientDoesNotBlockIngest) {
   send_json("PUT", "/api/v1/floorplan", lab_plan());
   EventClient client(server_->port());

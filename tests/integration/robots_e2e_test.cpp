@@ -34,8 +34,14 @@ TEST_F(RobotsTest, ARobotIsWhereItsLastScanWasAndWhereItSaysAndComesBackAfterARe
   EXPECT_NE(listed_by_wmctl.output.find(std::to_string(scans) + " laser scans"), std::string::npos)
       << listed_by_wmctl.output;
 
+  EventClient events(server_->port());
   send_json("POST", "/api/v1/primitives", {{"source", "robot-7"}, {"segments", {{{"p0", {1, 1}}, {"p1", {1, 3}}}}}});
   send_json("PUT", "/api/v1/robots/robot-7/pose", {{"x", 2.0}, {"y", 3.0}, {"theta", 0.5}, {"state", "stopped"}});
+  auto event = events.next_of("robot");
+  if (event["robot"]["status"] != "stopped") event = events.next_of("robot");  // the primitives' event came first
+  EXPECT_EQ(event["robot"]["id"], "robot-7");
+  EXPECT_EQ(event["robot"]["status"], "stopped") << "a status change is always an event";
+  EXPECT_DOUBLE_EQ(event["robot"]["pose"]["x"].get<double>(), 2.0);
   robot = get_json("/api/v1/robots/robot-7");
   EXPECT_EQ(robot["primitives"], 1);
   EXPECT_EQ(robot["poses"], 1);
