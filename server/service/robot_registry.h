@@ -43,7 +43,7 @@ struct RobotState {
   std::int64_t poses = 0;                     // poses reported
   double first_seen_unix_s = 0;
   double last_seen_unix_s = 0;
-  bool stopped = false;  // the robot's last report said it stopped; cleared by anything it sends later
+  bool stopped = false;         // the robot's last report said it stopped; cleared by anything it sends later
   std::deque<RobotPose> track;  // oldest first
 };
 

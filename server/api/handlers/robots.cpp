@@ -21,8 +21,7 @@ nlohmann::json with_status(const Call& call, const service::RobotState& robot, d
 }
 
 const std::string& robot_id(const Call& call) {
-  if (!json_codec::valid_robot_id(call.param))
-    throw bad_request("id", "a robot id is 1 to 128 of A-Z a-z 0-9 . _ : -");
+  if (!json_codec::valid_robot_id(call.param)) throw bad_request("id", "a robot id is 1 to 128 of A-Z a-z 0-9 . _ : -");
   return call.param;
 }
 
