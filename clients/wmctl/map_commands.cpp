@@ -213,9 +213,9 @@ int robots(const Invocation& in) {
         std::cout << " at (" << fixed(p["x"].get<double>()) << ", " << fixed(p["y"].get<double>()) << ") θ "
                   << fixed(p["theta"].get<double>()) << " from " << p["source"].get<std::string>();
       }
-      std::cout << ", silent " << fixed(robot["silent_s"].get<double>()) << " s;";
-      for (const auto& [sensor, count] : robot["scans"].items()) std::cout << " " << count << " " << sensor << " scans";
-      std::cout << ", " << robot["primitives"] << " primitives, " << robot["poses"] << " poses\n";
+      std::cout << ", silent " << fixed(robot["silent_s"].get<double>()) << " s: ";
+      for (const auto& [sensor, count] : robot["scans"].items()) std::cout << count << " " << sensor << " scans, ";
+      std::cout << robot["primitives"] << " primitives, " << robot["poses"] << " poses\n";
     }
   });
 }
