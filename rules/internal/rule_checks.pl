@@ -109,6 +109,12 @@ atom_doubling(with_output_to(Sink, _)) :- nonvar(Sink), Sink = atom(_).
 
 %   A format text whose column, fill or precision argument exceeds max_format_argument/1, or that
 %   takes one from the arguments (*): format/2,3 would write that many characters in C.
+%   A format that is not text (a compound, a number) is not looked into by format/2,3 the way text is:
+%   format(member(X, [a]), atom(X)) ran past every time limit in SWI-Prolog 9.0.4 (found by fuzz_query).
+format_unbounded(F, Why) :-
+    nonvar(F), \+ atom(F), \+ string(F), \+ is_list(F),
+    !,
+    format(string(Why), "a format must be text (an atom, a string or a code list), not ~q", [F]).
 format_unbounded(F, Why) :-
     (   atom(F) -> atom_codes(F, Codes)
     ;   string(F) -> string_codes(F, Codes)

@@ -1,0 +1,1 @@
+format(member(X, [a, "s", 1.5, f(Y)]), atom(X))
