@@ -61,6 +61,7 @@ __all__ = [
     "Map",
     "Reader",
     "from_server",
+    "open_segment",
     "open_live",
     "HAVE_NUMPY",
     "known_count",
@@ -673,3 +674,24 @@ def known_count(values: Sequence[float]) -> int:
     if np is not None and isinstance(values, np.ndarray):
         return int(np.count_nonzero(~np.isnan(values)))
     return sum(1 for v in values if v == v)
+
+
+def open_segment(name: Optional[str], url: str) -> "Reader":
+    """The segment the server writes now, by name or from the server (the examples' --name / --server).
+
+    With no name, open_live(url). With a name, that segment with its successors followed; when it or a successor
+    is gone, SegmentGone says to ask GET /api/v1/shm.
+    """
+    if not name:
+        return open_live(url)
+    try:
+        reader = Reader(name)
+    except SegmentGone as error:
+        raise SegmentGone(
+            f"{error}: the server replaced or removed it; ask GET /api/v1/shm for the current name (or use --server)"
+        ) from error
+    try:
+        return reader.follow()
+    except ShmError:
+        reader.close()
+        raise

@@ -60,29 +60,6 @@ def _pixels(dense: worldmodel_shm.Dense) -> bytearray:
     return pixels
 
 
-def open_segment(name: str | None, server: str) -> worldmodel_shm.Reader:
-    """The segment the server writes now.
-
-    With a server URL, open_live asks GET /api/v1/shm and opens that name, following successors; a name already
-    gone (the server grew the segment meanwhile, or twice since a successor was named) is asked for again. With
-    only a name, a retired segment's successors are followed; when one is gone, SegmentGone says to ask
-    GET /api/v1/shm.
-    """
-    if not name:
-        return worldmodel_shm.open_live(server)
-    try:
-        reader = worldmodel_shm.Reader(name)
-    except worldmodel_shm.SegmentGone as error:
-        raise worldmodel_shm.SegmentGone(
-            f"{error}: the server replaced or removed it; ask GET /api/v1/shm for the current name (or use --server)"
-        ) from error
-    try:
-        return reader.follow()
-    except worldmodel_shm.ShmError:
-        reader.close()
-        raise
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     source = parser.add_mutually_exclusive_group()
@@ -93,7 +70,7 @@ def main() -> int:
     args = parser.parse_args()
 
     try:
-        reader = open_segment(args.name, args.server)
+        reader = worldmodel_shm.open_segment(args.name, args.server)
         with reader:
             dense = reader.read_layer(args.layer)
             tiles = reader.tile_count
