@@ -339,6 +339,21 @@ double OccupancyGrid::log_odds(CellIndex c) const {
   return tile == nullptr ? 0.0 : tile->bayes[i].log_odds;
 }
 
+double OccupancyGrid::CellReader::log_odds(CellIndex c) {
+  const std::int64_t tx = c.x >> grid_.shift_;
+  const std::int64_t ty = c.y >> grid_.shift_;
+  if (!looked_ || tx != tx_ || ty != ty_) {
+    tile_ = grid_.find_tile(tx, ty);
+    tx_ = tx;
+    ty_ = ty;
+    looked_ = true;
+  }
+  return tile_ == nullptr
+             ? 0.0
+             : tile_->bayes[static_cast<std::size_t>(((c.y & grid_.mask_) << grid_.shift_) | (c.x & grid_.mask_))]
+                   .log_odds;
+}
+
 double OccupancyGrid::probability(CellIndex c) const { return 1.0 - 1.0 / (1.0 + std::exp(log_odds(c))); }
 
 OccupancyGrid::Masses OccupancyGrid::masses(CellIndex c) const {
@@ -470,12 +485,26 @@ std::vector<float> OccupancyGrid::export_layer(Layer layer, const GridGeometry& 
 
 std::vector<float> OccupancyGrid::export_tile_layers(TileIndex t) const {
   const auto n = static_cast<std::size_t>(options_.tile_size_cells * options_.tile_size_cells);
-  std::vector<float> out(4 * n, std::numeric_limits<float>::quiet_NaN());
+  constexpr float kUnknown = std::numeric_limits<float>::quiet_NaN();
+  std::vector<float> out(4 * n, kUnknown);
   const Tile* tile = find_tile(t.x, t.y);
   if (tile == nullptr) return out;
-  const Layer layers[4] = {Layer::bayes_probability, Layer::ds_belief, Layer::ds_plausibility, Layer::ds_conflict};
-  for (std::size_t l = 0; l < 4; ++l)
-    for (std::size_t i = 0; i < n; ++i) out[l * n + i] = layer_value(*tile, i, layers[l]);
+  // One pass over the tile writing all four layers (the shared-memory export copies every changed tile many times
+  // a second): the same values as layer_value, which export_layer uses, without a branch on the layer per cell.
+  float* const probability = out.data();
+  float* const belief = probability + n;
+  float* const plausibility = belief + n;
+  float* const conflict = plausibility + n;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float l = tile->bayes[i].log_odds;
+    if (l != 0.f) probability[i] = 1.f - 1.f / (1.f + std::exp(l));
+    const DsCell& c = tile->ds[i];
+    if (c.o != 0.f || c.e != 0.f) {
+      belief[i] = c.o;
+      plausibility[i] = 1.f - c.e;
+      conflict[i] = c.k;
+    }
+  }
   return out;
 }
 

@@ -60,6 +60,8 @@ struct GridOptions {
 /// Invariant: the touched tiles span at most GridGeometry::kMaxSizeCells cells per side, so bounds() is valid.
 /// Not thread-safe for writers; const members may run concurrently with each other.
 class OccupancyGrid {
+  struct Tile;
+
  public:
   /// @throw std::invalid_argument for options outside the ranges documented in GridOptions / SensorModelOptions.
   explicit OccupancyGrid(const GridOptions& options);
@@ -85,6 +87,23 @@ class OccupancyGrid {
   double log_odds(CellIndex c) const;
   /// Bayes occupancy probability 1 − 1/(1 + exp(l)); 0.5 for unknown cells.
   double probability(CellIndex c) const;
+
+  /// Reads log-odds through a cache of the last tile it looked in, so that many reads close together (the samples
+  /// along a line, a cell's neighbours) cost one tile lookup per tile rather than one per cell. Refers to the grid:
+  /// valid while nothing changes the grid's tiles (the caller keeps writers out). Not shared between threads.
+  class CellReader {
+   public:
+    explicit CellReader(const OccupancyGrid& grid) : grid_(grid) {}
+    /// The same as OccupancyGrid::log_odds(c).
+    double log_odds(CellIndex c);
+
+   private:
+    const OccupancyGrid& grid_;
+    std::int64_t tx_ = 0;
+    std::int64_t ty_ = 0;
+    const Tile* tile_ = nullptr;
+    bool looked_ = false;
+  };
 
   /// Masses on the frame {O, E}; unknown is m(Θ) = 1 − occupied − empty.
   struct Masses {
@@ -148,7 +167,6 @@ class OccupancyGrid {
  private:
   struct BayesCell;
   struct DsCell;
-  struct Tile;
   struct CacheEntry {
     std::int64_t x = 0;
     std::int64_t y = 0;

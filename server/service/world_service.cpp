@@ -257,13 +257,14 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(std::int6
       const double resolution = grid_->resolution_m();
       // P > 0.65, the map-quality definition of an occupied cell, is log-odds > ln(0.65 / 0.35).
       const double occupied_log_odds = std::log(0.65 / 0.35);
+      fusion::OccupancyGrid::CellReader cells(*grid_);  // the samples of an element lie in a few tiles
       const world::GridProbe probe = [&](const Eigen::Vector2d& point) {
         const auto cx = static_cast<std::int64_t>(std::floor(point.x() / resolution));
         const auto cy = static_cast<std::int64_t>(std::floor(point.y() / resolution));
         bool seen_any = false;
         for (std::int64_t dy = -1; dy <= 1; ++dy)
           for (std::int64_t dx = -1; dx <= 1; ++dx) {
-            const double l = grid_->log_odds({cx + dx, cy + dy});
+            const double l = cells.log_odds({cx + dx, cy + dy});
             if (l > occupied_log_odds) return world::GridEvidence::backed;
             seen_any = seen_any || l != 0.0;
           }

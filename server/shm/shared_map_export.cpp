@@ -7,6 +7,7 @@
 #include <sys/statvfs.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <boost/interprocess/mapped_region.hpp>
 #include <boost/interprocess/shared_memory_object.hpp>
 #include <boost/uuid/uuid_generators.hpp>
@@ -157,10 +158,17 @@ SharedMapExport::~SharedMapExport() {
 }
 
 void SharedMapExport::run() {
+  // At most a tenth of one core: during full-rate ingest every pass finds most tiles changed, and copying them as
+  // often as an idle server could would take the CPU ingest needs.
+  constexpr int kPauseToWork = 9;
   std::unique_lock lock(wake_mutex_);
-  while (!wake_.wait_for(lock, options_.period, [this] { return stopping_; })) {
+  auto pause = std::chrono::duration_cast<std::chrono::steady_clock::duration>(options_.period);
+  while (!wake_.wait_for(lock, pause, [this] { return stopping_; })) {
     lock.unlock();
+    const auto start = std::chrono::steady_clock::now();
     sync();
+    pause = std::max<std::chrono::steady_clock::duration>(options_.period,
+                                                          kPauseToWork * (std::chrono::steady_clock::now() - start));
     lock.lock();
   }
 }

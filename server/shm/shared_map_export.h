@@ -19,7 +19,8 @@ namespace wm::shm {
 struct ShmOptions {
   bool enabled = true;
   /// How often the exporter looks for changed tiles and a new map version: a reader sees a change this late at most
-  /// (plus the copy). [1 ms, 10 s]
+  /// (plus the copy), while the copies take less than a tenth of it; under heavier ingest the pause grows to nine
+  /// times the last pass, so the export never takes more than a tenth of a core from ingest. [1 ms, 10 s]
   std::chrono::milliseconds period{20};
   /// The segment never grows past this, nor past half of /dev/shm's free space when it is made (containers often
   /// give /dev/shm 64 MB). What does not fit is left out and flagged (truncated).
@@ -57,9 +58,10 @@ struct ShmStatus {
 /// the same machine, which read them without HTTP or JSON (clients/shm/worldmodel_shm.h holds the layout and a
 /// reader; docs/shm.md the protocol).
 ///
-/// A thread of its own polls the service every `period`: the tiles whose revision changed are copied in (each under
-/// its slot's sequence counter, a seqlock), and so is the map when its version changed. Ingest never waits for it
-/// beyond the grid's shared lock for one tile's copy, and never for a reader.
+/// A thread of its own polls the service every `period` (or nine times its last pass, whichever is longer): the tiles
+/// whose revision changed are copied in (each under its slot's sequence counter, a seqlock), and so is the map when its
+/// version changed. Ingest never waits for it beyond the grid's shared lock for one tile's copy, and never for a
+/// reader.
 ///
 /// The segment is named "wm-<uuid>". When a slot or the map does not fit, a segment twice the size replaces it: the
 /// old one is marked retired with the new name in it, then unlinked (mapped readers keep their memory). At

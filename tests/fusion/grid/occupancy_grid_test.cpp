@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -408,6 +409,51 @@ TEST(OccupancyGridTest, TileRoundTripIsExact) {
   grid.insert(more);
   restored.insert(more);
   EXPECT_EQ(grid.tile(grid.tiles().front())->log_odds, restored.tile(grid.tiles().front())->log_odds);
+}
+
+TEST(OccupancyGridTest, ATilesLayersAreTheDenseExportOfItsRegionBitForBit) {
+  OccupancyGrid grid{GridOptions{}};
+  grid.insert(scan_at({0.3, -0.2, 0.4}, std::vector<double>(180, 3.0), -std::numbers::pi / 2, 1.0 * kDeg));
+  grid.insert(scan_at({1.3, 0.2, 0.9}, std::vector<double>(180, 2.5), -std::numbers::pi / 2, 1.0 * kDeg));
+  const auto n = static_cast<std::size_t>(grid.tile_size_cells() * grid.tile_size_cells());
+  const OccupancyGrid::Layer layers[] = {OccupancyGrid::Layer::bayes_probability, OccupancyGrid::Layer::ds_belief,
+                                         OccupancyGrid::Layer::ds_plausibility, OccupancyGrid::Layer::ds_conflict};
+  std::size_t known = 0;
+  ASSERT_GT(grid.tiles().size(), 1u);
+  for (const TileIndex& t : grid.tiles()) {
+    const auto all = grid.export_tile_layers(t);
+    ASSERT_EQ(all.size(), 4 * n);
+    for (std::size_t l = 0; l < 4; ++l) {
+      const auto dense = grid.export_layer(layers[l], grid.tiles_geometry(t, t));
+      ASSERT_EQ(dense.size(), n);
+      for (std::size_t i = 0; i < n; ++i) {
+        const float a = all[l * n + i];
+        ASSERT_TRUE(std::memcmp(&a, &dense[i], sizeof a) == 0 || (std::isnan(a) && std::isnan(dense[i])))
+            << "tile " << t.x << "," << t.y << " layer " << l << " cell " << i << ": " << a << " vs " << dense[i];
+        known += std::isnan(a) ? 0 : 1;
+      }
+    }
+  }
+  EXPECT_GT(known, 1000u);
+  const auto missing = grid.export_tile_layers({1000, 1000});  // never touched: unknown everywhere
+  EXPECT_TRUE(std::all_of(missing.begin(), missing.end(), [](float v) { return std::isnan(v); }));
+}
+
+TEST(OccupancyGridTest, ACellReaderReadsWhatLogOddsReads) {
+  OccupancyGrid grid{GridOptions{}};
+  grid.insert(scan_at({0.3, -0.2, 0.4}, std::vector<double>(180, 3.0), -std::numbers::pi / 2, 1.0 * kDeg));
+  grid.insert(scan_at({-2.0, 1.0, 2.0}, std::vector<double>(180, 4.0), -std::numbers::pi / 2, 1.0 * kDeg));
+  OccupancyGrid::CellReader reader(grid);
+  std::mt19937 random(7);
+  std::uniform_int_distribution<std::int64_t> cell(-150, 150);
+  std::size_t seen = 0;
+  for (int i = 0; i < 20000; ++i) {
+    // Runs of neighbours (the cache's case) and jumps across tiles, into tiles that do not exist too.
+    const CellIndex c = i % 10 == 0 ? CellIndex{cell(random) * 3, cell(random) * 3} : CellIndex{cell(random), 7};
+    ASSERT_EQ(reader.log_odds(c), grid.log_odds(c)) << c.x << "," << c.y;
+    seen += grid.log_odds(c) != 0.0 ? 1 : 0;
+  }
+  EXPECT_GT(seen, 1000u);
 }
 
 TEST(OccupancyGridTest, SetTileRejectsBadData) {
