@@ -6,7 +6,8 @@
 //    unset: --handler-threads 8, today's default);
 //  - raw SQLite (WAL, synchronous=FULL) inserting one Intel scan body per transaction, the fsync ceiling of a
 //    writer that commits every scan on its own, and 16 per transaction, what group commit could reach.
-// WM_BENCH_QUICK caps the log at 200 scans.
+// WM_BENCH_QUICK caps the log at 200 scans; WM_BENCH_LOG=FILE posts another CARMEN log's laser scans (the first
+// 2000).
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
 #include <signal.h>
@@ -56,8 +57,10 @@ using Clock = std::chrono::steady_clock;
 constexpr int kRobotCounts[] = {1, 4, 16};
 constexpr auto kRetryPause = std::chrono::milliseconds(5);  // instead of Retry-After's whole second: we measure load
 
-// The shared copy of the log, else the whole copy the tests ship.
+// WM_BENCH_LOG names another CARMEN log (e.g. aces-corrected.log.gz), else the shared copy of the Intel log, else the
+// whole copy the tests ship.
 fs::path intel_log() {
+  if (const char* chosen = std::getenv("WM_BENCH_LOG"); chosen && *chosen) return chosen;
   const fs::path shared = fs::path(WM_SHARED_DATA_DIR) / "carmen";
   if (fs::exists(shared / "intel-corrected.log.gz")) return shared / "intel-corrected.log.gz";
   std::error_code ec;
@@ -160,12 +163,15 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
   const auto bodies = robot_bodies(*scans, robots);
   std::size_t accepted = 0, retries = 0;
   std::vector<double> latencies_ms;
+  double wmd_cpu_s = 0;
   try {
     WmdProcess wmd(*wmd_args);
     // Connections opened before the clock starts: we time ingest, not the handshakes.
     std::vector<std::unique_ptr<Connection>> connections;
     for (int k = 0; k < robots; ++k) connections.push_back(std::make_unique<Connection>(wmd.port()));
     std::string error;
+    const double cpu_before = wmd.cpu_seconds();
+    const auto threads_before = wmd.cpu_seconds_by_thread();
     for (auto _ : state) {
       std::vector<RobotTally> tallies(static_cast<std::size_t>(robots));
       std::atomic<bool> failed{false};
@@ -181,6 +187,17 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
         latencies_ms.insert(latencies_ms.end(), t.latencies_ms.begin(), t.latencies_ms.end());
       }
       if (failed) break;
+    }
+    wmd_cpu_s = wmd.cpu_seconds() - cpu_before;
+    if (accepted > 0) {
+      std::fprintf(stderr, "wmd CPU per scan, %s, %d robots: %.3f ms; by thread:", label->c_str(), robots,
+                   1000.0 * wmd_cpu_s / static_cast<double>(accepted));
+      for (const auto& [name, seconds] : wmd.cpu_seconds_by_thread()) {
+        const auto before = threads_before.find(name);
+        const double spent = seconds - (before == threads_before.end() ? 0.0 : before->second);
+        std::fprintf(stderr, " %s %.3f", name.c_str(), 1000.0 * spent / static_cast<double>(accepted));
+      }
+      std::fprintf(stderr, "\n");
     }
     try {
       Connection c(wmd.port());
@@ -206,6 +223,8 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
   state.counters["retries"] = static_cast<double>(retries);
   state.counters["mean_ms"] = latencies_ms.empty() ? 0.0 : sum / static_cast<double>(latencies_ms.size());
   state.counters["p99_ms"] = latencies_ms.empty() ? 0.0 : latencies_ms[p99_index];
+  // wmd's CPU per accepted scan, all threads: scans/s can reach at most cores / this, whatever else runs.
+  state.counters["cpu_ms_per_scan"] = accepted == 0 ? 0.0 : 1000.0 * wmd_cpu_s / static_cast<double>(accepted);
 }
 
 // A raw SQLite writer: `rows_per_transaction` inserts of `payload` per commit, WAL and synchronous=FULL as wmd's
@@ -248,7 +267,7 @@ const char* ingest_family(bool baseline) { return baseline ? "BM_Ingest_Baseline
 }  // namespace
 
 int main(int argc, char** argv) {
-  const std::size_t scan_limit = std::getenv("WM_BENCH_QUICK") ? 200 : SIZE_MAX;
+  const std::size_t scan_limit = std::getenv("WM_BENCH_QUICK") ? 200 : std::getenv("WM_BENCH_LOG") ? 2000 : SIZE_MAX;
   const fs::path log = intel_log();
   std::vector<wm::logs::LogScan> scans;
   try {

@@ -14,7 +14,10 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -144,6 +147,25 @@ class WmdProcess {
 
   unsigned short port() const { return *port_; }
 
+  /// CPU time wmd has used so far, user and system, all threads [s] (from /proc; 0 when unreadable). What ingest costs
+  /// in CPU does not depend on what else the machine runs, unlike its rate.
+  double cpu_seconds() const { return stat_cpu_seconds("/proc/" + std::to_string(pid_) + "/stat").second; }
+
+  /// The same per thread name (the processing network's executors name their threads; the rest are "wmd"), summed
+  /// over the threads that share a name.
+  std::map<std::string, double> cpu_seconds_by_thread() const {
+    std::map<std::string, double> out;
+    std::error_code ec;
+    for (const auto& task : fs::directory_iterator("/proc/" + std::to_string(pid_) + "/task", ec)) {
+      // schedstat's first field is the thread's time on a CPU in ns: exact, where stat counts clock ticks.
+      std::ifstream schedstat(task.path() / "schedstat");
+      unsigned long long on_cpu_ns = 0;
+      if (!(schedstat >> on_cpu_ns)) continue;
+      out[stat_cpu_seconds(task.path() / "stat").first] += static_cast<double>(on_cpu_ns) * 1e-9;
+    }
+    return out;
+  }
+
   /// SIGTERM, then waits; true when wmd exited 0. SIGKILL after 60 s so a hung shutdown cannot hang the bench.
   bool stop() {
     if (pid_ <= 0) return true;
@@ -163,6 +185,24 @@ class WmdProcess {
   }
 
  private:
+  // A /proc stat file's name field and its utime + stime [s].
+  static std::pair<std::string, double> stat_cpu_seconds(const fs::path& stat) {
+    const std::string text = read_text(stat);
+    const auto start_of_name = text.find('(');
+    const auto end_of_name = text.rfind(')');  // the name may hold spaces and parentheses: fields count after it
+    if (start_of_name == std::string::npos || end_of_name == std::string::npos || end_of_name < start_of_name)
+      return {"", 0.0};
+    std::istringstream fields(text.substr(end_of_name + 1));
+    std::string field;
+    unsigned long long utime = 0, stime = 0;
+    for (int i = 3; i <= 15 && fields >> field; ++i) {  // field 3 is the state; 14 utime, 15 stime
+      if (i == 14) utime = std::stoull(field);
+      if (i == 15) stime = std::stoull(field);
+    }
+    return {text.substr(start_of_name + 1, end_of_name - start_of_name - 1),
+            static_cast<double>(utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK))};
+  }
+
   // The start of wmd's output, enough for the reason it gives (a bad flag prints the whole usage).
   static std::string head_of(const fs::path& file) { return read_text(file).substr(0, 400); }
 
