@@ -20,7 +20,35 @@ Connection::Connection(const std::string& path, bool create) {
   sqlite3_busy_timeout(db_, 5000);
 }
 
-Connection::~Connection() { sqlite3_close_v2(db_); }
+Connection::~Connection() {
+  for (auto& [sql, statement] : statements_) sqlite3_finalize(statement.stmt);
+  sqlite3_close_v2(db_);
+}
+
+sqlite3_stmt* Connection::acquire(const std::string& sql, bool& cached) {
+  auto it = statements_.find(sql);
+  if (it != statements_.end() && !it->second.in_use) {
+    it->second.in_use = true;
+    cached = true;
+    return it->second.stmt;
+  }
+  sqlite3_stmt* stmt = nullptr;
+  const int rc = sqlite3_prepare_v2(db_, sql.c_str(), static_cast<int>(sql.size()), &stmt, nullptr);
+  if (rc != SQLITE_OK) {
+    sqlite3_finalize(stmt);
+    throw StorageError(std::string("sqlite prepare: ") + sqlite3_errmsg(db_) + " (in: " + sql.substr(0, 80) + ")");
+  }
+  cached = it == statements_.end();
+  if (cached) statements_.emplace(sql, CachedStatement{stmt, true});
+  return stmt;
+}
+
+void Connection::release(const std::string& sql, sqlite3_stmt* stmt) {
+  sqlite3_reset(stmt);  // its result repeats the last step's error, which the owner has seen
+  sqlite3_clear_bindings(stmt);
+  const auto it = statements_.find(sql);
+  if (it != statements_.end() && it->second.stmt == stmt) it->second.in_use = false;
+}
 
 void Connection::exec(std::string_view sql) {
   char* error = nullptr;
@@ -32,11 +60,17 @@ void Connection::exec(std::string_view sql) {
   }
 }
 
-Statement::Statement(Connection& connection, std::string_view sql) : db_(connection.handle()), sql_(sql) {
-  check(sqlite3_prepare_v2(db_, sql_.c_str(), static_cast<int>(sql_.size()), &stmt_, nullptr), "prepare");
+Statement::Statement(Connection& connection, std::string_view sql)
+    : connection_(connection), db_(connection.handle()), sql_(sql) {
+  stmt_ = connection_.acquire(sql_, cached_);
 }
 
-Statement::~Statement() { sqlite3_finalize(stmt_); }
+Statement::~Statement() {
+  if (cached_)
+    connection_.release(sql_, stmt_);
+  else
+    sqlite3_finalize(stmt_);
+}
 
 void Statement::check(int rc, const char* what) const {
   if (rc != SQLITE_OK)

@@ -233,3 +233,60 @@ TEST(StoreTest, RefusesADatabaseFromANewerVersion) {
 
 }  // namespace
 }  // namespace wm::storage
+
+namespace wm::storage {
+namespace {
+
+// Statements are compiled once per connection and SQL text and reused; these pin down what reuse must not change.
+TEST(SqliteStatementCacheTest, AReusedStatementStartsFreshAndANestedOneGetsItsOwn) {
+  const testing::TempDir dir;
+  Connection db((dir.path() / "cache.db").string(), true);
+  db.exec("CREATE TABLE t(k INTEGER PRIMARY KEY, v TEXT)");
+  const std::string insert = "INSERT INTO t(k, v) VALUES (?1, ?2)";
+  for (std::int64_t k = 1; k <= 3; ++k)
+    Statement(db, insert).bind(1, k).bind(2, std::string_view("v" + std::to_string(k))).run();
+  {
+    // The cached statement's bindings were cleared: an unbound parameter is NULL, not the last run's value.
+    Statement(db, "INSERT INTO t(k) VALUES (?1)").bind(1, std::int64_t{4}).run();
+    Statement s(db, "SELECT v FROM t WHERE k = ?1");
+    s.bind(1, std::int64_t{4});
+    ASSERT_TRUE(s.step());
+    EXPECT_EQ(s.column_optional_text(0), std::nullopt);
+  }
+  // A failed step (a duplicate key) leaves the cached statement usable.
+  EXPECT_THROW(Statement(db, insert).bind(1, std::int64_t{1}).bind(2, std::string_view("again")).run(), StorageError);
+  Statement(db, insert).bind(1, std::int64_t{5}).bind(2, std::string_view("v5")).run();
+  // The same SELECT nested in a loop over its own rows: the inner one is a second statement, and the outer one
+  // keeps its place.
+  const std::string select = "SELECT k, v FROM t WHERE k >= ?1 ORDER BY k";
+  std::vector<std::string> pairs;
+  Statement outer(db, select);
+  outer.bind(1, std::int64_t{4});
+  while (outer.step()) {
+    Statement inner(db, select);
+    inner.bind(1, outer.column_int(0));
+    ASSERT_TRUE(inner.step());
+    pairs.push_back(std::to_string(outer.column_int(0)) + "=" + std::to_string(inner.column_int(0)));
+  }
+  EXPECT_EQ(pairs, (std::vector<std::string>{"4=4", "5=5"}));
+  // A statement abandoned halfway (rows left) is reset when given back: the next one starts from the first row.
+  {
+    Statement s(db, select);
+    s.bind(1, std::int64_t{1});
+    ASSERT_TRUE(s.step());
+  }
+  Statement again(db, select);
+  again.bind(1, std::int64_t{1});
+  ASSERT_TRUE(again.step());
+  EXPECT_EQ(again.column_int(0), 1);
+  // The SQL text still names the statement in errors.
+  try {
+    Statement(db, "SELECT nope FROM t");
+    FAIL() << "no error for a statement that does not compile";
+  } catch (const StorageError& e) {
+    EXPECT_NE(std::string(e.what()).find("SELECT nope FROM t"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace wm::storage
