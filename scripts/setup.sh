@@ -10,13 +10,16 @@ packages=(
 )
 # Extra packages for a purpose: `scripts/setup.sh bench` (benchmarks' baselines), `scripts/setup.sh web`
 # (the browser test: Debian's Chromium and Node.js for playwright-core), `scripts/setup.sh sanitize` (clang for
-# the ASan/UBSan build and the fuzzers).
+# the ASan/UBSan build and the fuzzers), `scripts/setup.sh ros` (ROS 1 from Debian: the bridge in clients/ros and
+# its tests).
 for extra in "$@"; do
   case "$extra" in
     bench) packages+=(liboctomap-dev libopencv-dev libopencv-contrib-dev wrk nginx-light) ;;
     web) packages+=(chromium nodejs) ;;  # npm comes with nodejs (Debian or NodeSource)
     sanitize) packages+=(clang libclang-rt-14-dev llvm) ;;  # ASan/UBSan and libFuzzer run-times, llvm-symbolizer
-    *) echo "setup: unknown extra '$extra' (bench, web, sanitize)" >&2; exit 2 ;;
+    ros) packages+=(ros-core python3-rospy python3-rosbag python3-tf2-ros python3-tf2-msgs python3-sensor-msgs
+                    python3-nav-msgs python3-visualization-msgs python3-geometry-msgs python3-std-msgs) ;;
+    *) echo "setup: unknown extra '$extra' (bench, web, sanitize, ros)" >&2; exit 2 ;;
   esac
 done
 missing=()

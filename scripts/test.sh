@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Installs what is missing, checks that every C++ file is clang-formatted (scripts/check_format.sh), builds
+# Installs what is missing (ROS 1 included, for the bridge's tests), checks that every C++ file is clang-formatted (scripts/check_format.sh), builds
 # everything with -Werror, proves fusion builds with Eigen alone, and runs every test (GoogleTest suites, plunit
 # rule tests, end-to-end tests against the real wmd) through ctest.
 # Then, in a second build directory (clang, -DWM_SANITIZE=ON -DWM_FUZZ=ON), runs the suite under
@@ -16,7 +16,7 @@ cd "$(dirname "$0")/.."
 jobs=$(nproc)
 sanitize=${WM_SANITIZE_TESTS:-1}
 # The sanitizer build needs clang with its sanitizer and libFuzzer run-times, and llvm-symbolizer.
-extras=(web)
+extras=(web ros)
 [ "$sanitize" != 0 ] && extras+=(sanitize)
 bash scripts/setup.sh "${extras[@]}"
 launcher=()
@@ -51,7 +51,8 @@ cmake -S . -B build/fusion-only -G Ninja -DWM_FUSION_ONLY=ON -DWM_BUILD_TESTS=OF
 cmake --build build/fusion-only -j"$jobs"
 
 phase "full build"
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_WERROR=ON "${launcher[@]}" >/dev/null
+# WM_BUILD_ROS=ON: the ROS bridge's tests run (setup.sh ros installed ROS 1), or say "skipped" when ROS is missing.
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_WERROR=ON -DWM_BUILD_ROS=ON "${launcher[@]}" >/dev/null
 cmake --build build -j"$jobs"
 
 phase "tests"
