@@ -13,6 +13,7 @@
 #include "apriori/floor_plan.h"
 #include "server/api/router.h"
 #include "server/config/server_config.h"
+#include "server/foxglove/bridge.h"
 #include "server/http/http_server.h"
 #include "server/service/world_service.h"
 #include "server/shm/shared_map_export.h"
@@ -85,12 +86,23 @@ int main(int argc, char** argv) {
       else
         std::cerr << "wmd: warning: no shared memory export: " << status.error << "\n";
     }
+    // Before the HTTP server, whose connections it serves, and after the world and the event hub it reads.
+    foxglove::Bridge foxglove_bridge(
+        cfg.foxglove, world, events,
+        {"wmd (worldmodel)",
+         services.map_cache->instance(),
+         {{"api", "/api/v1"}, {"map_frame", "map"}, {"robot_frames", "<robot id>/base_link"}}});
     http::HttpServer::Handlers handlers{
         [&services](const api::Request& r) { return api::handle_request(r, services); },
         [](const api::Request& r) { return api::handler_lane(r); },
         [](const api::Request& r) { return api::is_websocket_upgrade(r); },
         [&services](const api::Request& r) { return api::authorize_events(r, services); },
-        [&services](const api::Request& r) { return api::answer_at_once(r, services); }};
+        [&services](const api::Request& r) { return api::answer_at_once(r, services); },
+        [&foxglove_bridge](const api::Request& r) -> std::shared_ptr<http::WebSocketEndpoint> {
+          // The route table names the subprotocol each WebSocket speaks; none is the events stream.
+          if (api::websocket_subprotocol(r) == foxglove::kSubprotocol) return foxglove_bridge.connect();
+          return nullptr;
+        }};
     http::HttpServer server(cfg.http, std::move(handlers), &events);
     std::thread signal_waiter([&server, signals] {
       int signal = 0;

@@ -109,6 +109,13 @@ void require_token(const Request& request, const ApiOptions& options) {
     throw ApiError(401, "unauthorized", "this server needs 'Authorization: Bearer <token>' to change state");
 }
 
+bool offers_subprotocol(const Request& request, std::string_view protocol) {
+  bool offered = false;
+  for_each_list_item(request, http::field::sec_websocket_protocol,
+                     [&](std::string_view item) { offered = offered || item == protocol; });
+  return offered;
+}
+
 std::optional<Response> authorize_upgrade(const Request& request, const ApiOptions& options) {
   try {
     require_allowed_host(request, options);
@@ -119,7 +126,7 @@ std::optional<Response> authorize_upgrade(const Request& request, const ApiOptio
     const auto given = parse_target(std::string_view(raw.data(), raw.size())).param("token");
     if (given && same_secret(*given, token)) return std::nullopt;
     throw ApiError(401, "unauthorized",
-                   "the events stream of this server needs 'Authorization: Bearer <token>' or ?token=<token>");
+                   "the WebSockets of this server need 'Authorization: Bearer <token>' or ?token=<token>");
   } catch (const ApiError& e) {
     return error_response(request.version(), false, e.status(), e.error(), e.what());
   } catch (const std::exception& e) {

@@ -21,6 +21,10 @@ void require_allowed_origin(const Request& request, const ApiOptions& options);
 /// When a token is configured: "Authorization: Bearer <token>". @throw ApiError(401, "unauthorized").
 void require_token(const Request& request, const ApiOptions& options);
 
+/// Whether the request's Sec-WebSocket-Protocol headers (comma-separated lists, RFC 6455 section 4.1) name
+/// `protocol` (compared exactly: subprotocol names are case-sensitive).
+bool offers_subprotocol(const Request& request, std::string_view protocol);
+
 /// Decides a WebSocket upgrade: the Host check, the Origin allow-list (same origin by default) and, when a token
 /// is configured, "Authorization: Bearer <token>" or "?token=<token>" (browsers cannot set headers on a
 /// WebSocket). nullopt: upgrade; otherwise the refusal to send (421, 403 or 401). Never throws.

@@ -82,7 +82,7 @@ Response get_decisions(const Call& call);
 Response get_as_built_report(const Call& call);
 // handlers/static_files.cpp
 Response get_static(const Call& call);
-// handlers/events.cpp: a plain GET of the events route, which only answers WebSocket upgrades
-Response get_events_without_upgrade(const Call& call);
+// handlers/events.cpp: a plain GET of a WebSocket route (the events, Foxglove), which only answers upgrades
+Response get_websocket_without_upgrade(const Call& call);
 
 }  // namespace wm::api

@@ -59,7 +59,20 @@ bool is_websocket_upgrade(const Request& request) {
 }
 
 std::optional<Response> authorize_events(const Request& request, const Services& services) {
-  return authorize_upgrade(request, services.options);
+  if (auto refusal = authorize_upgrade(request, services.options)) return refusal;
+  const auto protocol = websocket_subprotocol(request);
+  if (protocol.empty() || offers_subprotocol(request, protocol)) return std::nullopt;
+  const auto target = target_of(request);
+  return error_response(request.version(), false, 400, "subprotocol_required",
+                        "GET " + std::string(target.substr(0, target.find('?'))) +
+                            " speaks the WebSocket subprotocol " + std::string(protocol) +
+                            ": offer it in 'Sec-WebSocket-Protocol: " + std::string(protocol) +
+                            "' (Foxglove Studio does)");
+}
+
+std::string_view websocket_subprotocol(const Request& request) {
+  const auto* route = websocket_route(target_of(request));
+  return route ? route->subprotocol : std::string_view{};
 }
 
 std::optional<SharedResponse> answer_at_once(const Request& request, Services& services) {

@@ -29,12 +29,17 @@ std::optional<SharedResponse> answer_at_once(const Request& request, Services& s
 /// at once.
 Lane handler_lane(const Request& request);
 
-/// Whether the request asks to upgrade a route the table names as a WebSocket (GET /api/v1/events).
+/// Whether the request asks to upgrade a route the table names as a WebSocket (GET /api/v1/events, /foxglove).
 bool is_websocket_upgrade(const Request& request);
 
-/// Decides a WebSocket upgrade (see authorize_upgrade in server/api/access.h). nullopt: upgrade; otherwise the
-/// refusal to send (421, 403 or 401). Never throws.
+/// Decides a WebSocket upgrade (see authorize_upgrade in server/api/access.h), then, for a route that speaks a
+/// subprotocol (GET /foxglove), that the request offers it. nullopt: upgrade; otherwise the refusal to send (421, 403,
+/// 401, or 400 subprotocol_required). Never throws.
 std::optional<Response> authorize_events(const Request& request, const Services& services);
+
+/// The subprotocol the WebSocket route of this request speaks (the route table's); empty for the events stream or a
+/// request that names no WebSocket route.
+std::string_view websocket_subprotocol(const Request& request);
 
 /// Answers one HTTP request: the Host check, the Origin check for requests that are not GET/HEAD, then the
 /// route's handler; a path no route has is 404, a method its routes do not take is 405 with Allow. A pure

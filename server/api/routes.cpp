@@ -53,7 +53,10 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1/robots", get_robots, Lane::read},
     Route{verb::put, "/api/v1/robots/{id}/pose", put_robot_pose, Lane::write},
     Route{verb::get, "/api/v1/robots/{id}", get_robot, Lane::read},
-    Route{verb::get, "/api/v1/events", get_events_without_upgrade, Lane::immediate, "?token=TOKEN", true},
+    Route{verb::get, "/api/v1/events", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true},
+    // Foxglove's protocol, outside /api/v1: it is versioned by its subprotocol, not by this API's version.
+    Route{verb::get, "/foxglove", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true, false,
+          "foxglove.websocket.v1"},
     Route{verb::get, "/web/{path}", get_static, Lane::read},
 };
 
@@ -126,12 +129,15 @@ std::string allowed_methods(std::string_view path) {
   return allow;
 }
 
-bool is_websocket_target(std::string_view target) {
+bool is_websocket_target(std::string_view target) { return websocket_route(target) != nullptr; }
+
+const Route* websocket_route(std::string_view target) {
   const auto path = target.substr(0, target.find('?'));
   std::string ignored;
-  return std::any_of(kRoutes.begin(), kRoutes.end(), [&](const Route& route) {
+  const auto it = std::find_if(kRoutes.begin(), kRoutes.end(), [&](const Route& route) {
     return route.websocket && route.method == verb::get && pattern_matches(route.pattern, path, ignored);
   });
+  return it == kRoutes.end() ? nullptr : &*it;
 }
 
 std::string route_name(const Route& route) { return method_name(route.method) + " " + std::string(route.pattern); }

@@ -28,6 +28,9 @@ struct Route {
   /// Tried first on the I/O thread with Call::at_once (answers from bytes already made: no queue, no lower CPU
   /// priority), and queued on `lane` only when the handler throws NotAtOnce.
   bool at_once = false;
+  /// For a WebSocket route: the subprotocol it speaks, which an upgrade must offer (Sec-WebSocket-Protocol); empty:
+  /// none (the events stream).
+  std::string_view subprotocol = {};
 };
 
 /// The table, in matching order: the first route whose pattern matches the path and whose method is the
@@ -50,6 +53,8 @@ std::optional<RouteMatch> find_route(boost::beast::http::verb method, std::strin
 std::string allowed_methods(std::string_view path);
 /// Whether a GET upgrade of this target (path and query) is one the table names as a WebSocket.
 bool is_websocket_target(std::string_view target);
+/// The WebSocket route of a target (path and query), nullptr when it names none.
+const Route* websocket_route(std::string_view target);
 
 /// "METHOD PATTERN" of a route, as the index and the README list it.
 std::string route_name(const Route& route);

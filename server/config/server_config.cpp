@@ -86,6 +86,8 @@ std::string usage() {
          "  --shm-max-mb N         largest shared memory segment [MB] (default 1024; never more than half of\n"
          "                         /dev/shm's free space)\n"
          "  --shm-period-ms N      copy changes into shared memory every N ms (default 20)\n"
+         "  --foxglove-queue-kb N  changes (scene updates, decisions) a Foxglove client may have queued [KiB]; past\n"
+         "                         them it falls behind and is sent the current state when it reads (default 32768)\n"
          "  --help                 this text\n";
 }
 
@@ -204,6 +206,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.shm.max_bytes = parse_number<std::uint64_t>(flag, value, 1, 1'048'576) << 20;
     else if (flag == "--shm-period-ms")
       c.shm.period = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 1, 10'000));
+    else if (flag == "--foxglove-queue-kb")
+      c.foxglove.max_queued_bytes = parse_number<std::size_t>(flag, value, 16, 4'194'304) << 10;
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";

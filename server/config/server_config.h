@@ -8,6 +8,7 @@
 
 #include "rules/engine.h"
 #include "server/api/router.h"
+#include "server/foxglove/foxglove_options.h"
 #include "server/http/http_server.h"
 #include "server/service/world_service.h"
 #include "server/shm/shared_map_export.h"
@@ -29,6 +30,7 @@ struct ServerConfig {
   api::ApiOptions api;
   http::HttpOptions http;
   shm::ShmOptions shm;
+  foxglove::FoxgloveOptions foxglove;
   std::optional<std::filesystem::path> floor_plan_file;  // loaded at start (demo), replacing the stored plan
   bool help = false;
   bool print_network = false;

@@ -196,6 +196,120 @@ class EventSession : public std::enable_shared_from_this<EventSession> {
   bool stopped_ = false;
 };
 
+// A WebSocket run by an endpoint of the api's choosing (the Foxglove bridge): moves whole messages both ways and
+// leaves their meaning to the endpoint. One write at a time; the endpoint's queue is taken only when the last batch is
+// written, so a client that reads slowly leaves its messages in the endpoint's bounded queue, not here.
+class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
+ public:
+  // Client messages are small JSON (subscriptions); anything larger is refused by Beast (the connection fails).
+  static constexpr std::size_t kMaxClientMessageBytes = 1 << 20;
+  // Pinged after half of this without a word from the client, dropped after all of it: a client that stopped reading
+  // (it cannot answer a ping) does not hold its connection for ever. Generous, because Beast counts only what the
+  // client sends, and its ping waits behind a message being written: 2 minutes lets a client on a slow link take
+  // a grid of tens of megabytes.
+  static constexpr std::chrono::seconds kIdleTimeout{120};
+
+  EndpointSession(tcp::socket&& socket, std::shared_ptr<WebSocketEndpoint> endpoint)
+      : ws_(std::move(socket)), endpoint_(std::move(endpoint)) {}
+  ~EndpointSession() { stop(); }
+
+  void run(bhttp::request<bhttp::string_body> request) {
+    auto timeouts = websocket::stream_base::timeout::suggested(beast::role_type::server);
+    timeouts.idle_timeout = kIdleTimeout;
+    timeouts.keep_alive_pings = true;
+    ws_.set_option(timeouts);
+    ws_.read_message_max(kMaxClientMessageBytes);
+    if (const auto protocol = endpoint_->subprotocol(); !protocol.empty()) {
+      ws_.set_option(websocket::stream_base::decorator([protocol = std::string(protocol)](websocket::response_type& r) {
+        r.set(bhttp::field::sec_websocket_protocol, protocol);
+      }));
+    }
+    ws_.async_accept(request, beast::bind_front_handler(&EndpointSession::on_accept, shared_from_this()));
+  }
+
+ private:
+  void on_accept(beast::error_code ec) {
+    if (ec) return stop();
+    std::weak_ptr<EndpointSession> weak = weak_from_this();
+    opened_ = true;
+    endpoint_->open([weak] {
+      if (auto self = weak.lock()) net::post(self->ws_.get_executor(), [self] { self->pump(); });
+    });
+    pump();
+    read();
+  }
+
+  void read() {
+    ws_.async_read(buffer_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec || self->stopped_) return self->stop();
+      const auto data = self->buffer_.cdata();
+      try {
+        self->endpoint_->receive(std::string_view(static_cast<const char*>(data.data()), data.size()),
+                                 !self->ws_.got_text());
+      } catch (const std::exception& e) {  // endpoints do not throw; should one, its connection ends
+        std::cerr << "wmd: WebSocket closed: " << e.what() << std::endl;
+        return self->close_now();
+      }
+      self->buffer_.consume(self->buffer_.size());
+      self->read();
+    });
+  }
+
+  void pump() {
+    if (writing_ || stopped_) return;
+    try {
+      for (auto& frame : endpoint_->take()) outbox_.push_back(std::move(frame));
+    } catch (const std::exception& e) {
+      std::cerr << "wmd: WebSocket closed: " << e.what() << std::endl;
+      return close_now();
+    }
+    write_next();
+  }
+
+  void close_now() {
+    stop();
+    beast::error_code ignored;
+    beast::get_lowest_layer(ws_).socket().close(ignored);
+  }
+
+  void write_next() {
+    if (outbox_.empty() || stopped_) {
+      writing_ = false;
+      return;
+    }
+    writing_ = true;
+    const auto& frame = outbox_.front();
+    ws_.binary(frame.binary);
+    buffers_ = {net::buffer(frame.head), frame.body ? net::buffer(*frame.body) : net::const_buffer{}};
+    ws_.async_write(buffers_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec) return self->stop();
+      self->outbox_.pop_front();
+      self->writing_ = false;
+      if (self->outbox_.empty()) {
+        self->pump();
+      } else {
+        self->write_next();
+      }
+    });
+  }
+
+  // The outbox stays until the session goes: a write in flight still reads its front frame.
+  void stop() {
+    if (stopped_) return;
+    stopped_ = true;
+    if (opened_) endpoint_->close();
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  std::shared_ptr<WebSocketEndpoint> endpoint_;
+  beast::flat_buffer buffer_;
+  std::deque<WebSocketFrame> outbox_;
+  std::array<net::const_buffer, 2> buffers_;
+  bool opened_ = false;
+  bool writing_ = false;
+  bool stopped_ = false;
+};
+
 class Session : public std::enable_shared_from_this<Session> {
  public:
   Session(tcp::socket&& socket, const HttpOptions& options, const HttpServer::Handlers& handlers, HandlerPool& pool,
@@ -233,14 +347,21 @@ class Session : public std::enable_shared_from_this<Session> {
       }
       return write(api::error_response(11, false, status, error, detail));
     }
-    if (hub_ && websocket::is_upgrade(parser_->get()) && handlers_.is_websocket &&
+    if ((hub_ || handlers_.open_websocket) && websocket::is_upgrade(parser_->get()) && handlers_.is_websocket &&
         handlers_.is_websocket(parser_->get())) {
       if (handlers_.authorize_upgrade) {
         if (auto refusal = handlers_.authorize_upgrade(parser_->get())) return write(std::move(*refusal));
       }
-      stream_.expires_never();
-      std::make_shared<EventSession>(stream_.release_socket(), *hub_)->run(parser_->release());
-      return;
+      auto endpoint = handlers_.open_websocket ? handlers_.open_websocket(parser_->get()) : nullptr;
+      if (endpoint || hub_) {
+        stream_.expires_never();
+        if (endpoint) {
+          std::make_shared<EndpointSession>(stream_.release_socket(), std::move(endpoint))->run(parser_->release());
+        } else {
+          std::make_shared<EventSession>(stream_.release_socket(), *hub_)->run(parser_->release());
+        }
+        return;
+      }
     }
     const auto lane = handlers_.lane ? handlers_.lane(parser_->get()) : api::Lane::read;
     if (lane == api::Lane::immediate) return write(answer(parser_->get()));

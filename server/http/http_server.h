@@ -8,6 +8,7 @@
 
 #include "server/api/http_types.h"
 #include "server/events/event_hub.h"
+#include "server/http/websocket_endpoint.h"
 
 namespace wm::http {
 
@@ -54,9 +55,12 @@ class HttpServer {
     /// Tried on the I/O thread before a read-lane request is queued: an answer that is ready at once (bytes
     /// already made), or nullopt to queue it. Must not block. Empty: every request is queued.
     std::function<std::optional<api::SharedResponse>(const api::Request&)> at_once;
+    /// After authorize_upgrade allowed it: the endpoint that runs this WebSocket, or null for the live events (the
+    /// `events` hub). Empty: every WebSocket is the events stream.
+    std::function<std::shared_ptr<WebSocketEndpoint>(const api::Request&)> open_websocket;
   };
-  /// Binds and listens. WebSocket upgrades that `handlers.is_websocket` accepts subscribe to `events` (when
-  /// given).
+  /// Binds and listens. WebSocket upgrades that `handlers.is_websocket` accepts run on the endpoint
+  /// `handlers.open_websocket` gives, or else subscribe to `events` (when given).
   /// @throw boost::system::system_error when the address cannot be bound.
   HttpServer(const HttpOptions& options, Handlers handlers, events::EventHub* events = nullptr);
   ~HttpServer();
