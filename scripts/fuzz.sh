@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 root=$PWD
 seconds=${1:-60}
 shift || true
-all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_query fuzz_rules_text)
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
 harnesses=("$@")
 [ ${#harnesses[@]} -eq 0 ] && harnesses=("${all[@]}")
 build=${WM_SANITIZE_BUILD_DIR:-build/sanitize}
@@ -41,6 +41,7 @@ options_for() {
     fuzz_rmf) echo "-max_len=4096 -dict=fuzz/dict/yaml.dict" ;;
     fuzz_carmen) echo "-max_len=8192 -dict=fuzz/dict/carmen.dict" ;;
     fuzz_servosila) echo "-max_len=512" ;;  # datagrams of 57 and 275 bytes, and anything else
+    fuzz_foxglove) echo "-max_len=1024 -dict=fuzz/dict/json.dict" ;;  # a client's subscribe/unsubscribe texts
     # SWI-Prolog interrupts a goal at its time limit with SIGUSR2, which libFuzzer would take as "stop". Its
     # handler allocates, so a signal that lands while libFuzzer's per-input leak check has stopped the world
     # deadlocks the worker (seen after 11 min of fork mode): leaks are left to the sanitizer suite here.

@@ -66,7 +66,7 @@ phase "sanitizer build (clang)"
 cmake -S . -B build/sanitize -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_SANITIZE=ON \
   -DWM_FUZZ=ON -DWM_WERROR=OFF "${launcher[@]}" >/dev/null
 cmake --build build/sanitize -j"$jobs" --target wmd wmctl apriori_tests logs_tests rules_tests server_tests integration_tests \
-  fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_query fuzz_rules_text
+  fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text
 
 phase "sanitizer tests"
 # Test binaries that were not built register as <name>_NOT_BUILT. Also left out: the accept back-off test, which

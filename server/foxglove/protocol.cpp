@@ -3,6 +3,8 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "apriori/import/json_limits.h"
+
 namespace wm::foxglove {
 namespace {
 
@@ -72,10 +74,12 @@ std::string message_data_header(std::uint32_t subscription_id, std::uint64_t rec
 }
 
 ClientMessage parse_client_message(std::string_view text) {
+  // nlohmann's DOM is destroyed recursively: a client's megabyte of '[' would overflow the stack.
+  if (const auto too_deep = apriori::json_nesting_error(text)) throw ProtocolError(*too_deep);
   json message;
   try {
     message = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number beyond a double (1e309)
     throw ProtocolError(std::string("not JSON: ") + e.what());
   }
   if (!message.is_object()) throw ProtocolError("not a JSON object");

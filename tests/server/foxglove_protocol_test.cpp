@@ -124,6 +124,12 @@ TEST(FoxgloveProtocolTest, MalformedMessagesThrowNamingWhatIsWrong) {
   EXPECT_EQ(error_of(R"({"op":"subscribe","subscriptions":[{"id":1.5,"channelId":2}]})"),
             "subscriptions[0].id: not an integer");
   EXPECT_EQ(error_of(R"({"op":"unsubscribe","subscriptionIds":["1"]})"), "subscriptionIds[0]: not an integer");
+  // Found by fuzz_foxglove: a number beyond a double made nlohmann throw out_of_range, not a parse error.
+  EXPECT_NE(error_of(R"({"op":"subscribe","subscriptions":[{"id":1e309,"channelId":2}]})").find("not JSON"),
+            std::string::npos);
+  EXPECT_NE(error_of("1.7976931348623157e309\"a").find("not JSON"), std::string::npos);
+  // A megabyte of '[' would overflow the stack when nlohmann destroys its DOM: refused before parsing.
+  EXPECT_EQ(error_of(std::string(1 << 20, '[')), "JSON nested deeper than 64 levels at byte 64");
 }
 
 }  // namespace
