@@ -161,6 +161,8 @@ struct Bridge::Core {
   void serve(const InitialRequest& request);
 
   std::shared_ptr<events::EventHub::Subscriber> subscriber_;
+  std::uint64_t pass_ = 0;                                 // passes of run()'s loop
+  std::uint64_t grid_built_pass_ = 0, ds_built_pass_ = 0;  // when a new subscription last had the grid built
   bool grid_dirty_ = false, elements_dirty_ = false, plan_dirty_ = false, robots_dirty_ = false,
        decisions_dirty_ = false;
   Clock::time_point next_grid_{}, next_update_{};
@@ -205,36 +207,46 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
     } else {
       try {
         const auto parsed = parse_client_message(message);
+        // At most one status per client message, naming the first few refusals: a message of a megabyte must not
+        // make megabytes of replies for a client that does not read.
+        Refusals refused;
         if (const auto* subscribe = std::get_if<Subscribe>(&parsed)) {
           std::vector<bool> known;
           for (const auto& s : subscribe->subscriptions) known.push_back(core_->has_channel(s.channel_id));
           std::lock_guard lock(mutex_);
           for (std::size_t i = 0; i < subscribe->subscriptions.size(); ++i) {
             const auto& s = subscribe->subscriptions[i];
+            const bool channel_taken = std::any_of(subscriptions_.begin(), subscriptions_.end(),
+                                                   [&](const auto& e) { return e.second.channel == s.channel_id; });
             if (!known[i]) {
-              replies.push_back(
-                  status_json(StatusLevel::error, "subscribe: no channel " + std::to_string(s.channel_id)));
-            } else if (!subscriptions_.emplace(s.id, Sub{s.channel_id, false}).second) {
-              replies.push_back(status_json(StatusLevel::error, "subscribe: subscription id " + std::to_string(s.id) +
-                                                                    " is in use; unsubscribe it first"));
+              refused.add("no channel " + std::to_string(s.channel_id));
+            } else if (subscriptions_.count(s.id) != 0) {
+              refused.add("subscription id " + std::to_string(s.id) + " is in use");
+            } else if (channel_taken) {
+              // The protocol allows one subscription per channel and client; it also bounds what a client holds.
+              refused.add("channel " + std::to_string(s.channel_id) + " is subscribed already");
             } else {
+              subscriptions_.emplace(s.id, Sub{s.channel_id, false});
               requests.push_back({weak_from_this(), s.id, s.channel_id});
             }
           }
+          if (refused.count > 0) replies.push_back(status_json(StatusLevel::error, refused.text("subscribe")));
         } else if (const auto* unsubscribe = std::get_if<Unsubscribe>(&parsed)) {
           std::lock_guard lock(mutex_);
           for (const auto id : unsubscribe->subscription_ids)
-            if (subscriptions_.erase(id) == 0)
-              replies.push_back(
-                  status_json(StatusLevel::warning, "unsubscribe: no subscription " + std::to_string(id)));
+            if (subscriptions_.erase(id) == 0) refused.add("no subscription " + std::to_string(id));
+          if (refused.count > 0) replies.push_back(status_json(StatusLevel::warning, refused.text("unsubscribe")));
         } else {
+          auto op = std::get<Unsupported>(parsed).op;
+          if (op.size() > kMaxEchoedOp) op = op.substr(0, kMaxEchoedOp) + "...";
           replies.push_back(
               status_json(StatusLevel::error,
-                          "'" + std::get<Unsupported>(parsed).op +
-                              "' is not supported: this server has no optional capability (it only publishes)"));
+                          "'" + op + "' is not supported: this server has no optional capability (it only publishes)"));
         }
       } catch (const ProtocolError& e) {
-        replies.push_back(status_json(StatusLevel::error, std::string("bad message: ") + e.what()));
+        std::string what = e.what();
+        if (what.size() > 2 * kMaxEchoedOp) what = what.substr(0, 2 * kMaxEchoedOp) + "...";
+        replies.push_back(status_json(StatusLevel::error, "bad message: " + what));
       }
     }
     for (auto& reply : replies) push_text(std::move(reply));
@@ -268,6 +280,7 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
       queue_.clear();
       counted_bytes_ = 0;
       counted_messages_ = 0;
+      text_bytes_ = 0;
     }
     if (!requests.empty()) core_->request_initial(std::move(requests));
     return frames;
@@ -322,12 +335,18 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
     return queued;
   }
 
-  /// A text message (serverInfo, advertise, status): never dropped; they are few and small.
+  /// A text message (serverInfo, advertise, status). Statuses answering a client that sends without reading are
+  /// dropped past kMaxQueuedTextBytes (serverInfo and advertise come first and are far below it).
   void push_text(std::string text) {
     std::function<void()> wake;
     {
       std::lock_guard lock(mutex_);
       if (closed_) return;
+      if (text_bytes_ + text.size() > kMaxQueuedTextBytes) {
+        ++dropped_text_;
+        return;
+      }
+      text_bytes_ += text.size();
       queue_.push_back({{false, std::move(text), nullptr}, 0, false});
       wake = wake_;
     }
@@ -344,6 +363,21 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
   }
 
  private:
+  static constexpr std::size_t kMaxEchoedOp = 64;                // characters of a client's text quoted back
+  static constexpr std::size_t kMaxQueuedTextBytes = 256 << 10;  // statuses waiting for a client that does not read
+
+  // Refusals within one client message, told in one status.
+  struct Refusals {
+    std::size_t count = 0;
+    std::string first;
+    void add(const std::string& what) {
+      if (count++ < 3) first += (first.empty() ? "" : "; ") + what;
+    }
+    std::string text(const std::string& op) const {
+      return op + ": " + first + (count > 3 ? "; and " + std::to_string(count - 3) + " more" : "");
+    }
+  };
+
   struct Sub {
     std::uint32_t channel = 0;
     bool active = false;  // false until its current state is queued: changes before that would come out of order
@@ -409,6 +443,8 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
   std::deque<Queued> queue_;
   std::size_t counted_bytes_ = 0;  // of the changes queued [bytes]
   std::size_t counted_messages_ = 0;
+  std::size_t text_bytes_ = 0;      // of the text messages queued
+  std::uint64_t dropped_text_ = 0;  // statuses not queued for a client that did not read
   bool behind_ = false;
   std::uint64_t dropped_ = 0;  // since it last caught up
   bool closed_ = false;
@@ -489,6 +525,7 @@ void Bridge::Core::run() {
     const bool changed = std::exchange(clients_changed, false);
     auto requests = std::exchange(inbox, {});
     lock.unlock();
+    ++pass_;
     try {
       if (changed) follow_clients();
       if (events && subscriber_) take_events();
@@ -687,19 +724,30 @@ std::optional<Bridge::Core::GridCache> Bridge::Core::build_grid(std::uint32_t ch
   if (k == 1) {
     fields = assemble(cache.tiles, cache.tile_size, names.size(), names, region, 0, region.height());
   } else {
-    // k rows at a time, each pooled at once: the full-resolution grid is never held in one piece.
-    for (const auto& name : names) fields.push_back({name, {}});
-    for (std::int64_t y0 = 0; y0 < region.height(); y0 += k) {
-      const auto y1 = std::min(y0 + k, region.height());
-      const fusion::GridGeometry strip(
-          region.origin_m() + Eigen::Vector2d(0, static_cast<double>(y0) * region.resolution_m()),
-          region.resolution_m(), region.width(), y1 - y0);
-      auto pooled = coarsened(strip, assemble(cache.tiles, cache.tile_size, names.size(), names, region, y0, y1), k);
-      for (std::size_t l = 0; l < names.size(); ++l)
-        fields[l].values.insert(fields[l].values.end(), pooled.second[l].values.begin(), pooled.second[l].values.end());
+    // Pooled tile by tile straight into the coarse grid (each cell the largest known value of its k × k block, as
+    // coarsened() does): the cost follows the tiles observed, not their bounding box, which two scans kilometres
+    // apart make 10^12 cells.
+    const std::int64_t cw = (region.width() + k - 1) / k, ch = (region.height() + k - 1) / k, t = cache.tile_size;
+    for (const auto& name : names)
+      fields.push_back({name, std::vector<float>(static_cast<std::size_t>(cw * ch), std::nanf(""))});
+    for (const auto& [index, tile] : cache.tiles) {
+      const auto& values = tile.second;
+      if (values.size() < names.size() * static_cast<std::size_t>(t * t)) continue;
+      const std::int64_t gx0 = (index.first - tx0) * t, gy0 = (index.second - ty0) * t;
+      for (std::size_t l = 0; l < names.size(); ++l) {
+        auto& out = fields[l].values;
+        for (std::int64_t iy = 0; iy < t; ++iy) {
+          const std::int64_t row = ((gy0 + iy) / k) * cw;
+          const float* in = values.data() + l * static_cast<std::size_t>(t * t) + static_cast<std::size_t>(iy * t);
+          for (std::int64_t ix = 0; ix < t; ++ix) {
+            const float v = in[ix];
+            float& cell = out[static_cast<std::size_t>(row + (gx0 + ix) / k)];
+            if (!std::isnan(v) && (std::isnan(cell) || v > cell)) cell = v;
+          }
+        }
+      }
     }
-    sent = fusion::GridGeometry(region.origin_m(), region.resolution_m() * static_cast<double>(k),
-                                (region.width() + k - 1) / k, (region.height() + k - 1) / k);
+    sent = fusion::GridGeometry(region.origin_m(), region.resolution_m() * static_cast<double>(k), cw, ch);
   }
   auto payload = share(grid_message(sent, fields, unix_ns_now()));
   ++grid_messages;
@@ -843,9 +891,12 @@ void Bridge::Core::serve(const InitialRequest& request) {
     case kGridChannel:
     case kGridDsChannel: {
       auto& cache = request.channel == kGridChannel ? grid_cache_ : ds_cache_;
-      // The cache is current unless a scan came since it was made (then the grid is read afresh for this one).
-      if (!cache.payload || grid_dirty_) {
+      // The cache is current unless a scan came since it was made: then the grid is read afresh, once per pass of
+      // the bridge's loop whatever the number of new subscriptions (each build can take tens of milliseconds).
+      auto& built_pass = request.channel == kGridChannel ? grid_built_pass_ : ds_built_pass_;
+      if (!cache.payload || (grid_dirty_ && built_pass != pass_)) {
         if (auto built = build_grid(request.channel)) cache = std::move(*built);
+        built_pass = pass_;
       }
       if (cache.payload) payloads.push_back(cache.payload);
       break;

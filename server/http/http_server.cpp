@@ -232,9 +232,14 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
     if (ec) return stop();
     std::weak_ptr<EndpointSession> weak = weak_from_this();
     opened_ = true;
-    endpoint_->open([weak] {
-      if (auto self = weak.lock()) net::post(self->ws_.get_executor(), [self] { self->pump(); });
-    });
+    try {  // endpoints do not throw; should one (bad_alloc), its connection ends rather than the I/O thread
+      endpoint_->open([weak] {
+        if (auto self = weak.lock()) net::post(self->ws_.get_executor(), [self] { self->pump(); });
+      });
+    } catch (const std::exception& e) {
+      std::cerr << "wmd: WebSocket not opened: " << e.what() << "\n";
+      return stop();
+    }
     pump();
     read();
   }

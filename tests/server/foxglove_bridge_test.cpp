@@ -475,3 +475,79 @@ TEST_F(FoxgloveBridgeTest, TheEventHubIsHeardOnlyWhileAClientIsConnected) {
 
 }  // namespace
 }  // namespace wm::foxglove
+
+namespace wm::foxglove {
+namespace {
+
+// A sparse grid (two scans 60 m apart) over the cell limit is pooled tile by tile: the same cells as pooling the
+// whole bounding box, at a cost that follows the tiles (two scans kilometres apart made a bounding box of 10^12).
+TEST_F(FoxgloveBridgeTest, ACoarsenedGridIsTheBlockMaximumOfTheDenseGrid) {
+  world_.insert(scan_at(0));
+  world_.insert(scan_at(60));
+  options_.max_grid_cells = 20000;
+  const auto bridge = start();
+  Connection client(bridge->connect());
+  client.subscribe(1, kGridChannel);
+  const auto frames = client.take_until([](const auto& f) { return count_for(f, 1) >= 1; });
+  const auto* grid = last_for(frames, 1);
+  ASSERT_NE(grid, nullptr);
+  const auto bounds = *world_.grid_bounds();
+  const fusion::GridGeometry region(bounds.origin_m(), bounds.resolution_m(), bounds.width(), bounds.height());
+  const auto k = coarsening_factor(region.width(), region.height(), options_.max_grid_cells);
+  ASSERT_GT(k, 1);
+  const auto dense = world_.bayes();
+  const auto [coarse, fields] = coarsened(region, {{"probability", std::vector<float>(dense.begin(), dense.end())}}, k);
+  EXPECT_EQ(grid->payload["column_count"], coarse.width());
+  EXPECT_EQ(grid->payload["cell_size"]["x"], coarse.resolution_m());
+  EXPECT_EQ(grid->payload["data"].get<std::string>(),
+            json::parse(grid_message(coarse, fields, 0))["data"].get<std::string>());
+}
+
+// What a hostile client could do with one connection (found by a review): a megabyte of unknown ids or of
+// subscriptions to one channel, sent without reading, must not make megabytes of replies or copies of the state.
+TEST_F(FoxgloveBridgeTest, AClientThatSendsWithoutReadingGetsOneStatusPerMessageAndOneSubscriptionPerChannel) {
+  world_.log(decision(1));
+  const auto bridge = start();
+  Connection client(bridge->connect());
+  client.take_until([](const auto& f) { return f.size() >= 2; });  // serverInfo, advertise
+
+  json ids = json::array();
+  for (int i = 0; i < 50000; ++i) ids.push_back(0);
+  client.send({{"op", "unsubscribe"}, {"subscriptionIds", ids}});
+  auto frames = client.take();
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_EQ(frames[0].text["message"],
+            "unsubscribe: no subscription 0; no subscription 0; no subscription 0; and 49997 more");
+
+  json subscriptions = json::array();
+  for (std::uint32_t i = 0; i < 5000; ++i) subscriptions.push_back({{"id", i}, {"channelId", kDecisionsChannel}});
+  client.send({{"op", "subscribe"}, {"subscriptions", subscriptions}});
+  frames = client.take_until([](const auto& f) { return count_for(f, 0) >= 1; });
+  std::this_thread::sleep_for(50ms);
+  for (auto& f : client.take()) frames.push_back(std::move(f));
+  EXPECT_EQ(count_for(frames, 0), 1u);  // the first subscription's current state: the one decision
+  for (std::uint32_t i = 1; i < 5000; ++i) ASSERT_EQ(count_for(frames, i), 0u) << i;
+  const auto statuses = std::count_if(frames.begin(), frames.end(), [](const Frame& f) { return !f.binary; });
+  EXPECT_EQ(statuses, 1);
+  for (const auto& f : frames) {
+    if (f.binary) continue;
+    EXPECT_EQ(f.text["message"], "subscribe: channel " + std::to_string(kDecisionsChannel) +
+                                     " is subscribed already; channel " + std::to_string(kDecisionsChannel) +
+                                     " is subscribed already; channel " + std::to_string(kDecisionsChannel) +
+                                     " is subscribed already; and 4996 more");
+  }
+
+  // An unknown operation is quoted back only in part, and statuses stop queueing at a bound.
+  client.send({{"op", std::string(100000, 'x')}});
+  frames = client.take();
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_LT(frames[0].text["message"].get<std::string>().size(), 200u);
+  for (int i = 0; i < 20000; ++i) client.send({{"op", "nothing"}});
+  std::size_t queued_bytes = 0;
+  for (const auto& f : client.take()) queued_bytes += f.text.dump().size();
+  EXPECT_GT(queued_bytes, 100000u);
+  EXPECT_LE(queued_bytes, 256u << 10);
+}
+
+}  // namespace
+}  // namespace wm::foxglove
