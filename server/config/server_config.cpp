@@ -88,6 +88,7 @@ std::string usage() {
          "  --shm-period-ms N      copy changes into shared memory every N ms (default 20)\n"
          "  --foxglove-queue-kb N  changes (scene updates, decisions) a Foxglove client may have queued [KiB]; past\n"
          "                         them it falls behind and is sent the current state when it reads (default 32768)\n"
+         "  --foxglove-max-clients N  Foxglove clients served at once; one more is refused (default 32)\n"
          "  --help                 this text\n";
 }
 
@@ -208,6 +209,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.shm.period = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 1, 10'000));
     else if (flag == "--foxglove-queue-kb")
       c.foxglove.max_queued_bytes = parse_number<std::size_t>(flag, value, 16, 4'194'304) << 10;
+    else if (flag == "--foxglove-max-clients")
+      c.foxglove.max_clients = parse_number<std::size_t>(flag, value, 1, 4096);
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";

@@ -114,7 +114,8 @@ struct Bridge::Core {
   // --- called by the clients (any thread) ---
   /// Registers the client and queues serverInfo and advertise for it, under one lock with every later advertise,
   /// so that it is told of every channel exactly once, after serverInfo.
-  void add_client(const std::shared_ptr<FoxgloveClient>& client);
+  /// False, and nothing registered, when max_clients are served already.
+  bool add_client(const std::shared_ptr<FoxgloveClient>& client);
   void remove_client(const FoxgloveClient* client);
   bool has_channel(std::uint32_t id) const;
   void request_initial(std::vector<InitialRequest> requests);
@@ -195,7 +196,20 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
       std::lock_guard lock(mutex_);
       wake_ = std::move(wake);
     }
-    core_->add_client(shared_from_this());
+    if (core_->add_client(shared_from_this())) return;
+    std::function<void()> wake_now;
+    {
+      std::lock_guard lock(mutex_);
+      queue_.push_back({{false,
+                         status_json(StatusLevel::error, "too many Foxglove clients: this server serves " +
+                                                             std::to_string(core_->options.max_clients) +
+                                                             " at once; try again later"),
+                         nullptr, true},
+                        0,
+                        false});
+      wake_now = wake_;
+    }
+    if (wake_now) wake_now();
   }
 
   void receive(std::string_view message, bool binary) override {
@@ -455,10 +469,11 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
 
 // --- Core: the clients' side ---
 
-void Bridge::Core::add_client(const std::shared_ptr<FoxgloveClient>& client) {
+bool Bridge::Core::add_client(const std::shared_ptr<FoxgloveClient>& client) {
   {
     std::lock_guard lock(clients_mutex);
     std::erase_if(clients, [](const auto& c) { return c.expired(); });
+    if (clients.size() >= options.max_clients) return false;
     clients.push_back(client);
     client->push_text(server_info_json(info));
     client->push_text(advertise_json(channels));
@@ -468,6 +483,7 @@ void Bridge::Core::add_client(const std::shared_ptr<FoxgloveClient>& client) {
     clients_changed = true;
   }
   wake_cv.notify_one();
+  return true;
 }
 
 void Bridge::Core::remove_client(const FoxgloveClient* client) {

@@ -26,6 +26,9 @@ struct FoxgloveOptions {
   /// Largest grid sent at the grid's own resolution [cells]; a larger one is sent coarser, each cell the largest value
   /// of a k × k block (an occupied cell stays visible), k the smallest integer that brings it under this bound.
   std::size_t max_grid_cells = 4'000'000;
+  /// Clients served at once; one more is told so in a status and its connection closed (1013, try again later).
+  /// Each holds up to its queue bound, and one that stopped reading keeps the grid it was last sent.
+  std::size_t max_clients = 32;
 };
 
 }  // namespace wm::foxglove

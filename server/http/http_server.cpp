@@ -288,8 +288,14 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
     buffers_ = {net::buffer(frame.head), frame.body ? net::buffer(*frame.body) : net::const_buffer{}};
     ws_.async_write(buffers_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       if (ec) return self->stop();
+      const bool last = self->outbox_.front().close_after;
       self->outbox_.pop_front();
       self->writing_ = false;
+      if (last) {  // the endpoint said its last word (a refusal): close, then the read ends with the connection
+        self->stop();
+        return self->ws_.async_close(websocket::close_reason(websocket::close_code::try_again_later),
+                                     [self](beast::error_code) {});
+      }
       if (self->outbox_.empty()) {
         self->pump();
       } else {

@@ -15,6 +15,7 @@ struct WebSocketFrame {
   bool binary = false;
   std::string head;
   std::shared_ptr<const std::string> body;  // may be null
+  bool close_after = false;                 // the transport closes the connection (1013, try again later) after it
 };
 
 /// What the transport calls on an upgraded connection. open, receive, take and close are called on the connection's

@@ -503,6 +503,27 @@ TEST_F(FoxgloveBridgeTest, ACoarsenedGridIsTheBlockMaximumOfTheDenseGrid) {
             json::parse(grid_message(coarse, fields, 0))["data"].get<std::string>());
 }
 
+TEST_F(FoxgloveBridgeTest, OneClientMoreThanTheLimitIsToldSoAndClosed) {
+  options_.max_clients = 2;
+  const auto bridge = start();
+  auto first = std::make_unique<Connection>(bridge->connect());
+  Connection second(bridge->connect());
+  auto endpoint = bridge->connect();
+  endpoint->open([] {});
+  const auto refused = endpoint->take();
+  ASSERT_EQ(refused.size(), 1u);
+  EXPECT_TRUE(refused[0].close_after);
+  EXPECT_EQ(json::parse(refused[0].head)["message"],
+            "too many Foxglove clients: this server serves 2 at once; try again later");
+  endpoint->close();
+  EXPECT_EQ(bridge->stats().clients, 2u);
+  first.reset();  // a place is free again
+  Connection third(bridge->connect());
+  const auto greeting = third.take();
+  ASSERT_EQ(greeting.size(), 2u);
+  EXPECT_EQ(greeting[0].text["op"], "serverInfo");
+}
+
 // What a hostile client could do with one connection (found by a review): a megabyte of unknown ids or of
 // subscriptions to one channel, sent without reading, must not make megabytes of replies or copies of the state.
 TEST_F(FoxgloveBridgeTest, AClientThatSendsWithoutReadingGetsOneStatusPerMessageAndOneSubscriptionPerChannel) {
