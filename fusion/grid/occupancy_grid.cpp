@@ -59,9 +59,6 @@ inline bool combine(double& o, double& e, double& k, double bo, double be) {
   return true;
 }
 
-// P(occupied) of a known cell's log-odds, in float: the value every export of the Bayes layer gives.
-inline float probability_of(float log_odds) { return 1.f - 1.f / (1.f + std::exp(log_odds)); }
-
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument("OccupancyGrid: " + what);
 }
@@ -500,7 +497,7 @@ std::vector<float> OccupancyGrid::export_tile_layers(TileIndex t) const {
   float* const conflict = plausibility + n;
   for (std::size_t i = 0; i < n; ++i) {
     const float l = tile->bayes[i].log_odds;
-    if (l != 0.f) probability[i] = probability_of(l);
+    if (l != 0.f) probability[i] = 1.f - 1.f / (1.f + std::exp(l));
     const DsCell& c = tile->ds[i];
     if (c.o != 0.f || c.e != 0.f) {
       belief[i] = c.o;
@@ -517,7 +514,7 @@ float OccupancyGrid::layer_value(const Tile& tile, std::size_t i, Layer layer) {
   const bool ds_unknown = o == 0.f && e == 0.f;
   switch (layer) {
     case Layer::bayes_probability:
-      if (tile.bayes[i].log_odds != 0.f) return probability_of(tile.bayes[i].log_odds);
+      if (tile.bayes[i].log_odds != 0.f) return 1.f - 1.f / (1.f + std::exp(tile.bayes[i].log_odds));
       break;
     case Layer::ds_belief:
       if (!ds_unknown) return o;

@@ -6,7 +6,6 @@
 // position is in the world frame [m], every angle [rad], every time [ns since the Unix epoch].
 #include <Eigen/Core>
 #include <array>
-#include <cmath>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -41,11 +40,6 @@ std::string grid_message(const fusion::GridGeometry& region, const std::vector<G
 /// The smallest k >= 1 for which a width × height grid in k × k blocks has at most `max_cells` cells
 /// (⌈w/k⌉·⌈h/k⌉ <= max_cells). @throw std::invalid_argument for max_cells = 0 or a size < 1.
 std::int64_t coarsening_factor(std::int64_t width, std::int64_t height, std::size_t max_cells);
-
-/// One value into a coarse cell: the largest known value of the cells pooled into it (NaN, unknown, never wins).
-inline void pool_max(float& cell, float value) {
-  if (!std::isnan(value) && (std::isnan(cell) || value > cell)) cell = value;
-}
 
 /// The grid in k × k blocks: each cell the largest known value of its block (NaN when none is known), so an
 /// occupied cell stays visible; the region keeps its origin, its cells k times larger, ⌈w/k⌉ × ⌈h/k⌉ of them.
