@@ -22,10 +22,13 @@ enum class Action {
   prune,         // remove an element the rules' prune/3 named (not an answer of decide/5)
   trim,          // cut an element's ends back to what the occupancy grid backs (not an answer of decide/5)
   place,         // the floor plan's placement in the world changed (not an answer of decide/5)
+  accept,        // a person accepted a change into the plan: a new version of the plan (not an answer of decide/5)
+  reject,        // a person rejected a change: it is no longer listed (not an answer of decide/5)
+  undo,          // a person undid the last accept or reject (not an answer of decide/5)
 };
 
 namespace detail {
-inline constexpr std::array<std::pair<Action, std::string_view>, 8> kActionNames{{
+inline constexpr std::array<std::pair<Action, std::string_view>, 11> kActionNames{{
     {Action::confirm, "delete"},
     {Action::merge, "merge"},
     {Action::rigid_adjust, "rigid_adjust"},
@@ -34,6 +37,9 @@ inline constexpr std::array<std::pair<Action, std::string_view>, 8> kActionNames
     {Action::prune, "prune"},
     {Action::trim, "trim"},
     {Action::place, "place"},
+    {Action::accept, "accept"},
+    {Action::reject, "reject"},
+    {Action::undo, "undo"},
 }};
 }  // namespace detail
 

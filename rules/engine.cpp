@@ -66,6 +66,8 @@ struct EntryPoints {
   predicate_t update_elements = nullptr;   // update_elements(+Upserts, +RemovedIds)
   predicate_t add_decisions = nullptr;     // add_decisions(+Decisions, +KeepLast)
   predicate_t set_element_grid = nullptr;  // set_element_grid(+Facts)
+  predicate_t set_edge_evidence = nullptr;  // set_edge_evidence(+Facts, +ReplaceAll)
+  predicate_t verdicts = nullptr;           // verdicts(+Scope, +Max, +InfLimit, +TimeLimit, -Result)
   predicate_t decide = nullptr;            // decide(+Observation, +Match, +Context, +InfLimit, +TimeLimit, -Result)
   predicate_t decide_batch = nullptr;      // decide_batch(+Cases, +InfLimit, +TimeLimit, -Results)
   predicate_t reload = nullptr;            // reload(+Files, +RulesDir, +InfLimit, +TimeLimit, +Grace, -Result)
@@ -82,6 +84,8 @@ struct EntryPoints {
             .update_elements = p("update_elements", 2),
             .add_decisions = p("add_decisions", 2),
             .set_element_grid = p("set_element_grid", 1),
+            .set_edge_evidence = p("set_edge_evidence", 2),
+            .verdicts = p("verdicts", 5),
             .decide = p("decide", 6),
             .decide_batch = p("decide_batch", 4),
             .reload = p("reload", 6),
@@ -317,6 +321,50 @@ void Engine::set_element_grid(const std::vector<ElementGridFacts>& facts) {
   term_t list = PL_new_term_ref();
   internal::put_element_grid_facts(list, facts, impl_->vocabulary);
   call_or_throw(impl_->entry.set_element_grid, list, "set_element_grid");
+}
+
+void Engine::set_edge_evidence(const std::vector<EdgeEvidenceFacts>& facts, bool replace_all) {
+  require_attached("set_edge_evidence");
+  Frame frame;
+  term_t args = PL_new_term_refs(2);  // set_edge_evidence(+Facts, +ReplaceAll)
+  internal::put_edge_evidence_facts(args, facts, impl_->vocabulary);
+  internal::put_atom(args + 1, replace_all ? "true" : "false");
+  call_or_throw(impl_->entry.set_edge_evidence, args, "set_edge_evidence");
+}
+
+std::vector<VerdictFacts> Engine::plan_verdicts(const std::optional<std::vector<EdgeKey>>& edges, std::size_t max) {
+  constexpr const char* kFunction = "plan_verdicts";
+  require_attached(kFunction);
+  Impl& d = *impl_;
+  Frame frame;
+  // verdicts(+Scope, +Max, +InferenceLimit, +TimeLimit, -Result), Scope = all | edges([Object-Edge, ...])
+  term_t args = PL_new_term_refs(5);
+  if (!edges) {
+    put_atom(args, "all");
+  } else {
+    term_t list = PL_new_term_ref();
+    term_t item = PL_new_term_ref();
+    term_t pair = PL_new_term_refs(2);
+    PL_put_nil(list);
+    for (auto e = edges->rbegin(); e != edges->rend(); ++e) {
+      put_atom(pair, e->object_id);
+      put_atom(pair + 1, e->edge_id);
+      internal::put_functor(item, d.vocabulary.minus, pair, kFunction);
+      internal::cons(list, item);
+    }
+    internal::put_functor(args, PL_new_functor(PL_new_atom("edges"), 1), list, kFunction);
+  }
+  put_int64(args + 1, static_cast<std::int64_t>(max), kFunction);
+  d.put_limits(args + 2, d.options.time_limit_s, kFunction);
+  call_or_throw(d.entry.verdicts, args, kFunction);
+  term_t result = args + 4;  // ok(Verdicts) | error(Message)
+  term_t part = PL_new_term_ref();
+  if (PL_is_functor(result, d.vocabulary.error) && PL_get_arg(1, result, part)) {
+    d.set_last_error(internal::text_or_written(part));
+    return {};
+  }
+  if (!PL_get_arg(1, result, part)) throw RuleError("plan_verdicts: malformed answer " + internal::written(result));
+  return internal::read_verdicts(part);
 }
 
 void Engine::add_decisions(const std::vector<DecisionFacts>& decisions, std::size_t keep_last) {

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -77,6 +78,14 @@ class Engine {
   /// Inserts or replaces wm_kb:element_grid/3 facts (one per id). update_elements and set_elements drop them for
   /// the elements they touch. @throw std::invalid_argument for a non-finite share or an empty id.
   void set_element_grid(const std::vector<ElementGridFacts>& facts);
+  /// Inserts or replaces the edge_evidence/5 and edge_seen_through/4 facts of the given edges (all of them first
+  /// when `replace_all`). @throw std::invalid_argument for an empty id, a non-finite share or stretch.
+  void set_edge_evidence(const std::vector<EdgeEvidenceFacts>& facts, bool replace_all);
+  /// Asks the active rules for their verdicts on the plan from the evidence facts (at most `max`), under the
+  /// limits: for each edge with evidence (of `edges`, or all when nullopt), verdict_override/5 (first answer) or
+  /// else every answer of edge_verdict/5; then object_verdict/4 of every object (of those edges' objects). Answers
+  /// `kept` are dropped. A failing rule gives an empty list and sets status().last_error.
+  std::vector<VerdictFacts> plan_verdicts(const std::optional<std::vector<EdgeKey>>& edges, std::size_t max);
   /// Appends decision/7 facts, keeping only the `keep_last` newest in the knowledge base.
   void add_decisions(const std::vector<DecisionFacts>& decisions, std::size_t keep_last);
 

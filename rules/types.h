@@ -6,6 +6,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace wm::rules {
@@ -62,6 +63,36 @@ struct ElementFacts {
 struct ElementGridFacts {
   std::string id;                   // e.g. "e12"
   double backed = 0, contrary = 0;  // [0, 1]
+};
+
+/// What the occupancy grid says of one edge of a plan object (wm_kb:edge_evidence/5, edge_seen_through/4 and
+/// edge_beams/4), from
+/// the server's last grid check of it: edge_evidence(Object, Edge, Backed, SeenThrough, Observed) with the shares of
+/// its length within one cell of an occupied cell, seen free with nothing occupied near, and seen at all; and one
+/// edge_seen_through(Object, Edge, S0, S1) per stretch seen through, [m] from the edge's first end.
+struct EdgeEvidenceFacts {
+  std::string object_id;  // e.g. "wall-12"
+  std::string edge_id;    // e.g. "wall-12/0", as edge/5 names it
+  double backed = 0, seen_through = 0, observed = 0;  // [0, 1]
+  std::vector<std::pair<double, double>> stretches;   // (S0, S1) [m], S0 < S1
+  /// Laser beams counted at the edge (edge_beams(Object, Edge, Through, Ended)): passed through it, returned on it.
+  std::int64_t beams_through = 0, beams_ended = 0;
+};
+
+/// An edge of the plan by its ids, as edge/5 names it.
+struct EdgeKey {
+  std::string object_id, edge_id;
+};
+
+/// What the rules conclude about the plan from the evidence: verdict(Object, Edge, Verdict, S0, S1, Rule,
+/// Explanation), from edge_verdict/5 and object_verdict/4 (verdict_override/5 first), e.g. an edge `missing` or
+/// `partly_missing` over [S0, S1], an object `gone`.
+struct VerdictFacts {
+  std::string object_id;
+  std::optional<std::string> edge_id;  // nullopt: about the whole object
+  std::string verdict;                 // missing | partly_missing | gone | ...
+  double s0_m = 0, s1_m = 0;           // the stretch concerned (edges; the whole edge unless partly_...)
+  std::string rule, explanation;
 };
 
 /// One logged decision, as the rules see it (wm_kb:decision/7):

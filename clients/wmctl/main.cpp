@@ -87,7 +87,16 @@ std::vector<Command> command_table() {
        "how good the vector map is against the Bayes grid: precision, recall,\n"
        "redundancy, calibration of the elements' covariances",
        map_quality},
-      {"report", {}, {}, "as-built report: what was confirmed, moved, never observed", report},
+      {"report", {}, {}, "as-built report: what was confirmed, moved, missing, gone, never observed", report},
+      {"changes",
+       {},
+       {},
+       "the differences between plan and building (walls missing, objects moved or gone,\n"
+       "new walls), each with its evidence and confidence",
+       changes},
+      {"changes accept", {"ID"}, {}, "accept a listed change into the plan (a new plan version; token)", changes_accept},
+      {"changes reject", {"ID"}, {}, "reject a listed change: it is no longer listed (token)", changes_reject},
+      {"changes undo", {}, {}, "undo the last accept or reject (token)", changes_undo},
       {"decisions", {}, {{"--since", "SEQ"}, {"--limit", "N"}, {"--element", "ID"}}, "the decision log", decisions},
       {"explain", {"ID"}, {}, "history of an element or object: observations, rules, numbers", explain},
       {"rules", {}, {}, "loaded rule files, checksums, last reload error", rules},

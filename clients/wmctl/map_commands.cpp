@@ -167,14 +167,70 @@ int report(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/report/as-built")), [](const json& r) {
     const auto& s = r["summary"];
     std::cout << "plan '" << r["plan"].get<std::string>() << "': " << s["objects"] << " objects, " << s["confirmed"]
-              << " confirmed, " << s["moved"] << " moved, " << s["never_observed"] << " never observed; "
-              << s["not_in_plan"] << " observed elements not in the plan\n";
+              << " confirmed, " << s["moved"] << " moved, " << s.value("missing", 0) << " missing, "
+              << s.value("partly_missing", 0) << " partly missing, " << s.value("gone", 0) << " gone, "
+              << s["never_observed"] << " never observed; " << s["not_in_plan"]
+              << " observed elements not in the plan\n";
     for (const auto& o : r["objects"]) {
-      if (o["status"] != "moved") continue;
-      std::cout << "  moved: " << o["id"].get<std::string>() << " by " << o["moved_by"]["distance"].get<double>()
-                << " m, " << o["moved_by"]["dtheta"].get<double>() << " rad\n";
+      const auto status = o["status"].get<std::string>();
+      if (status == "moved") {
+        std::cout << "  moved: " << o["id"].get<std::string>() << " by " << o["moved_by"]["distance"].get<double>()
+                  << " m, " << o["moved_by"]["dtheta"].get<double>() << " rad\n";
+      } else if (o.contains("verdicts")) {
+        for (const auto& v : o["verdicts"])
+          std::cout << "  " << v["verdict"].get<std::string>() << ": " << o["id"].get<std::string>()
+                    << (v.contains("edge") ? " edge " + v["edge"].get<std::string>() : std::string()) << "\n";
+      }
     }
   });
+}
+
+namespace {
+
+void print_changes(const json& r) {
+  const auto& list = r["changes"];
+  std::cout << list.size() << " changes between the plan and the building (map version " << r["version"]
+            << ", grid revision " << r["grid_revision"] << ")\n";
+  for (const auto& c : list) {
+    std::cout << "  " << c["id"].get<std::string>() << "  " << std::left << std::setw(20) << c["kind"].get<std::string>()
+              << std::right << " " << c["key"].get<std::string>() << "  " << std::fixed << std::setprecision(2)
+              << c["length"].get<double>() << " m, confidence " << std::setprecision(0)
+              << 100 * c["confidence"].get<double>() << " %\n"
+              << std::defaultfloat << std::setprecision(6);
+    std::cout << "      " << c["explanation"].get<std::string>() << "\n";
+  }
+  if (!list.empty()) std::cout << "accept or reject one with: wmctl changes accept|reject ID\n";
+}
+
+void print_change_outcome(const json& r) {
+  const auto& d = r["decision"];
+  std::cout << d["action"].get<std::string>() << " (" << d["rule"].get<std::string>() << "), map version "
+            << r["version"] << ": " << d["explanation"].get<std::string>() << "\n";
+  if (r.contains("object")) std::cout << "new plan object: " << r["object"].get<std::string>() << "\n";
+}
+
+}  // namespace
+
+int changes(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/changes")), print_changes);
+}
+
+int changes_accept(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("POST", "/api/v1/changes/" + in.operands[0] + "/accept", "{}",
+                                                "application/json", in.token)),
+                 print_change_outcome);
+}
+
+int changes_reject(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("POST", "/api/v1/changes/" + in.operands[0] + "/reject", "{}",
+                                                "application/json", in.token)),
+                 print_change_outcome);
+}
+
+int changes_undo(const Invocation& in) {
+  return in.emit(
+      parse_answer(in.client.request("POST", "/api/v1/changes/undo", "{}", "application/json", in.token)),
+      print_change_outcome);
 }
 
 int grid(const Invocation& in) {

@@ -49,6 +49,28 @@ void print_history(const json& r) {
     if (d.contains("before")) std::cout << "      before: " << numbers(d["before"]) << "\n";
     if (d.contains("after")) std::cout << "      after:  " << numbers(d["after"]) << "\n";
   }
+  // An object's standing against the grid now: how much of each edge was seen, backed, seen through.
+  if (!r.contains("as_built")) return;
+  const auto& a = r["as_built"];
+  std::cout << "status: " << a["status"].get<std::string>() << "\n";
+  if (a.contains("edges")) {
+    for (const auto& e : a["edges"]) {
+      const double length = e["length"].get<double>();
+      std::cout << std::fixed << std::setprecision(2) << "  edge " << e["edge"] << ": " << length << " m, observed "
+                << 100 * e["observed"].get<double>() << " %, backed by occupied cells over "
+                << e["backed"].get<double>() * length << " m, seen through over "
+                << e["seen_through"].get<double>() * length << " m; " << e["beams_through"]
+                << " beams passed through it, " << e["beams_ended"] << " returned on it";
+      for (const auto& s : e["seen_through_stretches"])
+        std::cout << "\n    seen through from " << s["s0"].get<double>() << " to " << s["s1"].get<double>() << " m, by "
+                  << s["beams_through"] << " beams";
+      std::cout << std::defaultfloat << std::setprecision(6) << "\n";
+    }
+  }
+  if (a.contains("verdicts"))
+    for (const auto& v : a["verdicts"])
+      std::cout << "  verdict " << v["verdict"].get<std::string>() << " (" << v["rule"].get<std::string>()
+                << "): " << v["explanation"].get<std::string>() << "\n";
 }
 
 void print_rules(const json& r) {

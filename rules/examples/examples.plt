@@ -7,7 +7,8 @@
 :- use_module(library(plunit)).
 :- use_module(library(lists)).
 
-:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7.
+:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7,
+           wm_kb:edge_evidence/5, wm_kb:edge_seen_through/4, wm_kb:edge_beams/4.
 :- set_module(wm_kb:base(system)).
 %   The engine sets the context per decision; here a global variable stands in for it.
 wm_kb:observation_sensor(S) :- nb_current(test_sensor, S0) -> S = S0 ; S = unknown.
@@ -17,7 +18,8 @@ wm_kb:observation_origin(client).
    M = wm_examples_under_test,
    set_module(M:base(system)),
    add_import_module(M, wm_kb, start),
-   forall(member(P, [override/5, prune/3]), (dynamic(M:P), multifile(M:P), discontiguous(M:P))),
+   forall(member(P, [override/5, prune/3, verdict_override/5, edge_verdict/5, object_verdict/4]),
+          (dynamic(M:P), multifile(M:P), discontiguous(M:P))),
    atom_concat(Dir, '/../prolog/world_model.pl', Core),
    forall(member(F, ['glass.pl', 'movable.pl', 'prune_unconfirmed.pl']),
           ( directory_file_path(Dir, F, Path), load_files(M:Path, []) )),
@@ -31,6 +33,8 @@ set_facts(Facts) :-
     retractall(wm_kb:attribute(_, _)),
     retractall(wm_kb:edge(_, _, _, _, _)),
     retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
+    retractall(wm_kb:edge_evidence(_, _, _, _, _)),
+    retractall(wm_kb:edge_beams(_, _, _, _)),
     forall(member(F, Facts), assertz(wm_kb:F)).
 
 plan([ object(g1, wall), attribute(g1, solid), attribute(g1, glass),
@@ -49,6 +53,17 @@ test(laser_on_glass_is_ignored, [R == ignore-glass_ignored]) :-
 
 test(sonar_on_glass_falls_through_to_solid, [R == delete-solid_confirmed]) :-
     decide(sonar, element('g1/0', g1, 0.3), R).
+
+test(glass_wall_seen_through_is_kept, [V-R == kept-glass_kept]) :-
+    plan(P),
+    with_facts([edge(g1, 'g1/0', 2.0, 0.0, 4.0), edge_evidence(g1, 'g1/0', 0.0, 1.0, 1.0)|P],
+               wm_examples_under_test:verdict_override(g1, 'g1/0', V, R, _)).
+
+test(plain_wall_seen_through_is_still_missing, [V == missing]) :-
+    plan(P),
+    with_facts([edge(w1, 'w1/0', 2.0, 0.0, 4.0), edge_evidence(w1, 'w1/0', 0.0, 1.0, 1.0)|P],
+               ( \+ wm_examples_under_test:verdict_override(w1, 'w1/0', _, _, _),
+                 wm_examples_under_test:edge_verdict(w1, 'w1/0', V, _, _) )).
 
 test(laser_on_plain_wall_is_still_confirmed, [R == delete-solid_confirmed]) :-
     decide(laser, element('w1/0', w1, 0.3), R).

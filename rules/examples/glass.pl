@@ -18,3 +18,9 @@ override(observation(Observer, _, _, _), element(Element, Object, D2), ignore, g
            "~w: a laser line matched element ~w of glass object ~w (d2 = ~4f): lasers do not see \c
             glass reliably, the observation is ignored",
            [Observer, Element, Object, D2]).
+
+%   A laser sees through glass, so the grid finds free cells where a glass wall is drawn: that is no
+%   evidence that the wall has gone. A glass wall is never called missing.
+verdict_override(Object, _Edge, kept, glass_kept, Explanation) :-
+    attribute(Object, glass),
+    format(string(Explanation), "~w is glass: the laser sees through it, no verdict", [Object]).

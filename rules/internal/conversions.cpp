@@ -121,6 +121,8 @@ Vocabulary Vocabulary::lookup() {
   v.element_fact = f("element", 8);
   v.decision_fact = f("decision", 7);
   v.element_grid_fact = f("element_grid", 3);
+  v.evidence = f("evidence", 8);
+  v.minus = f("-", 2);
   v.file = f("file", 2);
   v.text = f("text", 2);
   v.observation = f("observation", 4);
@@ -251,6 +253,74 @@ void put_element_grid_facts(term_t list, const std::vector<ElementGridFacts>& fa
     put_functor(item, v.element_grid_fact, a, kWhere);
     cons(list, item);
   }
+}
+
+void put_edge_evidence_facts(term_t list, const std::vector<EdgeEvidenceFacts>& facts, const Vocabulary& v) {
+  constexpr const char* kWhere = "set_edge_evidence";
+  term_t item = PL_new_term_ref();
+  term_t a = PL_new_term_refs(8);
+  term_t pair = PL_new_term_ref();
+  term_t ends = PL_new_term_refs(2);
+  PL_put_nil(list);
+  for (auto f = facts.rbegin(); f != facts.rend(); ++f) {
+    if (f->object_id.empty() || f->edge_id.empty()) throw std::invalid_argument("set_edge_evidence: an id is empty");
+    require_finite(f->backed, kWhere, "backed");
+    require_finite(f->seen_through, kWhere, "seen_through");
+    require_finite(f->observed, kWhere, "observed");
+    put_atom(a, f->object_id);
+    put_atom(a + 1, f->edge_id);
+    put_float(a + 2, f->backed);
+    put_float(a + 3, f->seen_through);
+    put_float(a + 4, f->observed);
+    PL_put_nil(a + 5);
+    for (auto s = f->stretches.rbegin(); s != f->stretches.rend(); ++s) {
+      require_finite(s->first, kWhere, "stretch");
+      require_finite(s->second, kWhere, "stretch");
+      put_float(ends, s->first);
+      put_float(ends + 1, s->second);
+      put_functor(pair, v.minus, ends, kWhere);
+      cons(a + 5, pair);
+    }
+    if (f->beams_through < 0 || f->beams_ended < 0)
+      throw std::invalid_argument("set_edge_evidence: a beam count is negative");
+    put_int64(a + 6, f->beams_through, kWhere);
+    put_int64(a + 7, f->beams_ended, kWhere);
+    put_functor(item, v.evidence, a, kWhere);
+    cons(list, item);
+  }
+}
+
+std::vector<VerdictFacts> read_verdicts(term_t list) {
+  std::vector<VerdictFacts> verdicts;
+  term_t rest = PL_copy_term_ref(list);
+  term_t head = PL_new_term_ref();
+  term_t part = PL_new_term_ref();
+  while (PL_get_list(rest, head, rest)) {
+    VerdictFacts verdict;
+    std::optional<std::string> texts[7];
+    double ends[2] = {0, 0};
+    bool ok = true;
+    for (int i = 0; i < 7 && ok; ++i) {
+      ok = PL_get_arg(i + 1, head, part);
+      if (!ok) break;
+      if (i == 3 || i == 4) {
+        ok = PL_get_float(part, &ends[i - 3]) && std::isfinite(ends[i - 3]);
+      } else {
+        texts[i] = text_of(part);
+        ok = texts[i].has_value();
+      }
+    }
+    if (!ok) throw RuleError("plan_verdicts: malformed verdict " + written(head));
+    verdict.object_id = std::move(*texts[0]);
+    if (*texts[1] != "none") verdict.edge_id = std::move(*texts[1]);  // edge ids are "<object>/<k>"
+    verdict.verdict = std::move(*texts[2]);
+    verdict.s0_m = ends[0];
+    verdict.s1_m = ends[1];
+    verdict.rule = std::move(*texts[5]);
+    verdict.explanation = std::move(*texts[6]);
+    verdicts.push_back(std::move(verdict));
+  }
+  return verdicts;
 }
 
 void put_decision_facts(term_t list, const std::vector<DecisionFacts>& decisions, const Vocabulary& v) {

@@ -28,6 +28,8 @@ struct Vocabulary {
   functor_t element_fact = 0;       // element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt)
   functor_t decision_fact = 0;      // decision(Seq, Action, Rule, Element, Object, Observer, At)
   functor_t element_grid_fact = 0;  // element_grid(Id, Backed, Contrary)
+  functor_t evidence = 0;  // evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended)
+  functor_t minus = 0;              // S0-S1
   functor_t file = 0;               // file(Path, AbsolutePath)
   functor_t text = 0;               // text(Path, Text)
   functor_t observation = 0;        // observation(Source, Rho, Phi, Length)
@@ -62,6 +64,11 @@ void put_cases(term_t list, const std::vector<DecisionQuery>& queries, const Voc
 void put_element_facts(term_t list, const std::vector<ElementFacts>& elements, const Vocabulary& v);
 /// Puts the list of decision/7 facts, in order. @throw std::invalid_argument for a non-finite at_unix_s.
 void put_element_grid_facts(term_t list, const std::vector<ElementGridFacts>& facts, const Vocabulary& v);
+/// Puts the list of evidence/8 terms, in order. @throw std::invalid_argument for an empty id or a non-finite number.
+void put_edge_evidence_facts(term_t list, const std::vector<EdgeEvidenceFacts>& facts, const Vocabulary& v);
+/// Reads a list of verdict(Object, Edge, Verdict, S0, S1, Rule, Explanation) (Edge `none` for an object).
+/// @throw RuleError for a malformed item.
+std::vector<VerdictFacts> read_verdicts(term_t list);
 void put_decision_facts(term_t list, const std::vector<DecisionFacts>& decisions, const Vocabulary& v);
 /// Puts a list of atoms, in order.
 void put_atoms(term_t list, const std::vector<std::string>& atoms);

@@ -10,6 +10,7 @@
 
     Entry points, all called from C++ and all catching every error they can report:
       init/0, set_floor_plan/1, set_elements/1, update_elements/2, set_element_grid/1,
+      set_edge_evidence/2, verdicts/5,
       add_decisions/2, decide/6,
       decide_batch/4, reload/6, dry_run/6, prune/4, query/5, shutdown/0.
     C++ registers one foreign predicate in this module before loading it: text_nesting_exceeds/3
@@ -44,6 +45,8 @@
 :- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
 %   Observed map elements and recent decisions, kept in step with the map by the server.
 :- dynamic wm_kb:element/8, wm_kb:element_grid/3, wm_kb:decision/7.
+%   What the grid says of the plan's edges, kept current by the server at every grid check.
+:- dynamic wm_kb:edge_evidence/5, wm_kb:edge_seen_through/4, wm_kb:edge_beams/4.
 
 %   What the rules can ask about the observation being decided (set per decision, backtrackable).
 wm_kb:observation_origin(Origin) :-
@@ -87,6 +90,27 @@ set_element_grid(Facts) :-
     must_be(list, Facts),
     transaction(( forall(member(element_grid(Id, _, _), Facts), retractall(wm_kb:element_grid(Id, _, _))),
                   forall(member(F, Facts), assertz(wm_kb:F)) )).
+
+%!  set_edge_evidence(+Facts, +ReplaceAll) is det.
+%   Facts: list of evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended), Stretches a
+%   list of S0-S1. Replaces the edge_evidence/5, edge_seen_through/4 and edge_beams/4 facts of those edges (of
+%   every edge first when ReplaceAll is true), in one transaction.
+set_edge_evidence(Facts, ReplaceAll) :-
+    must_be(list, Facts),
+    transaction(( (   ReplaceAll == true
+                  ->  retractall(wm_kb:edge_evidence(_, _, _, _, _)),
+                      retractall(wm_kb:edge_seen_through(_, _, _, _)),
+                      retractall(wm_kb:edge_beams(_, _, _, _))
+                  ;   true
+                  ),
+                  forall(member(evidence(O, E, _, _, _, _, _, _), Facts),
+                         ( retractall(wm_kb:edge_evidence(O, E, _, _, _)),
+                           retractall(wm_kb:edge_seen_through(O, E, _, _)),
+                           retractall(wm_kb:edge_beams(O, E, _, _)) )),
+                  forall(member(evidence(O, E, B, S, Obs, Stretches, Through, Ended), Facts),
+                         ( assertz(wm_kb:edge_evidence(O, E, B, S, Obs)),
+                           assertz(wm_kb:edge_beams(O, E, Through, Ended)),
+                           forall(member(S0-S1, Stretches), assertz(wm_kb:edge_seen_through(O, E, S0, S1))) )) )).
 
 %!  add_decisions(+Decisions, +KeepLast) is det.
 %   Appends decision/7 facts and forgets all but the KeepLast newest (the full log is in SQLite).
@@ -256,7 +280,7 @@ load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems) :-
 %   override/5 (tried by the shipped decide/5 before its own rules) and prune/3 (asked after each
 %   update which observed elements to remove).
 declare_hooks(M) :-
-    forall(member(Name/Arity, [override/5, prune/3]),
+    forall(member(Name/Arity, [override/5, prune/3, verdict_override/5, edge_verdict/5, object_verdict/4]),
            ( dynamic(M:Name/Arity), multifile(M:Name/Arity), discontiguous(M:Name/Arity) )).
 
 %!  dry_run(+Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result) is det.
@@ -326,6 +350,66 @@ prune_answer(M, E, R, X) :-
     atom(E),
     atom_string(R0, R),
     explanation_string(X0, X).
+
+%!  verdicts(+Scope, +Max, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Asks the active rules what the evidence says of the plan. Scope = all | edges(List of Object-Edge):
+%   for each edge in scope with an edge_evidence/5 fact, the first answer of verdict_override/5 if it has
+%   one, else every answer of edge_verdict/5; then object_verdict/4 for every object in scope (all, or
+%   those of the edges). Verdict `kept` is no verdict (an override that keeps a glass wall).
+%   Result = ok(List of verdict(Object, Edge, Verdict, S0, S1, Rule, Explanation)) | error(Message), Edge
+%   `none` for an object's verdict, [S0, S1] the stretch of the edge [m] (partly_missing(S0, S1) answers
+%   give theirs; other edge verdicts cover the whole edge).
+verdicts(Scope, Max, InferenceLimit, TimeLimit, Result) :-
+    reset_inference_limit,
+    (   active_rules(M)
+    ->  catch(call_with_time_limit(TimeLimit,
+                  call_with_inference_limit(
+                      findall(V, limit(Max, verdict_answer(M, Scope, V)), Verdicts),
+                      InferenceLimit, Status)),
+              Error, true),
+        (   nonvar(Error)
+        ->  message_text(Error, Text), format(string(Msg), "verdicts raised: ~w", [Text]),
+            Result = error(Msg)
+        ;   Status == inference_limit_exceeded
+        ->  format(string(Msg), "verdicts: inference limit of ~D exceeded", [InferenceLimit]),
+            Result = error(Msg)
+        ;   Result = ok(Verdicts)
+        )
+    ;   Result = ok([])
+    ).
+
+verdict_answer(M, Scope, verdict(O, E, V, S0, S1, R, X)) :-
+    scope_edge(Scope, O, E),
+    (   M:verdict_override(O, E, V0, R0, X0)
+    ->  true
+    ;   M:edge_verdict(O, E, V0, R0, X0)
+    ),
+    V0 \== kept,
+    edge_stretch(O, E, V0, V, S0, S1),
+    atom_string(R0, R),
+    explanation_string(X0, X).
+verdict_answer(M, Scope, verdict(O, none, V, 0.0, 0.0, R, X)) :-
+    scope_object(Scope, O),
+    M:object_verdict(O, V0, R0, X0),
+    V0 \== kept,
+    atom(V0),
+    V = V0,
+    atom_string(R0, R),
+    explanation_string(X0, X).
+
+scope_edge(all, O, E) :- wm_kb:edge_evidence(O, E, _, _, _).
+scope_edge(edges(List), O, E) :- member(O-E, List), wm_kb:edge_evidence(O, E, _, _, _).
+
+scope_object(all, O) :- wm_kb:object(O, _).
+scope_object(edges(List), O) :- setof(O1, E^member(O1-E, List), Objects), member(O, Objects).
+
+edge_stretch(_, _, partly_missing(A, B), partly_missing, S0, S1) :-
+    !,
+    S0 is float(A),
+    S1 is float(B).
+edge_stretch(O, E, V, V, 0.0, S1) :-
+    atom(V),
+    (   wm_kb:edge(O, E, _, _, Length) -> S1 is float(Length) ; S1 = 0.0 ).
 
 %!  query(+Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result) is det.
 %   Runs a read-only goal given as text against the knowledge base (the active rules module, which

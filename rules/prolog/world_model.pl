@@ -58,6 +58,17 @@
                                      % one cell of an occupied cell (P > 0.65), and seen by the grid without
                                      % one (free, or too little evidence); the rest is unknown. Gone when
                                      % the element changes, until the next check.
+        edge_evidence(Object, Edge, Backed, SeenThrough, Observed)
+                                     % what the occupancy grid says of plan edge Edge of Object (as the
+                                     % object stands now), at the last grid check that could see it: the
+                                     % shares of its length within one cell of an occupied cell (backed),
+                                     % seen free with nothing occupied within 3 cells across (seen through:
+                                     % beams crossed the line where it is drawn), and seen at all
+        edge_seen_through(Object, Edge, S0, S1)
+                                     % a stretch of Edge seen through, [m] from its first end (>= 0.3 m)
+        edge_beams(Object, Edge, Through, Ended)
+                                     % laser beams counted at Edge where it stands now: passed through
+                                     % it (returned more than 10 cm beyond it), returned on it
         decision(Seq, Action, Rule, Element, Object, Observer, At)
                                      % the most recent decisions (Element/Object `none` if absent)
         observation_origin(Origin)   % of the observation being decided: client | scan | grid, or
@@ -71,6 +82,14 @@
                                      % tried before the rules below; the first answer wins
         prune(ElementId, Rule, Explanation)
                                      % asked after each update: elements to remove from the map
+        verdict_override(Object, Edge, Verdict, Rule, Explanation)
+                                     % tried before edge_verdict/5 for each edge with evidence; the
+                                     % first answer wins; Verdict `kept` means no verdict (a glass wall)
+        edge_verdict(Object, Edge, Verdict, Rule, Explanation)
+                                     % what the evidence says of an edge: `missing` (the whole edge) or
+                                     % partly_missing(S0, S1) (one answer per stretch); every answer counts
+        object_verdict(Object, Verdict, Rule, Explanation)
+                                     % what the evidence says of a whole object, e.g. `gone`
 
     Only the first solution counts. Each decision runs under an inference limit and a time limit.
     A decision that fails, throws, hits a limit or answers a non-atom action is replaced by the
@@ -81,12 +100,13 @@
     not_deformable object and an unmatched observation.
 
     The rule names below (solid_confirmed, elements_merged, unknown_element_merged,
-    not_deformable_rigid, unmatched_added, apriori_confirmed, grid_unbacked) are part of the API: clients and logs refer to them.
+    not_deformable_rigid, unmatched_added, apriori_confirmed, grid_unbacked, wall_missing,
+    wall_partly_missing, object_gone) are part of the API: clients and logs refer to them.
 */
 
-:- dynamic override/5, prune/3.
-:- multifile override/5, prune/3.
-:- discontiguous override/5, prune/3.
+:- dynamic override/5, prune/3, verdict_override/5, edge_verdict/5, object_verdict/4.
+:- multifile override/5, prune/3, verdict_override/5, edge_verdict/5, object_verdict/4.
+:- discontiguous override/5, prune/3, verdict_override/5, edge_verdict/5, object_verdict/4.
 
 %   0. Extensions first (glass, movable objects, ...: rules/examples/).
 decide(Observation, Match, Action, Rule, Explanation) :-
@@ -161,3 +181,73 @@ prune(Element, grid_unbacked, Explanation) :-
            "the occupancy grid backs none of element ~w (~3f m, ~w, support ~w) and has seen ~w % \c
             of it without an occupied cell: removed",
            [Element, Length, Origin, Support, Percent]).
+
+%   Verdicts on the plan. The server checks the plan's edges against the occupancy grid every few scans
+%   (where the scans since the last check could see) and asks these rules what the evidence means. A
+%   verdict changes nothing by itself: it is listed as a change (GET /api/v1/changes) that a person
+%   accepts into the plan or rejects.
+
+%   A solid wall the laser sees through over most of what it has seen of it, and that no occupied cell
+%   backs: it has gone (demolished). Most of it must have been seen, so a glimpse is not a verdict.
+edge_verdict(Object, Edge, missing, wall_missing, Explanation) :-
+    wall_seen_through(Object, Edge, Backed, SeenThrough, Observed),
+    edge(Object, Edge, _, _, Length),
+    beams(Object, Edge, Through, Ended),
+    Seen is SeenThrough * Length,
+    BackedPercent is round(100 * Backed),
+    ObservedPercent is round(100 * Observed),
+    format(string(Explanation),
+           "wall ~w (edge ~w, ~2f m): the laser saw through ~2f m of it, ~w beams passed where it is drawn \c
+            and ~w returned on it (free cells, nothing occupied within 3 grid cells across); ~w % of it was \c
+            observed and ~w % is backed by an occupied cell: missing",
+           [Object, Edge, Length, Seen, Through, Ended, ObservedPercent, BackedPercent]).
+%   Part of a solid wall seen through, the rest standing (a door cut in, a wall shortened): one verdict
+%   per stretch.
+edge_verdict(Object, Edge, partly_missing(S0, S1), wall_partly_missing, Explanation) :-
+    solid_wall(Object),
+    \+ wall_seen_through(Object, Edge, _, _, _),
+    edge_seen_through(Object, Edge, S0, S1),
+    edge(Object, Edge, _, _, Length),
+    beams(Object, Edge, Through, _),
+    Stretch is S1 - S0,
+    format(string(Explanation),
+           "wall ~w (edge ~w, ~2f m): the laser saw through it from ~2f m to ~2f m of its length \c
+            (~2f m, free cells where it is drawn, nothing occupied within 3 grid cells across; ~w beams \c
+            passed through the whole edge): that part is missing",
+           [Object, Edge, Length, S0, S1, Stretch, Through]).
+
+%   The beams counted at an edge: passed through it, returned on it (0 when none were counted).
+beams(Object, Edge, Through, Ended) :-
+    (   edge_beams(Object, Edge, Through, Ended)
+    ->  true
+    ;   Through = 0,
+        Ended = 0
+    ).
+
+solid_wall(Object) :- attribute(Object, solid).
+
+wall_seen_through(Object, Edge, Backed, SeenThrough, Observed) :-
+    solid_wall(Object),
+    edge_evidence(Object, Edge, Backed, SeenThrough, Observed),
+    Observed >= 0.5,
+    Backed =< 0.05,
+    SeenThrough >= 0.8 * Observed.
+
+%   A not_deformable object (a table) none of whose edges the grid backs, while it has seen through
+%   most of what it has seen of them: it has been taken away. (An object that moved is followed by its
+%   rigid adjustments; its edges are checked where it stands now.)
+object_verdict(Object, gone, object_gone, Explanation) :-
+    attribute(Object, not_deformable),
+    aggregate_all(count, edge(Object, _, _, _, _), Edges),
+    Edges > 0,
+    aggregate_all(count, (edge_evidence(Object, _, _, _, Observed), Observed >= 0.3), Seen),
+    Seen * 2 >= Edges,
+    \+ ( edge_evidence(Object, _, Backed, _, _), Backed > 0.05 ),
+    aggregate_all(sum(SeenThrough), edge_evidence(Object, _, _, SeenThrough, _), SumSeenThrough),
+    aggregate_all(sum(Observed), edge_evidence(Object, _, _, _, Observed), SumObserved),
+    SumObserved > 0,
+    SumSeenThrough >= 0.8 * SumObserved,
+    format(string(Explanation),
+           "object ~w: ~w of its ~w edges were observed, none is backed by an occupied cell and the laser \c
+            sees through where they are drawn: gone",
+           [Object, Seen, Edges]).

@@ -47,6 +47,8 @@ HttpError http_error(const std::exception_ptr& failure) {
     return {409, "request_id_conflict", e.what()};
   } catch (const service::Conflict& e) {
     return {409, "conflict", e.what()};
+  } catch (const service::NotFound& e) {
+    return {404, "not_found", e.what()};
   } catch (const fusion::RegistrationError& e) {
     return {400, "bad_request", e.what()};
   } catch (const service::Busy& e) {

@@ -80,6 +80,10 @@ Response post_rules_dry_run(const Call& call);
 Response post_query(const Call& call);
 Response get_decisions(const Call& call);
 Response get_as_built_report(const Call& call);
+Response get_changes(const Call& call);         // GET /api/v1/changes
+Response post_change_accept(const Call& call);  // POST /api/v1/changes/{id}/accept
+Response post_change_reject(const Call& call);  // POST /api/v1/changes/{id}/reject
+Response post_changes_undo(const Call& call);   // POST /api/v1/changes/undo
 // handlers/static_files.cpp
 Response get_static(const Call& call);
 // handlers/events.cpp: a plain GET of a WebSocket route (the events, Foxglove), which only answers upgrades

@@ -18,6 +18,12 @@ class Conflict : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// What the request names is not there (HTTP 404), e.g. a change no longer listed. Nothing was applied.
+class NotFound : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// A request id (Idempotency-Key) that was used before with another body or on another endpoint (HTTP 409).
 /// Nothing was applied.
 class RequestIdConflict : public std::runtime_error {

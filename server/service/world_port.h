@@ -21,9 +21,19 @@
 #include "server/json/codec.h"
 #include "server/service/robot_registry.h"
 #include "server/service/service_errors.h"
+#include "server/world/changes.h"
+#include "server/world/plan_evidence.h"
 #include "server/world/update.h"
 
 namespace wm::service {
+
+/// What an accept, reject or undo of a change did.
+struct ChangeOutcome {
+  std::int64_t version = 0;        // the map version after it
+  world::DecisionRecord decision;  // as logged
+  std::string change_id;
+  std::optional<std::string> added_object;  // a new wall accepted: its object's id in the plan
+};
 
 /// What an applied (or replayed) observation answered.
 struct PrimitivesOutcome {
@@ -196,6 +206,33 @@ class WorldPort {
   /// What left the map after version `since` up to version `up_to` (a snapshot's), nullopt when the service no
   /// longer knows: `since` is older than the removals it keeps (the newest 100 000 ids) or than its start.
   virtual std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const = 0;
+
+  /// The plan's edges against the occupancy grid (backed, seen through, observed) and the rules' verdicts on them
+  /// (missing walls, objects gone), as of the last grid check. Never null; empty without a plan or a grid.
+  virtual std::shared_ptr<const world::PlanReport> plan_report() const {
+    return std::make_shared<const world::PlanReport>();
+  }
+
+  /// The changes between plan and building (world::list_changes over the snapshot and the plan report), without
+  /// those a person rejected.
+  virtual std::vector<world::Change> changes(std::shared_ptr<const world::WorldState>& state,
+                                             std::shared_ptr<const world::PlanReport>& evidence) const {
+    state = snapshot();
+    evidence = plan_report();
+    return world::list_changes(*state, evidence.get(), world::ChangeOptions{});
+  }
+  /// Accepts a listed change into the plan (a new version of the plan; the decision is logged) or rejects it (no
+  /// longer listed; logged). @throw NotFound when `change_id` is not listed now; storage::StorageError.
+  virtual ChangeOutcome decide_change(const std::string& change_id, bool accept, std::string observer) {
+    (void)change_id, (void)accept, (void)observer;
+    throw Conflict("this service does not take changes");
+  }
+  /// Undoes the last accept (the plan before it is back) or reject (the change is listed again).
+  /// @throw Conflict when nothing is left to undo.
+  virtual ChangeOutcome undo_change(std::string observer) {
+    (void)observer;
+    throw Conflict("this service does not take changes");
+  }
 
   /// The robots heard from (scans, primitives, reported poses), by id; restored from the journal at start.
   virtual std::vector<RobotState> robots() const = 0;

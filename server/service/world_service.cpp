@@ -4,11 +4,14 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <set>
 #include <system_error>
+#include <tuple>
 #include <type_traits>
 #include <variant>
 
 #include "fusion/grid/scan_geometry.h"
+#include "server/world/plan_edit.h"
 #include "fusion/grid/sensor_model.h"
 
 namespace wm::service {
@@ -69,6 +72,8 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
     flushed_scan_seq_ = last_scan_seq_ = stored->through_scan_seq;
     grid_revision_ = last_scan_seq_;
   }
+  for (auto& row : store_.load_edge_beams())
+    edge_beams_[{row.object_id, static_cast<std::size_t>(row.edge)}] = std::move(row.beams);
   // The journal is the grid's source of truth: a scan is journaled (with its line decisions) before it
   // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
   // revision, to the last journaled scan.
@@ -80,18 +85,44 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
                                 " but the grid was rebuilt to " + std::to_string(last_scan_seq_));
   // Replayed tiles stay dirty: the next flush (or the one at shutdown) writes them.
   next_scan_seq_ = committed_scan_seq_ = last_scan_seq_;
+  // The grid trim looks at what the scans since the last one could see: rebuilt from the journal, so a restart trims
+  // as an uninterrupted run would. A crash between a scan and the trim it made due leaves that trim undone: it is
+  // made now, against the same map and grid the run had then (the journal ends at that scan).
+  std::optional<std::pair<std::int64_t, world::Box>> due_trim;
+  if (options_.grid_trim_every > 0 && last_scan_seq_ > 0) {
+    const auto every = static_cast<std::int64_t>(options_.grid_trim_every);
+    auto since = last_scan_seq_ - last_scan_seq_ % every;
+    const bool due = last_scan_seq_ % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq_));
+    if (due) since = last_scan_seq_ - every;
+    for (const auto& record : store_.scans_after(since)) {
+      try {
+        add_to_trim_region(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}));
+      } catch (const std::exception& e) {
+        std::cerr << "wmd: scan " << record.seq << " left out of the grid trim: " << e.what() << "\n";
+      }
+    }
+    if (due && trim_region_) {
+      due_trim.emplace(last_scan_seq_, *trim_region_);
+      trim_region_.reset();
+    }
+  }
   restore_robots();
+  for (const auto& decided : store_.plan_changes())
+    if (decided.verdict == "rejected") rejected_changes_.insert(decided.change_id);
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
   const auto spec = options_.network_file ? pipeline::read_task_file(options_.network_file->string())
                                           : pipeline::parse_task(default_network_yaml(), "<default network>");
   network_ = std::make_unique<pipeline::Network>(spec, network_registry());
   network_->start();
   // The knowledge base mirrors the committed map; fill it before the first request is taken.
-  run_command([this] {
+  run_command([this, &due_trim] {
     sync_all_facts(*snapshot());
     std::vector<rules::DecisionFacts> recent;
     for (const auto& d : store_.latest_decisions(options_.decision_facts_kept)) recent.push_back(decision_facts(d, 0));
     engine_.add_decisions(recent, options_.decision_facts_kept);
+    // The evidence comes from the grid as the journal rebuilt it, so a restart sees what an uninterrupted run saw.
+    refresh_plan_evidence(*snapshot(), std::nullopt);
+    if (due_trim) trim_now(due_trim->first, due_trim->second);
     return 0;
   });
   if (options_.watch_rules_dir) {
@@ -127,7 +158,59 @@ void WorldService::insert_scan(const json_codec::ScanRequest& scan, std::int64_t
     std::visit([this](const auto& s) { grid_->insert(s); }, scan.scan);
     grid_revision_ = seq;  // under the lock: a reader that reads it inside read_grid sees the revision of what it reads
   }
+  count_edge_beams(scan);
   last_scan_seq_ = seq;
+}
+
+namespace {
+
+bool same_place(const fusion::SegmentBeams& counted, const fusion::LineSegment& edge) {
+  constexpr double kToleranceM = 0.01;
+  return (counted.p0 - edge.p0()).norm() <= kToleranceM && (counted.p1 - edge.p1()).norm() <= kToleranceM;
+}
+
+}  // namespace
+
+void WorldService::count_edge_beams(const json_codec::ScanRequest& scan) {
+  const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
+  if (!laser) return;
+  const auto state = snapshot();
+  if (state->objects.empty()) return;
+  try {
+    const double reach = fusion::usable_range_m(*laser, options_.grid.sensor);
+    const auto box = changed_region(scan, options_.beam_crossings.margin_m);
+    const auto near = state->objects.edges_near({box.min().x(), box.min().y(), box.max().x(), box.max().y()});
+    if (near.empty()) return;
+    std::vector<fusion::SegmentBeams> segments;
+    std::vector<std::pair<std::string, std::size_t>> keys;
+    std::lock_guard lock(beams_mutex_);
+    for (const auto& [i, k] : near) {
+      const auto& object = state->objects[i];
+      const auto edge = object.body.world_edge(k, Eigen::Matrix2d::Zero());
+      std::pair<std::string, std::size_t> key{object.plan->id, k};
+      auto found = edge_beams_.find(key);
+      if (found != edge_beams_.end() && same_place(found->second, edge)) {
+        segments.push_back(std::move(found->second));
+      } else {
+        const auto bins = fusion::beam_bins(edge.length_m(), options_.beam_crossings);
+        segments.push_back({edge.p0(), edge.p1(), std::vector<std::uint32_t>(bins, 0), std::vector<std::uint32_t>(bins, 0)});
+      }
+      keys.push_back(std::move(key));
+    }
+    fusion::count_beam_crossings(*laser, reach, options_.beam_crossings, segments);
+    for (std::size_t n = 0; n < keys.size(); ++n) {
+      beams_dirty_.insert(keys[n]);
+      edge_beams_[keys[n]] = std::move(segments[n]);
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: beams of a scan not counted at the plan's edges: " << e.what() << "\n";
+  }
+}
+
+const fusion::SegmentBeams* WorldService::edge_beams(const world::ObjectState& object, std::size_t k) const {
+  const auto found = edge_beams_.find({object.plan->id, k});
+  if (found == edge_beams_.end()) return nullptr;
+  return same_place(found->second, object.body.world_edge(k, Eigen::Matrix2d::Zero())) ? &found->second : nullptr;
 }
 
 std::optional<storage::RequestRecord> WorldService::known_request(const std::string& request_id, std::string_view kind,
@@ -158,11 +241,21 @@ void WorldService::flush_grid(bool force) {
     for (const auto& index : tiles)
       if (auto data = grid_->tile(index)) changed.tiles.emplace_back(index, std::move(*data));
   }
-  if (changed.tiles.empty() && last_scan_seq_ == flushed_scan_seq_) return;
+  std::set<std::pair<std::string, std::size_t>> beams_flushed;
+  {
+    std::lock_guard lock(beams_mutex_);
+    beams_flushed.swap(beams_dirty_);
+    if (flush_all_tiles_)
+      for (const auto& [key, counts] : edge_beams_) beams_flushed.insert(key);
+    for (const auto& key : beams_flushed)
+      if (const auto found = edge_beams_.find(key); found != edge_beams_.end())
+        changed.edge_beams.push_back({key.first, static_cast<std::int64_t>(key.second), found->second});
+  }
+  if (changed.tiles.empty() && changed.edge_beams.empty() && last_scan_seq_ == flushed_scan_seq_) return;
   try {
     store_.flush_grid(changed);
   } catch (...) {
-    flush_all_tiles_ = true;  // the dirty list is gone: the next flush writes every tile
+    flush_all_tiles_ = true;  // the dirty lists are gone: the next flush writes every tile and every edge's beams
     throw;
   }
   flush_all_tiles_ = false;
@@ -241,16 +334,182 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
         {"points", returns}});
 }
 
-std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(std::int64_t scan_seq) {
-  world::Box region;
-  {
-    std::lock_guard lock(trim_mutex_);
-    if (!trim_region_) return std::nullopt;
-    region = *trim_region_;
-    trim_region_.reset();
+namespace {
+
+/// What the grid says of a point of a drawn edge (world::EdgeProbe). Occupied is P > 0.65, the map-quality
+/// definition; free is P < 0.25, which the laser's miss evidence (p_miss 0.4) reaches after three scans saw
+/// through the cell, so one stray beam or a grazing ray does not make a wall "seen through".
+/// Backed: an occupied cell in the 3×3 around the point. Displaced: none there, but one within 3 cells across the
+/// edge (the surface stands a little off its drawing, or the pose error blurs it): no evidence either way of a
+/// missing wall. Seen through: the 3×3 seen and free, and nothing occupied across. Unknown otherwise.
+world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, double resolution) {
+  const double occupied = std::log(0.65 / 0.35);
+  const double free = std::log(0.25 / 0.75);
+  return [&cells, resolution, occupied, free](const Eigen::Vector2d& point, const Eigen::Vector2d& normal) {
+    const auto cell_of = [resolution](const Eigen::Vector2d& p) {
+      return fusion::CellIndex{static_cast<std::int64_t>(std::floor(p.x() / resolution)),
+                               static_cast<std::int64_t>(std::floor(p.y() / resolution))};
+    };
+    const auto c = cell_of(point);
+    bool all_free = true;
+    for (std::int64_t dy = -1; dy <= 1; ++dy)
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        const double l = cells.log_odds({c.x + dx, c.y + dy});
+        if (l > occupied) return world::EdgeSample::backed;
+        all_free = all_free && l < free;
+      }
+    for (const double t : {1.5, 2.0, 2.5, 3.0})
+      for (const double side : {-1.0, 1.0})
+        if (cells.log_odds(cell_of(point + side * t * resolution * normal)) > occupied)
+          return world::EdgeSample::displaced;
+    return all_free ? world::EdgeSample::seen_through : world::EdgeSample::unknown;
+  };
+}
+
+/// "<object>/<k>" back to k, when the id is that object's.
+std::optional<std::size_t> edge_index(const std::string& object_id, const std::string& edge_id) {
+  if (edge_id.size() <= object_id.size() + 1 || edge_id.compare(0, object_id.size(), object_id) != 0 ||
+      edge_id[object_id.size()] != '/')
+    return std::nullopt;
+  std::size_t k = 0;
+  for (std::size_t i = object_id.size() + 1; i < edge_id.size(); ++i) {
+    if (edge_id[i] < '0' || edge_id[i] > '9' || k > (std::size_t{1} << 40)) return std::nullopt;
+    k = k * 10 + static_cast<std::size_t>(edge_id[i] - '0');
   }
+  return k;
+}
+
+}  // namespace
+
+std::shared_ptr<const world::PlanReport> WorldService::plan_report() const {
+  std::lock_guard lock(plan_report_mutex_);
+  return plan_report_;
+}
+
+void WorldService::refresh_plan_evidence(const world::WorldState& state, const std::optional<world::Box>& region,
+                                         bool verdicts_only) {
   try {
-    auto p = own_observation(head(), "grid-trim", "grid", "grid");
+    const auto previous = plan_report();
+    auto report = std::make_shared<world::PlanReport>();
+    report->map_version = state.version;
+    std::vector<world::EdgeEvidence> fresh;
+    if (!verdicts_only) {
+      std::shared_lock lock(grid_mutex_);
+      fusion::OccupancyGrid::CellReader cells(*grid_);
+      auto options = options_.plan_evidence;
+      options.step_m = grid_->resolution_m();
+      const auto probe = grid_edge_probe(cells, grid_->resolution_m());
+      fresh = region ? world::plan_evidence(state, *region, probe, options) : world::plan_evidence(state, probe, options);
+      report->grid_revision = grid_revision_;
+    } else {
+      report->grid_revision = previous->grid_revision;
+    }
+    // Edges nothing has seen say nothing: no fact, no entry.
+    std::erase_if(fresh, [](const world::EdgeEvidence& e) { return e.observed <= 0; });
+    // The beams counted at each edge, and at each stretch seen through (the bins it covers).
+    {
+      std::lock_guard lock(beams_mutex_);
+      for (auto& e : fresh) {
+        const auto* counted = edge_beams(state.objects[e.object], e.edge);
+        if (!counted) continue;
+        for (std::size_t b = 0; b < counted->through.size(); ++b) {
+          e.beams_through += counted->through[b];
+          e.beams_ended += counted->ended[b];
+        }
+        const double bin = options_.beam_crossings.bin_m;
+        for (auto& stretch : e.seen_through_stretches) {
+          const auto first = static_cast<std::size_t>(std::max(0.0, std::floor(stretch.s0_m / bin)));
+          const auto last = std::min(counted->through.size(), static_cast<std::size_t>(std::ceil(stretch.s1_m / bin)));
+          for (std::size_t b = first; b < last; ++b) stretch.beams_through += counted->through[b];
+        }
+      }
+    }
+    std::vector<rules::EdgeEvidenceFacts> facts;
+    std::vector<rules::EdgeKey> keys;
+    std::set<std::pair<std::size_t, std::size_t>> refreshed;
+    std::set<std::string> objects_refreshed;
+    facts.reserve(fresh.size());
+    for (const auto& e : fresh) {
+      const auto& object_id = state.objects[e.object].plan->id;
+      rules::EdgeEvidenceFacts f{object_id,    world::edge_id(object_id, e.edge), e.backed, e.seen_through,
+                                 e.observed,   {},
+                                 e.beams_through, e.beams_ended};
+      for (const auto& stretch : e.seen_through_stretches) f.stretches.emplace_back(stretch.s0_m, stretch.s1_m);
+      keys.push_back({f.object_id, f.edge_id});
+      facts.push_back(std::move(f));
+      refreshed.insert({e.object, e.edge});
+      objects_refreshed.insert(object_id);
+    }
+    // A region's check leaves the evidence of the edges outside it as it was; a whole check replaces it all (the
+    // plan or its placement changed, or the server started).
+    const bool whole = !region && !verdicts_only;
+    if (!verdicts_only) engine_.set_edge_evidence(facts, whole);
+    const bool scoped = region.has_value() && !verdicts_only;
+    const auto verdicts = engine_.plan_verdicts(scoped ? std::optional(keys) : std::nullopt, 100000);
+
+    report->edges = verdicts_only ? previous->edges : std::move(fresh);
+    if (scoped)
+      for (const auto& e : previous->edges)
+        if (!refreshed.contains({e.object, e.edge}) && e.object < state.objects.size()) report->edges.push_back(e);
+    std::sort(report->edges.begin(), report->edges.end(),
+              [](const auto& a, const auto& b) { return std::pair{a.object, a.edge} < std::pair{b.object, b.edge}; });
+    if (scoped)
+      for (const auto& v : previous->verdicts) {
+        const auto index = state.objects.index_of(v.object_id);
+        if (!index) continue;  // the plan changed since
+        const bool asked = v.edge ? refreshed.contains({*index, *v.edge}) : objects_refreshed.contains(v.object_id);
+        if (!asked) report->verdicts.push_back(v);
+      }
+    for (const auto& f : verdicts) {
+      world::Verdict v;
+      v.object_id = f.object_id;
+      if (f.edge_id) {
+        v.edge = edge_index(f.object_id, *f.edge_id);
+        if (!v.edge) continue;  // not an edge of this plan: nothing to show it on
+      }
+      v.verdict = f.verdict;
+      v.stretch = {f.s0_m, f.s1_m};
+      v.rule = f.rule;
+      v.explanation = f.explanation;
+      report->verdicts.push_back(std::move(v));
+    }
+    std::sort(report->verdicts.begin(), report->verdicts.end(), [&state](const auto& a, const auto& b) {
+      const auto ia = state.objects.index_of(a.object_id).value_or(0), ib = state.objects.index_of(b.object_id).value_or(0);
+      const auto ea = a.edge ? static_cast<std::int64_t>(*a.edge) : -1, eb = b.edge ? static_cast<std::int64_t>(*b.edge) : -1;
+      return std::tuple{ia, ea, a.stretch.s0_m} < std::tuple{ib, eb, b.stretch.s0_m};
+    });
+    std::lock_guard lock(plan_report_mutex_);
+    plan_report_ = std::move(report);
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: the plan's evidence was not refreshed: " << e.what() << "\n";
+  }
+}
+
+void WorldService::add_to_trim_region(const json_codec::ScanRequest& scan) {
+  // A cell more than the event's region: the trim probes a 3×3 neighbourhood.
+  const auto box = changed_region(scan, 3 * grid_->resolution_m());
+  const world::Box seen{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
+  std::lock_guard lock(trim_mutex_);
+  if (!trim_region_) trim_region_ = seen;
+  trim_region_ = world::Box{std::min(trim_region_->x0, seen.x0), std::min(trim_region_->y0, seen.y0),
+                            std::max(trim_region_->x1, seen.x1), std::max(trim_region_->y1, seen.y1)};
+}
+
+void WorldService::trim_now(std::int64_t scan_seq, const world::Box& region) {
+  try {
+    auto p = prepare_trim(region);
+    if (!p) return;
+    const auto payload = trim_payload(scan_seq);
+    commit_prepared(*p, [&] { store_.commit_observation(p->update, p->observation, payload); });
+    finish_update(std::move(*p));
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: the grid trim of scan " << scan_seq << " was not applied: " << e.what() << "\n";
+  }
+}
+
+std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const world::Box& region) {
+  try {
+    auto p = own_observation(head(), kTrimObserver, "grid", "grid");
     std::vector<world::GridShares> checked;
     {
       std::shared_lock lock(grid_mutex_);
@@ -276,6 +535,8 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(std::int6
       p.update = std::move(trimmed.update);
       checked = std::move(trimmed.checked);
     }
+    // The plan's edges the same scans could see: the evidence of missing walls follows the grid.
+    refresh_plan_evidence(*p.base, region);
     // The trimmed elements' facts first (that drops their old element_grid/3), then what the grid said of every
     // element checked: the rules' prune/3 may remove what the grid backs nowhere.
     std::vector<rules::ElementFacts> upserts;
@@ -299,7 +560,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(std::int6
     if (p.update.decisions.empty()) return std::nullopt;
     return p;
   } catch (const std::exception& e) {
-    std::cerr << "wmd: grid trim after scan " << scan_seq << " failed: " << e.what() << "\n";
+    std::cerr << "wmd: grid trim failed: " << e.what() << "\n";
     try {
       sync_all_facts(*head());  // the rules see the map as decided before the trim
     } catch (const std::exception& again) {
@@ -459,7 +720,7 @@ void WorldService::commit_prepared(const PreparedUpdate& prepared, F&& commit) {
   }
 }
 
-PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
+PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<std::string> removed_objects) {
   auto& update = prepared.update;
   const auto& observation = prepared.observation;
   const auto seq = prepared.seq;
@@ -488,7 +749,7 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared) {
           {"removed", removed},
           {"objects", objects}});
   }
-  publish(std::move(update.state), MapRemovals{{removed.begin(), removed.end()}, {}});
+  publish(std::move(update.state), MapRemovals{{removed.begin(), removed.end()}, std::move(removed_objects)});
   // Committed and published: the request is answered as applied whatever happens here.
   try {
     engine_.add_decisions(logged, options_.decision_facts_kept);
@@ -510,6 +771,7 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
     for (const auto& object : update.state.objects) removed.objects.erase(object.plan->id);
     publish(std::move(update.state), std::move(removed));
     engine_.set_floor_plan(new_facts);
+    refresh_plan_evidence(*snapshot(), std::nullopt);
     emit({{"type", "floorplan"}, {"version", version}, {"name", plan.name}, {"objects", plan.objects.size()}});
     return version;
   });
@@ -521,6 +783,7 @@ rules::RulesStatus WorldService::reload_rules() {
   return run_command([this] {
     try {
       auto status = engine_.reload();
+      refresh_plan_evidence(*snapshot(), std::nullopt, true);  // the new rules' verdicts on the same evidence
       emit({{"type", "rules"}, {"status", json_codec::rules_status_json(status)}});
       return status;
     } catch (const rules::RuleError&) {
@@ -712,6 +975,7 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
   auto outcome = finish_update(std::move(p));
   // The rules see the edges where the plan now is, before the next request is decided.
   engine_.set_floor_plan(object_facts(*snapshot()));
+  refresh_plan_evidence(*snapshot(), std::nullopt);
   emit({{"type", "placement"},
         {"version", outcome.version},
         {"placement", json_codec::placement_json(placement, snapshot()->placement_cov)},
@@ -889,6 +1153,111 @@ std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference>
     publish(std::move(state));
     emit({{"type", "georeference"}, {"version", version}});
     return version;
+  });
+}
+
+}  // namespace wm::service
+
+namespace wm::service {
+
+std::vector<world::Change> WorldService::changes(std::shared_ptr<const world::WorldState>& state,
+                                                 std::shared_ptr<const world::PlanReport>& evidence) const {
+  state = snapshot();
+  evidence = plan_report();
+  auto list = world::list_changes(*state, evidence.get(), options_.changes);
+  std::lock_guard lock(rejected_mutex_);
+  std::erase_if(list, [this](const world::Change& c) { return rejected_changes_.contains(c.id); });
+  return list;
+}
+
+ChangeOutcome WorldService::decide_change(const std::string& change_id, bool accept, std::string observer) {
+  return run_command([this, &change_id, accept, &observer] {
+    std::shared_ptr<const world::WorldState> state;
+    std::shared_ptr<const world::PlanReport> evidence;
+    const auto listed = changes(state, evidence);
+    const auto change =
+        std::find_if(listed.begin(), listed.end(), [&change_id](const world::Change& c) { return c.id == change_id; });
+    if (change == listed.end())
+      throw NotFound("no change '" + change_id + "' is listed now (GET /api/v1/changes lists them)");
+    const auto before = world::current_plan(*state);
+    ChangeOutcome outcome;
+    outcome.change_id = change_id;
+    std::optional<apriori::FloorPlan> plan;
+    std::vector<std::int64_t> remove;
+    std::string added;
+    if (accept) {
+      plan = world::plan_with_change(*state, *change, &added);
+      if (change->kind == world::ChangeKind::new_wall)
+        if (const auto number = world::WorldState::element_number(change->element_id)) remove.push_back(*number);
+      if (!added.empty()) outcome.added_object = added;
+    }
+    const std::string subject = change->object_id.empty() ? change->element_id : change->object_id;
+    std::string explanation = std::string(accept ? "accepted into the plan" : "rejected") + ": change " + change_id +
+                              " (" + change->key + ", confidence " +
+                              std::to_string(std::lround(change->confidence * 100)) + " %): " + change->explanation;
+    if (!added.empty()) explanation += "; drawn as object " + added;
+    auto p = own_observation(state, std::move(observer), "plan", "none");
+    p.update = world::apply_plan_edit(*state, plan ? *plan : before, options_.world, remove, p.seq,
+                                      accept ? rules::Action::accept : rules::Action::reject,
+                                      accept ? "change_accepted" : "change_rejected", explanation,
+                                      p.observation.observer, subject);
+    const std::string payload =
+        nlohmann::json{{"change", change_id}, {"verdict", accept ? "accepted" : "rejected"}}.dump();
+    storage::Store::PlanChangeRecord record{change_id, accept ? "accepted" : "rejected",
+                                            accept ? std::optional(before) : std::nullopt, 0};
+    commit_prepared(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, record); });
+    outcome.decision = p.update.decisions.at(0);
+    std::set<std::string> removed_objects;
+    for (const auto& object : state->objects) removed_objects.insert(object.plan->id);
+    for (const auto& object : p.update.state.objects) removed_objects.erase(object.plan->id);
+    outcome.version = finish_update(std::move(p), std::move(removed_objects)).version;
+    if (accept) {
+      sync_all_facts(*snapshot());
+      refresh_plan_evidence(*snapshot(), std::nullopt);
+    } else {
+      std::lock_guard lock(rejected_mutex_);
+      rejected_changes_.insert(change_id);
+    }
+    emit({{"type", "change"},
+          {"change", change_id},
+          {"verdict", accept ? "accepted" : "rejected"},
+          {"version", outcome.version}});
+    return outcome;
+  });
+}
+
+ChangeOutcome WorldService::undo_change(std::string observer) {
+  return run_command([this, &observer] {
+    const auto history = store_.plan_changes();
+    if (history.empty()) throw Conflict("no change was accepted or rejected: there is nothing to undo");
+    const auto& last = history.back();
+    const auto state = snapshot();
+    std::optional<apriori::FloorPlan> plan;
+    if (last.verdict == "accepted" && last.plan_before) plan = last.plan_before;
+    auto p = own_observation(state, std::move(observer), "plan", "none");
+    const std::string explanation = "undo of decision " + std::to_string(last.decision_seq) + ": change " +
+                                    last.change_id + " is no longer " + last.verdict +
+                                    (plan ? "; the plan is back as it was before it" : "; it is listed again");
+    p.update = world::apply_plan_edit(*state, plan ? *plan : world::current_plan(*state), options_.world, {}, p.seq,
+                                      rules::Action::undo, "change_undone", explanation, p.observation.observer, "");
+    const std::string payload = nlohmann::json{{"undo", last.decision_seq}, {"change", last.change_id}}.dump();
+    commit_prepared(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, std::nullopt); });
+    ChangeOutcome outcome;
+    outcome.change_id = last.change_id;
+    outcome.decision = p.update.decisions.at(0);
+    std::set<std::string> removed_objects;
+    for (const auto& object : state->objects) removed_objects.insert(object.plan->id);
+    for (const auto& object : p.update.state.objects) removed_objects.erase(object.plan->id);
+    outcome.version = finish_update(std::move(p), std::move(removed_objects)).version;
+    if (plan) {
+      sync_all_facts(*snapshot());
+      refresh_plan_evidence(*snapshot(), std::nullopt);
+    } else {
+      std::lock_guard lock(rejected_mutex_);
+      rejected_changes_.erase(last.change_id);
+    }
+    emit({{"type", "change"}, {"change", last.change_id}, {"verdict", "undone"}, {"version", outcome.version}});
+    return outcome;
   });
 }
 

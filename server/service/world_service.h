@@ -17,6 +17,7 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
 #include "fusion/lines/scan_lines.h"
@@ -30,6 +31,7 @@
 #include "server/service/world_port.h"
 #include "server/storage/store.h"
 #include "server/world/grid_trim.h"
+#include "server/world/plan_evidence.h"
 #include "server/world/update.h"
 
 namespace wm::service {
@@ -59,6 +61,13 @@ struct ServiceOptions {
   /// what the Bayes grid backs (world::trim_to_grid, its own observation of origin "grid"); 0: never.
   std::size_t grid_trim_every = 10;
   world::GridTrimOptions grid_trim;
+  /// How the plan's edges are checked against the grid (at every grid trim, where its scans could see, and over the
+  /// whole plan at start and when the plan or its placement changes).
+  world::PlanEvidenceOptions plan_evidence;
+  /// How the beams of laser scans are counted at the plan's edges (passed through, ended on).
+  fusion::BeamCrossingOptions beam_crossings;
+  /// Which differences between plan and building are listed as changes.
+  world::ChangeOptions changes;
   /// The processing network the ingest runs on (a YAML task file; nullopt: the built-in default network).
   std::optional<std::filesystem::path> network_file;
 };
@@ -170,6 +179,14 @@ class WorldService final : public WorldPort {
   /// The processing network's components, ports, queues and activity.
   pipeline::NetworkStats network_stats() const override;
   std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const override;
+  /// The plan's edges against the grid and the rules' verdicts on them, as of the last grid check.
+  std::shared_ptr<const world::PlanReport> plan_report() const override;
+  std::vector<world::Change> changes(std::shared_ptr<const world::WorldState>& state,
+                                     std::shared_ptr<const world::PlanReport>& evidence) const override;
+  /// On the writer: accepts (a new plan, committed with its decision and the plan before it, for undo) or rejects a
+  /// listed change. @throw NotFound, storage::StorageError, std::invalid_argument from the plan edit.
+  ChangeOutcome decide_change(const std::string& change_id, bool accept, std::string observer) override;
+  ChangeOutcome undo_change(std::string observer) override;
   std::vector<RobotState> robots() const override { return robots_.list(); }
   std::optional<RobotState> robot(const std::string& id) const override { return robots_.find(id); }
   RobotState put_robot_pose(const std::string& id, RobotPose pose, bool stopped) override;
@@ -212,7 +229,7 @@ class WorldService final : public WorldPort {
   template <typename F>
   void commit_prepared(const PreparedUpdate& prepared, F&& commit);
   /// After the commit: publishes the new state, tells the rules and live clients.
-  PrimitivesOutcome finish_update(PreparedUpdate prepared);
+  PrimitivesOutcome finish_update(PreparedUpdate prepared, std::set<std::string> removed_objects = {});
   PrimitivesOutcome apply_on_writer(world::Observation observation, const std::string& payload);
   static std::int64_t body_hash(std::string_view body);
   /// The stored record of `request_id` when it was used before (nullopt: apply the request).
@@ -235,6 +252,16 @@ class WorldService final : public WorldPort {
   /// Where a scan changes the grid (its footprint up to its usable range, beam widths included), padded by pad_m.
   Eigen::AlignedBox2d changed_region(const json_codec::ScanRequest& scan, double pad_m) const;
   void flush_grid(bool force);
+  /// Counts the beams of a laser scan at the plan edges near it (grid thread, and at start while the journal is
+  /// replayed). Counts of an edge that has moved since (a new plan, placement or pose) start again.
+  void count_edge_beams(const json_codec::ScanRequest& scan);
+  /// The counts of edge k of `object` where it stands now, nullptr when none (beams_mutex_ held).
+  const fusion::SegmentBeams* edge_beams(const world::ObjectState& object, std::size_t k) const;
+  /// On the writer: checks the plan's edges in `region` (all of them when nullopt) of `state` against the grid,
+  /// hands the evidence to the rules, asks them for their verdicts and publishes the new plan report. Failures are
+  /// logged and leave the previous report. `verdicts_only`: the evidence facts stand, the rules changed.
+  void refresh_plan_evidence(const world::WorldState& state, const std::optional<world::Box>& region,
+                             bool verdicts_only = false);
   void emit(const nlohmann::json& event);
 
   // The processing network (world_service_network.cpp).
@@ -244,6 +271,7 @@ class WorldService final : public WorldPort {
   using GridScanPtr = std::shared_ptr<GridScan>;
   struct TrimTick {
     std::int64_t scan_seq = 0;
+    world::Box region;             // what the scans since the last trim (scan_seq − every, scan_seq] could see
     std::shared_ptr<void> ticket;  // the scan that made the trim due is answered after it
   };
   pipeline::Registry network_registry();
@@ -268,7 +296,17 @@ class WorldService final : public WorldPort {
   void finish_committed(pipeline::Activation& a);
   void insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every);
   /// The grid trim of what the scans since the last one could see, decided against head() (nullopt: nothing to do).
-  std::optional<PreparedUpdate> prepare_trim(std::int64_t scan_seq);
+  std::optional<PreparedUpdate> prepare_trim(const world::Box& region);
+  /// The trim due at scan `scan_seq` (a multiple of grid_trim_every), decided and committed on the writer; at start,
+  /// when the journal ends at such a scan and its trim was not stored (a crash between the two commits).
+  void trim_now(std::int64_t scan_seq, const world::Box& region);
+  /// The grid trim's observer and the payload of its observation (what says at start that a trim was stored).
+  static constexpr const char* kTrimObserver = "grid-trim";
+  static std::string trim_payload(std::int64_t scan_seq) {
+    return "{\"grid_revision\": " + std::to_string(scan_seq) + "}";
+  }
+  /// Grows the trim region by what scan `scan` could see. @throw from the scan geometry.
+  void add_to_trim_region(const json_codec::ScanRequest& scan);
   void decide_trim(pipeline::Activation& a);
   /// After a failed group commit: what was decided on top of it is dropped, the rules go back to the committed map.
   void resync_after_failure();
@@ -305,6 +343,13 @@ class WorldService final : public WorldPort {
   /// The journal sequence of the last scan in the grid = scans ever accepted (the journal numbers them 1, 2,
   /// …); persisted with the scan, so it never goes back across restarts.
   std::atomic<std::int64_t> grid_revision_{0};
+  mutable std::mutex beams_mutex_;
+  std::map<std::pair<std::string, std::size_t>, fusion::SegmentBeams> edge_beams_;  // by (object id, edge)
+  std::set<std::pair<std::string, std::size_t>> beams_dirty_;                       // since the last flush
+  mutable std::mutex rejected_mutex_;
+  std::set<std::string> rejected_changes_;  // change ids a person rejected (not undone)
+  mutable std::mutex plan_report_mutex_;
+  std::shared_ptr<const world::PlanReport> plan_report_ = std::make_shared<const world::PlanReport>();
   std::atomic<bool> aligning_{false};      // an align_floor_plan search is running
   std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see (trim_mutex_)
   std::int64_t last_scan_seq_ = 0;         // the last scan inserted into the grid (all journaled scans, once started)

@@ -383,12 +383,12 @@ void WorldService::decide_primitives(pipeline::Activation& a) {
 void WorldService::decide_trim(pipeline::Activation& a) {
   refresh_head();
   auto tick = a.take<TrimTick>("trim");
-  auto p = prepare_trim(tick.scan_seq);
+  auto p = prepare_trim(tick.region);
   if (!p) return;
   auto d = std::make_shared<Decided>();
   d->epoch = epoch_;
   d->update = std::move(*p);
-  d->observation_payload = "{\"grid_revision\": " + std::to_string(tick.scan_seq) + "}";
+  d->observation_payload = trim_payload(tick.scan_seq);
   d->hold = std::move(tick.ticket);
   head_ = std::make_shared<const world::WorldState>(d->update->update.state);
   ++in_flight_;
@@ -492,6 +492,8 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
     }
     grid_revision_ = last_scan_seq_;
   }
+  // Counted before the flush below, which writes them through the same scan as the tiles.
+  for (const auto& s : scans) count_edge_beams(s->job->scan);
   if (inserted_ahead_.empty()) {
     try {
       flush_grid(false);
@@ -504,25 +506,22 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
     emit_scan_event(s->job->scan, s->seq);
     if (extract_every > 0 && s->seq % extract_every == 0) a.emit("extract", GridTick{s->seq, s->job->ticket});
     if (options_.grid_trim_every == 0) continue;
-    world::Box seen;
     try {
-      // A cell more than the event's region: the trim probes a 3×3 neighbourhood.
-      const auto box = changed_region(s->job->scan, 3 * grid_->resolution_m());
-      seen = world::Box{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
+      add_to_trim_region(s->job->scan);
     } catch (const std::exception& e) {
       std::cerr << "wmd: scan " << s->seq << " left out of the grid trim: " << e.what() << "\n";
-      continue;
-    }
-    {
-      std::lock_guard lock(trim_mutex_);
-      if (!trim_region_) trim_region_ = seen;
-      trim_region_ = world::Box{std::min(trim_region_->x0, seen.x0), std::min(trim_region_->y0, seen.y0),
-                                std::max(trim_region_->x1, seen.x1), std::max(trim_region_->y1, seen.y1)};
     }
     // The scan is answered after the trim it makes due, so a client that posts one scan at a time sees the same map
-    // as before the network (and a replay stays deterministic).
-    if (s->seq % static_cast<std::int64_t>(options_.grid_trim_every) == 0)
-      a.emit("trim", TrimTick{s->seq, s->job->ticket});
+    // as before the network (and a replay stays deterministic). The tick takes the region of exactly the scans since
+    // the last trim, so what a trim looks at does not depend on when the matcher gets to it.
+    if (s->seq % static_cast<std::int64_t>(options_.grid_trim_every) == 0) {
+      std::optional<world::Box> region;
+      {
+        std::lock_guard lock(trim_mutex_);
+        region.swap(trim_region_);
+      }
+      if (region) a.emit("trim", TrimTick{s->seq, *region, s->job->ticket});
+    }
   }
 }
 

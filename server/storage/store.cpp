@@ -89,6 +89,18 @@ CREATE TABLE robot_poses(seq INTEGER PRIMARY KEY, robot TEXT NOT NULL, x REAL NO
 CREATE INDEX robot_poses_by_robot ON robot_poses(robot, seq);
 CREATE INDEX scans_by_observer ON scans(observer, seq);
 )sql",
+    // v8: what people decided about the changes listed between plan and building, a stack (undo removes the top
+    // row): an accepted change keeps the plan as it was before it, so an undo can put that plan back. The beams
+    // that passed through or ended on each plan edge (uint32 per 10 cm bin), flushed with the grid's tiles: like
+    // them, rebuilt past the flush from the scan journal at start.
+    R"sql(
+CREATE TABLE plan_changes(ord INTEGER PRIMARY KEY, change_id TEXT NOT NULL, verdict TEXT NOT NULL,
+                          plan_before TEXT, decision_seq INTEGER NOT NULL, version INTEGER NOT NULL,
+                          created_at REAL NOT NULL);
+CREATE TABLE edge_beams(object TEXT NOT NULL, edge INTEGER NOT NULL, x0 REAL NOT NULL, y0 REAL NOT NULL,
+                        x1 REAL NOT NULL, y1 REAL NOT NULL, through BLOB NOT NULL, ended BLOB NOT NULL,
+                        PRIMARY KEY(object, edge));
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);
@@ -411,6 +423,48 @@ void Store::commit_placement(const ObservationEntry& entry, bool undo) {
   tx.commit();
 }
 
+void Store::commit_plan_change(const ObservationEntry& entry, const std::optional<apriori::FloorPlan>& plan,
+                               const std::optional<PlanChangeRecord>& push) {
+  std::lock_guard lock(writer_mutex_);
+  Transaction tx(writer_);
+  if (plan) {
+    // The objects' rows are numbered by plan order: all of them are written again by write_observation.
+    const std::string text = apriori::to_json_text(*plan);
+    writer_.exec("DELETE FROM objects");
+    run(writer_, "UPDATE floor_plan SET name = ?1, plan_json = ?2 WHERE id = 1", std::string_view(plan->name),
+        std::string_view(text));
+  }
+  write_observation(entry);
+  if (push) {
+    std::optional<std::string> before;
+    if (push->plan_before) before = apriori::to_json_text(*push->plan_before);
+    Statement s(writer_,
+                "INSERT INTO plan_changes(change_id, verdict, plan_before, decision_seq, version, created_at) "
+                "VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
+    s.bind(1, std::string_view(push->change_id)).bind(2, std::string_view(push->verdict)).bind(3, before);
+    s.bind(4, entry.update.decisions.at(0).seq).bind(5, entry.update.state.version).bind(6, now_unix_s()).run();
+  } else {
+    writer_.exec("DELETE FROM plan_changes WHERE ord = (SELECT MAX(ord) FROM plan_changes)");
+  }
+  write_counters(entry.update.state);
+  tx.commit();
+}
+
+std::vector<Store::PlanChangeRecord> Store::plan_changes() {
+  std::lock_guard lock(writer_mutex_);
+  Statement s(writer_, "SELECT change_id, verdict, plan_before, decision_seq FROM plan_changes ORDER BY ord");
+  std::vector<PlanChangeRecord> result;
+  while (s.step()) {
+    PlanChangeRecord r;
+    r.change_id = s.column_text(0);
+    r.verdict = s.column_text(1);
+    if (const auto text = s.column_optional_text(2)) r.plan_before = apriori::parse_floor_plan_json(*text);
+    r.decision_seq = s.column_int(3);
+    result.push_back(std::move(r));
+  }
+  return result;
+}
+
 void Store::commit_georeference(const world::WorldState& state) {
   std::lock_guard lock(writer_mutex_);
   Transaction tx(writer_);
@@ -632,6 +686,14 @@ std::int64_t Store::last_scan_seq() {
   return query_int(writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans");
 }
 
+bool Store::has_observation(const std::string& observer, const std::string& payload) {
+  std::lock_guard lock(writer_mutex_);
+  Statement s(writer_, "SELECT 1 FROM observations WHERE observer = ?1 AND payload = ?2 LIMIT 1");
+  s.bind(1, std::string_view(observer));
+  s.bind(2, std::string_view(payload));
+  return s.step();
+}
+
 std::vector<Store::ScanRecord> Store::scans_after(std::int64_t after) {
   std::lock_guard lock(writer_mutex_);
   Statement s(writer_, "SELECT seq, payload FROM scans WHERE seq > ?1 ORDER BY seq");
@@ -679,6 +741,36 @@ std::optional<Store::StoredGrid> Store::load_grid() {
   return grid;
 }
 
+namespace {
+
+std::vector<std::uint32_t> read_counts(const Statement& s, int column) {
+  const auto bytes = static_cast<std::size_t>(s.column_bytes(column));
+  if (bytes % sizeof(std::uint32_t) != 0) throw StorageError("corrupt edge beam counts in database");
+  const auto* data = static_cast<const std::uint32_t*>(s.column_blob(column));
+  return std::vector<std::uint32_t>(data, data + bytes / sizeof(std::uint32_t));
+}
+
+}  // namespace
+
+std::vector<Store::StoredEdgeBeams> Store::load_edge_beams() {
+  std::lock_guard lock(writer_mutex_);
+  Statement s(writer_, "SELECT object, edge, x0, y0, x1, y1, through, ended FROM edge_beams ORDER BY object, edge");
+  std::vector<StoredEdgeBeams> result;
+  while (s.step()) {
+    StoredEdgeBeams row;
+    row.object_id = s.column_text(0);
+    row.edge = s.column_int(1);
+    row.beams.p0 = {s.column_double(2), s.column_double(3)};
+    row.beams.p1 = {s.column_double(4), s.column_double(5)};
+    row.beams.through = read_counts(s, 6);
+    row.beams.ended = read_counts(s, 7);
+    if (row.beams.through.size() != row.beams.ended.size() || row.edge < 0)
+      throw StorageError("corrupt edge beam counts in database");
+    result.push_back(std::move(row));
+  }
+  return result;
+}
+
 void Store::flush_grid(const StoredGrid& changed) {
   std::lock_guard lock(writer_mutex_);
   Transaction tx(writer_);
@@ -698,6 +790,18 @@ void Store::flush_grid(const StoredGrid& changed) {
     bind_floats(s, 5, data.m_empty);
     bind_floats(s, 6, data.conflict);
     s.run();
+  }
+  Statement beams(writer_,
+                  "INSERT INTO edge_beams(object, edge, x0, y0, x1, y1, through, ended) "
+                  "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8) ON CONFLICT(object, edge) DO UPDATE SET x0 = excluded.x0, "
+                  "y0 = excluded.y0, x1 = excluded.x1, y1 = excluded.y1, through = excluded.through, "
+                  "ended = excluded.ended");
+  for (const auto& row : changed.edge_beams) {
+    beams.bind(1, std::string_view(row.object_id)).bind(2, row.edge);
+    beams.bind(3, row.beams.p0.x()).bind(4, row.beams.p0.y()).bind(5, row.beams.p1.x()).bind(6, row.beams.p1.y());
+    beams.bind_blob(7, row.beams.through.data(), sizeof(std::uint32_t) * row.beams.through.size());
+    beams.bind_blob(8, row.beams.ended.data(), sizeof(std::uint32_t) * row.beams.ended.size());
+    beams.run();
   }
   tx.commit();
 }

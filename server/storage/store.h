@@ -8,6 +8,7 @@
 #include <string_view>
 #include <vector>
 
+#include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "server/storage/sqlite.h"
 #include "server/world/update.h"
@@ -68,7 +69,7 @@ class Store {
   /// Opens or creates the file and migrates it. @throw StorageError (also for a file newer than this build).
   explicit Store(const StoreOptions& options);
 
-  static constexpr int kSchemaVersion = 7;
+  static constexpr int kSchemaVersion = 8;
   int schema_version();
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
@@ -85,6 +86,20 @@ class Store {
   void commit_placement(const ObservationEntry& entry, bool undo);
   /// The placements in force and before, oldest first (empty: the plan as drawn).
   std::vector<StoredPlacement> placements();
+  /// What a person decided about a listed change between plan and building.
+  struct PlanChangeRecord {
+    std::string change_id;
+    std::string verdict;  // accepted | rejected
+    std::optional<apriori::FloorPlan> plan_before;  // accepted: the plan the change was applied to
+    std::int64_t decision_seq = 0;
+  };
+  /// An accept, reject or undo of a change: its observation and decision, the plan and objects when the plan changed
+  /// (`plan`), and `push` on the stack of decided changes (nullopt: an undo, the top row goes), in one transaction.
+  /// @throw StorageError (nothing written then).
+  void commit_plan_change(const ObservationEntry& entry, const std::optional<apriori::FloorPlan>& plan,
+                          const std::optional<PlanChangeRecord>& push);
+  /// The decided changes, oldest first.
+  std::vector<PlanChangeRecord> plan_changes();
   /// The world frame's georeference (removed when the state has none) and the counters.
   void commit_georeference(const world::WorldState& state);
 
@@ -109,6 +124,8 @@ class Store {
   /// The sequence of the last journaled scan, 0 for none. Scans are never deleted and numbered 1, 2, …, so
   /// this is also the number of scans ever accepted: the grid revision.
   std::int64_t last_scan_seq();
+  /// Whether an observation of `observer` with exactly this payload is stored (at start: was a trim stored).
+  bool has_observation(const std::string& observer, const std::string& payload);
 
   /// A pose a robot reported without a scan (PUT /api/v1/robots/{id}/pose).
   struct RobotPoseEntry {
@@ -143,15 +160,24 @@ class Store {
   std::vector<ScanRecord> scans_after(std::int64_t after);
 
   /// The grid as last flushed: tiles and the last scan they include.
+  /// The beams counted at one plan edge (fusion::SegmentBeams, where the edge lay when counted).
+  struct StoredEdgeBeams {
+    std::string object_id;
+    std::int64_t edge = 0;
+    fusion::SegmentBeams beams;
+  };
   struct StoredGrid {
     double resolution_m = 0;
     std::int64_t tile_size_cells = 0;
     std::int64_t through_scan_seq = 0;
     std::vector<std::pair<fusion::TileIndex, fusion::OccupancyGrid::TileData>> tiles;
+    std::vector<StoredEdgeBeams> edge_beams;  // changed since the last flush, through the same scan
   };
   /// nullopt when no grid was ever flushed.
   std::optional<StoredGrid> load_grid();
-  /// Writes changed tiles and the scan sequence they include, in one transaction.
+  /// Every plan edge's beam counts as last flushed.
+  std::vector<StoredEdgeBeams> load_edge_beams();
+  /// Writes changed tiles and edge beam counts and the scan sequence they include, in one transaction.
   void flush_grid(const StoredGrid& changed);
 
   /// The record of a request id, if it is still kept.

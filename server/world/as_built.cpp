@@ -21,23 +21,41 @@ Displacement displacement(const ObjectState& object) {
 
 }  // namespace
 
-AsBuiltReport as_built_report(const WorldState& state) {
+AsBuiltReport as_built_report(const WorldState& state, const PlanReport* evidence) {
   AsBuiltReport report;
   report.objects.reserve(state.objects.size());
   for (const auto& object : state.objects) {
-    ObjectAsBuilt entry{&object, AsBuiltStatus::never_observed, std::nullopt};
-    // An adjustment says more than any number of confirmations: the object is not where it was drawn.
-    if (object.adjustments > 0) {
+    ObjectAsBuilt entry{&object, AsBuiltStatus::never_observed, std::nullopt, {}};
+    if (object.adjustments > 0) entry.moved_by = displacement(object);
+    report.objects.push_back(entry);
+  }
+  if (evidence) {
+    for (const auto& verdict : evidence->verdicts)
+      if (const auto index = state.objects.index_of(verdict.object_id)) report.objects[*index].verdicts.push_back(&verdict);
+  }
+  for (auto& entry : report.objects) {
+    const auto has = [&entry](const char* name) {
+      return std::any_of(entry.verdicts.begin(), entry.verdicts.end(), [name](const Verdict* v) { return v->verdict == name; });
+    };
+    // A verdict says more than adjustments, and an adjustment more than any number of confirmations.
+    if (has("gone")) {
+      entry.status = AsBuiltStatus::gone;
+      ++report.gone;
+    } else if (has("missing")) {
+      entry.status = AsBuiltStatus::missing;
+      ++report.missing;
+    } else if (has("partly_missing")) {
+      entry.status = AsBuiltStatus::partly_missing;
+      ++report.partly_missing;
+    } else if (entry.object->adjustments > 0) {
       entry.status = AsBuiltStatus::moved;
-      entry.moved_by = displacement(object);
       ++report.moved;
-    } else if (object.confirmations > 0) {
+    } else if (entry.object->confirmations > 0) {
       entry.status = AsBuiltStatus::confirmed;
       ++report.confirmed;
     } else {
       ++report.never_observed;
     }
-    report.objects.push_back(entry);
   }
   report.not_in_plan.reserve(state.elements.size());
   for (const auto& [number, element] : state.elements) report.not_in_plan.push_back(&element);
@@ -46,6 +64,12 @@ AsBuiltReport as_built_report(const WorldState& state) {
 
 const char* to_string(AsBuiltStatus status) {
   switch (status) {
+    case AsBuiltStatus::gone:
+      return "gone";
+    case AsBuiltStatus::missing:
+      return "missing";
+    case AsBuiltStatus::partly_missing:
+      return "partly_missing";
     case AsBuiltStatus::moved:
       return "moved";
     case AsBuiltStatus::confirmed:

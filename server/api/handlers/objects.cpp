@@ -3,6 +3,7 @@
 #include "server/api/handlers.h"
 #include "server/api/response.h"
 #include "server/json/answers.h"
+#include "server/world/as_built.h"
 
 namespace wm::api {
 namespace {
@@ -10,11 +11,11 @@ namespace {
 // Every decision about an object or element ever logged (deleted elements keep their history).
 constexpr std::size_t kMaxHistory = 10000;
 
-Response history(const Call& call, std::vector<world::DecisionRecord> rows, bool exists) {
+nlohmann::json history(const Call& call, std::vector<world::DecisionRecord> rows, bool exists) {
   const auto& id = call.param;
   if (rows.empty() && !exists)
     throw ApiError(404, "not_found", "no element or object '" + id + "' and no decision about it");
-  return json_response(call.request, {{"id", id}, {"exists", exists}, {"decisions", json_codec::decisions_json(rows)}});
+  return {{"id", id}, {"exists", exists}, {"decisions", json_codec::decisions_json(rows)}};
 }
 
 }  // namespace
@@ -35,8 +36,16 @@ Response get_object(const Call& call) {
 
 Response get_object_history(const Call& call) {
   // An object's history includes the decisions about each of its edges ("table-1/2").
-  const bool exists = call.world.snapshot()->find_object(call.param) != nullptr;
-  return history(call, call.world.object_decisions(call.param, kMaxHistory), exists);
+  const auto snap = call.world.snapshot();
+  const auto index = snap->objects.index_of(call.param);
+  auto answer = history(call, call.world.object_decisions(call.param, kMaxHistory), index.has_value());
+  // What the grid says of it now, and the rules' verdicts: how much of a missing wall was seen through.
+  if (index) {
+    const auto evidence = call.world.plan_report();
+    const auto report = world::as_built_report(*snap, evidence.get());
+    answer["as_built"] = json_codec::object_as_built_json(report.objects[*index], *index, evidence.get());
+  }
+  return json_response(call.request, answer);
 }
 
 Response get_elements(const Call& call) {
@@ -55,7 +64,7 @@ Response get_element(const Call& call) {
 
 Response get_element_history(const Call& call) {
   const bool exists = call.world.snapshot()->find_element(call.param) != nullptr;
-  return history(call, call.world.decisions(0, kMaxHistory, call.param), exists);
+  return json_response(call.request, history(call, call.world.decisions(0, kMaxHistory, call.param), exists));
 }
 
 }  // namespace wm::api

@@ -2,6 +2,7 @@
 
 // A WorldPort for handler tests: a world state the test sets, canned answers, the calls it received, and an
 // exception to throw from the next call when the test wants one. No thread, no store, no Prolog.
+#include <algorithm>
 #include <chrono>
 #include <exception>
 #include <functional>
@@ -46,6 +47,9 @@ class FakeWorldPort : public service::WorldPort {
   std::optional<world::PlacementChange> last_placement;
   std::optional<service::AlignRequest> last_align;
   service::AlignOutcome align_answer;
+  std::shared_ptr<world::PlanReport> plan_report_answer = std::make_shared<world::PlanReport>();
+  std::optional<std::pair<std::string, bool>> last_change;  // (id, accept) of the last decide_change
+  std::string last_decider;
 
   // --- WorldPort ---
   std::shared_ptr<const world::WorldState> snapshot() const override { return state_; }
@@ -160,6 +164,23 @@ class FakeWorldPort : public service::WorldPort {
     const auto revision = the_grid().tile_revision({tx, ty});
     if (revision == 0) return std::nullopt;
     return service::GridTileValues{the_grid().export_tile_layers({tx, ty}), revision};
+  }
+  std::shared_ptr<const world::PlanReport> plan_report() const override { return plan_report_answer; }
+  service::ChangeOutcome decide_change(const std::string& change_id, bool accept, std::string observer) override {
+    enter("decide_change");
+    std::shared_ptr<const world::WorldState> state;
+    std::shared_ptr<const world::PlanReport> evidence;
+    const auto listed = changes(state, evidence);
+    if (std::none_of(listed.begin(), listed.end(), [&](const world::Change& c) { return c.id == change_id; }))
+      throw service::NotFound("no change '" + change_id + "' is listed now");
+    last_change = {change_id, accept};
+    last_decider = observer;
+    return {state_->version + 1, decision(accept ? rules::Action::accept : rules::Action::reject, ""), change_id, {}};
+  }
+  service::ChangeOutcome undo_change(std::string observer) override {
+    enter("undo_change");
+    last_decider = observer;
+    return {state_->version + 1, decision(rules::Action::undo, ""), "c000000000000", {}};
   }
   std::vector<service::RobotState> robots() const override { return registry.list(); }
   std::optional<service::RobotState> robot(const std::string& id) const override { return registry.find(id); }

@@ -194,7 +194,7 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   const char* v3 = R"sql(
     DROP INDEX decisions_by_observation; DROP TABLE requests; ALTER TABLE scans DROP COLUMN lines_seq;
     ALTER TABLE elements DROP COLUMN moments; DROP TABLE placements; DROP TABLE georeference;
-    DROP TABLE robot_poses; DROP INDEX scans_by_observer;
+    DROP TABLE robot_poses; DROP INDEX scans_by_observer; DROP TABLE plan_changes; DROP TABLE edge_beams;
     PRAGMA user_version = 3;
     INSERT INTO observations VALUES (1, 'client', 'r', 0, 0, '{}'), (2, 'scan', 'r', 0, 0, '{"scan": 1}');
     INSERT INTO scans VALUES (1, 'r', 'laser', 0, 0, '{}'), (2, 'r', 'laser', 0, 0, '{}');)sql";

@@ -1,0 +1,147 @@
+// plan_evidence against a grid given as a function of the point: shares, stretches, regions.
+#include "server/world/plan_evidence.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace wm::world {
+namespace {
+
+// Wall "w" from (0, 0) to (4, 0); a table "t" (1 × 0.5 m) at (10, 10).
+WorldState plan_state() {
+  apriori::FloorPlan plan;
+  plan.name = "test";
+  apriori::PlanObject wall;
+  wall.id = "w";
+  wall.kind = "wall";
+  wall.attributes = {"solid"};
+  wall.polylines = {{{0, 0}, {4, 0}}};
+  apriori::PlanObject table;
+  table.id = "t";
+  table.kind = "table";
+  table.attributes = {"not_deformable"};
+  table.pose = {10, 10, 0};
+  table.polygon = {{-0.5, -0.25}, {0.5, -0.25}, {0.5, 0.25}, {-0.5, 0.25}};
+  plan.objects = {wall, table};
+  WorldState state;
+  state.objects = ObjectTable(make_objects(plan, WorldOptions{}, 1));
+  return state;
+}
+
+PlanEvidenceOptions options() {
+  PlanEvidenceOptions o;
+  o.step_m = 0.05;
+  o.min_stretch_m = 0.3;
+  o.max_unknown_gap = 2;
+  return o;
+}
+
+TEST(PlanEvidenceTest, SharesAndStretchesFollowTheProbe) {
+  const auto state = plan_state();
+  // The wall stands from x = 0 to 1.5 and from 2.5 to 4 (a door cut in between, seen through); the table is unseen.
+  const EdgeProbe probe = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    if (p.y() > 5) return EdgeSample::unknown;
+    return p.x() > 1.5 && p.x() < 2.5 ? EdgeSample::seen_through : EdgeSample::backed;
+  };
+  const auto all = plan_evidence(state, probe, options());
+  ASSERT_EQ(all.size(), 5u);  // the wall, the table's four sides
+  const auto& wall = all[0];
+  EXPECT_EQ(wall.object, 0u);
+  EXPECT_EQ(wall.edge, 0u);
+  EXPECT_NEAR(wall.length_m, 4.0, 1e-9);
+  EXPECT_NEAR(wall.seen_through, 0.25, 1e-9);
+  EXPECT_NEAR(wall.backed, 0.75, 1e-9);
+  EXPECT_NEAR(wall.observed, 1.0, 1e-9);
+  ASSERT_EQ(wall.seen_through_stretches.size(), 1u);
+  EXPECT_NEAR(wall.seen_through_stretches[0].s0_m, 1.5, 1e-9);
+  EXPECT_NEAR(wall.seen_through_stretches[0].s1_m, 2.5, 1e-9);
+  for (std::size_t k = 1; k < 5; ++k) EXPECT_EQ(all[k].observed, 0.0);
+}
+
+TEST(PlanEvidenceTest, ShortUnknownGapsAreBridgedLongOnesAndOtherSamplesSplit) {
+  const auto state = plan_state();
+  // Seen through everywhere but two unknown samples at x ~ 1.0 (bridged), and a displaced stretch at 2.0-2.2 (not).
+  const EdgeProbe probe = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    if (p.y() > 5) return EdgeSample::unknown;
+    if (p.x() > 1.0 && p.x() < 1.1) return EdgeSample::unknown;
+    if (p.x() > 2.0 && p.x() < 2.2) return EdgeSample::displaced;
+    if (p.x() > 3.8) return EdgeSample::seen_through;  // 0.2 m alone: shorter than a stretch
+    if (p.x() > 3.5) return EdgeSample::backed;
+    return EdgeSample::seen_through;
+  };
+  const auto all = plan_evidence(state, probe, options());
+  const auto& wall = all.at(0);
+  ASSERT_EQ(wall.seen_through_stretches.size(), 2u);
+  EXPECT_NEAR(wall.seen_through_stretches[0].s0_m, 0.0, 1e-9);
+  EXPECT_NEAR(wall.seen_through_stretches[0].s1_m, 2.0, 1e-9);
+  EXPECT_NEAR(wall.seen_through_stretches[1].s0_m, 2.2, 1e-9);
+  EXPECT_NEAR(wall.seen_through_stretches[1].s1_m, 3.5, 1e-9);
+  EXPECT_NEAR(wall.displaced, 0.05, 1e-9);
+  EXPECT_NEAR(wall.observed, 1.0 - 0.025, 1e-9);
+}
+
+TEST(PlanEvidenceTest, ProbeLooksAcrossTheEdgeAtEverySample) {
+  const auto state = plan_state();
+  int calls = 0;
+  const EdgeProbe probe = [&calls](const Eigen::Vector2d& p, const Eigen::Vector2d& normal) {
+    ++calls;
+    if (p.y() < 5) {
+      EXPECT_NEAR(std::abs(normal.y()), 1.0, 1e-9);  // the wall runs along x
+    }
+    EXPECT_NEAR(normal.norm(), 1.0, 1e-9);
+    return EdgeSample::unknown;
+  };
+  plan_evidence(state, probe, options());
+  EXPECT_EQ(calls, 80 + 2 * 20 + 2 * 10);  // 4 m, 1 m and 0.5 m sides at 5 cm
+}
+
+TEST(PlanEvidenceTest, RegionLimitsTheEdgesLookedAt) {
+  const auto state = plan_state();
+  const EdgeProbe probe = [](const Eigen::Vector2d&, const Eigen::Vector2d&) { return EdgeSample::backed; };
+  const auto near_table = plan_evidence(state, Box{9, 9, 11, 11}, probe, options());
+  ASSERT_EQ(near_table.size(), 4u);
+  for (const auto& e : near_table) EXPECT_EQ(e.object, 1u);
+  EXPECT_TRUE(plan_evidence(state, Box{50, 50, 60, 60}, probe, options()).empty());
+}
+
+TEST(PlanEvidenceTest, EdgesFollowAMovedObject) {
+  auto state = plan_state();
+  auto table = state.objects[1];
+  table.body = fusion::RigidObject({12, 10, 0}, table.body.pose_cov(), table.body.edges());
+  state.objects.put(1, table);
+  const EdgeProbe probe = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    return p.x() > 11 ? EdgeSample::backed : EdgeSample::seen_through;
+  };
+  for (const auto& e : plan_evidence(state, probe, options()))
+    if (e.object == 1) {
+      EXPECT_EQ(e.backed, 1.0);  // looked at where it stands now, not where it was drawn
+    }
+}
+
+TEST(PlanEvidenceTest, BadOptionsAreRefused) {
+  const auto state = plan_state();
+  const EdgeProbe probe = [](const Eigen::Vector2d&, const Eigen::Vector2d&) { return EdgeSample::backed; };
+  auto o = options();
+  o.step_m = 0;
+  EXPECT_THROW(plan_evidence(state, probe, o), std::invalid_argument);
+  o.step_m = std::nan("");
+  EXPECT_THROW(plan_evidence(state, probe, o), std::invalid_argument);
+}
+
+TEST(PlanEvidenceTest, ReportFindsEdgesByObjectAndEdge) {
+  PlanReport report;
+  report.edges.resize(3);
+  report.edges[0].object = 0;
+  report.edges[1].object = 2;
+  report.edges[1].edge = 1;
+  report.edges[2].object = 2;
+  report.edges[2].edge = 3;
+  EXPECT_EQ(report.find(2, 3), &report.edges[2]);
+  EXPECT_EQ(report.find(2, 2), nullptr);
+  EXPECT_EQ(report.find(0, 0), &report.edges[0]);
+}
+
+}  // namespace
+}  // namespace wm::world
