@@ -1,0 +1,430 @@
+#include "tools/truth/truth.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numbers>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include "clients/logs/scan_body.h"
+#include "rules/engine.h"
+#include "server/storage/store.h"
+
+namespace wm::truth {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180;
+constexpr double kOnLineM = 0.05, kOnLineRad = 3 * kDeg;  // "on a true line": the benchmark's tolerance
+constexpr double kSampleM = 0.02;                         // element sample spacing, finer than a bin
+
+struct Piece {
+  Vec p0, p1;
+  double length() const { return (p1 - p0).norm(); }
+  std::size_t samples() const {
+    return std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(length() / kSampleM)));
+  }
+  Vec sample(std::size_t k) const { return p0 + (p1 - p0) * ((k + 0.5) / static_cast<double>(samples())); }
+};
+
+std::vector<Piece> elements_of(const world::WorldState& state) {
+  std::vector<Piece> pieces;
+  for (const auto& [number, e] : state.elements) pieces.push_back({e.segment.p0(), e.segment.p1()});
+  return pieces;
+}
+
+bool on_line(const Piece& e, const TrueLine& line) {
+  return direction_difference(e.p1 - e.p0, line.p1 - line.p0) <= kOnLineRad &&
+         segment_distance(e.p0, e.p1, line.p0, line.p1) <= kOnLineM;
+}
+
+/// Per line, per bin: the elements lying on it there (within 5 cm and 3°).
+std::vector<std::vector<std::vector<std::size_t>>> covering(const std::vector<Piece>& elements,
+                                                            const std::vector<TrueLine>& lines) {
+  std::vector<std::vector<std::vector<std::size_t>>> cover(lines.size());
+  for (std::size_t l = 0; l < lines.size(); ++l) cover[l].resize(bins_of((lines[l].p1 - lines[l].p0).norm()));
+  for (std::size_t i = 0; i < elements.size(); ++i)
+    for (std::size_t l = 0; l < lines.size(); ++l) {
+      if (!on_line(elements[i], lines[l])) continue;
+      const Vec d = lines[l].p1 - lines[l].p0;
+      const double length = d.norm();
+      for (std::size_t k = 0; k < elements[i].samples(); ++k) {
+        const Vec p = elements[i].sample(k);
+        if (point_segment_distance(p, lines[l].p0, lines[l].p1) > kOnLineM) continue;
+        const double u = d.dot(p - lines[l].p0) / length;
+        if (u < 0 || u > length) continue;
+        auto& ids = cover[l][std::min(cover[l].size() - 1, static_cast<std::size_t>(u / kBinM))];
+        if (std::find(ids.begin(), ids.end(), i) == ids.end()) ids.push_back(i);
+      }
+    }
+  return cover;
+}
+
+Vec bin_centre(const Vec& p0, const Vec& p1, std::size_t bin) {
+  const double length = (p1 - p0).norm();
+  return p0 + (p1 - p0) * (std::min(length, (bin + 0.5) * kBinM) / length);
+}
+
+/// Element length within 0.3 m of a person's track that lies on no true line [m].
+double people_elements(const std::vector<Piece>& elements, const BuiltWorld& world) {
+  double length = 0;
+  for (const auto& e : elements) {
+    const double each = e.length() / static_cast<double>(e.samples());
+    for (std::size_t k = 0; k < e.samples(); ++k) {
+      const Vec p = e.sample(k);
+      bool on_track = false;
+      for (const auto& person : world.people)
+        on_track = on_track || point_segment_distance(p, person.a, person.b) <= kPersonRadiusM + 0.1;
+      if (!on_track) continue;
+      bool on_truth = false;
+      for (const auto& line : world.lines)
+        on_truth = on_truth || point_segment_distance(p, line.p0, line.p1) <= kOnLineM;
+      if (!on_truth) length += each;
+    }
+  }
+  return length;
+}
+
+/// WorldService::plan_report() when the service has it: the as-built verdicts come from there. A service without it
+/// gives nullptr, and the verdict figures are reported as not measured.
+template <typename Service>
+std::shared_ptr<const world::PlanReport> plan_report_of(Service& service) {
+  if constexpr (requires { service.plan_report(); })
+    return service.plan_report();
+  else
+    return nullptr;
+}
+
+std::string fixed(double value, int decimals) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.*f", decimals, value);
+  return buffer;
+}
+
+std::string optional_fixed(const std::optional<double>& value, int decimals) {
+  return value ? fixed(*value, decimals) : "n/a";
+}
+
+}  // namespace
+
+const char* pose_noise_name(PoseNoise noise) { return noise == PoseNoise::low ? "low" : "high"; }
+
+ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Eigen::Matrix3d& pose_cov,
+                           const std::optional<apriori::FloorPlan>& plan, const TruthOptions& options) {
+  std::random_device random;
+  const auto dir = std::filesystem::temp_directory_path() / ("wm-truth-" + std::to_string(random()));
+  std::filesystem::create_directories(dir);
+  struct Cleanup {
+    std::filesystem::path path;
+    ~Cleanup() {
+      std::error_code ignored;
+      std::filesystem::remove_all(path, ignored);
+    }
+  } cleanup{dir};
+  ReplayOutcome outcome;
+  storage::StoreOptions store_options;
+  store_options.path = (dir / "truth.db").string();
+  store_options.synchronous_full = false;  // a benchmark can be run again
+  storage::Store store(store_options);
+  rules::EngineOptions engine_options;
+  engine_options.rules_dir = options.rules_dir;
+  rules::Engine engine(engine_options);
+  {
+    service::WorldService world(options.service, store, engine, nullptr);
+    if (plan) world.load_floor_plan(*plan);
+    double stamp = 0;
+    for (const auto& scan : scans) {
+      json_codec::ScanRequest request;
+      request.observer = "truth";
+      request.stamp_s = stamp;
+      request.pose_cov = pose_cov;
+      auto payload = logs::laser_scan_body(scan, request.observer, stamp).dump();
+      request.scan = scan;
+      world.post_scan(std::move(request), std::move(payload), std::nullopt);
+      stamp += 0.5;
+    }
+    outcome.state = world.snapshot();
+    outcome.report = plan_report_of(world);
+  }
+  return outcome;
+}
+
+MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& world, const Coverage& coverage) {
+  MappingScore score;
+  const auto elements = elements_of(state);
+  score.elements = elements.size();
+  double good = 0;
+  for (const auto& e : elements) {
+    score.element_length_m += e.length();
+    std::vector<const TrueLine*> candidates;
+    for (const auto& line : world.lines)
+      if (on_line(e, line)) candidates.push_back(&line);
+    const double each = e.length() / static_cast<double>(e.samples());
+    for (std::size_t k = 0; k < e.samples(); ++k) {
+      const Vec p = e.sample(k);
+      for (const auto* line : candidates)
+        if (point_segment_distance(p, line->p0, line->p1) <= kOnLineM) {
+          good += each;
+          break;
+        }
+    }
+  }
+  const auto cover = covering(elements, world.lines);
+  double redundant = 0, recalled = 0, walls_elements = 0;
+  for (std::size_t l = 0; l < world.lines.size(); ++l) {
+    const auto& line = world.lines[l];
+    std::vector<std::size_t> near;  // elements within 5 cm of the line, whatever their direction
+    for (std::size_t i = 0; i < elements.size(); ++i)
+      if (segment_distance(elements[i].p0, elements[i].p1, line.p0, line.p1) <= kOnLineM) near.push_back(i);
+    double seen = 0;
+    std::map<std::size_t, std::size_t> bins_per_element;
+    for (std::size_t b = 0; b < cover[l].size(); ++b) {
+      redundant += static_cast<double>(std::max<std::size_t>(1, cover[l][b].size()) - 1) * kBinM;
+      for (const auto i : cover[l][b]) ++bins_per_element[i];
+      if (coverage.hits[l][b] == 0) continue;
+      seen += kBinM;
+      const Vec c = bin_centre(line.p0, line.p1, b);
+      for (const auto i : near)
+        if (point_segment_distance(c, elements[i].p0, elements[i].p1) <= kOnLineM) {
+          recalled += kBinM;
+          break;
+        }
+    }
+    score.seen_length_m += seen;
+    if (line.kind != LineKind::table && seen >= 2.0) {
+      ++score.walls_seen_2m;
+      for (const auto& [i, n] : bins_per_element) walls_elements += n >= 2 ? 1 : 0;
+    }
+  }
+  score.precision = score.element_length_m > 0 ? good / score.element_length_m : 0;
+  score.recall = score.seen_length_m > 0 ? recalled / score.seen_length_m : 0;
+  score.redundancy = score.element_length_m > 0 ? redundant / score.element_length_m : 0;
+  score.elements_per_wall = score.walls_seen_2m > 0 ? walls_elements / static_cast<double>(score.walls_seen_2m) : 0;
+  score.people_element_m = people_elements(elements, world);
+  return score;
+}
+
+AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& building, const BuiltWorld& world,
+                            const Coverage& coverage) {
+  AsBuiltScore score;
+  const auto elements = elements_of(*outcome.state);
+  const auto& walls = building.walls;
+
+  if (outcome.report) {
+    // The bins of each plan wall that a missing or partly_missing verdict covers.
+    std::map<std::pair<std::string, std::size_t>, std::size_t> wall_of;
+    std::map<std::string, std::vector<std::size_t>> walls_of_object;
+    for (std::size_t w = 0; w < walls.size(); ++w) {
+      wall_of[{walls[w].object_id, walls[w].edge}] = w;
+      walls_of_object[walls[w].object_id].push_back(w);
+    }
+    std::vector<std::vector<char>> missing(walls.size());
+    for (std::size_t w = 0; w < walls.size(); ++w) missing[w].assign(bins_of((walls[w].p1 - walls[w].p0).norm()), 0);
+    const auto mark = [&](std::size_t w, double s0, double s1) {
+      for (std::size_t b = 0; b < missing[w].size(); ++b) {
+        const double centre = (b + 0.5) * kBinM;
+        if (centre >= s0 && centre <= s1) missing[w][b] = 1;
+      }
+    };
+    for (const auto& v : outcome.report->verdicts) {
+      if (v.verdict != "missing" && v.verdict != "partly_missing") continue;
+      if (v.edge) {
+        const auto it = wall_of.find({v.object_id, *v.edge});
+        if (it == wall_of.end()) continue;
+        const bool whole = v.verdict == "missing" && v.stretch.s1_m <= v.stretch.s0_m;
+        mark(it->second, whole ? 0 : v.stretch.s0_m, whole ? 1e9 : v.stretch.s1_m);
+      } else if (const auto it = walls_of_object.find(v.object_id); it != walls_of_object.end()) {
+        for (const auto w : it->second) mark(w, 0, 1e9);
+      }
+    }
+    // Demolished walls: the share of what the beams went through that is reported missing, per wall.
+    double found = 0;
+    std::size_t groups = 0;
+    std::vector<char> demolished(walls.size(), 0);
+    for (std::size_t g = 0; g < world.demolished.size(); ++g) {
+      double through = 0, reported = 0;
+      for (std::size_t m = 0; m < world.demolished[g].size(); ++m) {
+        const int w = world.demolished[g][m];
+        demolished[w] = 1;
+        const auto& bins = coverage.seen_through[g][m];
+        for (std::size_t b = 0; b < bins.size(); ++b) {
+          through += bins[b] ? kBinM : 0;
+          reported += bins[b] && missing[w][b] ? kBinM : 0;
+        }
+      }
+      if (through > 0) {
+        found += reported / through;
+        ++groups;
+      }
+    }
+    if (groups > 0) score.demolished_found = found / static_cast<double>(groups);
+    // Existing walls in view: every wall of the plan still standing that some beam returned from.
+    double in_view = 0, reported = 0, near_people = 0;
+    for (std::size_t l = 0; l < world.lines.size(); ++l) {
+      const int w = world.lines[l].plan_wall;
+      if (w < 0) continue;
+      const auto& hits = coverage.hits[l];
+      if (std::none_of(hits.begin(), hits.end(), [](std::uint32_t n) { return n > 0; })) continue;
+      in_view += (walls[w].p1 - walls[w].p0).norm();
+      for (std::size_t b = 0; b < missing[w].size(); ++b) {
+        if (!missing[w][b]) continue;
+        reported += kBinM;
+        const Vec c = bin_centre(walls[w].p0, walls[w].p1, b);
+        // Tracks keep 0.45 m from every line, so a wall a person walked past is within 1 m of the track.
+        for (const auto& person : world.people)
+          if (point_segment_distance(c, person.a, person.b) <= 1.0) {
+            near_people += kBinM;
+            break;
+          }
+      }
+    }
+    score.false_missing = in_view > 0 ? reported / in_view : 0;
+    score.people_missing_m = near_people;
+  }
+
+  // New partitions: the share of their seen length that elements cover.
+  const auto cover = covering(elements, world.lines);
+  double found_new = 0;
+  std::size_t partitions_seen = 0;
+  for (const int p : world.partitions) {
+    double seen = 0, covered = 0;
+    for (std::size_t b = 0; b < cover[p].size(); ++b) {
+      if (coverage.hits[p][b] == 0) continue;
+      seen += kBinM;
+      covered += cover[p][b].empty() ? 0 : kBinM;
+    }
+    if (seen > 0) {
+      found_new += covered / seen;
+      ++partitions_seen;
+    }
+  }
+  score.new_found = partitions_seen > 0 ? found_new / static_cast<double>(partitions_seen) : 0;
+
+  // The table: where the plan object ended, and elements made of its sides instead.
+  score.table_removed = !world.table;
+  if (world.table) {
+    if (const auto* table = outcome.state->find_object(kTableId)) {
+      const auto& pose = table->body.pose();
+      score.table_error_m = std::hypot(pose.x_m - world.table->x_m, pose.y_m - world.table->y_m);
+      score.table_error_deg =
+          std::abs(std::remainder(pose.theta_rad - world.table->theta_rad, 2 * std::numbers::pi)) / kDeg;
+    }
+    const auto sides = table_sides(*world.table);
+    for (const auto& e : elements) {
+      std::size_t near = 0;
+      for (std::size_t k = 0; k < e.samples(); ++k) {
+        const Vec p = e.sample(k);
+        for (const auto& [a, b] : sides)
+          if (point_segment_distance(p, a, b) <= 0.10) {
+            ++near;
+            break;
+          }
+      }
+      score.table_edge_elements += 2 * near >= e.samples() ? 1 : 0;
+    }
+  }
+  score.people_element_m = people_elements(elements, world);
+  return score;
+}
+
+TruthResult run_truth(const std::string& name, const TruthOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  TruthResult result;
+  result.building = name;
+  result.pose_noise = options.pose_noise;
+  const Building building = load_building(name, options.data_dir, options.seed, options.max_route_m);
+  const BuiltWorld world = build_world(building, options.edits, options.seed);
+  LaserOptions laser = options.laser;
+  const bool low = options.pose_noise == PoseNoise::low;
+  laser.sigma_xy_m = low ? 0.01 : 0.03;
+  laser.sigma_theta_rad = (low ? 0.2 : 0.5) * kDeg;
+  const Drive drove = drive(building, world, laser, options.seed);
+  result.scans = drove.scans.size();
+  result.route_m = drove.route_m;
+  // The covariance a robot's localisation would post with the pose it believes.
+  const Eigen::Matrix3d pose_cov =
+      Eigen::Vector3d(laser.sigma_xy_m * laser.sigma_xy_m, laser.sigma_xy_m * laser.sigma_xy_m,
+                      laser.sigma_theta_rad * laser.sigma_theta_rad)
+          .asDiagonal();
+  const auto mapped = replay_scans(drove.scans, pose_cov, std::nullopt, options);
+  result.mapping = score_mapping(*mapped.state, world, drove.coverage);
+  if (options.with_plan) {
+    const auto planned = replay_scans(drove.scans, pose_cov, building.plan, options);
+    result.as_built = score_as_built(planned, building, world, drove.coverage);
+  }
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+std::string format_table(const std::vector<TruthResult>& results) {
+  std::ostringstream out;
+  char line[512];
+  const char* header = "%-11s %-5s %6s %7s %9s %7s %10s %8s %10s %10s %9s %15s %8s %20s\n";
+  std::snprintf(line, sizeof line, header, "building", "noise", "scans", "route_m", "precision", "recall", "redundancy",
+                "el/wall", "demolished", "false_miss", "new_found", "table_cm,deg", "table_el", "people_m el/el/miss");
+  out << line;
+  MappingScore worst_map{1, 1, 0, 0};
+  std::optional<double> worst_demolished, worst_false, worst_people_missing;
+  double worst_new = 1, worst_table_cm = 0, worst_table_deg = 0, worst_people = 0;
+  std::size_t worst_table_el = 0;
+  bool any_plan = false;
+  const auto lower = [](std::optional<double>& w, const std::optional<double>& v) {
+    if (v && (!w || *v < *w)) w = v;
+  };
+  const auto higher = [](std::optional<double>& w, const std::optional<double>& v) {
+    if (v && (!w || *v > *w)) w = v;
+  };
+  for (const auto& r : results) {
+    const auto& m = r.mapping;
+    worst_map.precision = std::min(worst_map.precision, m.precision);
+    worst_map.recall = std::min(worst_map.recall, m.recall);
+    worst_map.redundancy = std::max(worst_map.redundancy, m.redundancy);
+    worst_map.elements_per_wall = std::max(worst_map.elements_per_wall, m.elements_per_wall);
+    worst_people = std::max(worst_people, m.people_element_m);
+    std::string demolished = "-", false_missing = "-", new_found = "-", table = "-", table_el = "-",
+                people = fixed(m.people_element_m, 2);
+    if (r.as_built) {
+      const auto& a = *r.as_built;
+      any_plan = true;
+      demolished = optional_fixed(a.demolished_found, 3);
+      false_missing = optional_fixed(a.false_missing, 3);
+      new_found = fixed(a.new_found, 3);
+      table = a.table_removed ? "removed" : fixed(100 * a.table_error_m, 1) + "," + fixed(a.table_error_deg, 1);
+      table_el = a.table_removed ? "-" : std::to_string(a.table_edge_elements);
+      people += "/" + fixed(a.people_element_m, 2) + "/" + optional_fixed(a.people_missing_m, 2);
+      lower(worst_demolished, a.demolished_found);
+      higher(worst_false, a.false_missing);
+      higher(worst_people_missing, a.people_missing_m);
+      worst_new = std::min(worst_new, a.new_found);
+      if (!a.table_removed) {
+        worst_table_cm = std::max(worst_table_cm, 100 * a.table_error_m);
+        worst_table_deg = std::max(worst_table_deg, a.table_error_deg);
+        worst_table_el = std::max(worst_table_el, a.table_edge_elements);
+      }
+      worst_people = std::max(worst_people, a.people_element_m);
+    }
+    std::snprintf(line, sizeof line, header, r.building.c_str(), pose_noise_name(r.pose_noise),
+                  std::to_string(r.scans).c_str(), fixed(r.route_m, 0).c_str(), fixed(m.precision, 3).c_str(),
+                  fixed(m.recall, 3).c_str(), fixed(m.redundancy, 3).c_str(), fixed(m.elements_per_wall, 2).c_str(),
+                  demolished.c_str(), false_missing.c_str(), new_found.c_str(), table.c_str(), table_el.c_str(),
+                  people.c_str());
+    out << line;
+  }
+  if (!results.empty()) {
+    std::snprintf(line, sizeof line, header, "worst", "", "", "", fixed(worst_map.precision, 3).c_str(),
+                  fixed(worst_map.recall, 3).c_str(), fixed(worst_map.redundancy, 3).c_str(),
+                  fixed(worst_map.elements_per_wall, 2).c_str(),
+                  any_plan ? optional_fixed(worst_demolished, 3).c_str() : "-",
+                  any_plan ? optional_fixed(worst_false, 3).c_str() : "-", any_plan ? fixed(worst_new, 3).c_str() : "-",
+                  any_plan ? (fixed(worst_table_cm, 1) + "," + fixed(worst_table_deg, 1)).c_str() : "-",
+                  any_plan ? std::to_string(worst_table_el).c_str() : "-",
+                  (fixed(worst_people, 2) + " el, " + optional_fixed(worst_people_missing, 2) + " miss").c_str());
+    out << line;
+  }
+  return out.str();
+}
+
+}  // namespace wm::truth
