@@ -59,21 +59,21 @@ std::string joined_lines(const std::vector<std::string>& lines, const char* othe
 
 // The support module's entry points (rules/internal/engine_support.pl), looked up once.
 struct EntryPoints {
-  predicate_t init = nullptr;              // init/0
-  predicate_t shutdown = nullptr;          // shutdown/0
-  predicate_t set_floor_plan = nullptr;    // set_floor_plan(+Objects)
-  predicate_t set_elements = nullptr;      // set_elements(+Elements)
-  predicate_t update_elements = nullptr;   // update_elements(+Upserts, +RemovedIds)
-  predicate_t add_decisions = nullptr;     // add_decisions(+Decisions, +KeepLast)
-  predicate_t set_element_grid = nullptr;  // set_element_grid(+Facts)
+  predicate_t init = nullptr;               // init/0
+  predicate_t shutdown = nullptr;           // shutdown/0
+  predicate_t set_floor_plan = nullptr;     // set_floor_plan(+Objects)
+  predicate_t set_elements = nullptr;       // set_elements(+Elements)
+  predicate_t update_elements = nullptr;    // update_elements(+Upserts, +RemovedIds)
+  predicate_t add_decisions = nullptr;      // add_decisions(+Decisions, +KeepLast)
+  predicate_t set_element_grid = nullptr;   // set_element_grid(+Facts)
   predicate_t set_edge_evidence = nullptr;  // set_edge_evidence(+Facts, +ReplaceAll)
   predicate_t verdicts = nullptr;           // verdicts(+Scope, +Max, +InfLimit, +TimeLimit, -Result)
-  predicate_t decide = nullptr;            // decide(+Observation, +Match, +Context, +InfLimit, +TimeLimit, -Result)
-  predicate_t decide_batch = nullptr;      // decide_batch(+Cases, +InfLimit, +TimeLimit, -Results)
-  predicate_t reload = nullptr;            // reload(+Files, +RulesDir, +InfLimit, +TimeLimit, +Grace, -Result)
-  predicate_t dry_run = nullptr;           // dry_run(+Files, +RulesDir, +Cases, +InfLimit, +TimeLimit, -Result)
-  predicate_t prune = nullptr;             // prune(+Max, +InfLimit, +TimeLimit, -Result)
-  predicate_t query = nullptr;             // query(+Text, +MaxSolutions, +InfLimit, +TimeLimit, -Result)
+  predicate_t decide = nullptr;             // decide(+Observation, +Match, +Context, +InfLimit, +TimeLimit, -Result)
+  predicate_t decide_batch = nullptr;       // decide_batch(+Cases, +InfLimit, +TimeLimit, -Results)
+  predicate_t reload = nullptr;             // reload(+Files, +RulesDir, +InfLimit, +TimeLimit, +Grace, -Result)
+  predicate_t dry_run = nullptr;            // dry_run(+Files, +RulesDir, +Cases, +InfLimit, +TimeLimit, -Result)
+  predicate_t prune = nullptr;              // prune(+Max, +InfLimit, +TimeLimit, -Result)
+  predicate_t query = nullptr;              // query(+Text, +MaxSolutions, +InfLimit, +TimeLimit, -Result)
 
   static EntryPoints lookup() {
     const auto p = [](const char* name, int arity) { return PL_predicate(name, arity, internal::kSupportModuleName); };

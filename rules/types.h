@@ -71,8 +71,8 @@ struct ElementGridFacts {
 /// its length within one cell of an occupied cell, seen free with nothing occupied near, and seen at all; and one
 /// edge_seen_through(Object, Edge, S0, S1) per stretch seen through, [m] from the edge's first end.
 struct EdgeEvidenceFacts {
-  std::string object_id;  // e.g. "wall-12"
-  std::string edge_id;    // e.g. "wall-12/0", as edge/5 names it
+  std::string object_id;                              // e.g. "wall-12"
+  std::string edge_id;                                // e.g. "wall-12/0", as edge/5 names it
   double backed = 0, seen_through = 0, observed = 0;  // [0, 1]
   std::vector<std::pair<double, double>> stretches;   // (S0, S1) [m], S0 < S1
   /// Laser beams counted at the edge (edge_beams(Object, Edge, Through, Ended)): passed through it, returned on it.

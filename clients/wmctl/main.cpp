@@ -94,7 +94,11 @@ std::vector<Command> command_table() {
        "the differences between plan and building (walls missing, objects moved or gone,\n"
        "new walls), each with its evidence and confidence",
        changes},
-      {"changes accept", {"ID"}, {}, "accept a listed change into the plan (a new plan version; token)", changes_accept},
+      {"changes accept",
+       {"ID"},
+       {},
+       "accept a listed change into the plan (a new plan version; token)",
+       changes_accept},
       {"changes reject", {"ID"}, {}, "reject a listed change: it is no longer listed (token)", changes_reject},
       {"changes undo", {}, {}, "undo the last accept or reject (token)", changes_undo},
       {"decisions", {}, {{"--since", "SEQ"}, {"--limit", "N"}, {"--element", "ID"}}, "the decision log", decisions},

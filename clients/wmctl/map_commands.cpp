@@ -192,9 +192,9 @@ void print_changes(const json& r) {
   std::cout << list.size() << " changes between the plan and the building (map version " << r["version"]
             << ", grid revision " << r["grid_revision"] << ")\n";
   for (const auto& c : list) {
-    std::cout << "  " << c["id"].get<std::string>() << "  " << std::left << std::setw(20) << c["kind"].get<std::string>()
-              << std::right << " " << c["key"].get<std::string>() << "  " << std::fixed << std::setprecision(2)
-              << c["length"].get<double>() << " m, confidence " << std::setprecision(0)
+    std::cout << "  " << c["id"].get<std::string>() << "  " << std::left << std::setw(20)
+              << c["kind"].get<std::string>() << std::right << " " << c["key"].get<std::string>() << "  " << std::fixed
+              << std::setprecision(2) << c["length"].get<double>() << " m, confidence " << std::setprecision(0)
               << 100 * c["confidence"].get<double>() << " %\n"
               << std::defaultfloat << std::setprecision(6);
     std::cout << "      " << c["explanation"].get<std::string>() << "\n";
@@ -228,9 +228,8 @@ int changes_reject(const Invocation& in) {
 }
 
 int changes_undo(const Invocation& in) {
-  return in.emit(
-      parse_answer(in.client.request("POST", "/api/v1/changes/undo", "{}", "application/json", in.token)),
-      print_change_outcome);
+  return in.emit(parse_answer(in.client.request("POST", "/api/v1/changes/undo", "{}", "application/json", in.token)),
+                 print_change_outcome);
 }
 
 int grid(const Invocation& in) {

@@ -28,7 +28,7 @@ struct Vocabulary {
   functor_t element_fact = 0;       // element(Id, Source, Observer, Rho, Phi, Length, Support, UpdatedAt)
   functor_t decision_fact = 0;      // decision(Seq, Action, Rule, Element, Object, Observer, At)
   functor_t element_grid_fact = 0;  // element_grid(Id, Backed, Contrary)
-  functor_t evidence = 0;  // evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended)
+  functor_t evidence = 0;           // evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended)
   functor_t minus = 0;              // S0-S1
   functor_t file = 0;               // file(Path, AbsolutePath)
   functor_t text = 0;               // text(Path, Text)

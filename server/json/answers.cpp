@@ -17,7 +17,8 @@ namespace {
 json point(const Eigen::Vector2d& p) { return json::array({p.x(), p.y()}); }
 
 json displacement_json(const world::Displacement& d) {
-  return {{"dx", d.dx_m}, {"dy", d.dy_m}, {"dtheta", d.dtheta_rad}, {"distance", d.distance_m}, {"sigma_xy", d.sigma_xy_m}};
+  return {
+      {"dx", d.dx_m}, {"dy", d.dy_m}, {"dtheta", d.dtheta_rad}, {"distance", d.distance_m}, {"sigma_xy", d.sigma_xy_m}};
 }
 
 json evidence_json(const world::EdgeEvidence& e) {

@@ -31,8 +31,8 @@ nlohmann::json object_as_built_json(const world::ObjectAsBuilt& entry, std::size
                                     const world::PlanReport* evidence);
 
 /// One change: {"id", "key", "kind", "object"?, "edge"?, "element"?, "p0", "p1", "length", "confidence",
-///  "stretch"?: [s0, s1], "evidence"?: {"backed", "seen_through", "observed", "length", "beams_through", "beams_ended"},
-///  "moved_by"?: {"dx", "dy", "dtheta", "distance", "sigma_xy"}, "support"?, "rule", "explanation"}.
+///  "stretch"?: [s0, s1], "evidence"?: {"backed", "seen_through", "observed", "length", "beams_through",
+///  "beams_ended"}, "moved_by"?: {"dx", "dy", "dtheta", "distance", "sigma_xy"}, "support"?, "rule", "explanation"}.
 nlohmann::json change_json(const world::Change& change);
 /// {"version", "grid_revision", "changes": [change, ...]}.
 nlohmann::json changes_json(const world::WorldState& state, const world::PlanReport& evidence,

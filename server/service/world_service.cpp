@@ -11,8 +11,8 @@
 #include <variant>
 
 #include "fusion/grid/scan_geometry.h"
-#include "server/world/plan_edit.h"
 #include "fusion/grid/sensor_model.h"
+#include "server/world/plan_edit.h"
 
 namespace wm::service {
 namespace {
@@ -92,7 +92,8 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   if (options_.grid_trim_every > 0 && last_scan_seq_ > 0) {
     const auto every = static_cast<std::int64_t>(options_.grid_trim_every);
     auto since = last_scan_seq_ - last_scan_seq_ % every;
-    const bool due = last_scan_seq_ % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq_));
+    const bool due =
+        last_scan_seq_ % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq_));
     if (due) since = last_scan_seq_ - every;
     for (const auto& record : store_.scans_after(since)) {
       try {
@@ -193,7 +194,8 @@ void WorldService::count_edge_beams(const json_codec::ScanRequest& scan) {
         segments.push_back(std::move(found->second));
       } else {
         const auto bins = fusion::beam_bins(edge.length_m(), options_.beam_crossings);
-        segments.push_back({edge.p0(), edge.p1(), std::vector<std::uint32_t>(bins, 0), std::vector<std::uint32_t>(bins, 0)});
+        segments.push_back(
+            {edge.p0(), edge.p1(), std::vector<std::uint32_t>(bins, 0), std::vector<std::uint32_t>(bins, 0)});
       }
       keys.push_back(std::move(key));
     }
@@ -339,29 +341,28 @@ namespace {
 /// What the grid says of a point of a drawn edge (world::EdgeProbe). Occupied is P > 0.65, the map-quality
 /// definition; free is P < 0.25, which the laser's miss evidence (p_miss 0.4) reaches after three scans saw
 /// through the cell, so one stray beam or a grazing ray does not make a wall "seen through".
-/// Backed: an occupied cell in the 3×3 around the point. Displaced: none there, but one within 3 cells across the
-/// edge (the surface stands a little off its drawing, or the pose error blurs it): no evidence either way of a
-/// missing wall. Seen through: the 3×3 seen and free, and nothing occupied across. Unknown otherwise.
+/// The probe looks across the edge only (cells at up to one cell along its normal, in half-cell steps): along it, a
+/// standing wall's last cell would otherwise back the first cell of a door beside it, and every opening would be
+/// found a cell short at each end. Backed: one of those cells occupied. Displaced: none, but a cell occupied within
+/// 3 cells across (the surface stands a little off its drawing, or the pose error blurs it): no evidence either way
+/// of a missing wall. Seen through: all of them seen and free, and nothing occupied across. Unknown otherwise.
 world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, double resolution) {
   const double occupied = std::log(0.65 / 0.35);
   const double free = std::log(0.25 / 0.75);
   return [&cells, resolution, occupied, free](const Eigen::Vector2d& point, const Eigen::Vector2d& normal) {
-    const auto cell_of = [resolution](const Eigen::Vector2d& p) {
-      return fusion::CellIndex{static_cast<std::int64_t>(std::floor(p.x() / resolution)),
-                               static_cast<std::int64_t>(std::floor(p.y() / resolution))};
+    const auto log_odds = [&](double cells_across) {
+      const Eigen::Vector2d p = point + cells_across * resolution * normal;
+      return cells.log_odds({static_cast<std::int64_t>(std::floor(p.x() / resolution)),
+                             static_cast<std::int64_t>(std::floor(p.y() / resolution))});
     };
-    const auto c = cell_of(point);
     bool all_free = true;
-    for (std::int64_t dy = -1; dy <= 1; ++dy)
-      for (std::int64_t dx = -1; dx <= 1; ++dx) {
-        const double l = cells.log_odds({c.x + dx, c.y + dy});
-        if (l > occupied) return world::EdgeSample::backed;
-        all_free = all_free && l < free;
-      }
+    for (const double t : {0.0, -0.5, 0.5, -1.0, 1.0}) {
+      const double l = log_odds(t);
+      if (l > occupied) return world::EdgeSample::backed;
+      all_free = all_free && l < free;
+    }
     for (const double t : {1.5, 2.0, 2.5, 3.0})
-      for (const double side : {-1.0, 1.0})
-        if (cells.log_odds(cell_of(point + side * t * resolution * normal)) > occupied)
-          return world::EdgeSample::displaced;
+      if (log_odds(t) > occupied || log_odds(-t) > occupied) return world::EdgeSample::displaced;
     return all_free ? world::EdgeSample::seen_through : world::EdgeSample::unknown;
   };
 }
@@ -399,7 +400,8 @@ void WorldService::refresh_plan_evidence(const world::WorldState& state, const s
       auto options = options_.plan_evidence;
       options.step_m = grid_->resolution_m();
       const auto probe = grid_edge_probe(cells, grid_->resolution_m());
-      fresh = region ? world::plan_evidence(state, *region, probe, options) : world::plan_evidence(state, probe, options);
+      fresh =
+          region ? world::plan_evidence(state, *region, probe, options) : world::plan_evidence(state, probe, options);
       report->grid_revision = grid_revision_;
     } else {
       report->grid_revision = previous->grid_revision;
@@ -431,9 +433,9 @@ void WorldService::refresh_plan_evidence(const world::WorldState& state, const s
     facts.reserve(fresh.size());
     for (const auto& e : fresh) {
       const auto& object_id = state.objects[e.object].plan->id;
-      rules::EdgeEvidenceFacts f{object_id,    world::edge_id(object_id, e.edge), e.backed, e.seen_through,
-                                 e.observed,   {},
-                                 e.beams_through, e.beams_ended};
+      rules::EdgeEvidenceFacts f{
+          object_id,    world::edge_id(object_id, e.edge), e.backed, e.seen_through, e.observed, {}, e.beams_through,
+          e.beams_ended};
       for (const auto& stretch : e.seen_through_stretches) f.stretches.emplace_back(stretch.s0_m, stretch.s1_m);
       keys.push_back({f.object_id, f.edge_id});
       facts.push_back(std::move(f));
@@ -451,8 +453,9 @@ void WorldService::refresh_plan_evidence(const world::WorldState& state, const s
     if (scoped)
       for (const auto& e : previous->edges)
         if (!refreshed.contains({e.object, e.edge}) && e.object < state.objects.size()) report->edges.push_back(e);
-    std::sort(report->edges.begin(), report->edges.end(),
-              [](const auto& a, const auto& b) { return std::pair{a.object, a.edge} < std::pair{b.object, b.edge}; });
+    std::sort(report->edges.begin(), report->edges.end(), [](const auto& a, const auto& b) {
+      return std::pair{a.object, a.edge} < std::pair{b.object, b.edge};
+    });
     if (scoped)
       for (const auto& v : previous->verdicts) {
         const auto index = state.objects.index_of(v.object_id);
@@ -474,8 +477,10 @@ void WorldService::refresh_plan_evidence(const world::WorldState& state, const s
       report->verdicts.push_back(std::move(v));
     }
     std::sort(report->verdicts.begin(), report->verdicts.end(), [&state](const auto& a, const auto& b) {
-      const auto ia = state.objects.index_of(a.object_id).value_or(0), ib = state.objects.index_of(b.object_id).value_or(0);
-      const auto ea = a.edge ? static_cast<std::int64_t>(*a.edge) : -1, eb = b.edge ? static_cast<std::int64_t>(*b.edge) : -1;
+      const auto ia = state.objects.index_of(a.object_id).value_or(0),
+                 ib = state.objects.index_of(b.object_id).value_or(0);
+      const auto ea = a.edge ? static_cast<std::int64_t>(*a.edge) : -1,
+                 eb = b.edge ? static_cast<std::int64_t>(*b.edge) : -1;
       return std::tuple{ia, ea, a.stretch.s0_m} < std::tuple{ib, eb, b.stretch.s0_m};
     });
     std::lock_guard lock(plan_report_mutex_);

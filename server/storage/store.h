@@ -89,7 +89,7 @@ class Store {
   /// What a person decided about a listed change between plan and building.
   struct PlanChangeRecord {
     std::string change_id;
-    std::string verdict;  // accepted | rejected
+    std::string verdict;                            // accepted | rejected
     std::optional<apriori::FloorPlan> plan_before;  // accepted: the plan the change was applied to
     std::int64_t decision_seq = 0;
   };

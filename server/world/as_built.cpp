@@ -31,11 +31,13 @@ AsBuiltReport as_built_report(const WorldState& state, const PlanReport* evidenc
   }
   if (evidence) {
     for (const auto& verdict : evidence->verdicts)
-      if (const auto index = state.objects.index_of(verdict.object_id)) report.objects[*index].verdicts.push_back(&verdict);
+      if (const auto index = state.objects.index_of(verdict.object_id))
+        report.objects[*index].verdicts.push_back(&verdict);
   }
   for (auto& entry : report.objects) {
     const auto has = [&entry](const char* name) {
-      return std::any_of(entry.verdicts.begin(), entry.verdicts.end(), [name](const Verdict* v) { return v->verdict == name; });
+      return std::any_of(entry.verdicts.begin(), entry.verdicts.end(),
+                         [name](const Verdict* v) { return v->verdict == name; });
     };
     // A verdict says more than adjustments, and an adjustment more than any number of confirmations.
     if (has("gone")) {

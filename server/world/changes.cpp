@@ -47,10 +47,12 @@ std::vector<Change> list_changes(const WorldState& state, const PlanReport* evid
       const auto segment = object.body.world_edge(*verdict.edge, Eigen::Matrix2d::Zero());
       const std::string edge = edge_id(verdict.object_id, *verdict.edge);
       const double length = segment.length_m();
-      const double s0 = std::clamp(verdict.stretch.s0_m, 0.0, length), s1 = std::clamp(verdict.stretch.s1_m, s0, length);
+      const double s0 = std::clamp(verdict.stretch.s0_m, 0.0, length),
+                   s1 = std::clamp(verdict.stretch.s1_m, s0, length);
       change.kind = verdict.verdict == "missing" ? ChangeKind::wall_missing : ChangeKind::wall_partly_missing;
-      change.key = verdict.verdict == "missing" ? "missing:" + edge
-                                                : "partly_missing:" + edge + "@" + centimetres(s0) + "-" + centimetres(s1);
+      change.key = verdict.verdict == "missing"
+                       ? "missing:" + edge
+                       : "partly_missing:" + edge + "@" + centimetres(s0) + "-" + centimetres(s1);
       change.edge = verdict.edge;
       change.stretch = {s0, s1};
       const Eigen::Vector2d a = segment.p0(), b = segment.p1();

@@ -23,7 +23,7 @@ enum class ChangeKind {
 };
 
 struct ChangeOptions {
-  double min_new_wall_length_m = 0.5;  // shorter elements are clutter, not walls to draw [m]
+  double min_new_wall_length_m = 0.5;     // shorter elements are clutter, not walls to draw [m]
   std::int64_t min_new_wall_support = 3;  // observations fused into it
   /// A rigid adjustment is a move to report only beyond this and beyond 2 σ of its pose [m], [rad].
   double min_move_m = 0.02;
@@ -37,11 +37,11 @@ struct Change {
   /// "c" and 12 hex digits of a hash of the key: URL-safe (object ids may hold any character) and as stable.
   std::string id;
   ChangeKind kind = ChangeKind::new_wall;
-  std::string object_id;             // the plan object concerned (empty for a new wall)
-  std::optional<std::size_t> edge;   // its edge, for walls missing
-  std::string element_id;            // the element, for a new wall
+  std::string object_id;            // the plan object concerned (empty for a new wall)
+  std::optional<std::size_t> edge;  // its edge, for walls missing
+  std::string element_id;           // the element, for a new wall
   Eigen::Vector2d p0 = Eigen::Vector2d::Zero(), p1 = Eigen::Vector2d::Zero();  // where, in the world frame [m]
-  Stretch stretch;                   // along the edge, for walls missing [m]
+  Stretch stretch;                                                             // along the edge, for walls missing [m]
   double length_m = 0;
   /// How sure the evidence is, in [0, 1]: the share of what was seen of the edge that was seen through; for a move,
   /// 1 − exp(−d²/2σ²) of its displacement d against its σ; for a new wall, its support against 10 views.

@@ -38,7 +38,7 @@ EdgePlace place_of(const apriori::PlanObject& drawn, std::size_t k) {
 void cut_edge(apriori::PlanObject& drawn, std::size_t k, const std::optional<Eigen::Vector2d>& cut0,
               const std::optional<Eigen::Vector2d>& cut1) {
   const auto place = place_of(drawn, k);
-  std::vector<Eigen::Vector2d> before, after;         // the points up to the edge's start, from its end
+  std::vector<Eigen::Vector2d> before, after;  // the points up to the edge's start, from its end
   if (place.polyline) {
     const auto& line = drawn.polylines[*place.polyline];
     before.assign(line.begin(), line.begin() + static_cast<std::ptrdiff_t>(place.index) + 1);

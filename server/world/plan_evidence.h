@@ -69,8 +69,8 @@ struct Verdict {
 
 /// The evidence and the verdicts over the whole plan, as last computed by the writer.
 struct PlanReport {
-  std::int64_t map_version = 0;    // the map version the edges were placed from
-  std::int64_t grid_revision = 0;  // the last scan the grid held
+  std::int64_t map_version = 0;     // the map version the edges were placed from
+  std::int64_t grid_revision = 0;   // the last scan the grid held
   std::vector<EdgeEvidence> edges;  // every edge with any sample observed, (object, edge) order
   std::vector<Verdict> verdicts;    // in (object, edge, s0) order
   /// The evidence of an edge, or nullptr when it has none.

@@ -1,5 +1,3 @@
-#include "rules/engine.h"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -8,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "rules/engine.h"
 #include "tests/rules/rules_test_helpers.h"
 
 namespace wm::rules {
@@ -98,10 +97,9 @@ TEST_F(VerdictsTest, BadEvidenceIsRefusedAndChangesNothing) {
   EXPECT_THROW(engine_.set_edge_evidence({evidence("w1", "w1_e0", std::nan(""), 0.9, 0.95)}, true),
                std::invalid_argument);
   EXPECT_THROW(engine_.set_edge_evidence({evidence("", "w1_e0", 0, 0, 0)}, false), std::invalid_argument);
-  EXPECT_THROW(
-      engine_.set_edge_evidence(
-          {evidence("w1", "w1_e0", 0, 0, 0, {{0.0, std::numeric_limits<double>::infinity()}})}, false),
-      std::invalid_argument);
+  EXPECT_THROW(engine_.set_edge_evidence(
+                   {evidence("w1", "w1_e0", 0, 0, 0, {{0.0, std::numeric_limits<double>::infinity()}})}, false),
+               std::invalid_argument);
   EXPECT_EQ(engine_.plan_verdicts(std::nullopt, 100).size(), 1u);
 }
 
@@ -112,9 +110,9 @@ TEST(VerdictsRulesTest, GlassExampleKeepsAGlassWallFromBeingCalledMissing) {
   Engine engine(options_for(dir));
   engine.set_floor_plan({{"g1", "wall", {"solid", "glass"}, {{"g1_e0", 2.0, 0.0, 4.0}}},
                          {"w1", "wall", {"solid"}, {{"w1_e0", 3.0, 0.0, 4.0}}}});
-  engine.set_edge_evidence({evidence("g1", "g1_e0", 0.0, 1.0, 1.0, {{0.0, 4.0}}),
-                            evidence("w1", "w1_e0", 0.0, 1.0, 1.0, {{0.0, 4.0}})},
-                           true);
+  engine.set_edge_evidence(
+      {evidence("g1", "g1_e0", 0.0, 1.0, 1.0, {{0.0, 4.0}}), evidence("w1", "w1_e0", 0.0, 1.0, 1.0, {{0.0, 4.0}})},
+      true);
   const auto verdicts = engine.plan_verdicts(std::nullopt, 100);
   ASSERT_EQ(verdicts.size(), 1u);
   EXPECT_EQ(verdicts[0].object_id, "w1");  // the glass wall has none
@@ -123,8 +121,9 @@ TEST(VerdictsRulesTest, GlassExampleKeepsAGlassWallFromBeingCalledMissing) {
 TEST(VerdictsRulesTest, UserRuleThatLoopsGivesNoVerdictsAndAnError) {
   testing::TempDir dir;
   testing::copy_shipped_rules(dir);
-  write_text(dir / "zz_loop.pl", "verdict_override(O, E, V, R, X) :- spin(O, E, V, R, X).\n"
-                                 "spin(O, E, V, R, X) :- spin(O, E, V, R, X).\n");
+  write_text(dir / "zz_loop.pl",
+             "verdict_override(O, E, V, R, X) :- spin(O, E, V, R, X).\n"
+             "spin(O, E, V, R, X) :- spin(O, E, V, R, X).\n");
   Engine engine(options_for(dir));
   engine.set_floor_plan(testing::demo_floor_plan());
   engine.set_edge_evidence({evidence("w1", "w1_e0", 0.0, 0.9, 0.95)}, true);

@@ -5,6 +5,7 @@
 // stretch partly missing, no standing wall missing, and list the partition as a new wall.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -13,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "rules/engine.h"
+#include "server/storage/store.h"
 #include "server/world/changes.h"
 #include "tests/support/temp_dir.h"
 #include "tools/replay/log_replay.h"
@@ -79,24 +82,51 @@ apriori::PlanObject wall_object(std::string id, const Wall& wall) {
   return object;
 }
 
-TEST(PlanChangesTest, DemolishedWallIsMissingDoorCutIsPartlyMissingAndPartitionIsNew) {
+// A 12 × 8 m room, its plan and its log (see the test below).
+struct Scenario {
+  apriori::FloorPlan plan;
+  std::filesystem::path log;
+};
+
+Scenario room_scenario(const std::filesystem::path& dir) {
   // A 12 × 8 m room. Drawn: the four sides (the south side as two walls) and an inner wall at x = 8 from y = 0 to 4.
   // Built: the inner wall is gone, a door 1.2 m wide was cut into the north side at x 3.0–4.2, and a partition
   // stands from (3, 5.5) to (5.5, 5.5).
   const Wall south_a{{0, 0}, {6, 0}}, south_b{{6, 0}, {12, 0}}, east{{12, 0}, {12, 8}}, north{{12, 8}, {0, 8}},
       west{{0, 8}, {0, 0}}, inner{{8, 0}, {8, 4}}, partition{{3, 5.5}, {5.5, 5.5}};
   // The door: the north wall runs from x = 12 to 4.2 and from 3.0 to 0; behind the door a corridor wall at y = 10.
-  const std::vector<Wall> world{south_a, south_b, east,  {{12, 8}, {4.2, 8}}, {{3.0, 8}, {0, 8}}, west, partition,
-                                {{2, 10}, {5, 10}}, {{2, 8}, {2, 10}}, {{5, 8}, {5, 10}}};
+  const std::vector<Wall> world{south_a,
+                                south_b,
+                                east,
+                                {{12, 8}, {4.2, 8}},
+                                {{3.0, 8}, {0, 8}},
+                                west,
+                                partition,
+                                {{2, 10}, {5, 10}},
+                                {{2, 8}, {2, 10}},
+                                {{5, 8}, {5, 10}}};
   const std::vector<Point> loop{{1.5, 1.5}, {10.5, 1.5}, {10.5, 6.5}, {1.5, 6.5}};
-  TempDir dir;
-  const auto log = dir.path() / "room.log";
-  write_log(world, loop, log);
+  Scenario scenario;
+  scenario.log = dir / "room.log";
+  write_log(world, loop, scenario.log);
+  scenario.plan.name = "room";
+  scenario.plan.objects = {wall_object("south-a", south_a), wall_object("south-b", south_b),
+                           wall_object("east", east),       wall_object("north", north),
+                           wall_object("west", west),       wall_object("inner", inner)};
+  return scenario;
+}
 
-  apriori::FloorPlan plan;
-  plan.name = "room";
-  plan.objects = {wall_object("south-a", south_a), wall_object("south-b", south_b), wall_object("east", east),
-                  wall_object("north", north),     wall_object("west", west),       wall_object("inner", inner)};
+const world::Change* with_key(const std::vector<world::Change>& changes, const std::string& key) {
+  for (const auto& c : changes)
+    if (c.key == key) return &c;
+  return nullptr;
+}
+
+TEST(PlanChangesTest, DemolishedWallIsMissingDoorCutIsPartlyMissingAndPartitionIsNew) {
+  TempDir dir;
+  const auto scenario = room_scenario(dir.path());
+  const auto& log = scenario.log;
+  const auto& plan = scenario.plan;
   replay::LogReplayOptions options;
   options.rules_dir = WM_RULES_DIR;
   options.work_dir = dir.path();
@@ -125,15 +155,17 @@ TEST(PlanChangesTest, DemolishedWallIsMissingDoorCutIsPartlyMissingAndPartitionI
   ASSERT_NE(inner_missing->evidence, nullptr);
   EXPECT_LT(inner_missing->evidence->backed, 0.05);
 
-  // The door: one stretch of the north wall, within 10 cm of the true opening (x from 3.0 to 4.2).
+  // The door: one stretch of the north wall, within 15 cm of the true opening (x from 3.0 to 4.2): the grid marks a
+  // return over the laser beam's width (2°, 5–7 cm at these ranges), so a wall's end reaches a cell or two into
+  // the opening. Measured: 3.05 to 4.10.
   std::size_t door_stretches = 0;
   for (const auto& c : changes) {
     if (c.object_id != "north") continue;
     ASSERT_EQ(c.kind, world::ChangeKind::wall_partly_missing) << listed;
     ++door_stretches;
-    EXPECT_NEAR(std::min(c.p0.x(), c.p1.x()), 3.0, 0.10) << listed;
-    EXPECT_NEAR(std::max(c.p0.x(), c.p1.x()), 4.2, 0.10) << listed;
-    EXPECT_NEAR(c.stretch.s1_m - c.stretch.s0_m, 1.2, 0.2) << listed;
+    EXPECT_NEAR(std::min(c.p0.x(), c.p1.x()), 3.0, 0.15) << listed;
+    EXPECT_NEAR(std::max(c.p0.x(), c.p1.x()), 4.2, 0.15) << listed;
+    EXPECT_NEAR(c.stretch.s1_m - c.stretch.s0_m, 1.2, 0.25) << listed;
   }
   EXPECT_EQ(door_stretches, 1u) << listed;
 
@@ -149,6 +181,80 @@ TEST(PlanChangesTest, DemolishedWallIsMissingDoorCutIsPartlyMissingAndPartitionI
     covered += std::max(0.0, std::min(std::max(c.p0.x(), c.p1.x()), 5.5) - std::max(std::min(c.p0.x(), c.p1.x()), 3.0));
   }
   EXPECT_GT(covered, 0.9 * 2.5) << listed;
+}
+
+}  // namespace
+}  // namespace wm::testing
+
+namespace wm::testing {
+namespace {
+
+// Accepting a change makes a new plan (the evidence follows it at once), a rejected change is no longer listed,
+// both survive a restart, and undo takes them back one at a time.
+TEST(PlanChangesTest, AcceptedAndRejectedChangesSurviveARestartAndUndoTakesThemBack) {
+  TempDir dir;
+  const auto scenario = room_scenario(dir.path());
+  replay::LogReplayOptions options;
+  options.rules_dir = WM_RULES_DIR;
+  options.work_dir = dir.path();
+  options.plan = scenario.plan;
+  std::string accepted, rejected;
+  replay::replay_log(scenario.log, options, [&](service::WorldService& service) {
+    std::shared_ptr<const world::WorldState> state;
+    std::shared_ptr<const world::PlanReport> evidence;
+    auto listed = service.changes(state, evidence);
+    const auto* inner = with_key(listed, "missing:inner/0");
+    ASSERT_NE(inner, nullptr);
+    accepted = inner->id;
+    const auto partition = std::find_if(listed.begin(), listed.end(),
+                                        [](const world::Change& c) { return c.kind == world::ChangeKind::new_wall; });
+    ASSERT_NE(partition, listed.end());
+    rejected = partition->id;
+    const auto before_version = state->version;
+    const auto outcome = service.decide_change(accepted, true, "alice");
+    EXPECT_EQ(outcome.decision.action, rules::Action::accept);
+    EXPECT_EQ(outcome.decision.object, "inner");
+    EXPECT_EQ(outcome.version, before_version + 1);
+    EXPECT_EQ(service.snapshot()->find_object("inner"), nullptr);  // a wall of one edge goes with it
+    service.decide_change(rejected, false, "alice");
+    listed = service.changes(state, evidence);
+    EXPECT_EQ(with_key(listed, "missing:inner/0"), nullptr);
+    for (const auto& c : listed) EXPECT_NE(c.id, rejected);
+    // Not listed any more: a second accept is refused and changes nothing.
+    EXPECT_THROW(service.decide_change(accepted, true, "alice"), service::NotFound);
+    const auto decided = service.decisions(0, 100000, std::nullopt);
+    ASSERT_GE(decided.size(), 2u);
+    EXPECT_EQ(decided[decided.size() - 2].rule, "change_accepted");
+    EXPECT_EQ(decided.back().rule, "change_rejected");
+  });
+  // A restart on the same file.
+  storage::StoreOptions store_options;
+  store_options.path = (dir.path() / "replay.db").string();
+  storage::Store store(store_options);
+  rules::EngineOptions engine_options;
+  engine_options.rules_dir = WM_RULES_DIR;
+  rules::Engine engine(engine_options);
+  service::WorldService service(service::ServiceOptions{}, store, engine, nullptr);
+  std::shared_ptr<const world::WorldState> state;
+  std::shared_ptr<const world::PlanReport> evidence;
+  auto listed = service.changes(state, evidence);
+  EXPECT_EQ(state->find_object("inner"), nullptr);
+  EXPECT_NE(state->find_object("north"), nullptr);
+  for (const auto& c : listed) EXPECT_NE(c.id, rejected);
+  // The evidence is rebuilt from the grid at start: the door is still there.
+  EXPECT_NE(std::find_if(listed.begin(), listed.end(),
+                         [](const world::Change& c) { return c.kind == world::ChangeKind::wall_partly_missing; }),
+            listed.end());
+  // Undo the reject: listed again; undo the accept: the wall is back, and missing again.
+  EXPECT_EQ(service.undo_change("alice").decision.rule, "change_undone");
+  listed = service.changes(state, evidence);
+  EXPECT_NE(std::find_if(listed.begin(), listed.end(), [&](const world::Change& c) { return c.id == rejected; }),
+            listed.end());
+  service.undo_change("alice");
+  listed = service.changes(state, evidence);
+  EXPECT_NE(state->find_object("inner"), nullptr);
+  EXPECT_NE(with_key(listed, "missing:inner/0"), nullptr);
+  EXPECT_THROW(service.undo_change("alice"), service::Conflict);
 }
 
 }  // namespace

@@ -31,8 +31,8 @@ std::string decider(const Call& call) {
 
 /// A change id as listed: "c" and 12 hex digits. Anything else cannot be listed: 404 without asking the writer.
 void require_change_id(const std::string& id) {
-  const bool well_formed = id.size() == 13 && id[0] == 'c' &&
-                           id.find_first_not_of("0123456789abcdef", 1) == std::string::npos;
+  const bool well_formed =
+      id.size() == 13 && id[0] == 'c' && id.find_first_not_of("0123456789abcdef", 1) == std::string::npos;
   if (!well_formed) throw ApiError(404, "not_found", "no change '" + id.substr(0, 64) + "': ids are c + 12 hex digits");
 }
 

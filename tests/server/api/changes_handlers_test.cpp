@@ -67,7 +67,8 @@ TEST_F(ChangesHandlersTest, ListsMissingStretchesAndNewWallsWithTheirEvidence) {
   EXPECT_NEAR(door["length"].get<double>(), 2.0, 1e-9);
   // 4 m to 6 m from the edge's first end, wherever the edge starts.
   const auto edge = world_.state().objects[0].body.world_edge(0, Eigen::Matrix2d::Zero());
-  const Eigen::Vector2d from = edge.p0() + 0.2 * (edge.p1() - edge.p0()), to = edge.p0() + 0.3 * (edge.p1() - edge.p0());
+  const Eigen::Vector2d from = edge.p0() + 0.2 * (edge.p1() - edge.p0()),
+                        to = edge.p0() + 0.3 * (edge.p1() - edge.p0());
   EXPECT_NEAR(door["p0"][0].get<double>(), from.x(), 1e-9);
   EXPECT_NEAR(door["p1"][0].get<double>(), to.x(), 1e-9);
   EXPECT_NEAR(door["p0"][1].get<double>(), 10.0, 1e-9);
