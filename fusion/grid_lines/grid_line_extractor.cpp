@@ -302,15 +302,49 @@ class Extractor {
       return std::nullopt;  // coincident points or no dominant direction: not a line
     }
     result.cell = internal::cell_line(result.line, raster_.geometry);
-    double t_min = std::numeric_limits<double>::infinity();
-    double t_max = -t_min;
+    // The extent. Each slice's cells along the fitted line: their mean coordinate [m].
+    std::vector<double> sum(slices, 0.0);
+    std::vector<std::size_t> count(slices, 0);
     for (const Cell& c : cells) {
-      const double t = result.line.coordinate_along(raster_.geometry.center_of({c.x, c.y}));
-      t_min = std::min(t_min, t);
-      t_max = std::max(t_max, t);
+      sum[c.slice] += result.line.coordinate_along(raster_.geometry.center_of({c.x, c.y}));
+      ++count[c.slice];
     }
-    result.t0_m = t_min - 0.5 * resolution_m_;
-    result.t1_m = t_max + 0.5 * resolution_m_;
+    // A slice holding more than the typical cross-section at an end is another wall crossing there (a corner, a T):
+    // the end is the innermost such slice, where that wall begins, and not its far side, which is as far past the
+    // corner as the other wall is thick (with the laser's band behind a surface, 2–3 cells). At a free end, the
+    // centre of the last cells: hits reach the wall's end somewhere inside that cell.
+    // Crossing: beyond the typical cross-section and on to the band's edge (a wall that runs on across the band; a
+    // thicker patch of this wall's own band, or a speck, does not reach it). Only the last slices can hold the
+    // crossing wall that ends this one: as many as the band is wide, counted from the outermost cells inward.
+    auto crossing = [&](std::size_t k) {
+      return (lo[k] < typical_lo && lo[k] <= 1.0 - band) || (hi[k] > typical_hi && hi[k] >= band - 1.0);
+    };
+    const auto window = static_cast<std::ptrdiff_t>(std::ceil(2.0 * band)) + 1;
+    auto end_at = [&](std::size_t from, std::size_t to, std::ptrdiff_t step) -> std::optional<double> {
+      std::optional<std::size_t> outermost, innermost;
+      for (auto k = static_cast<std::ptrdiff_t>(from); k != static_cast<std::ptrdiff_t>(to) + step; k += step) {
+        const auto u = static_cast<std::size_t>(k);
+        if (outermost && std::abs(k - static_cast<std::ptrdiff_t>(*outermost)) >= window) break;
+        if (count[u] == 0) continue;
+        if (!outermost) outermost = u;
+        if (crossing(u)) innermost = u;
+      }
+      if (!outermost) return std::nullopt;
+      const std::size_t k = innermost ? *innermost : *outermost;
+      return sum[k] / static_cast<double>(count[k]);
+    };
+    std::optional<std::size_t> k_first, k_last;
+    for (std::size_t k = 0; k < slices; ++k) {
+      if (count[k] == 0) continue;
+      if (!k_first) k_first = k;
+      k_last = k;
+    }
+    if (!k_first) return std::nullopt;
+    const std::optional<double> a = end_at(*k_first, *k_last, 1);
+    const std::optional<double> b = end_at(*k_last, *k_first, -1);
+    if (!a || !b) return std::nullopt;
+    result.t0_m = std::min(*a, *b);
+    result.t1_m = std::max(*a, *b);
     return result;
   }
 

@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -137,6 +138,32 @@ std::optional<LocalSegment> fit_piece(const std::vector<Eigen::Vector2d>& points
   return LocalSegment{piece, segment};
 }
 
+// Whether every point of the piece lies within the split threshold of the line (the split's own test).
+bool on_line(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs, Piece piece,
+             const LineFeature& line, const ScanLineOptions& options) {
+  for (std::size_t i = piece.first; i < piece.last; ++i) {
+    if (std::abs(line.signed_distance(points[i])) >
+        std::max(options.split_distance_m, 4.0 * normal_sigma(covs[i], line.normal())))
+      return false;
+  }
+  return true;
+}
+
+// Whether consecutive readings a, b (points pa, pb in the sensor frame) belong to different runs: farther apart than
+// max_gap_m, or than the adaptive breakpoint distance (Borges & Aldon 2004) r_a·sin Δφ / sin(λ − Δφ) + 3σ_r — the
+// spacing of two returns from a surface seen at incidence λ, plus the range noise.
+bool breaks_between(const RangeReading& a, const RangeReading& b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb,
+                    const ScanLineOptions& options) {
+  const double distance = (pb - pa).norm();
+  if (distance > options.max_gap_m) return true;
+  if (!options.adaptive_breakpoints) return false;
+  const double dphi = std::abs(b.bearing_rad - a.bearing_rad);
+  const double lambda = options.breakpoint_lambda_rad;
+  if (dphi >= lambda) return true;
+  const double sigma_r = options.sigma_range_m + options.sigma_range_relative * std::max(a.range_m, b.range_m);
+  return distance > a.range_m * std::sin(dphi) / std::sin(lambda - dphi) + 3.0 * sigma_r;
+}
+
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument("extract_scan_lines: " + what);
 }
@@ -152,6 +179,8 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
   require(std::isfinite(options.merge_chi2) && options.merge_chi2 >= 0, "merge_chi2 must be finite and >= 0");
   require(options.sigma_range_m > 0 && std::isfinite(options.sigma_range_m), "sigma_range_m must be > 0");
   require(options.sigma_range_relative >= 0 && options.sigma_bearing_rad >= 0, "noise terms must be >= 0");
+  require(options.breakpoint_lambda_rad > 0 && options.breakpoint_lambda_rad < std::numbers::pi / 2,
+          "breakpoint_lambda_rad must be in (0, pi/2)");
   require(std::isfinite(sensor_pose.x_m) && std::isfinite(sensor_pose.y_m) && std::isfinite(sensor_pose.theta_rad),
           "sensor pose is not finite");
   require(pose_cov.allFinite(), "pose_cov is not finite");
@@ -175,32 +204,40 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
     covs.push_back(j * variances.asDiagonal() * j.transpose());
   }
 
-  // Runs of points without gaps, then split.
+  // Runs of points without gaps or breakpoints, then split. run_of[i] numbers the run of point i: pieces of two runs
+  // are never merged.
   std::vector<Piece> pieces;
+  std::vector<std::size_t> run_of(points.size(), 0);
   std::size_t run_start = 0;
   for (std::size_t i = 1; i <= points.size(); ++i) {
-    if (i == points.size() || (points[i] - points[i - 1]).norm() > options.max_gap_m) {
+    if (i == points.size() || breaks_between(readings[i - 1], readings[i], points[i - 1], points[i], options)) {
       if (i > run_start) split(points, covs, {run_start, i}, options, pieces);
       run_start = i;
     }
+    if (i < points.size()) run_of[i] = run_of[i - 1] + (run_start == i ? 1 : 0);
   }
 
   std::vector<LocalSegment> segments;
   for (const auto& piece : pieces)
     if (auto fitted = fit_piece(points, covs, piece, options)) segments.push_back(*fitted);
 
-  // Merge neighbours in scan order whose lines agree and that touch; refit over the union.
+  // Merge neighbours in scan order whose lines agree and that touch; refit over the union. Only within a run (a
+  // breakpoint is a depth step), and only when every point of the union, including those between the two pieces,
+  // lies on the refitted line by the split's test: a pilaster or a recess between two collinear pieces of a wall
+  // may have given no segment of its own (too short), and the refit would otherwise take its points in and come
+  // out tilted or shifted toward it.
   for (bool merged = true; merged;) {
     merged = false;
     for (std::size_t k = 0; k + 1 < segments.size(); ++k) {
       const auto& a = segments[k];
       const auto& b = segments[k + 1];
+      if (run_of[a.piece.first] != run_of[b.piece.last - 1]) continue;
       const double gap = (points[b.piece.first] - points[a.piece.last - 1]).norm();
       if (gap > options.max_gap_m) continue;
       if (mahalanobis_squared(a.segment.line, b.segment.line) > options.merge_chi2) continue;
       const Piece joined{a.piece.first, std::max(a.piece.last, b.piece.last)};
       auto refit = fit_piece(points, covs, joined, options);
-      if (!refit) continue;
+      if (!refit || !on_line(points, covs, refit->piece, refit->segment.line, options)) continue;
       segments[k] = *refit;
       segments.erase(segments.begin() + static_cast<std::ptrdiff_t>(k + 1));
       merged = true;

@@ -11,12 +11,20 @@ namespace wm::fusion {
 
 /// Settings of the scan line extractor (split-and-merge, docs/fusion.md §2 for the fit).
 struct ScanLineOptions {
-  std::size_t min_points = 6;      // fewer points in a piece as split: no segment (its fit may keep 4 after trimming)
-  double min_length_m = 0.3;       // shorter: no segment
-  double max_gap_m = 0.25;         // consecutive points farther apart start a new segment
-  double split_distance_m = 0.03;  // split where a point is farther than max(this, 3σ) from the chord
-  double merge_chi2 = 5.991;       // χ², 2 dof (95 %): adjacent segments whose lines agree are merged
-  double sigma_range_m = 0.01;     // range noise per reading, plus sigma_range_relative · range
+  std::size_t min_points = 6;  // fewer points in a piece as split: no segment (its fit may keep 4 after trimming)
+  double min_length_m = 0.3;   // shorter: no segment
+  double max_gap_m = 0.25;     // consecutive points farther apart start a new segment
+  /// Adaptive breakpoint detector (Borges & Aldon, J. Intell. Robot. Syst. 39, 2004): consecutive points
+  /// p_{n−1}, p_n also start a new segment when ‖p_n − p_{n−1}‖ > r_{n−1}·sin Δφ / sin(λ − Δφ) + 3σ_r, Δφ their
+  /// bearing difference, σ_r the range noise. That distance is how far apart two returns from one surface seen at
+  /// incidence λ can be, so a depth step (a door frame, a pilaster) seen at a steeper angle is cut and no piece
+  /// spans it; a surface seen flatter than λ falls apart into points, too few for a line. λ [rad], in (0, π/2);
+  /// a Δφ of λ or more is always a breakpoint.
+  double breakpoint_lambda_rad = 0.1745;  // 10°
+  bool adaptive_breakpoints = true;       // false: only max_gap_m cuts
+  double split_distance_m = 0.03;         // split where a point is farther than max(this, 3σ) from the chord
+  double merge_chi2 = 5.991;              // χ², 2 dof (95 %): adjacent segments whose lines agree are merged
+  double sigma_range_m = 0.01;            // range noise per reading, plus sigma_range_relative · range
   double sigma_range_relative = 0.0;
   double sigma_bearing_rad = 0.0005;  // bearing noise per beam (angular jitter of the scanner)
   /// Scale a fit's covariance by its reduced χ² (Σ residual²/σ² over n − 2) when that exceeds 1, so a segment whose
@@ -31,12 +39,14 @@ struct RangeReading {
 };
 
 /// Extracts line segments from one ordered scan (readings in beam order; invalid ones already removed).
-/// Points are split at gaps and recursively at the farthest point from the chord (iterative end-point
-/// fit), trimmed of up to four end points that lie off the line of the others (the corner a split shares), fitted
-/// by weighted total least squares with per-point covariance from range and bearing noise,
-/// and adjacent segments whose lines pass a χ² test are merged and refitted. The segments are returned
-/// in the world frame: `sensor_pose` places the sensor, `pose_cov` (3×3 over x, y, θ) is propagated into
-/// each line's covariance. @throw std::invalid_argument for non-finite readings or pose, or bad options.
+/// Points are cut into runs at gaps and breakpoints (max_gap_m, the adaptive breakpoint detector), each run is split
+/// recursively at the farthest point from the chord (iterative end-point fit), trimmed of up to four end points that
+/// lie off the line of the others (the corner a split shares, a mixed return at a step), fitted by weighted total
+/// least squares with per-point covariance from range and bearing noise, and neighbouring pieces of one run whose
+/// lines pass a χ² test are merged and refitted when every point between and under them lies on the merged line
+/// (so a wall is never joined across a pilaster or a recess whose own piece was too short to keep). The segments are
+/// returned in the world frame: `sensor_pose` places the sensor, `pose_cov` (3×3 over x, y, θ) is propagated into each
+/// line's covariance. @throw std::invalid_argument for non-finite readings or pose, or bad options.
 std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& readings, const Pose2D& sensor_pose,
                                             const Eigen::Matrix3d& pose_cov, const ScanLineOptions& options);
 

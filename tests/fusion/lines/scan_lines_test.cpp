@@ -53,11 +53,11 @@ constexpr int kBeams = 1440;  // a full circle at 0.25°
 
 // A full-circle scan with Gaussian range and bearing noise, as the extractor's model assumes.
 std::vector<RangeReading> scan(const std::vector<Wall>& walls, const Pose2D& pose, const ScanLineOptions& o,
-                               std::mt19937& rng) {
+                               std::mt19937& rng, int beams = kBeams) {
   std::normal_distribution<double> range_noise(0.0, o.sigma_range_m), bearing_noise(0.0, o.sigma_bearing_rad);
   std::vector<RangeReading> readings;
-  for (int i = 0; i < kBeams; ++i) {
-    const double bearing = -std::numbers::pi + i * 2 * std::numbers::pi / kBeams;
+  for (int i = 0; i < beams; ++i) {
+    const double bearing = -std::numbers::pi + i * 2 * std::numbers::pi / beams;
     const double actual = pose.theta_rad + bearing + bearing_noise(rng);
     const auto r = cast(walls, {pose.x_m, pose.y_m}, {std::cos(actual), std::sin(actual)});
     if (r) readings.push_back({*r + range_noise(rng), bearing});
@@ -186,6 +186,69 @@ TEST(ScanLinesTest, GapsSplitCollinearWallsAndShortPiecesAreDropped) {
   ASSERT_EQ(segments.size(), 2u);
   for (const auto& s : segments) EXPECT_NEAR(s.line.rho_m, 2.0, 0.01);
   EXPECT_GT(std::min(segments[0].length_m(), segments[1].length_m()), 2.0);
+}
+
+// A wall at y = 2 with a pilaster standing 13 cm out of it and a recess (a door frame) 13 cm deep: faces 13 cm apart
+// that split-and-merge alone joined into short diagonals across the step and lines tilted toward the other face.
+std::vector<Wall> stepped_wall() {
+  return {{{-4, 2}, {-0.3, 2}},       {{-0.3, 2}, {-0.3, 1.87}}, {{-0.3, 1.87}, {0.3, 1.87}},
+          {{0.3, 1.87}, {0.3, 2}},    {{0.3, 2}, {1.5, 2}},      {{1.5, 2}, {1.5, 2.13}},
+          {{1.5, 2.13}, {2.4, 2.13}}, {{2.4, 2.13}, {2.4, 2}},   {{2.4, 2}, {4, 2}}};
+}
+
+TEST(ScanLinesTest, DepthStepsCutTheScanSoNoSegmentJoinsTwoFaces) {
+  const auto walls = stepped_wall();
+  ScanLineOptions options;
+  options.sigma_range_m = 0.01;
+  std::mt19937 rng(11);
+  int segments_seen = 0;
+  for (const int beams : {720, 1440}) {  // 0.5° and 0.25°
+    for (const double x : {-3.8, -2.5, -1.2, -0.5, 0.0, 0.6, 1.2, 1.95, 3.0, 3.8}) {
+      for (const double y : {1.7, 1.5, 1.2, 0.6, 0.0, -1.0}) {
+        const Pose2D pose{x, y, 1.3};
+        const auto segments =
+            extract_scan_lines(scan(walls, pose, options, rng, beams), pose, Eigen::Matrix3d::Zero(), options);
+        for (const auto& s : segments) {
+          ++segments_seen;
+          // Each segment on one face: both ends within 2 cm of its line, and within its extent up to 5 cm (the last
+          // return before a corner is 2.4 σ of range noise along the wall when seen at 16°).
+          bool on_one_face = false;
+          for (const auto& w : walls) {
+            const Eigen::Vector2d e = (w.b - w.a).normalized();
+            bool on = true;
+            for (const Eigen::Vector2d& p : {s.p0(), s.p1()}) {
+              const double t = (p - w.a).dot(e);
+              on = on && t > -0.05 && t < (w.b - w.a).norm() + 0.05 && std::abs(line_of(w).signed_distance(p)) < 0.02;
+            }
+            on_one_face = on_one_face || on;
+          }
+          EXPECT_TRUE(on_one_face) << beams << " beams, pose " << x << "," << y << ": " << s.length_m() << " m from "
+                                   << s.p0().transpose() << " to " << s.p1().transpose();
+        }
+      }
+    }
+  }
+  EXPECT_GT(segments_seen, 100);
+}
+
+TEST(ScanLinesTest, TheBreakpointDetectorIsAnOption) {
+  // Without it a 13 cm step seen head-on at 3 m is no gap of 0.25 m: the run spans both faces.
+  const std::vector<Wall> walls = {{{-3, 3}, {0, 3}}, {{0, 3}, {0, 3.13}}, {{0, 3.13}, {3, 3.13}}};
+  ScanLineOptions options;
+  std::mt19937 rng(2);
+  const auto readings = scan(walls, {0.8, 0, std::numbers::pi / 2}, options, rng, 720);
+  for (const bool adaptive : {true, false}) {
+    options.adaptive_breakpoints = adaptive;
+    const auto segments =
+        extract_scan_lines(readings, {0.8, 0, std::numbers::pi / 2}, Eigen::Matrix3d::Zero(), options);
+    ASSERT_EQ(segments.size(), 2u) << adaptive;
+    for (const auto& s : segments) {
+      const double rho = std::abs(s.line.rho_m);
+      EXPECT_TRUE(std::abs(rho - 3.0) < 0.01 || std::abs(rho - 3.13) < 0.01) << rho;
+    }
+  }
+  options.breakpoint_lambda_rad = 0;
+  EXPECT_THROW(extract_scan_lines(readings, {0, 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
 }
 
 TEST(ScanLinesTest, BadInputIsRefused) {
