@@ -48,8 +48,8 @@ export class Api {
     return new URL(path, this.base).href;
   }
 
-  async fetchOk(path, cache = 'no-store') {
-    const res = await fetch(this.url(path), { cache });
+  async fetchOk(path, cache = 'no-store', init = {}) {
+    const res = await fetch(this.url(path), { cache, ...init });
     if (!res.ok) {
       let code = 'http_error', detail = '';
       try {
@@ -76,7 +76,27 @@ export class Api {
     return new Uint8Array(await (await this.fetchOk(path)).arrayBuffer());
   }
 
+  /**
+   * POST `body` as JSON, with `Authorization: Bearer <token>` when a token is given (a server started with
+   * --token refuses writes without it: 401). Resolves with the answer's JSON; an ApiError otherwise.
+   */
+  async post(path, body, token = '') {
+    const headers = { 'content-type': 'application/json' };
+    if (token) headers.authorization = `Bearer ${token}`;
+    const init = { method: 'POST', headers, body: JSON.stringify(body ?? {}) };
+    return (await this.fetchOk(path, 'no-store', init)).json();
+  }
+
   health() { return this.json('/api/v1/health'); }
+  /** The differences between plan and building a person may accept or reject. */
+  changes() { return this.json('/api/v1/changes'); }
+  /** Accepts (`verdict` 'accept') or rejects ('reject') change `id`: {version, change, decision, object?}. */
+  decideChange(id, verdict, token = '', source = 'viewer') {
+    if (verdict !== 'accept' && verdict !== 'reject') throw new Error(`unknown verdict ${verdict}`);
+    return this.post(`/api/v1/changes/${encodeURIComponent(id)}/${verdict}`, { source }, token);
+  }
+  /** Undoes the last accept or reject (409 when there is none). */
+  undoChange(token = '', source = 'viewer') { return this.post('/api/v1/changes/undo', { source }, token); }
   network() { return this.json('/api/v1/network'); }
   /** The whole map. The browser keeps its last copy and revalidates it (ETag): an unchanged map costs a 304. */
   map() { return this.json('/api/v1/map', 'no-cache'); }

@@ -2,16 +2,21 @@
 //   REST sync (map + health, grid layers) on load, on every (re)connect, on a missed event and on "resync";
 //   WebSocket events afterwards: "update" → model upserts + highlights + feed, "scan" → robot pose/points and
 //   a dirty grid region (re-fetched by bbox, throttled), "floorplan" → map reload, "rules" → status.
+// The changes in the building (GET /api/v1/changes) are re-read when the map's version moves, a scan came in or a
+// change was decided, at most every 3 s (at once after a decision); Accept, Reject and Undo post with the token.
 // Events that arrive while a sync is running are buffered and applied after it (updates at or below the synced
 // map version are skipped, the rest are idempotent upserts).
 
 import { Api, ApiError, apiBaseFromLocation, EventStream, eventsUrl } from './api.js';
+import {
+  changeCentre, ChangeList, decisionErrorText, loadToken, RefreshThrottle, saveToken,
+} from './changes.js';
 import { RateMeter } from './geometry.js';
 import { GridLayers } from './grid_layers.js';
 import { MapView } from './map_view.js';
 import { objectOfEdge, WorldModel } from './model.js';
 import {
-  DecisionFeed, renderDetails, renderHistory, renderLegend, StatusPanel, fmt,
+  ChangesPanel, DecisionFeed, renderDetails, renderHistory, renderLegend, StatusPanel, fmt,
 } from './panels.js';
 
 const $ = (id) => document.getElementById(id);
@@ -25,6 +30,7 @@ const state = {
   syncing: false,
   syncAgain: false,
   syncAgainGrid: false,
+  syncAgainFull: false,
   buffered: [],
   syncs: 0,
   dropBuffered: false,  // a resync was asked for during a sync: its buffered events wait for that one
@@ -66,16 +72,47 @@ const view = new MapView($('map-canvas'), model, grid, {
 
 const feed = new DecisionFeed((d) => select(targetOfDecision(d)));
 
+const changes = new ChangeList();
+view.changes = changes;
+const changesState = {
+  throttle: new RefreshThrottle(3000),
+  loads: 0,          // answers of GET /api/v1/changes applied
+  decisions: 0,      // accepts, rejects and undos this page made
+  lastOutcome: null, // {verdict, change, version, seq} of the last one
+  lastError: null,   // {status, text} of the last failed one
+  token: '',
+};
+// sessionStorage may be refused (storage blocked for the site): the token then lives as long as the page.
+const tokenStorage = (() => {
+  try {
+    return window.sessionStorage;
+  } catch {
+    return null;
+  }
+})();
+changesState.token = loadToken(tokenStorage, window.location.search);
+const changesPanel = new ChangesPanel({
+  token: changesState.token,
+  onDecide: (id, verdict) => decideChange(id, verdict),
+  onUndo: () => decideChange(null, 'undo'),
+  onShow: (id) => view.centreOn(changeCentre(changes.get(id))),
+  onToken: (token) => {
+    changesState.token = token;
+    saveToken(tokenStorage, token);
+  },
+});
+
 // ---- sync ------------------------------------------------------------------------------------------------
 
 /**
  * Re-reads the map and health (and, unless `withGrid` is false, every grid layer). Events arriving meanwhile
  * are buffered and applied afterwards, so none is lost and none is overwritten by an older snapshot.
  */
-async function resync(reason, { withGrid = true } = {}) {
+async function resync(reason, { withGrid = true, full = false } = {}) {
   if (state.syncing) {
     state.syncAgain = true;
     state.syncAgainGrid ||= withGrid;
+    state.syncAgainFull ||= full;
     // The sync under way may read a map older than events after a hole; applied on it, they would move the
     // model's version past the hole and the next delta would skip it. The next sync brings them all.
     state.dropBuffered = true;
@@ -85,12 +122,13 @@ async function resync(reason, { withGrid = true } = {}) {
   state.buffered = [];
   if (withGrid) grid.resyncAll();
   try {
-    const [map, health, robots] = await Promise.all([syncMap(), api.health(), api.robots().catch(() => null)]);
+    const [map, health, robots] = await Promise.all([syncMap(full), api.health(), api.robots().catch(() => null)]);
     if (robots) model.loadRobots(robots, performance.now());
     status.setHealth(health);
     status.setPlacement(map.placement);
     state.syncs++;
     state.lastSyncReason = reason;
+    changesState.throttle.mark();
   } catch (error) {
     status.setHealth(null, error.message);
     state.lastError = error.message;
@@ -108,19 +146,21 @@ async function resync(reason, { withGrid = true } = {}) {
   view.autoFit();
   if (state.selection) select(state.selection);
   if (state.syncAgain) {
-    const again = { withGrid: state.syncAgainGrid };
+    const again = { withGrid: state.syncAgainGrid, full: state.syncAgainFull };
     state.syncAgain = false;
     state.syncAgainGrid = false;
+    state.syncAgainFull = false;
     resync('requested during a sync', again);
   }
 }
 
 /**
  * Brings the model to the server's map: only what changed since the model's version when the server can tell
- * (GET /api/v1/map?since=), else the whole map. Returns the answer applied (both carry the placement).
+ * (GET /api/v1/map?since=), else (or when `full`) the whole map. Returns the answer applied (both carry the
+ * placement).
  */
-async function syncMap() {
-  if (model.version >= 0 && model.serverInstance) {
+async function syncMap(full = false) {
+  if (!full && model.version >= 0 && model.serverInstance) {
     try {
       const delta = await api.mapSince(model.version);
       if (model.applyDelta(delta)) {
@@ -135,6 +175,62 @@ async function syncMap() {
   const map = await api.map();
   model.loadMap(map);
   return map;
+}
+
+// ---- changes in the building -----------------------------------------------------------------------------
+
+/** Re-reads GET /api/v1/changes when it is due (see RefreshThrottle); `force` asks for it now. */
+async function refreshChanges(force = false) {
+  if (force) changesState.throttle.mark(true);
+  if (!changesState.throttle.due(performance.now())) return;
+  changesState.throttle.started(performance.now());
+  try {
+    const answer = await api.changes();
+    if (changes.load(answer)) view.requestDraw();
+    changesPanel.render(changes);
+    changesPanel.setLoadError(null);
+    changesState.loads++;
+  } catch (error) {
+    changesPanel.setLoadError(`GET /api/v1/changes: ${error.message}`);
+  } finally {
+    changesState.throttle.finished();
+  }
+  // A mark that came in during the read (a forced one: at once) is served on the next tick or now.
+  if (changesState.throttle.forced) refreshChanges();
+}
+
+/** Accept or reject change `id`, or undo the last decision (`verdict` 'undo'); then the list and the map reload. */
+async function decideChange(id, verdict) {
+  if (changes.busy) return;
+  const what = verdict === 'undo' ? 'undo' : `${verdict} ${id}`;
+  changes.busy = { id, verdict };
+  changesPanel.setBusy(true);
+  changesPanel.setError(null);
+  changesPanel.setMessage(`${what}…`);
+  try {
+    const answer = verdict === 'undo'
+      ? await api.undoChange(changesState.token)
+      : await api.decideChange(id, verdict, changesState.token);
+    const done = { accept: 'accepted', reject: 'rejected', undo: 'undid' }[verdict];
+    changesState.lastOutcome = { verdict, change: answer.change, version: answer.version, seq: answer.decision?.seq ?? null };
+    changesState.lastError = null;
+    changesState.decisions++;
+    changesPanel.setMessage(`${done} ${answer.change}: decision #${answer.decision?.seq ?? '–'}` +
+      `${answer.object ? `, drawn as ${answer.object}` : ''} (map version ${answer.version})`, verdict);
+  } catch (error) {
+    const status = error instanceof ApiError ? error.status : null;
+    changesState.lastError = { status, text: decisionErrorText(error, what) };
+    changesPanel.setError(changesState.lastError.text, status);
+    changesPanel.setMessage('');
+    if (status === 401) document.getElementById('changes-token').focus();
+  } finally {
+    changes.busy = null;
+    changesPanel.setBusy(false);
+  }
+  // The plan may be another version now, or the list was out of date (404): read both again (the whole map:
+  // see the "change" event).
+  resync('change decided', { withGrid: false, full: true });
+  refreshChanges(true);
 }
 
 // ---- events ----------------------------------------------------------------------------------------------
@@ -166,10 +262,20 @@ function handle(event) {
         status.noteDecision(d.seq);
       }
       if (state.selection && touchesSelection(applied)) refreshHistorySoon();
+      changesState.throttle.mark();
       afterModelChange();
       break;
     }
+    case 'change':
+      // Someone (this page, wmctl, another viewer) accepted, rejected or undid a change. The "update" event
+      // before it moved the model to the new map version but names no object the edit took out of the plan
+      // (an accepted missing wall, an undone new wall), and a delta from that version would not either: the whole
+      // map is read again (revalidated by its ETag).
+      refreshChanges(true);
+      resync(`change ${event.verdict ?? ''}`, { withGrid: false, full: true });
+      break;
     case 'scan':
+      changesState.throttle.mark();
       model.applyScan(event, now);
       grid.markDirty(event.grid_revision);
       view.requestDraw();
@@ -181,6 +287,7 @@ function handle(event) {
       if (state.selection?.kind === 'robot' && state.selection.id === event.robot?.id) renderDetails(state.selection, model);
       break;
     case 'floorplan':
+      changesState.throttle.mark(true);
       resync('new floor plan', { withGrid: false });
       break;
     case 'rules':
@@ -289,7 +396,7 @@ $('layer-select').addEventListener('change', (e) => {
   tick();
 });
 for (const [id, key] of [['toggle-grid', 'grid'], ['toggle-objects', 'objects'], ['toggle-elements', 'elements'],
-  ['toggle-band', 'band'], ['toggle-robots', 'robots']]) {
+  ['toggle-band', 'band'], ['toggle-robots', 'robots'], ['toggle-changes', 'changes']]) {
   const box = $(id);
   view.show[key] = box.checked;
   box.addEventListener('change', () => {
@@ -311,8 +418,9 @@ const hook = {
   get lastDecision() { return state.lastDecision ? { ...state.lastDecision } : null; },
   get decisionsSeen() { return state.decisionsSeen; },
   get mapVersion() { return model.version; },
-  /** Counts of what the last frame drew (objects, edges, elements, bands, robots, scanPoints, grid). */
-  get drawn() { return { ...view.drawn }; },
+  /** Counts of what the last frame drew (objects, edges, elements, bands, robots, scanPoints, changes and
+   *  changeKinds (per kind), grid). */
+  get drawn() { return { ...view.drawn, changeKinds: { ...view.drawn.changeKinds } }; },
   /** Counts in the viewer's model (what the next frame will draw). */
   get counts() {
     return { objects: model.objects.size, edges: model.edgeCount(), elements: model.elements.size, robots: model.robots.size };
@@ -325,6 +433,16 @@ const hook = {
   get selection() { return state.selection ? { ...state.selection } : null; },
   get view() { return { ...view.view }; },
   get apiBase() { return api.base; },
+  /** The changes listed (GET /api/v1/changes as last read) and what this page decided about them. */
+  get changes() {
+    return {
+      version: changes.version, gridRevision: changes.gridRevision, ids: changes.items.map((c) => c.id),
+      kinds: changes.countsByKind(), loads: changesState.loads, decisions: changesState.decisions,
+      busy: Boolean(changes.busy),
+      lastOutcome: changesState.lastOutcome ? { ...changesState.lastOutcome } : null,
+      lastError: changesState.lastError ? { ...changesState.lastError } : null,
+    };
+  },
   /** Page coordinates {x, y} of world point (x, y) [m]: where a click lands on it. */
   toClient(x, y) { return view.toClient(x, y); },
 };
@@ -345,4 +463,5 @@ const stream = new EventStream(eventsUrl(api.base, new URLSearchParams(location.
 stream.start();
 resync('page load');
 setInterval(tick, 1000);
+setInterval(() => refreshChanges(), 500);
 setInterval(pollHealth, 5000);

@@ -2,6 +2,7 @@
 // Vector layers are cached as Path2D objects in world coordinates and rebuilt only when the model changes,
 // so a frame is a handful of drawImage/stroke calls under one transform whatever the zoom.
 
+import { changeShapes } from './changes.js';
 import { covarianceBand, elementCategory, objectCategory, pointSegmentDistance } from './geometry.js';
 import { highlightTargets, kHighlightMs } from './model.js';
 
@@ -40,13 +41,16 @@ export class MapView {
     this.view = { cx: 0, cy: 0, scale: 20 };  // world point at the canvas centre [m], px per m (CSS px)
     this.userMoved = false;
     this.fittedKinds = 0;  // bit 1: the map's bounds, bit 2: the grid's, once fitted to
-    this.show = { grid: true, objects: true, elements: true, band: false, robots: true };
+    this.show = { grid: true, objects: true, elements: true, band: false, robots: true, changes: true };
+    this.changes = null;               // the ChangeList drawn over the plan
     this.selection = null;             // {kind, id}
     this.highlights = new Map();       // key kind:id -> {kind, id, action, seq, start}
     this.recentHighlights = [];        // the last 100, for the test hook
     this.paths = null;
     this.pathsKey = '';
-    this.drawn = { objects: 0, edges: 0, elements: 0, bands: 0, robots: 0, scanPoints: 0, grid: false, frames: 0 };
+    this.drawn = {
+      objects: 0, edges: 0, elements: 0, bands: 0, robots: 0, scanPoints: 0, changes: 0, changeKinds: {}, grid: false, frames: 0,
+    };
     this.pending = false;
     this.installInput();
     new ResizeObserver(() => this.requestDraw()).observe(canvas);
@@ -286,7 +290,7 @@ export class MapView {
     ctx.fillRect(0, 0, this.canvas.width, this.canvas.height);
     const s = this.view.scale;
     const now = performance.now();
-    const drawn = { objects: 0, edges: 0, elements: 0, bands: 0, robots: 0, scanPoints: 0, grid: false };
+    const drawn = { objects: 0, edges: 0, elements: 0, bands: 0, robots: 0, scanPoints: 0, changes: 0, changeKinds: {}, grid: false };
 
     // Grid: one drawImage of the layer's canvas; pixels stay crisp when zoomed in.
     const l = this.grid.layer();
@@ -316,6 +320,8 @@ export class MapView {
       drawn.objects = p.counts.objects;
       drawn.edges = p.counts.edges;
     }
+    // Halos (new walls) go beneath the elements they are, the rest over them.
+    if (this.show.changes && this.changes) this.drawChanges(ctx, px, drawn, true);
     if (this.show.elements) {
       if (this.show.band) {
         ctx.fillStyle = kColors.band;
@@ -329,6 +335,8 @@ export class MapView {
       }
       drawn.elements = p.counts.elements;
     }
+
+    if (this.show.changes && this.changes) this.drawChanges(ctx, px, drawn, false);
 
     if (this.show.robots) {
       let i = 0;
@@ -401,6 +409,62 @@ export class MapView {
     drawn.frames = this.drawn.frames + 1;
     this.drawn = drawn;
     if (live) this.requestDraw();
+  }
+
+  /**
+   * The changes in the building over the plan, each in its kind's colour (see changes.js): missing stretches
+   * dashed over the drawn wall, new walls solid, gone objects crossed out, moved objects an arrow from where they
+   * were drawn (outline dashed) to where they stand; new walls a green halo under the element. `under` picks the
+   * halos (drawn before the elements) or the rest (after). Counts what it drew in `drawn.changes` and `changeKinds`.
+   */
+  drawChanges(ctx, px, drawn, under) {
+    for (const change of this.changes.items) {
+      const shape = changeShapes(change, change.object ? this.model.objects.get(change.object) : undefined, { pxM: px });
+      if (!shape || !shape.segments.length || shape.under !== under) continue;
+      drawn.changes++;
+      drawn.changeKinds[shape.kind] = (drawn.changeKinds[shape.kind] || 0) + 1;
+      if (shape.under) {
+        ctx.globalAlpha = 0.6;
+        ctx.strokeStyle = shape.color;
+        ctx.lineWidth = shape.width * px;
+        ctx.beginPath();
+        for (const [a, b] of shape.segments) { ctx.moveTo(a[0], a[1]); ctx.lineTo(b[0], b[1]); }
+        ctx.stroke();
+        ctx.globalAlpha = 1;
+        continue;
+      }
+      ctx.strokeStyle = shape.color;
+      if (shape.ghost.length) {
+        ctx.globalAlpha = 0.8;
+        ctx.lineWidth = 1.5 * px;
+        ctx.setLineDash([4 * px, 3 * px]);
+        ctx.beginPath();
+        for (const [a, b] of shape.ghost) { ctx.moveTo(a[0], a[1]); ctx.lineTo(b[0], b[1]); }
+        ctx.stroke();
+        ctx.globalAlpha = 1;
+      }
+      // A dark outline under the colour keeps it readable on white (free) and black (occupied) cells alike.
+      ctx.setLineDash(shape.dash ? shape.dash.map((d) => d * px) : []);
+      ctx.beginPath();
+      for (const [a, b] of shape.segments) { ctx.moveTo(a[0], a[1]); ctx.lineTo(b[0], b[1]); }
+      ctx.strokeStyle = 'rgba(20, 22, 26, 0.55)';
+      ctx.lineWidth = (shape.width + 2) * px;
+      ctx.stroke();
+      ctx.strokeStyle = shape.color;
+      ctx.lineWidth = shape.width * px;
+      ctx.stroke();
+      ctx.setLineDash([]);
+    }
+  }
+
+  /** Centres the view on world point [x, y] (the zoom stays). */
+  centreOn(p) {
+    if (!p) return;
+    this.view.cx = p[0];
+    this.view.cy = p[1];
+    this.userMoved = true;
+    this.requestDraw();
+    this.onView();
   }
 
   /** World segments [[p0, p1], ...] of a highlight or selection target. */

@@ -1,6 +1,9 @@
-// The side panels: status, details with decision history, the live decision feed and the legend.
-// Server text only ever goes into textContent, never into HTML.
+// The side panels: status, the changes in the building, details with decision history, the live decision feed
+// and the legend. Server text only ever goes into textContent, never into HTML.
 
+import {
+  changeEvidence, changeStyle, changeSummary, kChangeKinds, kChangeStyles,
+} from './changes.js';
 import { kColors } from './map_view.js';
 
 /** A DOM element: el('li', {class: 'x', dataset: {seq: 3}}, 'text', child, ...). */
@@ -156,6 +159,94 @@ export class StatusPanel {
 
   setSeq(seq, syncs) {
     this.$('status-seq').textContent = `seq ${seq ?? '–'} · ${syncs} sync${syncs === 1 ? '' : 's'}`;
+  }
+}
+
+// ---- changes ---------------------------------------------------------------------------------------------
+
+/**
+ * The "Changes" panel: one row per listed change (kind, key, length, confidence; the explanation on hover and
+ * under "why"), Accept and Reject per row, Undo, the write token and what the last request answered or why it
+ * failed. It only shows; `onDecide(id, verdict)`, `onUndo()`, `onShow(change)` and `onToken(token)` act.
+ */
+export class ChangesPanel {
+  constructor({ token = '', onDecide, onUndo, onShow, onToken }) {
+    this.$ = (id) => document.getElementById(id);
+    this.list = this.$('changes-list');
+    this.open = new Set();  // ids whose "why" is expanded, kept across reloads
+    this.onDecide = onDecide;
+    this.onShow = onShow;
+    const field = this.$('changes-token');
+    field.value = token;
+    field.addEventListener('input', () => onToken(field.value.trim()));
+    this.$('changes-undo').addEventListener('click', () => onUndo());
+    this.list.addEventListener('click', (e) => {
+      const button = e.target.closest('button');
+      const row = e.target.closest('li.change');
+      if (!button || !row || this.list.dataset.busy === '1') return;
+      if (button.classList.contains('accept')) this.onDecide(row.dataset.id, 'accept');
+      else if (button.classList.contains('reject')) this.onDecide(row.dataset.id, 'reject');
+      else if (button.classList.contains('key')) this.onShow(row.dataset.id);
+    });
+  }
+
+  /** Rebuilds the rows from a ChangeList. */
+  render(changes) {
+    for (const d of this.list.querySelectorAll('details[open]')) this.open.add(d.closest('li').dataset.id);
+    for (const d of this.list.querySelectorAll('details:not([open])')) this.open.delete(d.closest('li').dataset.id);
+    const rows = changes.items.map((c) => {
+      const style = changeStyle(c.kind);
+      const why = el('details', {}, el('summary', {}, 'why'),
+        el('p', { class: 'explanation' }, c.explanation || ''),
+        el('p', { class: 'evidence dim' }, changeEvidence(c)));
+      if (this.open.has(c.id)) why.open = true;
+      return el('li', { class: 'change', dataset: { id: c.id, kind: c.kind, key: c.key ?? '' }, title: c.explanation || '' },
+        el('div', { class: 'head' },
+          el('span', { class: 'action kind', style: `--action-color: ${style.color}` }, style.label), ' ',
+          el('button', { type: 'button', class: 'link key', title: 'show it on the map' }, c.key ?? c.id)),
+        el('div', { class: 'numbers' }, changeSummary(c), ' ', el('code', { class: 'dim' }, c.id)),
+        el('div', { class: 'buttons' },
+          el('button', { type: 'button', class: 'accept', title: 'put it into the plan (a new version of the plan)' }, 'Accept'),
+          el('button', { type: 'button', class: 'reject', title: 'the plan is right: no longer list it' }, 'Reject')),
+        why);
+    });
+    this.list.replaceChildren(...rows);
+    const ids = new Set(changes.items.map((c) => c.id));
+    for (const id of this.open) if (!ids.has(id)) this.open.delete(id);
+    this.list.dataset.count = changes.size;
+    this.list.dataset.version = changes.version ?? '';
+    const count = this.$('changes-count');
+    count.textContent = `${changes.size} · map version ${changes.version ?? '–'} · grid rev ${changes.gridRevision ?? '–'}`;
+    this.$('changes-empty').hidden = changes.size > 0;
+  }
+
+  /** While a request is under way its buttons are disabled (one decision at a time). */
+  setBusy(busy) {
+    this.list.dataset.busy = busy ? '1' : '0';
+    for (const b of this.list.querySelectorAll('button.accept, button.reject')) b.disabled = busy;
+    this.$('changes-undo').disabled = busy;
+  }
+
+  /** Shows an error (with the HTTP status in data-status), or clears it with null. */
+  setError(text, status = '') {
+    const box = this.$('changes-error');
+    box.hidden = !text;
+    box.textContent = text || '';
+    box.dataset.status = text ? String(status ?? '') : '';
+  }
+
+  /** What the last request did, e.g. "accepted c…: decision #42". */
+  setMessage(text, verdict = '') {
+    const box = this.$('changes-message');
+    box.textContent = text || '';
+    box.dataset.verdict = verdict;
+  }
+
+  /** Why the list could not be read (kept until the next good read). */
+  setLoadError(text) {
+    const box = this.$('changes-load-error');
+    box.hidden = !text;
+    box.textContent = text || '';
   }
 }
 
@@ -316,5 +407,11 @@ export function renderLegend() {
     group('decisions (flash)', [['merged', kColors.highlights.merge], ['rigid_adjust', kColors.highlights.rigid_adjust],
       ['added', kColors.highlights.add], ['deleted / pruned', kColors.highlights.delete],
       ['trimmed', kColors.highlights.trim]], 'wide'),
+    el('div', { class: 'legend-group' }, el('h4', {}, 'changes in the building'),
+      el('ul', {}, ...kChangeKinds.map((kind) => {
+        const style = kChangeStyles[kind];
+        return el('li', { dataset: { kind } },
+          el('span', { class: `swatch ${style.dash ? 'dash' : style.under ? 'wide' : 'line'}`, style: `--swatch: ${style.color}` }), style.label);
+      }))),
     group('grid', [['free', '#ffffff'], ['occupied', '#000000'], ['unknown', 'rgb(188, 194, 204)']], 'box'));
 }
