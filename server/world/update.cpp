@@ -1,5 +1,10 @@
 #include "server/world/update.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -21,6 +26,24 @@ struct CandidateRef {
 // How far (box to box) a candidate may be and still be worth the gate.
 double candidate_margin(const fusion::MatchOptions& match) { return kCandidateMarginM + match.max_gap_m; }
 
+// Objects the server moves rigidly when the rules say so (the shipped rules: rigid_adjust on a match).
+bool is_rigid(const ObjectState& object) { return object.plan->has_attribute("not_deformable"); }
+
+// Whether `seen` can be a view of `edge`, an edge of the rigid `object`: its ends within the edge's extent, up to
+// the gap allowance plus 3σ of where the object stands along the edge. A rigid object does not stretch, so a line
+// much longer than the edge, or running past its end (the wall a table stands against), is not that edge.
+bool within_extent(const ObjectState& object, const fusion::LineSegment& edge, const fusion::LineSegment& seen,
+                   double gap_m) {
+  const Eigen::Vector2d d = edge.line.direction();
+  const Eigen::Vector2d middle = 0.5 * (edge.p0() + edge.p1());
+  const auto& pose = object.body.pose();
+  // Along the edge, the middle moves by d·δt + d·J(middle − t)·δθ.
+  const Eigen::Vector3d j(d.x(), d.y(), d.dot(Eigen::Vector2d(-(middle.y() - pose.y_m), middle.x() - pose.x_m)));
+  const double slack = gap_m + 3.0 * std::sqrt(std::max(0.0, j.dot(object.body.pose_cov() * j)));
+  const double ta = edge.line.coordinate_along(seen.p0()), tb = edge.line.coordinate_along(seen.p1());
+  return std::min(ta, tb) >= edge.t0_m - slack && std::max(ta, tb) <= edge.t1_m + slack;
+}
+
 struct Candidates {
   std::vector<fusion::LineSegment> segments;
   std::vector<CandidateRef> refs;
@@ -34,6 +57,7 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
   for (const auto& [i, k] : state.objects.edges_near(near)) {
     auto edge = apriori_edge(state.objects[i], k, options);
     if (!Box::of(edge).overlaps(near)) continue;
+    if (is_rigid(state.objects[i]) && !within_extent(state.objects[i], edge, seen, options.match.max_gap_m)) continue;
     c.segments.push_back(std::move(edge));
     c.refs.push_back({i, k, 0});
   }
@@ -230,6 +254,175 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
   }
 }
 
+// How far a rigid object may have been carried and still be found by its shape (its centroid's move) [m], and
+// the bounds that keep the search cheap: objects per observation, segments per object.
+constexpr double kShapeSearchM = 3.0;
+constexpr std::size_t kShapeObjects = 4;
+constexpr std::size_t kShapeSegments = 24;
+
+// Rigid objects found again by their shape in one observation: per segment the object and edge it lies on, and
+// the pose each object was found at.
+struct FoundByShape {
+  std::vector<std::optional<CandidateRef>> ref;
+  std::map<std::size_t, fusion::Pose2D> pose;
+};
+
+double distance_to_segment(const Eigen::Vector2d& p, const fusion::LineSegment& s) {
+  const Eigen::Vector2d a = s.p0(), d = s.p1() - a;
+  const double len2 = d.squaredNorm();
+  const double t = len2 > 0.0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (a + t * d - p).norm();
+}
+
+// A rigid object carried beyond its gate leaves its views unmatched (or matched to it at the old pose, the wrong
+// way). Several such views of one observation near a rigid object that its edges explain after one rigid
+// transform (fusion::find_by_shape: lengths and extents included, so the walls beside it do not count) are taken
+// as views of it. Only objects within kShapeSearchM of the observation, only when at least one of the views is
+// unmatched, and only views that match nothing else.
+FoundByShape find_moved_objects(const WorldState& state, const Observation& observation, const WorldOptions& options) {
+  FoundByShape found;
+  const std::size_t n = observation.segments.size();
+  found.ref.resize(n);
+  if (n < 2 || state.objects.empty()) return found;
+  Box box{std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::lowest(),
+          std::numeric_limits<double>::lowest()};
+  for (const auto& s : observation.segments) {
+    const Box b = Box::of(s.segment);
+    box = {std::min(box.x0, b.x0), std::min(box.y0, b.y0), std::max(box.x1, b.x1), std::max(box.y1, b.y1)};
+  }
+  box = {box.x0 - kShapeSearchM, box.y0 - kShapeSearchM, box.x1 + kShapeSearchM, box.y1 + kShapeSearchM};
+  // Nearest objects first: their centroid's distance to the closest segment.
+  std::vector<std::pair<double, std::size_t>> objects;
+  for (const auto& [i, k] : state.objects.edges_near(box)) {
+    if ((!objects.empty() && objects.back().second == i) || !is_rigid(state.objects[i])) continue;
+    const auto& body = state.objects[i].body;
+    const Eigen::Vector2d centre = body.pose().transform_point(body.local_centroid());
+    double nearest = std::numeric_limits<double>::max();
+    for (const auto& s : observation.segments) nearest = std::min(nearest, distance_to_segment(centre, s.segment));
+    objects.emplace_back(nearest, i);
+  }
+  std::sort(objects.begin(), objects.end());
+  if (objects.size() > kShapeObjects) objects.resize(kShapeObjects);
+
+  // What each segment matches in the map as it is (asked only of segments near a searched object, once): nullopt
+  // nothing, else the candidate's object index, kElement for an element.
+  constexpr std::size_t kElement = std::numeric_limits<std::size_t>::max();
+  std::vector<std::optional<std::optional<std::size_t>>> matched(n);
+  for (const auto& [nearest, index] : objects) {
+    const auto& body = state.objects[index].body;
+    const Eigen::Vector2d centre = body.pose().transform_point(body.local_centroid());
+    double radius = 0.0;
+    for (const auto& e : body.edges()) {
+      radius = std::max(radius, (body.pose().transform_point(e.p0) - centre).norm());
+      radius = std::max(radius, (body.pose().transform_point(e.p1) - centre).norm());
+    }
+    std::vector<std::size_t> group;
+    bool any_unmatched = false;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& seen = observation.segments[i].segment;
+      if (found.ref[i] || distance_to_segment(centre, seen) > kShapeSearchM + radius) continue;
+      if (!matched[i]) {
+        const Candidates candidates = collect_candidates(state, seen, options);
+        const auto m = fusion::best_match(candidates.segments, seen, options.match);
+        matched[i] = !m ? std::optional<std::size_t>{} : candidates.refs[m->index].object.value_or(kElement);
+      }
+      const auto& what = *matched[i];
+      if (what && *what != index) continue;  // a view of something else
+      any_unmatched |= !what;
+      group.push_back(i);
+    }
+    if (group.size() < 2 || !any_unmatched) continue;
+    std::stable_sort(group.begin(), group.end(), [&](std::size_t a, std::size_t b) {
+      return observation.segments[a].segment.length_m() > observation.segments[b].segment.length_m();
+    });
+    if (group.size() > kShapeSegments) group.resize(kShapeSegments);
+    std::vector<fusion::LineSegment> segments;
+    for (const auto i : group) segments.push_back(observation.segments[i].segment);
+    fusion::ShapeFitOptions fit_options;
+    fit_options.max_shift_m = kShapeSearchM;
+    const auto fit = fusion::find_by_shape(body, segments, fit_options);
+    if (!fit) continue;
+    bool explains_unmatched = false;
+    for (std::size_t g = 0; g < group.size(); ++g) explains_unmatched |= fit->edge_of[g] && !*matched[group[g]];
+    if (!explains_unmatched) continue;
+    for (std::size_t g = 0; g < group.size(); ++g)
+      if (fit->edge_of[g]) found.ref[group[g]] = CandidateRef{index, *fit->edge_of[g], 0};
+    found.pose[index] = fit->pose;
+  }
+  return found;
+}
+
+// A new element from an observed segment (the add action); its number.
+std::int64_t add_element(UpdateResult& result, const fusion::LineSegment& seen, const Observation& observation) {
+  WorldState& state = result.state;
+  Element element;
+  element.number = state.next_element_number++;
+  element.segment = seen;
+  element.moments = fusion::SegmentMoments::of(seen);
+  element.origin = observation.origin;
+  element.observer = observation.observer;
+  element.created_version = state.version;
+  element.updated_version = state.version;
+  element.updated_at_unix_s = observation.received_at_unix_s;
+  const std::int64_t number = element.number;
+  result.changed_elements.insert(number);
+  state.elements.put(std::move(element));
+  return number;
+}
+
+// The lines of one observation the rules sent to rigid_adjust one object: applied together, once.
+struct PendingRigid {
+  std::vector<fusion::EdgeObservation> lines;
+  std::vector<std::size_t> records;   // into result.decisions, one per line
+  std::vector<std::size_t> segments;  // into observation.segments, one per line
+  bool by_shape = false;              // some of them were found by the object's shape
+};
+
+// One joint update of object `index` from every line the rules sent to it (one edge alone fixes only its normal and
+// the turn). When the object was found by its shape, its covariance first widens to cover the move (it was
+// carried) and the iteration starts at the pose found. If the update fails, each line becomes the fallback add.
+void apply_rigid(UpdateResult& result, std::size_t index, const PendingRigid& pending, const FoundByShape& found,
+                 const Observation& observation, std::int64_t observation_seq, const WorldOptions& options,
+                 const Decide& decide) {
+  WorldState& state = result.state;
+  ObjectState object = state.objects[index];
+  fusion::RigidObject body = object.body;
+  fusion::RigidUpdateOptions how;
+  if (const auto at = found.pose.find(index); pending.by_shape && at != found.pose.end()) {
+    body = body.with_move_allowed(at->second);
+    how.start = at->second;
+  }
+  try {
+    const auto before = pose_numbers(object.body);
+    object.body = body.updated(pending.lines, how);
+    const auto after = pose_numbers(object.body);
+    for (const auto r : pending.records) {
+      result.decisions[r].before = before;
+      result.decisions[r].after = after;
+    }
+    object.adjustments += static_cast<std::int64_t>(pending.lines.size());
+    object.updated_version = state.version;
+    state.objects.put(index, std::move(object));
+    result.changed_objects.insert(index);
+  } catch (const std::invalid_argument& e) {
+    for (std::size_t j = 0; j < pending.records.size(); ++j) {
+      DecisionRecord& record = result.decisions[pending.records[j]];
+      make_fallback(record, rules::wire_name(rules::Action::rigid_adjust),
+                    std::string("rigid update failed: ") + e.what());
+      record.object.reset();
+      const auto number = add_element(result, observation.segments[pending.segments[j]].segment, observation);
+      record.element = element_id(number);
+      join_neighbours(result, number, observation, observation_seq, options, decide);
+    }
+  }
+}
+
+std::string pose_text(const fusion::Pose2D& pose) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%.3f, %.3f, %.4f)", pose.x_m, pose.y_m, pose.theta_rad);
+  return text;
+}
+
 }  // namespace
 
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,
@@ -239,11 +432,25 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
   state.version = current.version + 1;
   state.last_observation_seq = observation_seq;
 
+  const FoundByShape found = find_moved_objects(current, observation, options);
+  std::map<std::size_t, PendingRigid> pending;  // by object index
+
   for (std::size_t i = 0; i < observation.segments.size(); ++i) {
     const auto& seen = observation.segments[i].segment;
-    // Matching runs against the map as changed by the earlier segments of the same request.
-    const Candidates candidates = collect_candidates(state, seen, options);
-    const auto match = fusion::best_match(candidates.segments, seen, options.match);
+    // Matching runs against the map as changed by the earlier segments of the same request (rigid objects move
+    // once, after the last segment).
+    Candidates candidates = collect_candidates(state, seen, options);
+    auto match = fusion::best_match(candidates.segments, seen, options.match);
+    if (found.ref[i]) {
+      // A view of a carried object: matched to its edge where its shape was found.
+      const CandidateRef& f = *found.ref[i];
+      const ObjectState& object = state.objects[*f.object];
+      const fusion::RigidObject there(found.pose.at(*f.object), object.body.pose_cov(), object.body.edges());
+      candidates.segments.push_back(there.world_edge(f.edge, apriori_edge_noise(object, f.edge, options)));
+      candidates.refs.push_back(f);
+      match = fusion::MatchResult{candidates.segments.size() - 1,
+                                  fusion::mahalanobis_squared(candidates.segments.back().line, seen.line), 0.0};
+    }
     const auto query = make_query(state, observation, seen, match, candidates);
     const rules::Decision decision = decide(query);
 
@@ -256,6 +463,9 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     record.action = action.value_or(rules::Action::add);
     record.rule = decision.rule;
     record.explanation = decision.explanation;
+    if (found.ref[i])
+      record.explanation +=
+          " (matched by the object's shape, found at " + pose_text(found.pose.at(*found.ref[i]->object)) + ")";
     record.fallback = decision.fallback;
     record.element = query.element_id;
     record.object = query.object_id;
@@ -325,39 +535,24 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       grown = element.number;
       state.elements.put(std::move(element));
     } else if (record.action == rules::Action::rigid_adjust) {
-      ObjectState object = state.objects[*ref->object];
-      try {
-        record.before = pose_numbers(object.body);
-        object.body = object.body.updated(ref->edge, seen.line, apriori_edge_noise(object, ref->edge, options));
-        record.after = pose_numbers(object.body);
-        ++object.adjustments;
-        object.updated_version = state.version;
-        state.objects.put(*ref->object, std::move(object));
-        result.changed_objects.insert(*ref->object);
-      } catch (const std::invalid_argument& e) {
-        record.before.clear();
-        make_fallback(record, decision.action, std::string("rigid update failed: ") + e.what());
-      }
+      // Deferred: every line of this observation on the object goes into one joint update (apply_rigid).
+      PendingRigid& p = pending[*ref->object];
+      p.lines.push_back({ref->edge, seen.line, apriori_edge_noise(state.objects[*ref->object], ref->edge, options)});
+      p.records.push_back(result.decisions.size());
+      p.segments.push_back(i);
+      p.by_shape |= found.ref[i].has_value();
     }
     if (record.action == rules::Action::add) {
-      Element element;
-      element.number = state.next_element_number++;
-      element.segment = seen;
-      element.moments = fusion::SegmentMoments::of(seen);
-      element.origin = observation.origin;
-      element.observer = observation.observer;
-      element.created_version = state.version;
-      element.updated_version = state.version;
-      element.updated_at_unix_s = observation.received_at_unix_s;
-      record.element = element.id();
+      const auto number = add_element(result, seen, observation);
+      record.element = element_id(number);
       record.object.reset();
-      result.changed_elements.insert(element.number);
-      grown = element.number;  // a view that missed the scan-line gate may still lie on an element
-      state.elements.put(std::move(element));
+      grown = number;  // a view that missed the scan-line gate may still lie on an element
     }
     result.decisions.push_back(std::move(record));
     if (grown) join_neighbours(result, *grown, observation, observation_seq, options, decide);
   }
+  for (const auto& [index, p] : pending)
+    apply_rigid(result, index, p, found, observation, observation_seq, options, decide);
   return result;
 }
 

@@ -52,8 +52,9 @@ struct DecisionRecord {
   double rho_m = 0, phi_rad = 0;  // the observed line and its covariance
   Eigen::Matrix2d observed_cov = Eigen::Matrix2d::Zero();
   /// What the action changed, for explanations: merge → the element's [ρ, φ, C(2×2 row-major)];
-  /// rigid_adjust → the object's [x, y, θ, C(3×3 row-major)]; trim → the element's endpoints [x0, y0, x1, y1];
-  /// empty otherwise.
+  /// rigid_adjust → the object's [x, y, θ, C(3×3 row-major)] before and after the one joint update of every line
+  /// of the request sent to it (the same numbers on each of those decisions); trim → the element's endpoints
+  /// [x0, y0, x1, y1]; empty otherwise.
   std::vector<double> before, after;
 
   /// The question the rules were asked (to re-ask it, e.g. in a dry run).
@@ -74,7 +75,12 @@ using Decide = std::function<rules::Decision(const rules::DecisionQuery&)>;
 /// Matches each segment in order against the current map (a-priori edges and elements), asks `decide`,
 /// and applies the action: confirm (wire name "delete": count a confirmation), merge (Kalman fusion into an element;
 /// into a CAD edge: a new element starting from the fusion of the edge and the observation, the drawing unchanged),
-/// rigid_adjust (EKF on the object's pose), add (new element), ignore (nothing changes). An action the
+/// rigid_adjust (iterated EKF on the object's pose: all the request's lines sent to one object in one joint update,
+/// after the last segment), add (new element), ignore (nothing changes). A not_deformable object's edge is no
+/// candidate for a line that runs past its extent (the wall beside a table). A not_deformable object carried beyond
+/// its gate is found again by its shape: unmatched lines of the request near it that its edges explain after one
+/// rigid transform are matched to those edges (fusion::find_by_shape), and a rigid_adjust of them starts from the
+/// pose found, with the covariance widened to cover the move. An action the
 /// server cannot apply to the match (merge or rigid_adjust without a match, rigid_adjust on an element,
 /// an unknown action) becomes the documented fallback: add, with fallback = true. `current` is not changed.
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,
