@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Turns an AMRL vector map (JSON list of wall segments, metres) into a worldmodel floor plan.
 
-Every wall segment becomes a `wall` object with the `solid` attribute; two tables (`not_deformable`)
-are placed in open space so that the demo can show a rigid adjustment.
+Every wall segment becomes a `wall` object with the `solid` attribute; three tables (`not_deformable`)
+are placed in open space so that the demo can show rigid adjustments (table-3 stands in the room north of the
+corridor, where make_demo_building.py moves it).
 Usage: make_demo_plan.py GDC1.vectormap.json > plan.json
 """
 import json
@@ -26,6 +27,8 @@ def main(path):
                     "pose": {"x": 0.0, "y": 0.0, "theta": 0.3}, "polygon": table})
     objects.append({"id": "table-2", "kind": "table", "attributes": ["not_deformable"],
                     "pose": {"x": 3.0, "y": -2.0, "theta": 0.0}, "polygon": table})
+    objects.append({"id": "table-3", "kind": "table", "attributes": ["not_deformable"],
+                    "pose": {"x": 12.5, "y": 11.2, "theta": 0.0}, "polygon": table})
     json.dump({"name": "GDC1 (UT Austin AMRL vector map) + demo tables", "units": "m", "objects": objects},
               sys.stdout)
 

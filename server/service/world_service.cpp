@@ -752,6 +752,7 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
           {"decisions", decisions},
           {"elements", elements},
           {"removed", removed},
+          {"removed_objects", removed_objects},
           {"objects", objects}});
   }
   publish(std::move(update.state), MapRemovals{{removed.begin(), removed.end()}, std::move(removed_objects)});
