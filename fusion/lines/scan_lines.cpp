@@ -181,6 +181,8 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
   require(options.sigma_range_relative >= 0 && options.sigma_bearing_rad >= 0, "noise terms must be >= 0");
   require(options.breakpoint_lambda_rad > 0 && options.breakpoint_lambda_rad < std::numbers::pi / 2,
           "breakpoint_lambda_rad must be in (0, pi/2)");
+  require(std::isfinite(options.breakpoint_isolation) && options.breakpoint_isolation >= 0,
+          "breakpoint_isolation must be finite and >= 0");
   require(std::isfinite(sensor_pose.x_m) && std::isfinite(sensor_pose.y_m) && std::isfinite(sensor_pose.theta_rad),
           "sensor pose is not finite");
   require(pose_cov.allFinite(), "pose_cov is not finite");
@@ -209,8 +211,17 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
   std::vector<Piece> pieces;
   std::vector<std::size_t> run_of(points.size(), 0);
   std::size_t run_start = 0;
+  const auto spacing = [&points](std::size_t i) {  // between points i − 1 and i; 0 outside the scan
+    return i >= 1 && i < points.size() ? (points[i] - points[i - 1]).norm() : 0.0;
+  };
+  const auto isolated = [&](std::size_t i) {
+    return options.breakpoint_isolation <= 0 ||
+           spacing(i) > options.breakpoint_isolation * std::max(spacing(i - 1), spacing(i + 1));
+  };
   for (std::size_t i = 1; i <= points.size(); ++i) {
-    if (i == points.size() || breaks_between(readings[i - 1], readings[i], points[i - 1], points[i], options)) {
+    if (i == points.size() ||
+        ((points[i] - points[i - 1]).norm() > options.max_gap_m ||
+         (breaks_between(readings[i - 1], readings[i], points[i - 1], points[i], options) && isolated(i)))) {
       if (i > run_start) split(points, covs, {run_start, i}, options, pieces);
       run_start = i;
     }

@@ -8,7 +8,7 @@
 :- use_module(library(lists)).
 
 :- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7,
-           wm_kb:edge_evidence/5, wm_kb:edge_seen_through/4, wm_kb:edge_beams/4.
+           wm_kb:edge_evidence/5, wm_kb:edge_seen_through/5, wm_kb:edge_beams/4.
 :- set_module(wm_kb:base(system)).
 %   The engine sets the context per decision; here a global variable stands in for it.
 wm_kb:observation_sensor(S) :- nb_current(test_sensor, S0) -> S = S0 ; S = unknown.
@@ -61,7 +61,7 @@ test(glass_wall_seen_through_is_kept, [V-R == kept-glass_kept]) :-
 
 test(plain_wall_seen_through_is_still_missing, [V == missing]) :-
     plan(P),
-    with_facts([edge(w1, 'w1/0', 2.0, 0.0, 4.0), edge_evidence(w1, 'w1/0', 0.0, 1.0, 1.0)|P],
+    with_facts([edge(w1, 'w1/0', 2.0, 0.0, 4.0), edge_evidence(w1, 'w1/0', 0.0, 1.0, 1.0), edge_beams(w1, 'w1/0', 90, 0)|P],
                ( \+ wm_examples_under_test:verdict_override(w1, 'w1/0', _, _, _),
                  wm_examples_under_test:edge_verdict(w1, 'w1/0', V, _, _) )).
 

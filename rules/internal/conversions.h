@@ -29,7 +29,8 @@ struct Vocabulary {
   functor_t decision_fact = 0;      // decision(Seq, Action, Rule, Element, Object, Observer, At)
   functor_t element_grid_fact = 0;  // element_grid(Id, Backed, Contrary)
   functor_t evidence = 0;           // evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended)
-  functor_t minus = 0;              // S0-S1
+  functor_t minus = 0;              // Object-Edge
+  functor_t stretch = 0;            // stretch(S0, S1, Beams)
   functor_t file = 0;               // file(Path, AbsolutePath)
   functor_t text = 0;               // text(Path, Text)
   functor_t observation = 0;        // observation(Source, Rho, Phi, Length)

@@ -46,7 +46,7 @@
 %   Observed map elements and recent decisions, kept in step with the map by the server.
 :- dynamic wm_kb:element/8, wm_kb:element_grid/3, wm_kb:decision/7.
 %   What the grid says of the plan's edges, kept current by the server at every grid check.
-:- dynamic wm_kb:edge_evidence/5, wm_kb:edge_seen_through/4, wm_kb:edge_beams/4.
+:- dynamic wm_kb:edge_evidence/5, wm_kb:edge_seen_through/5, wm_kb:edge_beams/4.
 
 %   What the rules can ask about the observation being decided (set per decision, backtrackable).
 wm_kb:observation_origin(Origin) :-
@@ -93,24 +93,26 @@ set_element_grid(Facts) :-
 
 %!  set_edge_evidence(+Facts, +ReplaceAll) is det.
 %   Facts: list of evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended), Stretches a
-%   list of S0-S1. Replaces the edge_evidence/5, edge_seen_through/4 and edge_beams/4 facts of those edges (of
+%   list of stretch(S0, S1, Beams). Replaces the edge_evidence/5, edge_seen_through/5 and edge_beams/4 facts of
+%   those edges (of
 %   every edge first when ReplaceAll is true), in one transaction.
 set_edge_evidence(Facts, ReplaceAll) :-
     must_be(list, Facts),
     transaction(( (   ReplaceAll == true
                   ->  retractall(wm_kb:edge_evidence(_, _, _, _, _)),
-                      retractall(wm_kb:edge_seen_through(_, _, _, _)),
+                      retractall(wm_kb:edge_seen_through(_, _, _, _, _)),
                       retractall(wm_kb:edge_beams(_, _, _, _))
                   ;   true
                   ),
                   forall(member(evidence(O, E, _, _, _, _, _, _), Facts),
                          ( retractall(wm_kb:edge_evidence(O, E, _, _, _)),
-                           retractall(wm_kb:edge_seen_through(O, E, _, _)),
+                           retractall(wm_kb:edge_seen_through(O, E, _, _, _)),
                            retractall(wm_kb:edge_beams(O, E, _, _)) )),
                   forall(member(evidence(O, E, B, S, Obs, Stretches, Through, Ended), Facts),
                          ( assertz(wm_kb:edge_evidence(O, E, B, S, Obs)),
                            assertz(wm_kb:edge_beams(O, E, Through, Ended)),
-                           forall(member(S0-S1, Stretches), assertz(wm_kb:edge_seen_through(O, E, S0, S1))) )) )).
+                           forall(member(stretch(S0, S1, N), Stretches),
+                                  assertz(wm_kb:edge_seen_through(O, E, S0, S1, N))) )) )).
 
 %!  add_decisions(+Decisions, +KeepLast) is det.
 %   Appends decision/7 facts and forgets all but the KeepLast newest (the full log is in SQLite).

@@ -64,8 +64,9 @@
                                      % shares of its length within one cell of an occupied cell (backed),
                                      % seen free with nothing occupied within 3 cells across (seen through:
                                      % beams crossed the line where it is drawn), and seen at all
-        edge_seen_through(Object, Edge, S0, S1)
-                                     % a stretch of Edge seen through, [m] from its first end (>= 0.3 m)
+        edge_seen_through(Object, Edge, S0, S1, Beams)
+                                     % a stretch of Edge seen through, [m] from its first end (>= 0.3 m),
+                                     % and the laser beams counted passing through it
         edge_beams(Object, Edge, Through, Ended)
                                      % laser beams counted at Edge where it stands now: passed through
                                      % it (returned more than 10 cm beyond it), returned on it
@@ -206,15 +207,15 @@ edge_verdict(Object, Edge, missing, wall_missing, Explanation) :-
 edge_verdict(Object, Edge, partly_missing(S0, S1), wall_partly_missing, Explanation) :-
     solid_wall(Object),
     \+ wall_seen_through(Object, Edge, _, _, _),
-    edge_seen_through(Object, Edge, S0, S1),
+    edge_seen_through(Object, Edge, S0, S1, Beams),
+    Beams >= 3,
     edge(Object, Edge, _, _, Length),
-    beams(Object, Edge, Through, _),
     Stretch is S1 - S0,
     format(string(Explanation),
            "wall ~w (edge ~w, ~2f m): the laser saw through it from ~2f m to ~2f m of its length \c
-            (~2f m, free cells where it is drawn, nothing occupied within 3 grid cells across; ~w beams \c
-            passed through the whole edge): that part is missing",
-           [Object, Edge, Length, S0, S1, Stretch, Through]).
+            (~2f m, free cells where it is drawn, nothing occupied within 3 grid cells across), ~w beams \c
+            passed through that stretch: that part is missing",
+           [Object, Edge, Length, S0, S1, Stretch, Beams]).
 
 %   The beams counted at an edge: passed through it, returned on it (0 when none were counted).
 beams(Object, Edge, Through, Ended) :-
@@ -231,7 +232,18 @@ wall_seen_through(Object, Edge, Backed, SeenThrough, Observed) :-
     edge_evidence(Object, Edge, Backed, SeenThrough, Observed),
     Observed >= 0.5,
     Backed =< 0.05,
-    SeenThrough >= 0.8 * Observed.
+    SeenThrough >= 0.8 * Observed,
+    %   At least 0.3 m seen through, as for a stretch: the face of a column or a door jamb, a few
+    %   centimetres long, is too short to tell a wall gone from a pose error.
+    edge(Object, Edge, _, _, Length),
+    SeenThrough * Length >= 0.3,
+    %   Seen through means crossed: free cells alone may come from beams running along the wall. And
+    %   the beams that crossed it must outnumber those that returned on it five to one: a standing wall
+    %   seen far off with a poor pose smears its returns over many cells (the grid then backs none of
+    %   them), but its beams still end on it.
+    beams(Object, Edge, Through, Ended),
+    Through >= 3,
+    Through >= 5 * Ended.
 
 %   A not_deformable object (a table) none of whose edges the grid backs, while it has seen through
 %   most of what it has seen of them: it has been taken away. (An object that moved is followed by its

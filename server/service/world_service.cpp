@@ -387,6 +387,14 @@ std::shared_ptr<const world::PlanReport> WorldService::plan_report() const {
   return plan_report_;
 }
 
+std::shared_ptr<const world::PlanReport> WorldService::refresh_plan_report() {
+  run_command([this] {
+    refresh_plan_evidence(*snapshot(), std::nullopt);
+    return 0;
+  });
+  return plan_report();
+}
+
 void WorldService::refresh_plan_evidence(const world::WorldState& state, const std::optional<world::Box>& region,
                                          bool verdicts_only) {
   try {
@@ -436,7 +444,8 @@ void WorldService::refresh_plan_evidence(const world::WorldState& state, const s
       rules::EdgeEvidenceFacts f{
           object_id,    world::edge_id(object_id, e.edge), e.backed, e.seen_through, e.observed, {}, e.beams_through,
           e.beams_ended};
-      for (const auto& stretch : e.seen_through_stretches) f.stretches.emplace_back(stretch.s0_m, stretch.s1_m);
+      for (const auto& stretch : e.seen_through_stretches)
+        f.stretches.push_back({stretch.s0_m, stretch.s1_m, stretch.beams_through});
       keys.push_back({f.object_id, f.edge_id});
       facts.push_back(std::move(f));
       refreshed.insert({e.object, e.edge});

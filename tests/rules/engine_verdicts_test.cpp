@@ -19,9 +19,12 @@ using testing::write_text;
 // The shipped rules with the demo floor plan (w1 solid, 4 m; t1 not_deformable, two edges; d1 a door).
 using VerdictsTest = testing::ShippedRulesTest;
 
+// Evidence with 250 beams through the edge (and 40 through each stretch) unless the test says otherwise.
 EdgeEvidenceFacts evidence(std::string object, std::string edge, double backed, double seen_through, double observed,
-                           std::vector<std::pair<double, double>> stretches = {}) {
-  return {std::move(object), std::move(edge), backed, seen_through, observed, std::move(stretches)};
+                           std::vector<std::pair<double, double>> stretches = {}, std::int64_t beams_through = 250) {
+  EdgeEvidenceFacts f{std::move(object), std::move(edge), backed, seen_through, observed, {}, beams_through, 0};
+  for (const auto& [s0, s1] : stretches) f.stretches.push_back({s0, s1, beams_through > 0 ? 40 : 0});
+  return f;
 }
 
 TEST_F(VerdictsTest, SolidWallSeenThroughIsMissingOverItsWholeLength) {
@@ -56,6 +59,14 @@ TEST_F(VerdictsTest, WallBackedOrBarelySeenHasNoVerdict) {
   EXPECT_TRUE(engine_.plan_verdicts(std::nullopt, 100).empty());
 }
 
+TEST_F(VerdictsTest, FreeCellsThatNoBeamCrossedAreNoVerdict) {
+  // Beams running along a wall clear its cells without passing through it: no evidence that it has gone.
+  engine_.set_edge_evidence({evidence("w1", "w1_e0", 0.0, 0.9, 0.95, {{0.0, 3.8}}, 0)}, true);
+  EXPECT_TRUE(engine_.plan_verdicts(std::nullopt, 100).empty());
+  const auto beams = engine_.query("edge_beams(w1, w1_e0, T, E)", 10);
+  ASSERT_EQ(beams.solutions.size(), 1u);
+}
+
 TEST_F(VerdictsTest, DoorWithoutSolidIsNeverMissing) {
   engine_.set_edge_evidence({evidence("d1", "d1_e0", 0.0, 1.0, 1.0, {{0.0, 0.9}})}, true);
   EXPECT_TRUE(engine_.plan_verdicts(std::nullopt, 100).empty());
@@ -86,7 +97,7 @@ TEST_F(VerdictsTest, ReplacingEvidenceDropsTheEdgesOldFactsAndReplaceAllDropsEve
   engine_.set_edge_evidence({evidence("w1", "w1_e0", 0.0, 0.9, 0.95, {{0.0, 3.8}})}, true);
   engine_.set_edge_evidence({evidence("w1", "w1_e0", 1.0, 0.0, 1.0)}, false);
   EXPECT_TRUE(engine_.plan_verdicts(std::nullopt, 100).empty());
-  const auto stretches = engine_.query("edge_seen_through(w1, E, S0, S1)", 10);
+  const auto stretches = engine_.query("edge_seen_through(w1, E, S0, S1, N)", 10);
   EXPECT_TRUE(stretches.solutions.empty());
   engine_.set_edge_evidence({}, true);
   EXPECT_TRUE(engine_.query("edge_evidence(O, E, B, S, Obs)", 10).solutions.empty());

@@ -4,11 +4,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <numbers>
 #include <random>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "clients/logs/scan_body.h"
 #include "rules/engine.h"
@@ -88,16 +90,6 @@ double people_elements(const std::vector<Piece>& elements, const BuiltWorld& wor
   return length;
 }
 
-/// WorldService::plan_report() when the service has it: the as-built verdicts come from there. A service without it
-/// gives nullptr, and the verdict figures are reported as not measured.
-template <typename Service>
-std::shared_ptr<const world::PlanReport> plan_report_of(Service& service) {
-  if constexpr (requires { service.plan_report(); })
-    return service.plan_report();
-  else
-    return nullptr;
-}
-
 std::string fixed(double value, int decimals) {
   char buffer[32];
   std::snprintf(buffer, sizeof buffer, "%.*f", decimals, value);
@@ -147,7 +139,7 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
       stamp += 0.5;
     }
     outcome.state = world.snapshot();
-    outcome.report = plan_report_of(world);
+    outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;
 }
@@ -230,12 +222,27 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
       }
     };
     for (const auto& v : outcome.report->verdicts) {
+      if (std::getenv("WM_TRUTH_VERBOSE"))
+        std::fprintf(stderr, "verdict %s %s: %s\n", v.object_id.c_str(), v.verdict.c_str(), v.explanation.c_str());
       if (v.verdict != "missing" && v.verdict != "partly_missing") continue;
       if (v.edge) {
         const auto it = wall_of.find({v.object_id, *v.edge});
         if (it == wall_of.end()) continue;
         const bool whole = v.verdict == "missing" && v.stretch.s1_m <= v.stretch.s0_m;
-        mark(it->second, whole ? 0 : v.stretch.s0_m, whole ? 1e9 : v.stretch.s1_m);
+        double s0 = whole ? 0 : v.stretch.s0_m, s1 = whole ? 1e9 : v.stretch.s1_m;
+        // A stretch runs from the first end of the edge as the server places it, which may be this wall's p1.
+        if (!whole) {
+          if (const auto* object = outcome.state->find_object(v.object_id);
+              object && *v.edge < object->body.edges().size()) {
+            const auto edge = object->body.world_edge(*v.edge, Eigen::Matrix2d::Zero());
+            const auto& wall = walls[it->second];
+            if ((edge.p0() - wall.p0).norm() > (edge.p0() - wall.p1).norm()) {
+              const double length = (wall.p1 - wall.p0).norm();
+              std::tie(s0, s1) = std::pair{length - s1, length - s0};
+            }
+          }
+        }
+        mark(it->second, s0, s1);
       } else if (const auto it = walls_of_object.find(v.object_id); it != walls_of_object.end()) {
         for (const auto w : it->second) mark(w, 0, 1e9);
       }
@@ -251,8 +258,9 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
         demolished[w] = 1;
         const auto& bins = coverage.seen_through[g][m];
         for (std::size_t b = 0; b < bins.size(); ++b) {
-          through += bins[b] ? kBinM : 0;
-          reported += bins[b] && missing[w][b] ? kBinM : 0;
+          const bool seen = bins[b] >= kMinBeamsThrough;
+          through += seen ? kBinM : 0;
+          reported += seen && missing[w][b] ? kBinM : 0;
         }
       }
       if (through > 0) {
@@ -269,6 +277,11 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
       const auto& hits = coverage.hits[l];
       if (std::none_of(hits.begin(), hits.end(), [](std::uint32_t n) { return n > 0; })) continue;
       in_view += (walls[w].p1 - walls[w].p0).norm();
+      if (std::getenv("WM_TRUTH_VERBOSE") &&
+          std::any_of(missing[w].begin(), missing[w].end(), [](char m) { return m != 0; }))
+        std::fprintf(stderr, "false missing: %s/%zu (%.2f m) from (%.2f, %.2f) to (%.2f, %.2f)\n",
+                     walls[w].object_id.c_str(), walls[w].edge, (walls[w].p1 - walls[w].p0).norm(), walls[w].p0.x(),
+                     walls[w].p0.y(), walls[w].p1.x(), walls[w].p1.y());
       for (std::size_t b = 0; b < missing[w].size(); ++b) {
         if (!missing[w][b]) continue;
         reported += kBinM;

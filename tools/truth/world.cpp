@@ -603,8 +603,10 @@ Drive drive(const Building& building, const BuiltWorld& world, const LaserOption
         for (std::size_t m = 0; m < world.demolished[group].size(); ++m, ++g) {
           const double t = ray_segment(o, dir, gone[g].p0, gone[g].p1);
           if (t >= best) continue;
+          const Vec along = (gone[g].p1 - gone[g].p0).normalized();
+          if (std::abs(dir.x() * along.y() - dir.y() * along.x()) < std::sin(kMinIncidenceRad)) continue;
           auto& bins = coverage.seen_through[group][m];
-          bins[std::min(bins.size() - 1, static_cast<std::size_t>((o + t * dir - gone[g].p0).norm() / kBinM))] = 1;
+          bins[std::min(bins.size() - 1, static_cast<std::size_t>((o + t * dir - gone[g].p0).norm() / kBinM))] += 1;
         }
       const bool returned = best < options.max_range_m;
       scan.ranges_m.push_back(returned ? best + range_noise(rng) : options.max_range_m);

@@ -121,10 +121,17 @@ struct LaserOptions {
 inline constexpr double kBinM = 0.05;
 
 /// What the drive saw of each line.
+/// Beams closer than this to running along a wall are not counted as seeing through it [rad] (10°).
+inline constexpr double kMinIncidenceRad = 0.1745;
+/// A stretch of a demolished wall counts as seen through when this many beams went through it: the grid needs
+/// about three views of free space before a cell is free.
+inline constexpr std::uint32_t kMinBeamsThrough = 3;
+
 struct Coverage {
   std::vector<std::vector<std::uint32_t>> hits;  // per BuiltWorld::lines, per kBinM bin: returns on it
-  /// Per BuiltWorld::demolished, per plan wall of it, per bin: whether a beam went through it.
-  std::vector<std::vector<std::vector<std::uint8_t>>> seen_through;
+  /// Per BuiltWorld::demolished, per plan wall of it, per bin: the beams that went through it at an incidence of
+  /// at least kMinIncidenceRad (a beam running along a wall does not see whether it is there).
+  std::vector<std::vector<std::vector<std::uint32_t>>> seen_through;
 };
 
 struct Drive {
