@@ -76,7 +76,7 @@ struct EdgeEvidenceFacts {
   std::string edge_id;                                // e.g. "wall-12/0", as edge/5 names it
   double backed = 0, seen_through = 0, observed = 0;  // [0, 1]
   struct Stretch {
-    double s0_m = 0, s1_m = 0;        // S0 < S1 [m]
+    double s0_m = 0, s1_m = 0;       // S0 < S1 [m]
     std::int64_t beams_through = 0;  // beams counted passing through it
   };
   std::vector<Stretch> stretches;

@@ -181,6 +181,9 @@ class WorldService final : public WorldPort {
   std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const override;
   /// The plan's edges against the grid and the rules' verdicts on them, as of the last grid check.
   std::shared_ptr<const world::PlanReport> plan_report() const override;
+  /// Checks the whole plan against the grid now, on the writer (what a grid trim does for the region its scans saw),
+  /// and returns the new report: for tools that score the evidence at the end of a drive.
+  std::shared_ptr<const world::PlanReport> refresh_plan_report();
   std::vector<world::Change> changes(std::shared_ptr<const world::WorldState>& state,
                                      std::shared_ptr<const world::PlanReport>& evidence) const override;
   /// On the writer: accepts (a new plan, committed with its decision and the plan before it, for undo) or rejects a

@@ -96,7 +96,7 @@ apriori::FloorPlan plan_with_change(const WorldState& state, const Change& chang
       std::optional<Eigen::Vector2d> cut0, cut1;
       if (change.kind == ChangeKind::wall_partly_missing) {
         // The stretch's ends in the drawing; the piece next to the edge's start (a) ends at the nearer one.
-        const auto& local = drawn->edges().at(*change.edge);
+        const auto local = drawn->edges().at(*change.edge);  // a copy: edges() returns a temporary
         Eigen::Vector2d u = to_object_frame(object, state, change.p0), v = to_object_frame(object, state, change.p1);
         if ((u - local.p0).norm() > (v - local.p0).norm()) std::swap(u, v);
         const Eigen::Vector2d along = (local.p1 - local.p0).normalized();

@@ -256,7 +256,7 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
 
 // How far a rigid object may have been carried and still be found by its shape (its centroid's move) [m], and
 // the bounds that keep the search cheap: objects per observation, segments per object.
-constexpr double kShapeSearchM = 3.0;
+constexpr double kShapeSearchM = 1.0;
 constexpr std::size_t kShapeObjects = 4;
 constexpr std::size_t kShapeSegments = 24;
 
