@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -308,6 +309,7 @@ FoundByShape find_moved_objects(const WorldState& state, const Observation& obse
   // nothing, else the candidate's object index, kElement for an element.
   constexpr std::size_t kElement = std::numeric_limits<std::size_t>::max();
   std::vector<std::optional<std::optional<std::size_t>>> matched(n);
+  std::vector<std::int64_t> matched_element(n, 0);  // the element number when matched[i] is kElement
   for (const auto& [nearest, index] : objects) {
     const auto& body = state.objects[index].body;
     const Eigen::Vector2d centre = body.pose().transform_point(body.local_centroid());
@@ -325,10 +327,17 @@ FoundByShape find_moved_objects(const WorldState& state, const Observation& obse
         const Candidates candidates = collect_candidates(state, seen, options);
         const auto m = fusion::best_match(candidates.segments, seen, options.match);
         matched[i] = !m ? std::optional<std::size_t>{} : candidates.refs[m->index].object.value_or(kElement);
+        if (m && !candidates.refs[m->index].object) matched_element[i] = candidates.refs[m->index].element;
       }
       const auto& what = *matched[i];
-      if (what && *what != index) continue;  // a view of something else
-      any_unmatched |= !what;
+      // A view matched to an element that lies on the object's reach may be a view of the carried object whose
+      // earlier views, seen one side at a time, became elements before two sides showed in one scan.
+      bool element_near = false;
+      if (what && *what == kElement)
+        if (const Element* e = state.elements.find(matched_element[i]))
+          element_near = distance_to_segment(centre, e->segment) <= radius + kShapeSearchM;
+      if (what && *what != index && !element_near) continue;  // a view of something else
+      any_unmatched |= !what || element_near;
       group.push_back(i);
     }
     if (group.size() < 2 || !any_unmatched) continue;
@@ -343,7 +352,8 @@ FoundByShape find_moved_objects(const WorldState& state, const Observation& obse
     const auto fit = fusion::find_by_shape(body, segments, fit_options);
     if (!fit) continue;
     bool explains_unmatched = false;
-    for (std::size_t g = 0; g < group.size(); ++g) explains_unmatched |= fit->edge_of[g] && !*matched[group[g]];
+    for (std::size_t g = 0; g < group.size(); ++g)
+      explains_unmatched |= fit->edge_of[g] && (!*matched[group[g]] || **matched[group[g]] == kElement);
     if (!explains_unmatched) continue;
     for (std::size_t g = 0; g < group.size(); ++g)
       if (fit->edge_of[g]) found.ref[group[g]] = CandidateRef{index, *fit->edge_of[g], 0};
@@ -378,6 +388,59 @@ struct PendingRigid {
   bool by_shape = false;              // some of them were found by the object's shape
 };
 
+// After a carried object was found by its shape and moved there: the elements its earlier views became (seen one
+// side at a time, before two sides showed in one scan) lie on its edges now. They are views of the object, not walls:
+// each goes with a prune decision (rule object_found). An element lies on an edge when both its ends are within
+// 5 cm of the edge's line, its direction within 5° and its extent within the edge's plus 10 cm.
+void absorb_elements(UpdateResult& result, std::size_t index, const Observation& observation,
+                     std::int64_t observation_seq) {
+  constexpr double kOffsetM = 0.05, kAngleRad = 0.0873, kBeyondM = 0.10;
+  WorldState& state = result.state;
+  const ObjectState& object = state.objects[index];
+  std::vector<fusion::LineSegment> edges;
+  Box box{std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::lowest(),
+          std::numeric_limits<double>::lowest()};
+  for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
+    edges.push_back(object.body.world_edge(k, Eigen::Matrix2d::Zero()));
+    const Box b = Box::of(edges.back(), kBeyondM);
+    box = {std::min(box.x0, b.x0), std::min(box.y0, b.y0), std::max(box.x1, b.x1), std::max(box.y1, b.y1)};
+  }
+  for (const auto number : state.elements.near(box)) {
+    const Element* element = state.elements.find(number);
+    if (!element) continue;
+    const auto& seg = element->segment;
+    const bool on_an_edge = std::any_of(edges.begin(), edges.end(), [&](const fusion::LineSegment& edge) {
+      const double angle = std::abs(std::remainder(seg.line.phi_rad - edge.line.phi_rad, std::numbers::pi));
+      if (angle > kAngleRad) return false;
+      for (const Eigen::Vector2d& p : {seg.p0(), seg.p1()}) {
+        if (std::abs(edge.line.signed_distance(p)) > kOffsetM) return false;
+        const double t = edge.line.coordinate_along(p);
+        if (t < edge.t0_m - kBeyondM || t > edge.t1_m + kBeyondM) return false;
+      }
+      return true;
+    });
+    if (!on_an_edge) continue;
+    DecisionRecord record;
+    record.seq = ++state.last_decision_seq;
+    record.observation_seq = observation_seq;
+    record.index = -1;  // not about a segment of the request
+    record.action = rules::Action::prune;
+    record.rule = "object_found";
+    record.explanation = element->id() + " lies on an edge of " + object.plan->id +
+                         ", found again by its shape where it was carried: a view of it, not a wall";
+    record.element = element->id();
+    record.object = object.plan->id;
+    record.observer = observation.observer;
+    record.origin = element->origin;
+    record_observed(record, seg);
+    record.before = line_numbers(seg.line);
+    state.elements.erase(number);
+    result.changed_elements.erase(number);
+    result.removed_elements.insert(number);
+    result.decisions.push_back(std::move(record));
+  }
+}
+
 // One joint update of object `index` from every line the rules sent to it (one edge alone fixes only its normal and
 // the turn). When the object was found by its shape, its covariance first widens to cover the move (it was
 // carried) and the iteration starts at the pose found. If the update fails, each line becomes the fallback add.
@@ -404,6 +467,7 @@ void apply_rigid(UpdateResult& result, std::size_t index, const PendingRigid& pe
     object.updated_version = state.version;
     state.objects.put(index, std::move(object));
     result.changed_objects.insert(index);
+    if (pending.by_shape) absorb_elements(result, index, observation, observation_seq);
   } catch (const std::invalid_argument& e) {
     for (std::size_t j = 0; j < pending.records.size(); ++j) {
       DecisionRecord& record = result.decisions[pending.records[j]];
