@@ -473,3 +473,44 @@ TEST(ActionTest, WireNamesRoundTrip) {
   EXPECT_FALSE(wm::rules::parse_action("confirm").has_value());
   EXPECT_FALSE(wm::rules::parse_action("").has_value());
 }
+
+namespace wm::world {
+namespace {
+
+// A table carried 0.3 m / 10°, seen first from one side at a time (each side alone: beyond its gate, an element of
+// its own), then from a corner (two sides in one scan): found by its shape, moved where it stands, and the elements
+// its one-sided views became are taken back (prune, rule object_found).
+TEST(RigidAdjustTest, ATableSeenOneSideAtATimeIsFoundAndItsSideElementsAreTakenBack) {
+  WorldOptions options;
+  const auto table = far_table();
+  ShippedLikeRules rules{{"far", {table}}};
+  auto state = apply_floor_plan(WorldState{}, rules.plan, options).state;
+  const fusion::Pose2D truth{kTablePose.x_m + 0.3 * std::cos(0.5), kTablePose.y_m + 0.3 * std::sin(0.5),
+                             kTablePose.theta_rad + 10 * kDeg};
+  std::mt19937 rng(5);
+  // Straight in front of the long bottom side, then of the right side: one side per scan.
+  for (const Eigen::Vector2d& local : {Eigen::Vector2d(0.0, -3.0), Eigen::Vector2d(3.0, 0.0)}) {
+    auto obs = table_scan(table, truth, truth.transform_point(local), rng);
+    ASSERT_EQ(obs.segments.size(), 1u);
+    state = apply_observation(state, obs, 1, options, rules).state;
+  }
+  ASSERT_EQ(state.elements.size(), 2u) << "each side alone became an element";
+  // From the corner between them: two sides in one scan.
+  const auto result =
+      apply_observation(state, table_scan(table, truth, truth.transform_point({3.0, -3.0}), rng), 3, options, rules);
+  const auto& pose = result.state.objects[0].body.pose();
+  EXPECT_LT(std::hypot(pose.x_m - truth.x_m, pose.y_m - truth.y_m), 0.03);
+  EXPECT_LT(std::abs(std::remainder(pose.theta_rad - truth.theta_rad, 2 * std::numbers::pi)), 1.0 * kDeg);
+  EXPECT_TRUE(result.state.elements.empty()) << "the sides' elements are taken back";
+  std::size_t taken_back = 0;
+  for (const auto& d : result.decisions)
+    if (d.rule == "object_found") {
+      ++taken_back;
+      EXPECT_EQ(d.action, rules::Action::prune);
+      EXPECT_EQ(d.object, "table-far");
+    }
+  EXPECT_EQ(taken_back, 2u);
+}
+
+}  // namespace
+}  // namespace wm::world
