@@ -367,6 +367,14 @@ world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, doubl
   };
 }
 
+/// The ids of the objects of `before` that `after` does not have (a new plan, an accepted change).
+std::set<std::string> removed_objects(const world::WorldState& before, const world::WorldState& after) {
+  std::set<std::string> ids;
+  for (const auto& object : before.objects) ids.insert(object.plan->id);
+  for (const auto& object : after.objects) ids.erase(object.plan->id);
+  return ids;
+}
+
 /// "<object>/<k>" back to k, when the id is that object's.
 std::optional<std::size_t> edge_index(const std::string& object_id, const std::string& edge_id) {
   if (edge_id.size() <= object_id.size() + 1 || edge_id.compare(0, object_id.size(), object_id) != 0 ||
@@ -782,8 +790,7 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
     store_.commit_floor_plan(update, plan);
     const auto version = update.state.version;
     MapRemovals removed;  // the objects of the old plan that the new one does not have
-    for (const auto& object : current->objects) removed.objects.insert(object.plan->id);
-    for (const auto& object : update.state.objects) removed.objects.erase(object.plan->id);
+    removed.objects = removed_objects(*current, update.state);
     publish(std::move(update.state), std::move(removed));
     engine_.set_floor_plan(new_facts);
     refresh_plan_evidence(*snapshot(), std::nullopt);
@@ -1222,10 +1229,8 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
                                             accept ? std::optional(before) : std::nullopt, 0};
     commit_prepared(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, record); });
     outcome.decision = p.update.decisions.at(0);
-    std::set<std::string> removed_objects;
-    for (const auto& object : state->objects) removed_objects.insert(object.plan->id);
-    for (const auto& object : p.update.state.objects) removed_objects.erase(object.plan->id);
-    outcome.version = finish_update(std::move(p), std::move(removed_objects)).version;
+    auto removed = removed_objects(*state, p.update.state);
+    outcome.version = finish_update(std::move(p), std::move(removed)).version;
     if (accept) {
       sync_all_facts(*snapshot());
       refresh_plan_evidence(*snapshot(), std::nullopt);
@@ -1260,10 +1265,8 @@ ChangeOutcome WorldService::undo_change(std::string observer) {
     ChangeOutcome outcome;
     outcome.change_id = last.change_id;
     outcome.decision = p.update.decisions.at(0);
-    std::set<std::string> removed_objects;
-    for (const auto& object : state->objects) removed_objects.insert(object.plan->id);
-    for (const auto& object : p.update.state.objects) removed_objects.erase(object.plan->id);
-    outcome.version = finish_update(std::move(p), std::move(removed_objects)).version;
+    auto removed = removed_objects(*state, p.update.state);
+    outcome.version = finish_update(std::move(p), std::move(removed)).version;
     if (plan) {
       sync_all_facts(*snapshot());
       refresh_plan_evidence(*snapshot(), std::nullopt);

@@ -118,6 +118,31 @@ void record_observed(DecisionRecord& record, const fusion::LineSegment& segment)
   record.observed_cov = segment.line.cov;
 }
 
+// Takes element `number` (in the state) out of the map with a prune decision of `rule`, and returns that decision
+// (the last of result.decisions) for the caller to add to.
+DecisionRecord& remove_element(UpdateResult& result, std::int64_t number, std::string rule, std::string explanation,
+                               const std::string& observer, std::int64_t observation_seq) {
+  WorldState& state = result.state;
+  const Element& removed = state.elements.at(number);
+  DecisionRecord record;
+  record.seq = ++state.last_decision_seq;
+  record.observation_seq = observation_seq;
+  record.index = -1;  // not about a segment of the request
+  record.action = rules::Action::prune;
+  record.rule = std::move(rule);
+  record.explanation = std::move(explanation);
+  record.element = removed.id();
+  record.observer = observer;
+  record.origin = removed.origin;
+  record_observed(record, removed.segment);
+  record.before = line_numbers(removed.segment.line);
+  state.elements.erase(number);
+  result.changed_elements.erase(number);
+  result.removed_elements.insert(number);
+  result.decisions.push_back(std::move(record));
+  return result.decisions.back();
+}
+
 // The element's line after it took in more views: the Kalman update gives the covariance (floored, see
 // WorldOptions::fusion) and the extent; the line itself is the best fit of everything the element was built from.
 // The views' own scatter across the line (the pose error they do not share) floors the offset uncertainty at the
@@ -420,24 +445,11 @@ void absorb_elements(UpdateResult& result, std::size_t index, const Observation&
       return true;
     });
     if (!on_an_edge) continue;
-    DecisionRecord record;
-    record.seq = ++state.last_decision_seq;
-    record.observation_seq = observation_seq;
-    record.index = -1;  // not about a segment of the request
-    record.action = rules::Action::prune;
-    record.rule = "object_found";
-    record.explanation = element->id() + " lies on an edge of " + object.plan->id +
-                         ", found again by its shape where it was carried: a view of it, not a wall";
-    record.element = element->id();
-    record.object = object.plan->id;
-    record.observer = observation.observer;
-    record.origin = element->origin;
-    record_observed(record, seg);
-    record.before = line_numbers(seg.line);
-    state.elements.erase(number);
-    result.changed_elements.erase(number);
-    result.removed_elements.insert(number);
-    result.decisions.push_back(std::move(record));
+    remove_element(result, number, "object_found",
+                   element->id() + " lies on an edge of " + object.plan->id +
+                       ", found again by its shape where it was carried: a view of it, not a wall",
+                   observation.observer, observation_seq)
+        .object = object.plan->id;
   }
 }
 
@@ -626,24 +638,9 @@ void apply_prune(UpdateResult& result, const std::vector<rules::PruneOrder>& ord
   for (const auto& order : orders) {
     const auto number = WorldState::element_number(order.element_id);
     if (!number) continue;
-    const Element* pruned = state.elements.find(*number);
-    if (!pruned) continue;
-    DecisionRecord record;
-    record.seq = ++state.last_decision_seq;
-    record.observation_seq = observation_seq;
-    record.index = -1;  // not about a segment of the request
-    record.action = rules::Action::prune;
-    record.rule = order.rule;
-    record.explanation = order.explanation;
-    record.element = order.element_id;
-    record.observer = observer;
-    record.origin = pruned->origin;
-    record_observed(record, pruned->segment);
-    record.before = line_numbers(pruned->segment.line);
-    state.elements.erase(*number);
-    result.changed_elements.erase(*number);
-    result.removed_elements.insert(*number);
-    result.decisions.push_back(std::move(record));
+    if (!state.elements.contains(*number)) continue;
+    remove_element(result, *number, order.rule, order.explanation, observer, observation_seq).element =
+        order.element_id;
   }
 }
 
