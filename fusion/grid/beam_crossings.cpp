@@ -20,12 +20,14 @@ std::size_t beam_bins(double length_m, const BeamCrossingOptions& options) {
 }
 
 void count_beam_crossings(const LaserScan& scan, double reach_m, const BeamCrossingOptions& options,
-                          std::vector<SegmentBeams>& segments) {
+                          std::vector<SegmentBeams>& segments, const Eigen::Matrix3d& pose_cov) {
   if (!(options.bin_m > 0) || !(options.margin_m > 0) || !(options.min_incidence_rad >= 0) ||
       !(options.min_incidence_rad < std::numbers::pi / 2) || !std::isfinite(options.bin_m) ||
       !std::isfinite(options.margin_m))
     throw std::invalid_argument("count_beam_crossings: bad options");
   if (!std::isfinite(reach_m) || reach_m < 0) throw std::invalid_argument("count_beam_crossings: bad reach");
+  if (!pose_cov.allFinite() || pose_cov(0, 0) < 0 || pose_cov(1, 1) < 0 || pose_cov(2, 2) < 0)
+    throw std::invalid_argument("count_beam_crossings: bad pose covariance");
   const std::size_t beams = scan.ranges_m.size();
   if (beams == 0 || scan.angle_increment_rad == 0) return;
   const Eigen::Vector2d origin(scan.sensor_pose.x_m, scan.sensor_pose.y_m);
@@ -40,6 +42,8 @@ void count_beam_crossings(const LaserScan& scan, double reach_m, const BeamCross
     if (segment.through.size() != bins || segment.ended.size() != bins)
       throw std::invalid_argument("count_beam_crossings: a segment's bins do not match its length");
     if (length <= 0) continue;
+    const Eigen::Vector2d normal = Eigen::Vector2d(-along.y(), along.x()) / length;
+    const double position_var = std::max(0.0, normal.dot(pose_cov.topLeftCorner<2, 2>() * normal));
     // The beams whose bearing lies between the ends' (the shorter way round: a segment never subtends π or more
     // unless the sensor is on it, and then no beam crosses it at an angle).
     const double angle_a = std::atan2(a.y(), a.x()), angle_b = std::atan2(b.y(), b.x());
@@ -74,9 +78,18 @@ void count_beam_crossings(const LaserScan& scan, double reach_m, const BeamCross
         const bool returned = std::isfinite(r) && r < scan.range_max_m;
         const double seen_to = returned ? std::min(r, reach_m) : std::min(scan.range_max_m, reach_m);
         const auto bin = std::min(bins - 1, static_cast<std::size_t>(u * length / options.bin_m));
-        if (returned && r <= reach_m && std::abs(r - t) <= options.margin_m) {
+        // Judged across the segment, not along the beam: a return 10 cm from a wall along a beam at 15° is 2.6 cm
+        // from it. The margin widens by two σ of where the pose and the reading put the return across the segment
+        // (a heading error moves it by the range times the error, mostly across a wall it grazes).
+        const double sin_incidence = std::abs(denom) / length;
+        const double cos_incidence = std::sqrt(std::max(0.0, 1 - sin_incidence * sin_incidence));
+        const double sigma_range = scan.sigma_range_m + scan.sigma_range_per_m * t;
+        const double spread = std::sqrt(position_var + pose_cov(2, 2) * (t * cos_incidence) * (t * cos_incidence) +
+                                        sigma_range * sigma_range * sin_incidence * sin_incidence);
+        const double margin = options.margin_m + 2 * spread;
+        if (returned && r <= reach_m && std::abs(r - t) * sin_incidence <= margin) {
           bump(segment.ended[bin]);
-        } else if (seen_to > t + options.margin_m) {
+        } else if ((seen_to - t) * sin_incidence > margin) {
           bump(segment.through[bin]);
         }
       }

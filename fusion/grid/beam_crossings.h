@@ -19,7 +19,9 @@ struct SegmentBeams {
 
 struct BeamCrossingOptions {
   double bin_m = 0.10;     // bin length along a segment [m], > 0
-  double margin_m = 0.10;  // a return within this of the segment ended on it; beyond it by more, it passed [m], > 0
+  /// A return within this of the segment, measured across it, ended on it; beyond it by more, it passed [m], > 0.
+  /// Widened per beam by two σ of where the pose and the reading put the return across the segment.
+  double margin_m = 0.10;
   /// Beams closer than this to running along the segment are not counted: at a grazing angle a beam's range error
   /// moves its crossing point far along the segment [rad], in [0, π/2).
   double min_incidence_rad = 0.17;
@@ -29,10 +31,13 @@ struct BeamCrossingOptions {
 std::size_t beam_bins(double length_m, const BeamCrossingOptions& options);
 
 /// Adds the beams of `scan` to the counts of `segments` (each sized by beam_bins). A beam is walked up to
-/// `reach_m` (the grid's usable range): a return beyond it, or no return, means free space up to reach_m. Cost: for
-/// each segment, only the beams whose bearing lies between its ends'.
-/// @throw std::invalid_argument for bad options, a non-finite reach or a segment whose bins do not match its length.
+/// `reach_m` (the grid's usable range): a return beyond it, or no return, means free space up to reach_m.
+/// `pose_cov` (x, y, θ) is the sensor pose's covariance: a beam's margin widens with it. Cost: for each segment,
+/// only the beams whose bearing lies between its ends'.
+/// @throw std::invalid_argument for bad options, a non-finite reach or covariance, or a segment whose bins do not
+///        match its length.
 void count_beam_crossings(const LaserScan& scan, double reach_m, const BeamCrossingOptions& options,
-                          std::vector<SegmentBeams>& segments);
+                          std::vector<SegmentBeams>& segments,
+                          const Eigen::Matrix3d& pose_cov = Eigen::Matrix3d::Zero());
 
 }  // namespace wm::fusion

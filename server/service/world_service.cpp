@@ -199,7 +199,7 @@ void WorldService::count_edge_beams(const json_codec::ScanRequest& scan) {
       }
       keys.push_back(std::move(key));
     }
-    fusion::count_beam_crossings(*laser, reach, options_.beam_crossings, segments);
+    fusion::count_beam_crossings(*laser, reach, options_.beam_crossings, segments, scan.pose_cov);
     for (std::size_t n = 0; n < keys.size(); ++n) {
       beams_dirty_.insert(keys[n]);
       edge_beams_[keys[n]] = std::move(segments[n]);

@@ -2,36 +2,93 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 namespace wm::world {
 namespace {
+
+constexpr double kJunctionMinAngleRad = 0.5236;  // 30°: a wall meeting at a shallower angle is a face beside it
 
 void check(const PlanEvidenceOptions& options) {
   if (!(options.step_m > 0) || !std::isfinite(options.step_m))
     throw std::invalid_argument("plan_evidence: step_m must be finite and > 0");
   if (!(options.min_stretch_m >= 0) || !std::isfinite(options.min_stretch_m))
     throw std::invalid_argument("plan_evidence: min_stretch_m must be finite and >= 0");
+  if (!(options.junction_cells >= 0) || !std::isfinite(options.junction_cells))
+    throw std::invalid_argument("plan_evidence: junction_cells must be finite and >= 0");
+}
+
+double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-18), 0.0, 1.0);
+  return (p - (a + t * ab)).norm();
+}
+
+/// Which samples lie where another drawn edge meets or crosses this one (at 30° or more): there the probe, looking
+/// across this edge, finds the other wall's cells whether this one stands or not.
+void mark_junctions(const WorldState& state, std::size_t object_index, std::size_t k,
+                    const fusion::LineSegment& segment, const std::vector<Eigen::Vector2d>& points,
+                    const PlanEvidenceOptions& options, std::vector<bool>& at_junction) {
+  at_junction.assign(points.size(), false);
+  const double reach = options.junction_cells * options.step_m;
+  if (reach <= 0) return;
+  const Eigen::Vector2d direction = segment.line.direction();
+  for (const auto& [i, j] : state.objects.edges_near(Box::of(segment, reach))) {
+    if (i == object_index && j == k) continue;
+    const auto other = state.objects[i].body.world_edge(j, Eigen::Matrix2d::Zero());
+    if (other.length_m() <= 0 || std::abs(direction.dot(other.line.direction())) > std::cos(kJunctionMinAngleRad))
+      continue;
+    for (std::size_t n = 0; n < points.size(); ++n)
+      if (!at_junction[n] && point_segment_distance(points[n], other.p0(), other.p1()) <= reach) at_junction[n] = true;
+  }
+}
+
+/// Junction samples take the verdict of the samples beside them: at an end, the nearest one inside; between two,
+/// theirs when both agree (else what the probe said stays).
+void fill_junctions(const std::vector<bool>& at_junction, std::vector<EdgeSample>& samples) {
+  const std::size_t n = samples.size();
+  for (std::size_t i = 0; i < n;) {
+    if (!at_junction[i]) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j < n && at_junction[j]) ++j;
+    std::optional<EdgeSample> fill;
+    if (i > 0 && j < n) {
+      if (samples[i - 1] == samples[j]) fill = samples[j];
+    } else if (i > 0) {
+      fill = samples[i - 1];
+    } else if (j < n) {
+      fill = samples[j];
+    }
+    if (fill)
+      for (std::size_t m = i; m < j; ++m) samples[m] = *fill;
+    i = j;
+  }
 }
 
 /// The samples of one edge: n equal pieces, each judged at its centre.
-std::optional<EdgeEvidence> edge_evidence(const ObjectState& object, std::size_t object_index, std::size_t k,
+std::optional<EdgeEvidence> edge_evidence(const WorldState& state, std::size_t object_index, std::size_t k,
                                           const EdgeProbe& probe, const PlanEvidenceOptions& options,
                                           std::vector<EdgeSample>& samples) {
+  const ObjectState& object = state.objects[object_index];
   const auto segment = object.body.world_edge(k, Eigen::Matrix2d::Zero());
   const double length = segment.length_m();
   const auto n = static_cast<std::size_t>(std::ceil(length / options.step_m));
   if (n < 2) return std::nullopt;
   const Eigen::Vector2d a = segment.p0(), b = segment.p1();
   const Eigen::Vector2d normal = segment.line.normal();
+  std::vector<Eigen::Vector2d> points;
+  for (std::size_t i = 0; i < n; ++i) points.push_back(a + (static_cast<double>(i) + 0.5) / static_cast<double>(n) * (b - a));
   samples.clear();
+  for (const auto& point : points) samples.push_back(probe(point, normal));
+  std::vector<bool> at_junction;
+  mark_junctions(state, object_index, k, segment, points, options, at_junction);
+  fill_junctions(at_junction, samples);
   std::size_t counts[4] = {0, 0, 0, 0};
-  for (std::size_t i = 0; i < n; ++i) {
-    const double f = (static_cast<double>(i) + 0.5) / static_cast<double>(n);
-    const auto sample = probe(a + f * (b - a), normal);
-    samples.push_back(sample);
-    ++counts[static_cast<int>(sample)];
-  }
+  for (const auto sample : samples) ++counts[static_cast<int>(sample)];
   EdgeEvidence evidence;
   evidence.object = object_index;
   evidence.edge = k;
@@ -77,9 +134,8 @@ std::vector<EdgeEvidence> plan_evidence(const WorldState& state, const Box& regi
   std::vector<EdgeEvidence> result;
   std::vector<EdgeSample> samples;
   for (const auto& [i, k] : state.objects.edges_near(region)) {
-    const ObjectState& object = state.objects[i];
-    if (!region.crossed_by(object.body.world_edge(k, Eigen::Matrix2d::Zero()))) continue;
-    if (auto evidence = edge_evidence(object, i, k, probe, options, samples)) result.push_back(std::move(*evidence));
+    if (!region.crossed_by(state.objects[i].body.world_edge(k, Eigen::Matrix2d::Zero()))) continue;
+    if (auto evidence = edge_evidence(state, i, k, probe, options, samples)) result.push_back(std::move(*evidence));
   }
   return result;
 }
@@ -90,9 +146,8 @@ std::vector<EdgeEvidence> plan_evidence(const WorldState& state, const EdgeProbe
   std::vector<EdgeEvidence> result;
   std::vector<EdgeSample> samples;
   for (std::size_t i = 0; i < state.objects.size(); ++i) {
-    const ObjectState& object = state.objects[i];
-    for (std::size_t k = 0; k < object.body.edges().size(); ++k)
-      if (auto evidence = edge_evidence(object, i, k, probe, options, samples)) result.push_back(std::move(*evidence));
+    for (std::size_t k = 0; k < state.objects[i].body.edges().size(); ++k)
+      if (auto evidence = edge_evidence(state, i, k, probe, options, samples)) result.push_back(std::move(*evidence));
   }
   return result;
 }

@@ -28,6 +28,10 @@ struct PlanEvidenceOptions {
   double step_m = 0.05;             // sample spacing along an edge (the grid's cell size) [m], > 0
   double min_stretch_m = 0.30;      // a seen-through run shorter than this is not reported as a stretch [m]
   std::size_t max_unknown_gap = 2;  // unknown samples bridged inside a seen-through run
+  /// Samples within this many steps of another drawn edge that meets or crosses the edge (30° or more) take the
+  /// verdict of the samples beside them: the other wall's cells are there whether this wall stands or not, so a
+  /// demolished wall would otherwise end a few cells short of its corners. 0: off.
+  double junction_cells = 2.5;
 };
 
 /// A stretch of an edge, from its first end (p0 of the edge as placed now) [m].

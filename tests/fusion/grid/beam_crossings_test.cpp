@@ -92,6 +92,56 @@ TEST(BeamCrossingsTest, GrazingBeamsAreNotCounted) {
   EXPECT_GE(total(segments[0].through), 4u);
 }
 
+// Every beam that crosses `wall` returns `beyond_m` past it along the beam.
+LaserScan returning_past(const SegmentBeams& wall, double beyond_m) {
+  auto scan = ring_scan(30.0);
+  const Eigen::Vector2d along = wall.p1 - wall.p0;
+  for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+    const double bearing = scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
+    const Eigen::Vector2d dir(std::cos(bearing), std::sin(bearing));
+    const double denom = dir.x() * along.y() - dir.y() * along.x();
+    if (std::abs(denom) < 1e-12) continue;
+    const double t = (wall.p0.x() * along.y() - wall.p0.y() * along.x()) / denom;
+    const double u = (wall.p0.x() * dir.y() - wall.p0.y() * dir.x()) / denom;
+    if (t > 0 && u >= 0 && u <= 1) scan.ranges_m[i] = t + beyond_m;
+  }
+  return scan;
+}
+
+TEST(BeamCrossingsTest, TheMarginIsMeasuredAcrossTheSegment) {
+  const BeamCrossingOptions options;
+  // A wall the beams meet at 16°–22°: a return 0.25 m past it along the beam is 7–9 cm behind its line, within
+  // the 10 cm margin (noise of a wall that stands); 1 m past it is 28–37 cm behind (the beam went through).
+  const auto wall = segment({2, 5}, {2, 7}, options);
+  std::vector<SegmentBeams> segments{wall};
+  count_beam_crossings(returning_past(wall, 0.25), 20.0, options, segments);
+  EXPECT_GT(total(segments[0].ended), 5u);
+  EXPECT_EQ(total(segments[0].through), 0u);
+  segments = {wall};
+  count_beam_crossings(returning_past(wall, 1.0), 20.0, options, segments);
+  EXPECT_EQ(total(segments[0].ended), 0u);
+  EXPECT_GT(total(segments[0].through), 5u);
+}
+
+TEST(BeamCrossingsTest, AnUncertainPoseWidensTheMargin) {
+  const BeamCrossingOptions options;
+  // Returns 0.6 m past the wall along the beam, 17–22 cm behind it: through for a pose known exactly; with a heading
+  // σ of 1° the return 6 m away is ±10 cm across the wall at one σ, so they are not counted as passing.
+  const auto wall = segment({2, 5}, {2, 7}, options);
+  const auto scan = returning_past(wall, 0.6);
+  std::vector<SegmentBeams> segments{wall};
+  count_beam_crossings(scan, 20.0, options, segments);
+  EXPECT_GT(total(segments[0].through), 5u);
+  Eigen::Matrix3d pose_cov = Eigen::Matrix3d::Zero();
+  pose_cov(2, 2) = std::pow(std::numbers::pi / 180, 2);
+  segments = {wall};
+  count_beam_crossings(scan, 20.0, options, segments, pose_cov);
+  EXPECT_EQ(total(segments[0].through), 0u);
+  EXPECT_GT(total(segments[0].ended), 5u);
+  pose_cov(0, 0) = std::nan("");
+  EXPECT_THROW(count_beam_crossings(scan, 20.0, options, segments, pose_cov), std::invalid_argument);
+}
+
 TEST(BeamCrossingsTest, SegmentBehindTheScanStartIsFoundAcrossTheWrap) {
   const BeamCrossingOptions options;
   // Straight behind the sensor, where a scan starting at −π wraps.

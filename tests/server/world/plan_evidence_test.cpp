@@ -120,6 +120,59 @@ TEST(PlanEvidenceTest, EdgesFollowAMovedObject) {
     }
 }
 
+// Wall "w" from (0, 0) to (4, 0), met by "end" at its far end and by "tee" at x = 2, with "face" 5 cm beside it.
+WorldState walls_meeting() {
+  apriori::FloorPlan plan;
+  plan.name = "junctions";
+  const auto wall = [](std::string id, Eigen::Vector2d a, Eigen::Vector2d b) {
+    apriori::PlanObject o;
+    o.id = std::move(id);
+    o.kind = "wall";
+    o.attributes = {"solid"};
+    o.polylines = {{a, b}};
+    return o;
+  };
+  plan.objects = {wall("w", {0, 0}, {4, 0}), wall("end", {4, -1}, {4, 1}), wall("tee", {2, 0}, {2, 2}),
+                  wall("face", {0, 0.05}, {4, 0.05})};
+  WorldState state;
+  state.objects = ObjectTable(make_objects(plan, WorldOptions{}, 1));
+  return state;
+}
+
+TEST(PlanEvidenceTest, WhereAnotherWallMeetsAnEdgeItTakesTheVerdictBesideIt) {
+  const auto state = walls_meeting();
+  // "w" is gone; the grid still shows the walls that meet it, where they meet it (x = 2 and x = 4).
+  const auto gone = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    if (std::abs(p.y()) > 1e-9) return EdgeSample::unknown;
+    return std::abs(p.x() - 4) < 0.1 || std::abs(p.x() - 2) < 0.1 ? EdgeSample::backed : EdgeSample::seen_through;
+  };
+  auto o = options();
+  const auto found = plan_evidence(state, gone, o);
+  ASSERT_FALSE(found.empty());
+  EXPECT_EQ(found[0].object, 0u);
+  EXPECT_NEAR(found[0].seen_through, 1.0, 1e-9);
+  ASSERT_EQ(found[0].seen_through_stretches.size(), 1u);
+  EXPECT_NEAR(found[0].seen_through_stretches[0].s0_m, 0.0, 1e-9);
+  EXPECT_NEAR(found[0].seen_through_stretches[0].s1_m, 4.0, 1e-9);
+  // A parallel face beside it is no junction: with only "face" near, the samples stay as probed.
+  const auto face_only = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    if (std::abs(p.y()) > 1e-9) return EdgeSample::unknown;
+    return p.x() < 1 ? EdgeSample::backed : EdgeSample::seen_through;
+  };
+  EXPECT_NEAR(plan_evidence(state, face_only, o)[0].backed, 0.25, 1e-9);
+  // Where the samples beside a junction disagree (gone on one side, standing on the other), the probe stands.
+  const auto half = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    if (std::abs(p.y()) > 1e-9) return EdgeSample::unknown;
+    if (std::abs(p.x() - 2) < 0.1) return EdgeSample::displaced;
+    return p.x() < 2 ? EdgeSample::seen_through : EdgeSample::backed;
+  };
+  const auto split = plan_evidence(state, half, o)[0];
+  EXPECT_NEAR(split.displaced, 0.05, 1e-9);  // the 4 samples of x in (1.9, 2.1), two cells each side of the tee
+  // Off: the junctions keep what the probe said.
+  o.junction_cells = 0;
+  EXPECT_NEAR(plan_evidence(state, gone, o)[0].seen_through, 0.925, 1e-9);
+}
+
 TEST(PlanEvidenceTest, BadOptionsAreRefused) {
   const auto state = plan_state();
   const EdgeProbe probe = [](const Eigen::Vector2d&, const Eigen::Vector2d&) { return EdgeSample::backed; };
