@@ -329,7 +329,10 @@ Network::Network(const TaskSpec& spec, const Registry& registry) : source_(spec.
     }
   }
 
+  if (spec.executors.size() > kMaxExecutors)
+    throw NetworkError(fail(spec, "more than " + std::to_string(kMaxExecutors) + " executors (each is a thread)"));
   for (const auto& e : spec.executors) {
+    if (e.components.empty()) throw NetworkError(fail(spec, "executor '" + e.name + "' runs no component"));
     auto executor = std::make_unique<ExecutorState>();
     executor->name = e.name;
     for (const auto& name : e.components) {

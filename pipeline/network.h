@@ -175,9 +175,17 @@ struct TaskSpec {
   std::vector<ExecutorSpec> executors;
 };
 
-/// Reads a YAML task file. @throw NetworkError naming the file and what is wrong.
+/// Bounds on a task file: what a network of a few stages needs, many times over. A larger one is a mistake or an
+/// attack, and would cost a thread per executor before anything runs.
+inline constexpr std::size_t kMaxTaskFileBytes = std::size_t{1} << 20;
+inline constexpr std::size_t kMaxComponents = 256;
+inline constexpr std::size_t kMaxExecutors = 64;
+
+/// Reads a YAML task file: a regular file of at most kMaxTaskFileBytes (a FIFO, a device or a directory is refused
+/// without waiting on it). @throw NetworkError naming the file and what is wrong.
 TaskSpec read_task_file(const std::string& path);
-/// The same from YAML text; `source` names it in errors.
+/// The same from YAML text; `source` names it in errors. Refuses more than kMaxComponents components or
+/// kMaxExecutors executors, and an executor that runs no component.
 TaskSpec parse_task(const std::string& yaml, const std::string& source);
 
 struct PortStats {

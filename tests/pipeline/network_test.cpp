@@ -406,6 +406,17 @@ TEST(NetworkErrorsTest, ExecutorsAndNames) {
   EXPECT_NE(build_error(spec, registry).find("connection s.out -> t.in: no component 't'"), std::string::npos);
 }
 
+TEST(NetworkErrorsTest, AnExecutorWithoutComponentsOrTooManyExecutorsAreRefused) {
+  Registry registry;
+  registry.add("tied", [](const Params&) { return tied(); });
+  auto spec = one("tied", {"ab", "bc"});
+  spec.executors.push_back({"idle", {}});
+  EXPECT_NE(build_error(spec, registry).find("test.yaml: executor 'idle' runs no component"), std::string::npos);
+  spec = one("tied", {"ab", "bc"});
+  for (std::size_t i = 0; i < kMaxExecutors; ++i) spec.executors.push_back({"e" + std::to_string(i), {"s"}});
+  EXPECT_NE(build_error(spec, registry).find("more than 64 executors"), std::string::npos);
+}
+
 TEST(NetworkErrorsTest, DisablingAFunctionRemovesItsTie) {
   Registry registry;
   registry.add("tied", [](const Params&) { return tied(); });

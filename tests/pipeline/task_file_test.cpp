@@ -1,4 +1,12 @@
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
 
 #include "pipeline/network.h"
 
@@ -66,13 +74,62 @@ TEST(TaskFileTest, RefusesWithTheFileLineAndReason) {
   EXPECT_THROW(params.number("every", 0, 0, 100), std::invalid_argument);
 }
 
-TEST(TaskFileTest, MissingFileNamed) {
+TEST(TaskFileTest, AnExecutorWithoutComponentsIsRefused) {
+  EXPECT_NE(parse_error("components: {a: {kind: k}}\nexecutors: {e: [a], idle: []}\n")
+                .find("net.yaml:2: executor 'idle' runs no component"),
+            std::string::npos);
+}
+
+TEST(TaskFileTest, TooManyExecutorsOrComponentsAreRefused) {
+  std::string yaml = "components: {a: {kind: k}}\nexecutors:\n";
+  for (std::size_t i = 0; i <= kMaxExecutors; ++i) yaml += "  e" + std::to_string(i) + ": [a]\n";
+  EXPECT_NE(parse_error(yaml).find("more than 64 executors (each is a thread)"), std::string::npos);
+  yaml = "executors: {e: [c0]}\ncomponents:\n";
+  for (std::size_t i = 0; i <= kMaxComponents; ++i) yaml += "  c" + std::to_string(i) + ": {kind: k}\n";
+  EXPECT_NE(parse_error(yaml).find("more than 256 components"), std::string::npos);
+}
+
+std::string read_error(const std::string& path) {
   try {
-    read_task_file("/nonexistent/net.yaml");
-    FAIL();
+    read_task_file(path);
   } catch (const NetworkError& e) {
-    EXPECT_STREQ(e.what(), "/nonexistent/net.yaml: cannot be read");
+    return e.what();
   }
+  return "";
+}
+
+TEST(TaskFileTest, MissingFileNamed) {
+  EXPECT_EQ(read_error("/nonexistent/net.yaml"), "/nonexistent/net.yaml: cannot be read (No such file or directory)");
+}
+
+TEST(TaskFileTest, OnlyARegularFileOfBoundedSizeIsRead) {
+  // Each of these used to block or read forever; a death test bounds the time so that a hang fails.
+  EXPECT_EXIT(
+      {
+        ::alarm(10);
+        const auto dir = std::filesystem::temp_directory_path() / ("task_fifo_" + std::to_string(::getpid()));
+        std::filesystem::create_directories(dir);
+        const auto fifo = (dir / "net.yaml").string();
+        const bool made = ::mkfifo(fifo.c_str(), 0600) == 0;
+        const auto fifo_error = read_error(fifo);
+        std::filesystem::remove_all(dir);
+        bool ok = made && fifo_error == fifo + ": not a regular file";
+        for (const std::string path : {"/dev/zero", "/dev/urandom", "/tmp"}) {
+          const auto error = read_error(path);
+          ok = ok && error == path + ": not a regular file";
+          std::cerr << path << ": " << error << "\n";  // shown when the test fails
+        }
+        std::exit(ok ? 0 : 1);
+      },
+      ::testing::ExitedWithCode(0), "");
+
+  const auto big = std::filesystem::temp_directory_path() / ("task_big_" + std::to_string(::getpid()) + ".yaml");
+  {
+    std::ofstream out(big);
+    out << "description: \"" << std::string(kMaxTaskFileBytes, 'x') << "\"\n";
+  }
+  EXPECT_EQ(read_error(big.string()), big.string() + ": larger than 1024 KiB: not a task file");
+  std::filesystem::remove(big);
 }
 
 }  // namespace
