@@ -80,6 +80,10 @@ void require_allowed_host(const Request& request, const ApiOptions& options) {
 }
 
 void require_allowed_origin(const Request& request, const ApiOptions& options) {
+  // A browser sends one Origin; with two, a check of the first would let the second decide elsewhere (a proxy, a
+  // framework that reads the last one).
+  if (request.count(http::field::origin) > 1)
+    throw ApiError(403, "forbidden_origin", "a request with more than one Origin header is refused");
   const auto origin = lower(trimmed(header(request, http::field::origin)));
   if (origin.empty()) return;
   std::string normalised = origin;

@@ -15,7 +15,8 @@ namespace wm::api {
 void require_allowed_host(const Request& request, const ApiOptions& options);
 
 /// Same origin (the Origin's host:port is the Host header) or one of options.allowed_origins. A request without
-/// Origin does not come from a browser page and passes. @throw ApiError(403, "forbidden_origin").
+/// Origin does not come from a browser page and passes; one with more than one Origin header is refused.
+/// @throw ApiError(403, "forbidden_origin").
 void require_allowed_origin(const Request& request, const ApiOptions& options);
 
 /// When a token is configured: "Authorization: Bearer <token>". @throw ApiError(401, "unauthorized").

@@ -83,6 +83,20 @@ TEST_F(WriteHandlersTest, CrossSiteWritesAreRefusedAndSameOriginPasses) {
   EXPECT_EQ(status_of(send(request)), 200);
 }
 
+TEST_F(WriteHandlersTest, TwoOriginHeadersAreRefusedWhicheverComesFirst) {
+  for (const auto& [first, second] : {std::pair{"http://127.0.0.1:8080", "http://attacker.example"},
+                                      std::pair{"http://attacker.example", "http://127.0.0.1:8080"},
+                                      std::pair{"http://127.0.0.1:8080", "http://127.0.0.1:8080"}}) {
+    auto request = make_request(verb::post, "/api/v1/primitives", kPrimitives);
+    request.insert(http::field::origin, first);
+    request.insert(http::field::origin, second);
+    const auto response = send(request);
+    EXPECT_EQ(status_of(response), 403) << first << ", " << second;
+    EXPECT_EQ(json_of(response)["error"], "forbidden_origin");
+  }
+  EXPECT_TRUE(world_.calls.empty());
+}
+
 TEST_F(WriteHandlersTest, ScansAreParsedAndAnsweredWithTheirLines) {
   const auto response = send(verb::post, "/api/v1/scans", kScan);
   ASSERT_EQ(status_of(response), 200) << response.body();
