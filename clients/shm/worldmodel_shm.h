@@ -197,13 +197,19 @@ class Reader {
     std::vector<EdgeRecord> edges;
   };
 
-  /// Opens "wm-<uuid>" (or "/dev/shm/wm-<uuid>"). @throw Error when it does not exist, cannot be mapped, or is not
-  /// a worldmodel segment of this layout version.
+  /// Opens "wm-<uuid>" (or "/dev/shm/wm-<uuid>"). @throw Error when it does not exist, is not a regular file,
+  /// cannot be mapped, or is not a worldmodel segment of this layout version.
   explicit Reader(std::string name) : name_(strip(std::move(name))) {
-    const int fd = ::shm_open(("/" + name_).c_str(), O_RDONLY, 0);
+    // Anyone may put a file of that name in /dev/shm: O_NONBLOCK so that a FIFO does not block the open (glibc's
+    // shm_open passes it on, and adds O_NOFOLLOW), then only a regular file is taken.
+    const int fd = ::shm_open(("/" + name_).c_str(), O_RDONLY | O_NONBLOCK, 0);
     if (fd < 0) throw Error("cannot open shared memory '" + name_ + "': " + std::strerror(errno));
     struct stat info {};
-    if (::fstat(fd, &info) != 0 || info.st_size < static_cast<off_t>(kHeaderBytes)) {
+    if (::fstat(fd, &info) != 0 || !S_ISREG(info.st_mode)) {
+      ::close(fd);
+      throw Error("shared memory '" + name_ + "' is not a regular file");
+    }
+    if (info.st_size < static_cast<off_t>(kHeaderBytes)) {
       ::close(fd);
       throw Error("shared memory '" + name_ + "' is too small to be a worldmodel segment");
     }

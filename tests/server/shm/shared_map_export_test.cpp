@@ -13,7 +13,9 @@
 #include <atomic>
 #include <boost/uuid/uuid_generators.hpp>
 #include <boost/uuid/uuid_io.hpp>
+#include <cstdlib>
 #include <filesystem>
+#include <iostream>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -282,6 +284,25 @@ TEST(SharedMapExportTest, TheReaderRefusesFilesThatAreNotSegments) {
   const auto empty_geometry = leave_segment(::getpid(), true);  // a header with zero sizes: no tile size, no map
   EXPECT_THROW(reader::Reader{empty_geometry->name}, reader::Error);
   EXPECT_THROW(reader::Reader{"wm-does-not-exist"}, reader::Error);
+}
+
+TEST(SharedMapExportTest, TheReaderRefusesAFifoWithoutWaitingOnIt) {
+  const auto fifo = std::string(reader::kNamePrefix) + boost::uuids::to_string(boost::uuids::random_generator()());
+  ASSERT_EQ(::mkfifo(("/dev/shm/" + fifo).c_str(), 0600), 0);
+  // Opening a FIFO for reading blocks until a writer comes: the alarm turns such a hang into a failure.
+  EXPECT_EXIT(
+      {
+        ::alarm(10);
+        try {
+          reader::Reader segment(fifo);
+        } catch (const reader::Error& e) {
+          std::cerr << e.what() << "\n";
+          std::exit(std::string(e.what()).find("is not a regular file") != std::string::npos ? 0 : 1);
+        }
+        std::exit(2);
+      },
+      ::testing::ExitedWithCode(0), "is not a regular file");
+  ::unlink(("/dev/shm/" + fifo).c_str());
 }
 
 }  // namespace
