@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "clients/shm/worldmodel_shm.h"
+#include "server/shm/sigbus_guard.h"
 
 namespace wm::shm {
 namespace {
@@ -85,9 +86,25 @@ std::uint32_t origin_code(const std::string& origin) {
 }  // namespace
 
 /// One segment this process made: created, its pages reserved, mapped read-write.
+///
+/// Any process of this user may rewrite the file or shrink it. So the layout is kept here, as computed, and never
+/// read back from the mapping (every address below comes from `layout_`), and every access to the mapping goes
+/// through guard(): a truncation under it costs the segment (lost()), never the process.
 class SharedMapExport::Segment {
  public:
-  Segment(std::string name, std::uint64_t bytes) : name_(std::move(name)) {
+  /// Where everything is [bytes from the segment's start].
+  struct Layout {
+    std::int64_t tile_size_cells = 0;
+    std::uint64_t bytes = 0;
+    std::uint64_t tiles_offset = 0;
+    std::uint64_t slot_bytes = 0;
+    std::uint64_t tile_capacity = 0;
+    std::uint64_t map_offset = 0;
+    std::uint64_t map_capacity_bytes = 0;
+  };
+
+  Segment(std::string name, const Layout& layout) : name_(std::move(name)), layout_(layout) {
+    const auto bytes = layout_.bytes;
     bip::permissions permissions;
     permissions.set_permissions(0644);  // others may read, as they may GET the map over loopback
     object_ = bip::shared_memory_object(bip::create_only, name_.c_str(), bip::read_write, permissions);
@@ -110,19 +127,45 @@ class SharedMapExport::Segment {
   ~Segment() = default;
 
   const std::string& name() const { return name_; }
-  std::uint64_t bytes() const { return region_.get_size(); }
+  const Layout& layout() const { return layout_; }
+  /// Every access to the mapping is made while one of these lives.
+  SigbusGuard guard() { return SigbusGuard(region_.get_address(), region_.get_size(), lost_); }
   unsigned char* base() { return static_cast<unsigned char*>(region_.get_address()); }
   layout::SegmentHeader& header() { return *reinterpret_cast<layout::SegmentHeader*>(base()); }
   layout::TileSlotHeader& slot(std::uint64_t index) {
-    return *reinterpret_cast<layout::TileSlotHeader*>(base() + header().tiles_offset + index * header().slot_bytes);
+    if (index >= layout_.tile_capacity) throw std::logic_error("shared memory slot " + std::to_string(index));
+    return *reinterpret_cast<layout::TileSlotHeader*>(base() + layout_.tiles_offset + index * layout_.slot_bytes);
   }
-  layout::MapHeader& map() { return *reinterpret_cast<layout::MapHeader*>(base() + header().map_offset); }
+  layout::MapHeader& map() { return *reinterpret_cast<layout::MapHeader*>(base() + layout_.map_offset); }
   void unlink() { bip::shared_memory_object::remove(name_.c_str()); }
+
+  /// A guarded access faulted: the file was shrunk under the mapping, which no longer reaches it.
+  bool lost() const { return lost_.load(std::memory_order_relaxed); }
+  /// Whether readers still find the segment as it was made: not lost, the file not shorter than the segment, and
+  /// the header's layout fields as this process wrote them. Otherwise it is to be replaced.
+  bool intact() {
+    struct stat info {};
+    if (lost() || ::fstat(object_.get_mapping_handle().handle, &info) != 0 ||
+        static_cast<std::uint64_t>(info.st_size) < layout_.bytes)
+      return false;
+    const auto guarded = guard();
+    const auto& h = header();
+    const bool same = std::memcmp(h.magic, layout::kMagic, sizeof h.magic) == 0 &&
+                      h.layout_version == layout::kLayoutVersion && h.header_bytes == layout::kHeaderBytes &&
+                      h.layer_count == layout::kLayerCount && h.tile_size_cells == layout_.tile_size_cells &&
+                      h.slot_bytes == layout_.slot_bytes &&
+                      h.tiles_offset == layout_.tiles_offset && h.tile_capacity == layout_.tile_capacity &&
+                      h.map_offset == layout_.map_offset && h.map_capacity_bytes == layout_.map_capacity_bytes &&
+                      h.segment_bytes == layout_.bytes;
+    return same && !lost();
+  }
 
  private:
   std::string name_;
+  const Layout layout_;
   bip::shared_memory_object object_;
   bip::mapped_region region_;
+  std::atomic<bool> lost_{false};
 };
 
 SharedMapExport::SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance)
@@ -151,8 +194,11 @@ SharedMapExport::~SharedMapExport() {
   if (thread_.joinable()) thread_.join();
   std::lock_guard lock(mutex_);
   if (segment_) {
-    segment_->header().state.store(static_cast<std::uint32_t>(layout::SegmentState::stopped),
-                                   std::memory_order_release);
+    {
+      const auto guard = segment_->guard();
+      segment_->header().state.store(static_cast<std::uint32_t>(layout::SegmentState::stopped),
+                                     std::memory_order_release);
+    }
     segment_->unlink();
   }
 }
@@ -178,6 +224,8 @@ void SharedMapExport::sync() {
   const auto before = error_;
   try {
     sync_locked();
+    // Shrunk under this pass: replaced now rather than a period later.
+    if (segment_ && segment_->lost()) sync_locked();
   } catch (const std::exception& e) {
     error_ = e.what();  // the service keeps serving HTTP; the next pass tries again
   }
@@ -187,6 +235,16 @@ void SharedMapExport::sync() {
 void SharedMapExport::sync_locked() {
   const auto tiles = world_.grid_tiles();
   const auto state = world_.snapshot();
+
+  // Another process of this user shrank the file or rewrote the header: a new segment takes its place, filled from
+  // the world (nothing is copied from this one), and this one is retired with the new name where it still can be.
+  const bool replace = segment_ && !segment_->intact();
+  if (replace) {
+    std::cerr << "wmd: shared memory " << segment_->name()
+              << " was truncated or changed by another process: it is replaced\n";
+    slots_.clear();
+    map_version_ = -1;
+  }
 
   // The map's records, made before any segment is touched, so its size is known.
   std::vector<unsigned char> records;
@@ -245,18 +303,25 @@ void SharedMapExport::sync_locked() {
     return count;
   }();
   const auto tiles_needed = slots_.size() + new_tiles;
-  if (!segment_ || tiles_needed > segment_->header().tile_capacity ||
-      map_bytes_needed_ > segment_->header().map_capacity_bytes) {
-    if (!grow(tiles_needed, map_bytes_needed_) && !segment_) return;  // nothing fits at all: status() says why
+  if (replace || !segment_ || tiles_needed > segment_->layout().tile_capacity ||
+      map_bytes_needed_ > segment_->layout().map_capacity_bytes) {
+    const bool grown = grow(tiles_needed, map_bytes_needed_, /*copy=*/!replace);
+    if (!grown && replace) {  // no new segment: writing on into the damaged one would help no reader
+      segment_->unlink();
+      segment_.reset();
+    }
+    if (!segment_ || (!grown && segment_->lost())) return;  // status() says why; a lost one is replaced next
   }
+  const auto guard = segment_->guard();
   auto& header = segment_->header();
 
   bool tiles_truncated = false;
   for (const auto& t : tiles.tiles) {
+    if (segment_->lost()) return;  // the rest would go nowhere: sync() replaces the segment
     auto slot = slots_.find({t.tx, t.ty});
     if (slot != slots_.end() && slot->second.revision == t.revision) continue;
     const bool fresh = slot == slots_.end();
-    if (fresh && slots_.size() >= header.tile_capacity) {
+    if (fresh && slots_.size() >= segment_->layout().tile_capacity) {
       tiles_truncated = true;
       continue;
     }
@@ -268,21 +333,24 @@ void SharedMapExport::sync_locked() {
       target.tx = t.tx;
       target.ty = t.ty;
     }
-    // Seqlock write: odd, a release fence, the data, even with release (docs/shm.md).
-    const auto sequence = target.sequence.load(std::memory_order_relaxed);
+    // Seqlock write: odd, a release fence, the data, even with release (docs/shm.md). The counter is this
+    // process's own, not whatever the mapping holds now.
+    const auto sequence = slot->second.sequence;
     target.sequence.store(sequence + 1, std::memory_order_relaxed);
     std::atomic_thread_fence(std::memory_order_release);
     target.revision = values->revision;
     std::memcpy(reinterpret_cast<unsigned char*>(&target) + sizeof(layout::TileSlotHeader), values->values.data(),
-                values->values.size() * sizeof(float));
+                std::min<std::uint64_t>(values->values.size() * sizeof(float),
+                                        segment_->layout().slot_bytes - sizeof(layout::TileSlotHeader)));
     target.sequence.store(sequence + 2, std::memory_order_release);
+    slot->second.sequence = sequence + 2;
     if (fresh) header.tile_count.store(slots_.size(), std::memory_order_release);  // counted once whole
     slot->second.revision = values->revision;
   }
 
   if (map_changed) {
     // Objects and edges first when the map does not fit: the plan is bounded, the elements are what grows.
-    const auto room = header.map_capacity_bytes - sizeof(layout::MapHeader);
+    const auto room = segment_->layout().map_capacity_bytes - sizeof(layout::MapHeader);
     const auto plan_bytes = object_count * sizeof(layout::ObjectRecord) + edge_count * sizeof(layout::EdgeRecord);
     const auto element_bytes = element_count * sizeof(layout::ElementRecord);
     bool map_truncated = false;
@@ -310,8 +378,10 @@ void SharedMapExport::sync_locked() {
       std::memory_order_release);
   // Advances even when tiles were left out (the truncated bit says so), so that readers polling it see the changes
   // of the tiles that are there.
-  header.grid_revision.store(static_cast<std::uint64_t>(tiles.revision), std::memory_order_release);
-  header.updated_unix_ns.store(unix_ns_now(), std::memory_order_release);
+  grid_revision_ = static_cast<std::uint64_t>(tiles.revision);
+  counts_.updated_unix_ns = unix_ns_now();
+  header.grid_revision.store(grid_revision_, std::memory_order_release);
+  header.updated_unix_ns.store(counts_.updated_unix_ns, std::memory_order_release);
   if (tiles_truncated || !counts_.map_complete)
     error_ = full_message(tiles_needed, map_bytes_needed_, size_cap());
   else
@@ -321,7 +391,7 @@ void SharedMapExport::sync_locked() {
 void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::int64_t version, std::uint64_t elements,
                                 std::uint64_t objects, std::uint64_t edges) {
   auto& map = segment_->map();
-  const auto sequence = map.sequence.load(std::memory_order_relaxed);
+  const auto sequence = map_sequence_;
   map.sequence.store(sequence + 1, std::memory_order_relaxed);
   std::atomic_thread_fence(std::memory_order_release);
   map.version = version;
@@ -331,6 +401,7 @@ void SharedMapExport::write_map(const std::vector<unsigned char>& records, std::
   if (!records.empty())  // an empty vector's data() may be null, which memcpy must not get
     std::memcpy(reinterpret_cast<unsigned char*>(&map) + sizeof(layout::MapHeader), records.data(), records.size());
   map.sequence.store(sequence + 2, std::memory_order_release);
+  map_sequence_ = sequence + 2;
 }
 
 std::uint64_t SharedMapExport::size_cap() const {
@@ -347,31 +418,42 @@ std::string SharedMapExport::full_message(std::uint64_t tiles, std::uint64_t map
          (creation_error_.empty() ? "" : " (" + creation_error_ + ")");
 }
 
-bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
+bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes, bool copy) {
   if (std::chrono::steady_clock::now() < retry_after_) return false;  // a creation failed a moment ago
   const auto slot_bytes = layout::slot_bytes_for(tile_size_cells_);
-  const std::uint64_t old_tiles = segment_ ? segment_->header().tile_capacity : 0;
-  const std::uint64_t old_map = segment_ ? segment_->header().map_capacity_bytes : 0;
+  const std::uint64_t old_tiles = segment_ ? segment_->layout().tile_capacity : 0;
+  const std::uint64_t old_map = segment_ ? segment_->layout().map_capacity_bytes : 0;
   const auto cap = size_cap();
   // Twice what is needed, so that growing stays rare; when that does not fit, as large as the cap allows (never
-  // less than now), so that a server near its cap does not make a new segment for each new tile.
+  // less than now), so that a server near its cap does not make a new segment for each new tile. A replacement
+  // (copy false) starts afresh and may be smaller than the segment it replaces.
   auto tile_capacity = std::max(2 * tiles, std::max<std::uint64_t>(1, kMinTileBytes / slot_bytes));
   auto map_capacity = round_up(std::max(2 * map_bytes, kMinMapBytes), kPage);
   const auto bytes_for = [&] { return layout::kHeaderBytes + tile_capacity * slot_bytes + map_capacity; };
   if (bytes_for() > cap) {
     const auto room = cap > layout::kHeaderBytes ? cap - layout::kHeaderBytes : 0;
-    map_capacity = std::max(old_map, round_up(std::max(map_bytes, kMinMapBytes), kPage));
+    map_capacity = std::max(copy ? old_map : 0, round_up(std::max(map_bytes, kMinMapBytes), kPage));
     tile_capacity = room > map_capacity ? (room - map_capacity) / slot_bytes : 0;
-    if (tile_capacity < old_tiles || bytes_for() > cap || (tile_capacity == old_tiles && map_capacity == old_map)) {
-      if (!segment_) error_ = full_message(tiles, map_bytes, cap);
+    if (bytes_for() > cap ||
+        (copy && (tile_capacity < old_tiles || (tile_capacity == old_tiles && map_capacity == old_map)))) {
+      if (!segment_ || !copy) error_ = full_message(tiles, map_bytes, cap);
       return false;  // keep the segment there is; sync_locked flags what is left out
     }
   }
 
   const auto name = layout::kNamePrefix + boost::uuids::to_string(boost::uuids::random_generator()());
+  // Computed once, here: the header written below tells readers, and nothing reads it back.
+  Segment::Layout place;
+  place.tile_size_cells = tile_size_cells_;
+  place.bytes = bytes_for();
+  place.tiles_offset = layout::kHeaderBytes;
+  place.slot_bytes = slot_bytes;
+  place.tile_capacity = tile_capacity;
+  place.map_offset = layout::kHeaderBytes + tile_capacity * slot_bytes;
+  place.map_capacity_bytes = map_capacity;
   std::unique_ptr<Segment> next;
   try {
-    next = std::make_unique<Segment>(name, bytes_for());
+    next = std::make_unique<Segment>(name, place);
   } catch (const std::exception& e) {
     creation_error_ =
         std::string("cannot make a shared memory segment of ") + std::to_string(bytes_for() >> 20) + " MB: " + e.what();
@@ -380,39 +462,69 @@ bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes) {
     return false;  // keep the segment there is, and flag what is left out
   }
   creation_error_.clear();
-  auto& header = *new (next->base()) layout::SegmentHeader{};
-  std::memcpy(header.magic, layout::kMagic, sizeof header.magic);
-  header.layout_version = layout::kLayoutVersion;
-  header.header_bytes = layout::kHeaderBytes;
-  header.owner_pid = ::getpid();
-  header.owner_start_ticks = owner_start_ticks_;
-  copy_text(header.server_instance, sizeof header.server_instance, server_instance_);
-  header.tile_size_cells = tile_size_cells_;
-  header.resolution_m = resolution_m_;
-  header.layer_count = layout::kLayerCount;
-  header.slot_bytes = slot_bytes;
-  header.tiles_offset = layout::kHeaderBytes;
-  header.tile_capacity = tile_capacity;
-  header.map_offset = layout::kHeaderBytes + tile_capacity * slot_bytes;
-  header.map_capacity_bytes = map_capacity;
-  header.segment_bytes = next->bytes();
-  new (next->base() + header.map_offset) layout::MapHeader{};
-  if (segment_) {
-    // Only this thread writes, so the old slots and map are whole (their counters even) and copy as they are.
-    auto& old = segment_->header();
-    const auto used = slots_.size();
-    std::memcpy(next->base() + header.tiles_offset, segment_->base() + old.tiles_offset, used * slot_bytes);
-    std::memcpy(static_cast<void*>(&next->map()), &segment_->map(), std::min(old.map_capacity_bytes, map_capacity));
-    header.tile_count.store(used, std::memory_order_relaxed);
-    header.grid_revision.store(old.grid_revision.load(), std::memory_order_relaxed);
-    header.truncated.store(old.truncated.load(), std::memory_order_relaxed);
-    header.updated_unix_ns.store(old.updated_unix_ns.load(), std::memory_order_relaxed);
+  {
+    const auto guard = next->guard();
+    auto& header = *new (next->base()) layout::SegmentHeader{};
+    std::memcpy(header.magic, layout::kMagic, sizeof header.magic);
+    header.layout_version = layout::kLayoutVersion;
+    header.header_bytes = layout::kHeaderBytes;
+    header.owner_pid = ::getpid();
+    header.owner_start_ticks = owner_start_ticks_;
+    copy_text(header.server_instance, sizeof header.server_instance, server_instance_);
+    header.tile_size_cells = tile_size_cells_;
+    header.resolution_m = resolution_m_;
+    header.layer_count = layout::kLayerCount;
+    header.slot_bytes = place.slot_bytes;
+    header.tiles_offset = place.tiles_offset;
+    header.tile_capacity = place.tile_capacity;
+    header.map_offset = place.map_offset;
+    header.map_capacity_bytes = place.map_capacity_bytes;
+    header.segment_bytes = place.bytes;
+    new (next->base() + place.map_offset) layout::MapHeader{};
+    if (segment_ && copy) {
+      // Only this thread writes, so the old slots and map are whole and copy as they are; their headers are then
+      // written again from this process's own bookkeeping, whatever the old mapping holds now.
+      const auto old_guard = segment_->guard();
+      const auto& old = segment_->layout();
+      std::memcpy(next->base() + place.tiles_offset, segment_->base() + old.tiles_offset, slots_.size() * slot_bytes);
+      std::memcpy(static_cast<void*>(&next->map()), &segment_->map(), std::min(old.map_capacity_bytes, map_capacity));
+      for (const auto& [key, slot] : slots_) {
+        auto& target = next->slot(slot.index);
+        target.tx = key.first;
+        target.ty = key.second;
+        target.revision = slot.revision;
+        target.sequence.store(slot.sequence, std::memory_order_relaxed);
+      }
+      auto& map = next->map();
+      map.sequence.store(map_sequence_, std::memory_order_relaxed);
+      map.version = map_version_;
+      map.element_count = counts_.elements;
+      map.object_count = counts_.objects;
+      map.edge_count = counts_.edges;
+      header.tile_count.store(slots_.size(), std::memory_order_relaxed);
+      header.grid_revision.store(grid_revision_, std::memory_order_relaxed);
+      header.truncated.store((counts_.tiles_complete ? 0 : layout::kTilesTruncated) |
+                                 (counts_.map_complete ? 0 : layout::kMapTruncated),
+                             std::memory_order_relaxed);
+      header.updated_unix_ns.store(counts_.updated_unix_ns, std::memory_order_relaxed);
+    }
+    header.state.store(static_cast<std::uint32_t>(layout::SegmentState::live), std::memory_order_release);
   }
-  header.state.store(static_cast<std::uint32_t>(layout::SegmentState::live), std::memory_order_release);
+  if (next->lost() || (segment_ && copy && segment_->lost())) {
+    next->unlink();  // shrunk while being made, or the copy came from a shrunk file
+    return false;
+  }
+  if (!copy) {
+    map_sequence_ = 0;
+    for (auto& [key, slot] : slots_) slot.sequence = 0;
+  }
   if (segment_) {
-    copy_text(segment_->header().successor, sizeof segment_->header().successor, name);
-    segment_->header().state.store(static_cast<std::uint32_t>(layout::SegmentState::retired),
-                                   std::memory_order_release);
+    {
+      const auto old_guard = segment_->guard();
+      copy_text(segment_->header().successor, sizeof segment_->header().successor, name);
+      segment_->header().state.store(static_cast<std::uint32_t>(layout::SegmentState::retired),
+                                     std::memory_order_release);
+    }
     segment_->unlink();
   }
   segment_ = std::move(next);
@@ -432,21 +544,20 @@ ShmStatus SharedMapExport::status() const {
     status.error = error_.empty() ? "the segment has not been made yet" : error_;
     return status;
   }
-  auto& segment = const_cast<Segment&>(*segment_);
-  const auto& header = segment.header();
+  // All from this process's own bookkeeping: the mapping may have been rewritten or cut short.
+  const auto& place = segment_->layout();
   status.available = true;
   status.error = error_;
-  status.name = segment.name();
-  status.bytes = segment.bytes();
-  status.owner_pid = header.owner_pid;
-  status.tiles_offset = header.tiles_offset;
-  status.slot_bytes = header.slot_bytes;
-  status.tile_capacity = header.tile_capacity;
-  status.tile_count = header.tile_count.load();
-  status.map_offset = header.map_offset;
-  status.map_capacity_bytes = header.map_capacity_bytes;
-  status.grid_revision = header.grid_revision.load();
-  status.updated_unix_ns = header.updated_unix_ns.load();
+  status.name = segment_->name();
+  status.bytes = place.bytes;
+  status.owner_pid = ::getpid();
+  status.tiles_offset = place.tiles_offset;
+  status.slot_bytes = place.slot_bytes;
+  status.tile_capacity = place.tile_capacity;
+  status.tile_count = slots_.size();
+  status.map_offset = place.map_offset;
+  status.map_capacity_bytes = place.map_capacity_bytes;
+  status.grid_revision = grid_revision_;
   return status;
 }
 

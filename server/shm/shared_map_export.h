@@ -90,13 +90,16 @@ class SharedMapExport {
   struct Slot {
     std::uint64_t index = 0;
     std::uint64_t revision = 0;
+    std::uint64_t sequence = 0;  // its seqlock counter as last written (even)
   };
 
   void run();
   void sync_locked();
-  /// Replaces the segment by one with room for `tiles` slots and `map_bytes` of map, within the size cap; false
-  /// when that much does not fit (the segment stays).
-  bool grow(std::uint64_t tiles, std::uint64_t map_bytes);
+  /// Replaces the segment by one with room for `tiles` slots and `map_bytes` of map, within the size cap, and
+  /// retires the old one. With `copy`, the old slots and map are copied over; without (the old one was damaged),
+  /// the new one starts empty and the caller fills it. False when that much does not fit, or the new segment was
+  /// shrunk while being made (the segment stays).
+  bool grow(std::uint64_t tiles, std::uint64_t map_bytes, bool copy);
   /// The largest segment allowed now [bytes].
   std::uint64_t size_cap() const;
   std::string full_message(std::uint64_t tiles, std::uint64_t map_bytes, std::uint64_t cap) const;
@@ -113,8 +116,10 @@ class SharedMapExport {
   std::unique_ptr<Segment> segment_;
   std::map<std::pair<std::int64_t, std::int64_t>, Slot> slots_;
   std::int64_t map_version_ = -1;
+  std::uint64_t map_sequence_ = 0;  // the map's seqlock counter as last written
+  std::uint64_t grid_revision_ = 0;
   std::uint64_t map_bytes_needed_ = 0;
-  ShmStatus counts_;  // elements/objects/edges/truncation of the last pass
+  ShmStatus counts_;  // elements/objects/edges/truncation/update time of the last pass
   std::uint64_t generation_ = 0;
   std::string error_;
   std::string creation_error_;  // why the last segment could not be made ("" after one was)

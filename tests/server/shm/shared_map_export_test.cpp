@@ -13,6 +13,7 @@
 #include <atomic>
 #include <boost/uuid/uuid_generators.hpp>
 #include <boost/uuid/uuid_io.hpp>
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -303,6 +304,164 @@ TEST(SharedMapExportTest, TheReaderRefusesAFifoWithoutWaitingOnIt) {
       },
       ::testing::ExitedWithCode(0), "is not a regular file");
   ::unlink(("/dev/shm/" + fifo).c_str());
+}
+
+/// Another process of the server's user, which may map the segment read-write like any file of its own.
+class SameUser {
+ public:
+  explicit SameUser(const std::string& name) {
+    fd_ = ::shm_open(("/" + name).c_str(), O_RDWR, 0);
+    struct stat info {};
+    if (fd_ < 0 || ::fstat(fd_, &info) != 0) std::abort();
+    size_ = static_cast<std::size_t>(info.st_size);
+    void* mapped = ::mmap(nullptr, size_, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, 0);
+    if (mapped == MAP_FAILED) std::abort();
+    base_ = static_cast<unsigned char*>(mapped);
+  }
+  ~SameUser() {
+    ::munmap(base_, size_);
+    ::close(fd_);
+  }
+  reader::SegmentHeader& header() { return *reinterpret_cast<reader::SegmentHeader*>(base_); }
+  void truncate(std::size_t bytes) { (void)!::ftruncate(fd_, static_cast<off_t>(bytes)); }
+
+ private:
+  int fd_ = -1;
+  unsigned char* base_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+// Reads the exporter's current segment as a new reader would and checks every tile: `tiles` tiles (i, 0), each at
+// the port's revision. Prints what differs.
+bool segment_holds(const shm::SharedMapExport& exporter, CountingGridPort& port, std::size_t tiles) {
+  const auto status = exporter.status();
+  try {
+    reader::Reader segment(status.name);
+    if (segment.tile_count() != tiles || segment.state() != reader::SegmentState::live) {
+      std::cerr << status.name << ": " << segment.tile_count() << " tiles\n";
+      return false;
+    }
+    const auto grid = port.grid_tiles();
+    std::vector<float> cells(4 * CountingGridPort::kTile * CountingGridPort::kTile);
+    for (std::size_t slot = 0; slot < tiles; ++slot) {
+      const auto key = segment.tile_key(slot);
+      const auto revision = segment.read_tile_layers(slot, cells.data());
+      const auto expected = std::find_if(grid.tiles.begin(), grid.tiles.end(),
+                                         [&](const auto& t) { return t.tx == key.tx && t.ty == key.ty; });
+      if (expected == grid.tiles.end() || revision != expected->revision || cells[0] != 4.f * revision) {
+        std::cerr << "slot " << slot << " (" << key.tx << ", " << key.ty << ") revision " << revision << "\n";
+        return false;
+      }
+    }
+  } catch (const std::exception& e) {
+    std::cerr << status.name << ": " << e.what() << "\n";
+    return false;
+  }
+  return true;
+}
+
+// Each attack below used to crash the exporter (SIGSEGV or SIGBUS); it runs in a child so that a crash fails the
+// test, and the child's stderr shows what differed.
+TEST(SharedMapExportTest, ALayoutRewrittenInTheHeaderIsNeitherUsedNorLeftForReaders) {
+  EXPECT_EXIT(
+      {
+        const bool ok = [] {
+          CountingGridPort port;
+          for (int i = 0; i < 4; ++i) port.bump(i, 0);
+          shm::SharedMapExport exporter(port, fast(), "test-run");
+          const auto before = exporter.status();
+          {
+            SameUser other(before.name);
+            other.header().slot_bytes = std::uint64_t{1} << 40;
+            other.header().tiles_offset = std::uint64_t{1} << 41;
+            other.header().tile_capacity = std::uint64_t{1} << 50;
+            other.header().map_offset = std::uint64_t{1} << 42;
+            other.header().map_capacity_bytes = std::uint64_t{1} << 43;
+          }
+          for (int pass = 0; pass < 9; ++pass) {
+            port.bump(pass % 4, 0);
+            exporter.sync();
+          }
+          const auto after = exporter.status();
+          if (after.name == before.name || segment_exists(before.name)) {
+            std::cerr << "the rewritten segment was kept\n";
+            return false;
+          }
+          if (after.slot_bytes != before.slot_bytes || after.tiles_offset != before.tiles_offset) {
+            std::cerr << "status() took the layout from the mapping\n";
+            return false;
+          }
+          return segment_holds(exporter, port, 4);
+        }();
+        std::exit(ok ? 0 : 1);
+      },
+      ::testing::ExitedWithCode(0), "");
+}
+
+TEST(SharedMapExportTest, ATruncatedSegmentIsReplacedAndTheExporterLivesOn) {
+  EXPECT_EXIT(
+      {
+        const bool ok = [] {
+          CountingGridPort port;
+          for (int i = 0; i < 4; ++i) port.bump(i, 0);
+          shm::SharedMapExport exporter(port, fast(), "test-run");
+          for (const std::size_t keep : {std::size_t{0}, std::size_t{4096}, std::size_t{8192}}) {
+            const auto before = exporter.status().name;
+            SameUser(before).truncate(keep);
+            for (int pass = 0; pass < 9; ++pass) {
+              port.bump(pass % 4, 0);
+              exporter.sync();
+            }
+            if (exporter.status().name == before) {
+              std::cerr << "the segment cut to " << keep << " bytes was kept\n";
+              return false;
+            }
+            if (!segment_holds(exporter, port, 4)) return false;
+          }
+          return true;
+        }();
+        std::exit(ok ? 0 : 1);
+      },
+      ::testing::ExitedWithCode(0), "");
+}
+
+TEST(SharedMapExportTest, TruncationsRacingTheCopiesNeverKillTheExporter) {
+  // No check of the size before a write can close this: the file shrinks between the check and the copy.
+  EXPECT_EXIT(
+      {
+        const bool ok = [] {
+          CountingGridPort port;
+          for (int i = 0; i < 64; ++i) port.bump(i, 0);
+          shm::SharedMapExport exporter(port, fast(), "test-run");
+          std::atomic<bool> done{false};
+          std::atomic<int> cuts{0};
+          std::thread other([&] {
+            while (!done) {
+              const auto name = exporter.status().name;
+              for (int i = 0; i < 200 && !done; ++i) {
+                const int fd = ::shm_open(("/" + name).c_str(), O_RDWR, 0);
+                if (fd < 0) break;  // replaced: take the new name
+                (void)!::ftruncate(fd, i % 2 == 0 ? 0 : 8192);
+                ::close(fd);
+                ++cuts;
+                std::this_thread::sleep_for(50us);
+              }
+            }
+          });
+          const auto until = std::chrono::steady_clock::now() + 1500ms;
+          for (std::uint64_t n = 0; std::chrono::steady_clock::now() < until; ++n) {
+            for (int i = 0; i < 64; ++i) port.bump(i, 0);
+            exporter.sync();
+          }
+          done = true;
+          other.join();
+          std::cerr << cuts.load() << " truncations\n";
+          for (int pass = 0; pass < 3; ++pass) exporter.sync();
+          return cuts.load() > 100 && segment_holds(exporter, port, 64);
+        }();
+        std::exit(ok ? 0 : 1);
+      },
+      ::testing::ExitedWithCode(0), "");
 }
 
 }  // namespace
