@@ -32,69 +32,36 @@ rules::DecisionFacts decision_facts(const world::DecisionRecord& d, double at) {
 
 }  // namespace
 
-WriterPreferringMutex::WriterPreferringMutex() {
-  pthread_rwlockattr_t attr;
-  pthread_rwlockattr_init(&attr);
-  pthread_rwlockattr_setkind_np(&attr, PTHREAD_RWLOCK_PREFER_WRITER_NONRECURSIVE_NP);
-  const int rc = pthread_rwlock_init(&rwlock_, &attr);
-  pthread_rwlockattr_destroy(&attr);
-  if (rc != 0) throw std::system_error(rc, std::generic_category(), "pthread_rwlock_init");
-}
-WriterPreferringMutex::~WriterPreferringMutex() { pthread_rwlock_destroy(&rwlock_); }
-void WriterPreferringMutex::lock() {
-  if (const int rc = pthread_rwlock_wrlock(&rwlock_)) throw std::system_error(rc, std::generic_category(), "rwlock");
-}
-bool WriterPreferringMutex::try_lock() { return pthread_rwlock_trywrlock(&rwlock_) == 0; }
-void WriterPreferringMutex::unlock() { pthread_rwlock_unlock(&rwlock_); }
-void WriterPreferringMutex::lock_shared() {
-  // EAGAIN (too many readers) cannot happen below 2^31 readers; EDEADLK is a recursive call: a bug.
-  if (const int rc = pthread_rwlock_rdlock(&rwlock_)) throw std::system_error(rc, std::generic_category(), "rwlock");
-}
-bool WriterPreferringMutex::try_lock_shared() { return pthread_rwlock_tryrdlock(&rwlock_) == 0; }
-void WriterPreferringMutex::unlock_shared() { pthread_rwlock_unlock(&rwlock_); }
-
 WorldService::WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine,
                            events::EventHub* events)
-    : options_(options), store_(store), engine_(engine), events_(events) {
-  snapshot_ = std::make_shared<const world::WorldState>(store_.load(options_.world));
-  removals_base_ = snapshot_->version;  // what was removed before this start is not known
-  head_ = snapshot_;
-  // The grid as last flushed, then every scan journaled after that flush.
-  auto grid_options = options_.grid;
-  const auto stored = store_.load_grid();
-  if (stored) {
-    grid_options.resolution_m = stored->resolution_m;
-    grid_options.tile_size_cells = stored->tile_size_cells;
-  }
-  grid_ = std::make_unique<fusion::OccupancyGrid>(grid_options);
-  if (stored) {
-    for (const auto& [index, data] : stored->tiles) grid_->set_tile(index, data);
-    flushed_scan_seq_ = last_scan_seq_ = stored->through_scan_seq;
-    grid_revision_ = last_scan_seq_;
-  }
-  for (auto& row : store_.load_edge_beams())
-    edge_beams_[{row.object_id, static_cast<std::size_t>(row.edge)}] = std::move(row.beams);
+    : options_(options),
+      store_(store),
+      engine_(engine),
+      events_(events),
+      published_(store.load(options.world)),
+      grid_(GridStoreOptions{options.grid, options.grid_flush_interval, options.beam_crossings}, store) {
+  head_ = published_.current();
   // The journal is the grid's source of truth: a scan is journaled (with its line decisions) before it
   // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
   // revision, to the last journaled scan.
-  const auto replay = store_.scans_after(flushed_scan_seq_);
-  for (const auto& record : replay)
-    insert_scan(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}), record.seq);
-  if (last_scan_seq_ != store_.last_scan_seq())
+  for (const auto& record : store_.scans_after(grid_.flushed_scan_seq()))
+    grid_.insert(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}), record.seq, *snapshot());
+  const std::int64_t last_scan_seq = grid_.last_scan_seq();
+  if (last_scan_seq != store_.last_scan_seq())
     throw storage::StorageError("the scan journal ends at " + std::to_string(store_.last_scan_seq()) +
-                                " but the grid was rebuilt to " + std::to_string(last_scan_seq_));
+                                " but the grid was rebuilt to " + std::to_string(last_scan_seq));
   // Replayed tiles stay dirty: the next flush (or the one at shutdown) writes them.
-  next_scan_seq_ = committed_scan_seq_ = last_scan_seq_;
+  next_scan_seq_ = committed_scan_seq_ = last_scan_seq;
   // The grid trim looks at what the scans since the last one could see: rebuilt from the journal, so a restart trims
   // as an uninterrupted run would. A crash between a scan and the trim it made due leaves that trim undone: it is
   // made now, against the same map and grid the run had then (the journal ends at that scan).
   std::optional<std::pair<std::int64_t, world::Box>> due_trim;
-  if (options_.grid_trim_every > 0 && last_scan_seq_ > 0) {
+  if (options_.grid_trim_every > 0 && last_scan_seq > 0) {
     const auto every = static_cast<std::int64_t>(options_.grid_trim_every);
-    auto since = last_scan_seq_ - last_scan_seq_ % every;
+    auto since = last_scan_seq - last_scan_seq % every;
     const bool due =
-        last_scan_seq_ % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq_));
-    if (due) since = last_scan_seq_ - every;
+        last_scan_seq % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq));
+    if (due) since = last_scan_seq - every;
     for (const auto& record : store_.scans_after(since)) {
       try {
         add_to_trim_region(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}));
@@ -103,7 +70,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
       }
     }
     if (due && trim_region_) {
-      due_trim.emplace(last_scan_seq_, *trim_region_);
+      due_trim.emplace(last_scan_seq, *trim_region_);
       trim_region_.reset();
     }
   }
@@ -137,7 +104,7 @@ WorldService::~WorldService() {
   for (const auto& [port, count] : report.dropped)
     std::cerr << "wmd: stopped with " << count << " values left in " << port << " (their requests got 503)\n";
   try {
-    if (inserted_ahead_.empty()) flush_grid(true);  // else the journal replays past the gap at start
+    grid_.flush(true);  // not past a gap: the journal replays from there at start
   } catch (const std::exception& e) {
     std::cerr << "wmd: final grid flush failed (the journal still has every scan): " << e.what() << "\n";
   }
@@ -153,68 +120,6 @@ void WorldService::emit(const nlohmann::json& event) {
   }
 }
 
-void WorldService::insert_scan(const json_codec::ScanRequest& scan, std::int64_t seq) {
-  {
-    std::unique_lock lock(grid_mutex_);
-    std::visit([this](const auto& s) { grid_->insert(s); }, scan.scan);
-    grid_revision_ = seq;  // under the lock: a reader that reads it inside read_grid sees the revision of what it reads
-  }
-  count_edge_beams(scan);
-  last_scan_seq_ = seq;
-}
-
-namespace {
-
-bool same_place(const fusion::SegmentBeams& counted, const fusion::LineSegment& edge) {
-  constexpr double kToleranceM = 0.01;
-  return (counted.p0 - edge.p0()).norm() <= kToleranceM && (counted.p1 - edge.p1()).norm() <= kToleranceM;
-}
-
-}  // namespace
-
-void WorldService::count_edge_beams(const json_codec::ScanRequest& scan) {
-  const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
-  if (!laser) return;
-  const auto state = snapshot();
-  if (state->objects.empty()) return;
-  try {
-    const double reach = fusion::usable_range_m(*laser, options_.grid.sensor);
-    const auto box = changed_region(scan, options_.beam_crossings.margin_m);
-    const auto near = state->objects.edges_near({box.min().x(), box.min().y(), box.max().x(), box.max().y()});
-    if (near.empty()) return;
-    std::vector<fusion::SegmentBeams> segments;
-    std::vector<std::pair<std::string, std::size_t>> keys;
-    std::lock_guard lock(beams_mutex_);
-    for (const auto& [i, k] : near) {
-      const auto& object = state->objects[i];
-      const auto edge = object.body.world_edge(k, Eigen::Matrix2d::Zero());
-      std::pair<std::string, std::size_t> key{object.plan->id, k};
-      auto found = edge_beams_.find(key);
-      if (found != edge_beams_.end() && same_place(found->second, edge)) {
-        segments.push_back(std::move(found->second));
-      } else {
-        const auto bins = fusion::beam_bins(edge.length_m(), options_.beam_crossings);
-        segments.push_back(
-            {edge.p0(), edge.p1(), std::vector<std::uint32_t>(bins, 0), std::vector<std::uint32_t>(bins, 0)});
-      }
-      keys.push_back(std::move(key));
-    }
-    fusion::count_beam_crossings(*laser, reach, options_.beam_crossings, segments, scan.pose_cov);
-    for (std::size_t n = 0; n < keys.size(); ++n) {
-      beams_dirty_.insert(keys[n]);
-      edge_beams_[keys[n]] = std::move(segments[n]);
-    }
-  } catch (const std::exception& e) {
-    std::cerr << "wmd: beams of a scan not counted at the plan's edges: " << e.what() << "\n";
-  }
-}
-
-const fusion::SegmentBeams* WorldService::edge_beams(const world::ObjectState& object, std::size_t k) const {
-  const auto found = edge_beams_.find({object.plan->id, k});
-  if (found == edge_beams_.end()) return nullptr;
-  return same_place(found->second, object.body.world_edge(k, Eigen::Matrix2d::Zero())) ? &found->second : nullptr;
-}
-
 std::optional<storage::RequestRecord> WorldService::known_request(const std::string& request_id, std::string_view kind,
                                                                   std::int64_t hash) {
   auto record = store_.find_request(request_id);
@@ -225,44 +130,6 @@ std::optional<storage::RequestRecord> WorldService::known_request(const std::str
     throw RequestIdConflict("request id '" + request_id + "' was used with another body (" + record->kind + " " +
                             std::to_string(record->seq) + ")");
   return record;
-}
-
-void WorldService::flush_grid(bool force) {
-  const auto now = std::chrono::steady_clock::now();
-  if (!force && now - last_flush_ < options_.grid_flush_interval) return;
-  if (last_scan_seq_ == flushed_scan_seq_ && !force) return;
-  storage::Store::StoredGrid changed;
-  changed.through_scan_seq = last_scan_seq_;
-  std::vector<fusion::TileIndex> tiles;
-  {
-    std::unique_lock lock(grid_mutex_);  // take_dirty_tiles changes the grid's bookkeeping
-    changed.resolution_m = grid_->resolution_m();
-    changed.tile_size_cells = grid_->tile_size_cells();
-    tiles = grid_->take_dirty_tiles();
-    if (flush_all_tiles_) tiles = grid_->tiles();
-    for (const auto& index : tiles)
-      if (auto data = grid_->tile(index)) changed.tiles.emplace_back(index, std::move(*data));
-  }
-  std::set<std::pair<std::string, std::size_t>> beams_flushed;
-  {
-    std::lock_guard lock(beams_mutex_);
-    beams_flushed.swap(beams_dirty_);
-    if (flush_all_tiles_)
-      for (const auto& [key, counts] : edge_beams_) beams_flushed.insert(key);
-    for (const auto& key : beams_flushed)
-      if (const auto found = edge_beams_.find(key); found != edge_beams_.end())
-        changed.edge_beams.push_back({key.first, static_cast<std::int64_t>(key.second), found->second});
-  }
-  if (changed.tiles.empty() && changed.edge_beams.empty() && last_scan_seq_ == flushed_scan_seq_) return;
-  try {
-    store_.flush_grid(changed);
-  } catch (...) {
-    flush_all_tiles_ = true;  // the dirty lists are gone: the next flush writes every tile and every edge's beams
-    throw;
-  }
-  flush_all_tiles_ = false;
-  flushed_scan_seq_ = last_scan_seq_;
-  last_flush_ = now;
 }
 
 std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::string>& request_id,
@@ -301,24 +168,10 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   return prepare_update(std::move(observation));
 }
 
-Eigen::AlignedBox2d WorldService::changed_region(const json_codec::ScanRequest& scan, double pad_m) const {
-  const auto& sensor = options_.grid.sensor;
-  // The grid changed around the pose and along every beam, up to its return or the grid's usable range; wide
-  // beams (a sonar cone, the laser's 2°) reach beyond their axis.
-  return std::visit(
-      [&](const auto& s) {
-        const double reach = std::min(s.range_max_m, fusion::usable_range_m(s, sensor));
-        double half_width = sensor.laser_beam_width_rad / 2;
-        if constexpr (std::is_same_v<std::decay_t<decltype(s)>, fusion::SonarScan>) half_width = s.beam_width_rad / 2;
-        return fusion::scan_footprint(s, reach, half_width, pad_m);
-      },
-      scan.scan);
-}
-
 void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq) {
   if (!events_ || events_->subscriber_count() == 0) return;
   constexpr std::size_t kMaxEventPoints = 360;
-  const auto changed = changed_region(scan, 2 * grid_->resolution_m());
+  const auto changed = grid_.changed_region(scan, 2 * grid_.resolution_m());
   const auto [pose, points] = std::visit(
       [&](const auto& s) {
         return std::pair{s.sensor_pose, fusion::scan_returns(s, kMaxEventPoints)};
@@ -337,35 +190,6 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
 }
 
 namespace {
-
-/// What the grid says of a point of a drawn edge (world::EdgeProbe). Occupied is P > 0.65, the map-quality
-/// definition; free is P < 0.25, which the laser's miss evidence (p_miss 0.4) reaches after three scans saw
-/// through the cell, so one stray beam or a grazing ray does not make a wall "seen through".
-/// The probe looks across the edge only (cells at up to one cell along its normal, in half-cell steps): along it, a
-/// standing wall's last cell would otherwise back the first cell of a door beside it, and every opening would be
-/// found a cell short at each end. Backed: one of those cells occupied. Displaced: none, but a cell occupied within
-/// 3 cells across (the surface stands a little off its drawing, or the pose error blurs it): no evidence either way
-/// of a missing wall. Seen through: all of them seen and free, and nothing occupied across. Unknown otherwise.
-world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, double resolution) {
-  const double occupied = std::log(0.65 / 0.35);
-  const double free = std::log(0.25 / 0.75);
-  return [&cells, resolution, occupied, free](const Eigen::Vector2d& point, const Eigen::Vector2d& normal) {
-    const auto log_odds = [&](double cells_across) {
-      const Eigen::Vector2d p = point + cells_across * resolution * normal;
-      return cells.log_odds({static_cast<std::int64_t>(std::floor(p.x() / resolution)),
-                             static_cast<std::int64_t>(std::floor(p.y() / resolution))});
-    };
-    bool all_free = true;
-    for (const double t : {0.0, -0.5, 0.5, -1.0, 1.0}) {
-      const double l = log_odds(t);
-      if (l > occupied) return world::EdgeSample::backed;
-      all_free = all_free && l < free;
-    }
-    for (const double t : {1.5, 2.0, 2.5, 3.0})
-      if (log_odds(t) > occupied || log_odds(-t) > occupied) return world::EdgeSample::displaced;
-    return all_free ? world::EdgeSample::seen_through : world::EdgeSample::unknown;
-  };
-}
 
 /// The ids of the objects of `before` that `after` does not have (a new plan, an accepted change).
 std::set<std::string> removed_objects(const world::WorldState& before, const world::WorldState& after) {
@@ -410,38 +234,8 @@ void WorldService::refresh_plan_evidence(const world::WorldState& state, const s
     auto report = std::make_shared<world::PlanReport>();
     report->map_version = state.version;
     std::vector<world::EdgeEvidence> fresh;
-    if (!verdicts_only) {
-      std::shared_lock lock(grid_mutex_);
-      fusion::OccupancyGrid::CellReader cells(*grid_);
-      auto options = options_.plan_evidence;
-      options.step_m = grid_->resolution_m();
-      const auto probe = grid_edge_probe(cells, grid_->resolution_m());
-      fresh =
-          region ? world::plan_evidence(state, *region, probe, options) : world::plan_evidence(state, probe, options);
-      report->grid_revision = grid_revision_;
-    } else {
-      report->grid_revision = previous->grid_revision;
-    }
-    // Edges nothing has seen say nothing: no fact, no entry.
-    std::erase_if(fresh, [](const world::EdgeEvidence& e) { return e.observed <= 0; });
-    // The beams counted at each edge, and at each stretch seen through (the bins it covers).
-    {
-      std::lock_guard lock(beams_mutex_);
-      for (auto& e : fresh) {
-        const auto* counted = edge_beams(state.objects[e.object], e.edge);
-        if (!counted) continue;
-        for (std::size_t b = 0; b < counted->through.size(); ++b) {
-          e.beams_through += counted->through[b];
-          e.beams_ended += counted->ended[b];
-        }
-        const double bin = options_.beam_crossings.bin_m;
-        for (auto& stretch : e.seen_through_stretches) {
-          const auto first = static_cast<std::size_t>(std::max(0.0, std::floor(stretch.s0_m / bin)));
-          const auto last = std::min(counted->through.size(), static_cast<std::size_t>(std::ceil(stretch.s1_m / bin)));
-          for (std::size_t b = first; b < last; ++b) stretch.beams_through += counted->through[b];
-        }
-      }
-    }
+    report->grid_revision = previous->grid_revision;
+    if (!verdicts_only) fresh = grid_.edge_evidence(state, region, options_.plan_evidence, report->grid_revision);
     std::vector<rules::EdgeEvidenceFacts> facts;
     std::vector<rules::EdgeKey> keys;
     std::set<std::pair<std::size_t, std::size_t>> refreshed;
@@ -509,7 +303,7 @@ void WorldService::refresh_plan_evidence(const world::WorldState& state, const s
 
 void WorldService::add_to_trim_region(const json_codec::ScanRequest& scan) {
   // A cell more than the event's region: the trim probes a 3×3 neighbourhood.
-  const auto box = changed_region(scan, 3 * grid_->resolution_m());
+  const auto box = grid_.changed_region(scan, 3 * grid_.resolution_m());
   const world::Box seen{box.min().x(), box.min().y(), box.max().x(), box.max().y()};
   std::lock_guard lock(trim_mutex_);
   if (!trim_region_) trim_region_ = seen;
@@ -533,12 +327,11 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const wor
   try {
     auto p = own_observation(head(), kTrimObserver, "grid", "grid");
     std::vector<world::GridShares> checked;
-    {
-      std::shared_lock lock(grid_mutex_);
-      const double resolution = grid_->resolution_m();
+    grid_.read([&](const fusion::OccupancyGrid& grid) {
+      const double resolution = grid.resolution_m();
       // P > 0.65, the map-quality definition of an occupied cell, is log-odds > ln(0.65 / 0.35).
       const double occupied_log_odds = std::log(0.65 / 0.35);
-      fusion::OccupancyGrid::CellReader cells(*grid_);  // the samples of an element lie in a few tiles
+      fusion::OccupancyGrid::CellReader cells(grid);  // the samples of an element lie in a few tiles
       const world::GridProbe probe = [&](const Eigen::Vector2d& point) {
         const auto cx = static_cast<std::int64_t>(std::floor(point.x() / resolution));
         const auto cy = static_cast<std::int64_t>(std::floor(point.y() / resolution));
@@ -556,7 +349,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const wor
       auto trimmed = world::trim_to_grid(*p.base, region, probe, p.seq, p.observation.observer, trim);
       p.update = std::move(trimmed.update);
       checked = std::move(trimmed.checked);
-    }
+    });
     // The plan's edges the same scans could see: the evidence of missing walls follows the grid.
     refresh_plan_evidence(*p.base, region);
     // The trimmed elements' facts first (that drops their old element_grid/3), then what the grid said of every
@@ -597,11 +390,7 @@ std::optional<PrimitivesOutcome> WorldService::extract_grid_lines() {
 }
 
 std::optional<PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
-  std::optional<fusion::ProbabilityRaster> raster;
-  {
-    std::shared_lock lock(grid_mutex_);
-    raster = fusion::probability_raster(*grid_);
-  }
+  const auto raster = grid_.probability_raster();
   if (!raster) return std::nullopt;
   const auto segments = fusion::extract_grid_lines(*raster, options_.grid_lines);
   if (segments.empty()) return std::nullopt;
@@ -610,49 +399,13 @@ std::optional<PrimitivesOutcome> WorldService::extract_grid_lines_on_writer() {
   observation.origin = "grid";
   observation.sensor = "grid";
   for (const auto& segment : segments) observation.segments.push_back({segment});
-  return apply_on_writer(std::move(observation), "{\"grid_revision\": " + std::to_string(grid_revision_.load()) + "}");
+  return apply_on_writer(std::move(observation), "{\"grid_revision\": " + std::to_string(grid_.revision()) + "}");
 }
 
-std::shared_ptr<const world::WorldState> WorldService::snapshot() const {
-  std::lock_guard lock(snapshot_mutex_);
-  return snapshot_;
-}
-
-void WorldService::publish(world::WorldState state, MapRemovals removed) {
-  auto next = std::make_shared<const world::WorldState>(std::move(state));
-  if (!removed.elements.empty() || !removed.objects.empty()) {
-    auto entry = std::make_shared<const MapRemovals>(std::move(removed));
-    std::lock_guard lock(removals_mutex_);
-    removed_ids_kept_ += entry->elements.size() + entry->objects.size();
-    removals_.emplace_back(next->version, std::move(entry));
-    while (removed_ids_kept_ > kRemovedIdsKept && removals_.size() > 1) {
-      removals_base_ = removals_.front().first;
-      removed_ids_kept_ -= removals_.front().second->elements.size() + removals_.front().second->objects.size();
-      removals_.pop_front();
-    }
-  }
-  std::lock_guard lock(snapshot_mutex_);
-  snapshot_ = std::move(next);
-}
+std::shared_ptr<const world::WorldState> WorldService::snapshot() const { return published_.current(); }
 
 std::optional<MapRemovals> WorldService::removed_since(std::int64_t since, std::int64_t up_to) const {
-  // The entries are taken under the lock and merged outside it: the matcher publishing next never waits for that.
-  std::vector<std::shared_ptr<const MapRemovals>> entries;
-  {
-    std::lock_guard lock(removals_mutex_);
-    if (since < removals_base_) return std::nullopt;
-    for (const auto& [version, removed] : removals_) {
-      if (version <= since) continue;
-      if (version > up_to) break;
-      entries.push_back(removed);
-    }
-  }
-  MapRemovals result;
-  for (const auto& removed : entries) {
-    result.elements.insert(removed->elements.begin(), removed->elements.end());
-    result.objects.insert(removed->objects.begin(), removed->objects.end());
-  }
-  return result;
+  return published_.removed_since(since, up_to);
 }
 
 std::vector<rules::ObjectFacts> WorldService::object_facts(const world::WorldState& state) const {
@@ -772,7 +525,7 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
           {"removed_objects", removed_objects},
           {"objects", objects}});
   }
-  publish(std::move(update.state), MapRemovals{{removed.begin(), removed.end()}, std::move(removed_objects)});
+  published_.publish(std::move(update.state), MapRemovals{{removed.begin(), removed.end()}, std::move(removed_objects)});
   // Committed and published: the request is answered as applied whatever happens here.
   try {
     engine_.add_decisions(logged, options_.decision_facts_kept);
@@ -791,7 +544,7 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
     const auto version = update.state.version;
     MapRemovals removed;  // the objects of the old plan that the new one does not have
     removed.objects = removed_objects(*current, update.state);
-    publish(std::move(update.state), std::move(removed));
+    published_.publish(std::move(update.state), std::move(removed));
     engine_.set_floor_plan(new_facts);
     refresh_plan_evidence(*snapshot(), std::nullopt);
     emit({{"type", "floorplan"}, {"version", version}, {"name", plan.name}, {"objects", plan.objects.size()}});
@@ -858,36 +611,23 @@ std::vector<world::DecisionRecord> WorldService::object_decisions(const std::str
   return store_.object_decisions(object_id, limit);
 }
 
-double WorldService::grid_resolution_m() const {
-  return read_grid([](const fusion::OccupancyGrid& grid) { return grid.resolution_m(); });
-}
+double WorldService::grid_resolution_m() const { return grid_.resolution_m(); }
 
-std::optional<fusion::GridGeometry> WorldService::grid_bounds() const {
-  return read_grid([](const fusion::OccupancyGrid& grid) { return grid.bounds(); });
-}
+std::optional<fusion::GridGeometry> WorldService::grid_bounds() const { return grid_.bounds(); }
 
 GridLayerValues WorldService::grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const {
-  // The revision is read under the same lock as the cells: it counts exactly the scans they include.
-  return read_grid([&](const fusion::OccupancyGrid& grid) {
-    return GridLayerValues{grid.export_layer(layer, region), grid_revision_.load()};
-  });
+  return grid_.layer(layer, region);
 }
 
-GridTiles WorldService::grid_tiles() const {
-  return read_grid([&](const fusion::OccupancyGrid& grid) {
-    GridTiles result{grid.tile_size_cells(), grid.resolution_m(), grid_revision_.load(), {}};
-    for (const auto& [index, revision] : grid.tile_revisions()) result.tiles.push_back({index.x, index.y, revision});
-    return result;
-  });
-}
+GridTiles WorldService::grid_tiles() const { return grid_.tiles(); }
 
 std::optional<GridTileValues> WorldService::grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
                                                       std::int64_t ty) const {
-  return read_grid([&](const fusion::OccupancyGrid& grid) -> std::optional<GridTileValues> {
-    const auto revision = grid.tile_revision({tx, ty});
-    if (revision == 0) return std::nullopt;
-    return GridTileValues{grid.export_layer(layer, grid.tiles_geometry({tx, ty}, {tx, ty})), revision};
-  });
+  return grid_.tile(layer, tx, ty);
+}
+
+std::optional<GridTileValues> WorldService::grid_tile_layers(std::int64_t tx, std::int64_t ty) const {
+  return grid_.tile_layers(tx, ty);
 }
 
 void WorldService::restore_robots() {
@@ -940,14 +680,6 @@ RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, b
                             stopped ? "stopped" : "moving"});
   emit_robot(robots_.on_pose(id, pose, stopped));
   return *robots_.find(id);
-}
-
-std::optional<GridTileValues> WorldService::grid_tile_layers(std::int64_t tx, std::int64_t ty) const {
-  return read_grid([&](const fusion::OccupancyGrid& grid) -> std::optional<GridTileValues> {
-    const auto revision = grid.tile_revision({tx, ty});
-    if (revision == 0) return std::nullopt;
-    return GridTileValues{grid.export_tile_layers({tx, ty}), revision};
-  });
 }
 
 }  // namespace wm::service
@@ -1033,11 +765,7 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
   } release{aligning_};
   const auto state = snapshot();
   if (state->objects.empty()) throw Conflict("no floor plan is loaded: there is nothing to align");
-  std::optional<fusion::ProbabilityRaster> raster;
-  {
-    std::shared_lock lock(grid_mutex_);
-    raster = fusion::probability_raster(*grid_);
-  }
+  auto raster = grid_.probability_raster();
   if (!raster) throw Conflict("the grid is empty: post scans before aligning the plan");
   fusion::ObservedMap observed{raster->geometry, std::move(raster->p), {}};
   // Points along the elements at the grid's cell, within the grid's bounds (a client's element may be km long).
@@ -1172,7 +900,7 @@ std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference>
     ++state.version;
     store_.commit_georeference(state);
     const auto version = state.version;
-    publish(std::move(state));
+    published_.publish(std::move(state));
     emit({{"type", "georeference"}, {"version", version}});
     return version;
   });

@@ -1,7 +1,5 @@
 #pragma once
 
-#include <pthread.h>
-
 #include <Eigen/Geometry>
 #include <atomic>
 #include <chrono>
@@ -26,8 +24,10 @@
 #include "server/events/event_hub.h"
 #include "server/json/codec.h"
 #include "server/json/robots_json.h"
+#include "server/service/grid_store.h"
 #include "server/service/prolog_worker.h"
 #include "server/service/rules_watcher.h"
+#include "server/service/snapshot_log.h"
 #include "server/service/world_port.h"
 #include "server/storage/store.h"
 #include "server/world/grid_trim.h"
@@ -75,28 +75,6 @@ struct ServiceOptions {
 /// The default processing network (its YAML task file): matcher, store, grid and grid lines each on their own
 /// executor.
 std::string default_network_yaml();
-
-/// A reader–writer lock that lets a waiting writer in before new readers (a glibc rwlock of kind
-/// PTHREAD_RWLOCK_PREFER_WRITER_NONRECURSIVE_NP). std::shared_mutex on glibc prefers readers: with a few
-/// clients reading the grid in a loop their shared locks overlap and the writer waited for seconds per scan.
-/// Meets SharedMutex, so std::shared_lock and std::unique_lock work with it. Not recursive: a thread that holds
-/// it shared must not take it shared again (it would queue behind a waiting writer and deadlock).
-class WriterPreferringMutex {
- public:
-  WriterPreferringMutex();
-  ~WriterPreferringMutex();
-  WriterPreferringMutex(const WriterPreferringMutex&) = delete;
-  WriterPreferringMutex& operator=(const WriterPreferringMutex&) = delete;
-  void lock();
-  bool try_lock();
-  void unlock();
-  void lock_shared();
-  bool try_lock_shared();
-  void unlock_shared();
-
- private:
-  pthread_rwlock_t rwlock_;
-};
 
 /// Owns the world model. Writes run on a processing network (pipeline::Network, from a task file): the matcher
 /// decides scans' lines and posted primitives against the map as the requests before them leave it (match → rules
@@ -175,7 +153,7 @@ class WorldService final : public WorldPort {
   std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
                                           std::int64_t ty) const override;
   /// Scans in the grid: the journal sequence of the last one inserted.
-  std::int64_t grid_revision() const { return grid_revision_.load(); }
+  std::int64_t grid_revision() const { return grid_.revision(); }
   /// The processing network's components, ports, queues and activity.
   pipeline::NetworkStats network_stats() const override;
   std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const override;
@@ -198,21 +176,9 @@ class WorldService final : public WorldPort {
   bool accepts_scans(const std::string& sensor) const;
 
  private:
-  /// Swaps in the new snapshot; `removed` (ids that left the map with it) goes into the removal log first, so that a
-  /// reader of the new version finds its removals.
-  void publish(world::WorldState state, MapRemovals removed = {});
   std::vector<rules::ObjectFacts> object_facts(const world::WorldState& state) const;
   void sync_all_facts(const world::WorldState& state);
   void on_rules_changed();
-  /// Runs `read(grid)` under the grid's shared lock: concurrent readers, never during an insert; a waiting
-  /// insert goes before readers that come after it, so readers cannot starve ingest. `read` must not take the
-  /// lock again.
-  template <typename F>
-  auto read_grid(F&& read) const {
-    std::shared_lock lock(grid_mutex_);
-    return read(*grid_);
-  }
-  void insert_scan(const json_codec::ScanRequest& scan, std::int64_t seq);
   /// The robots as the journal left them (at start).
   void restore_robots();
   void emit_robot(const std::optional<RobotState>& robot);
@@ -252,14 +218,6 @@ class WorldService final : public WorldPort {
   std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
   /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
   void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
-  /// Where a scan changes the grid (its footprint up to its usable range, beam widths included), padded by pad_m.
-  Eigen::AlignedBox2d changed_region(const json_codec::ScanRequest& scan, double pad_m) const;
-  void flush_grid(bool force);
-  /// Counts the beams of a laser scan at the plan edges near it (grid thread, and at start while the journal is
-  /// replayed). Counts of an edge that has moved since (a new plan, placement or pose) start again.
-  void count_edge_beams(const json_codec::ScanRequest& scan);
-  /// The counts of edge k of `object` where it stands now, nullptr when none (beams_mutex_ held).
-  const fusion::SegmentBeams* edge_beams(const world::ObjectState& object, std::size_t k) const;
   /// On the writer: checks the plan's edges in `region` (all of them when nullopt) of `state` against the grid,
   /// hands the evidence to the rules, asks them for their verdicts and publishes the new plan report. Failures are
   /// logged and leave the previous report. `verdicts_only`: the evidence facts stand, the rules changed.
@@ -322,8 +280,6 @@ class WorldService final : public WorldPort {
   std::map<std::string, std::int64_t> pending_request_ids_;  // in flight: id → body hash
   std::atomic<std::size_t> in_flight_{0};                    // decided, not yet finished
   std::atomic<std::uint64_t> failed_epoch_{0};               // the store failed a group of this epoch
-  // Grid thread only (and the constructor and destructor, when the network is stopped):
-  std::set<std::int64_t> inserted_ahead_;  // scans inserted past a gap (laser and sonar ports interleave)
   mutable std::mutex trim_mutex_;
   const ServiceOptions options_;
   storage::Store& store_;
@@ -331,34 +287,14 @@ class WorldService final : public WorldPort {
   events::EventHub* events_;
 
   RobotRegistry robots_;
-  mutable std::mutex snapshot_mutex_;
-  std::shared_ptr<const world::WorldState> snapshot_;
-  // The ids each published version removed, oldest first, for ?since= deltas: at most kRemovedIdsKept ids; every
-  // removal after removals_base_ is in removals_.
-  static constexpr std::size_t kRemovedIdsKept = 100000;
-  mutable std::mutex removals_mutex_;
-  std::int64_t removals_base_ = 0;
-  std::deque<std::pair<std::int64_t, std::shared_ptr<const MapRemovals>>> removals_;  // merged outside the lock
-  std::size_t removed_ids_kept_ = 0;
-
-  mutable WriterPreferringMutex grid_mutex_;
-  std::unique_ptr<fusion::OccupancyGrid> grid_;  // changed on the writer thread only
-  /// The journal sequence of the last scan in the grid = scans ever accepted (the journal numbers them 1, 2,
-  /// …); persisted with the scan, so it never goes back across restarts.
-  std::atomic<std::int64_t> grid_revision_{0};
-  mutable std::mutex beams_mutex_;
-  std::map<std::pair<std::string, std::size_t>, fusion::SegmentBeams> edge_beams_;  // by (object id, edge)
-  std::set<std::pair<std::string, std::size_t>> beams_dirty_;                       // since the last flush
+  SnapshotLog published_;  // the committed map, what each version removed
+  GridStore grid_;         // inserted on the grid thread (and at start, before the network runs)
   mutable std::mutex rejected_mutex_;
   std::set<std::string> rejected_changes_;  // change ids a person rejected (not undone)
   mutable std::mutex plan_report_mutex_;
   std::shared_ptr<const world::PlanReport> plan_report_ = std::make_shared<const world::PlanReport>();
   std::atomic<bool> aligning_{false};      // an align_floor_plan search is running
   std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see (trim_mutex_)
-  std::int64_t last_scan_seq_ = 0;         // the last scan inserted into the grid (all journaled scans, once started)
-  std::int64_t flushed_scan_seq_ = 0;
-  bool flush_all_tiles_ = false;
-  std::chrono::steady_clock::time_point last_flush_ = std::chrono::steady_clock::now();
 
   // Declared last: destroyed first, so their threads stop before the members they use go away (also when the
   // constructor throws after the network started).

@@ -194,11 +194,7 @@ pipeline::Registry WorldService::network_registry() {
     // Off the matcher's thread: thinning and Hough over the whole grid take tens to hundreds of milliseconds.
     c->function("extract", {"tick"}, [this](pipeline::Activation& a) {
       const auto tick = a.take<GridTick>("tick");
-      std::optional<fusion::ProbabilityRaster> raster;
-      {
-        std::shared_lock lock(grid_mutex_);
-        raster = fusion::probability_raster(*grid_);
-      }
+      const auto raster = grid_.probability_raster();
       if (!raster) return;
       const auto segments = fusion::extract_grid_lines(*raster, options_.grid_lines);
       if (segments.empty()) return;
@@ -473,34 +469,19 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
   if (laser) scans.push_back(a.take<GridScanPtr>("laser"));
   if (sonar) scans.push_back(a.take<GridScanPtr>("sonar"));
   std::sort(scans.begin(), scans.end(), [](const auto& x, const auto& y) { return x->seq < y->seq; });
-  {
-    std::unique_lock lock(grid_mutex_);
-    for (const auto& s : scans) {
-      try {
-        std::visit([this](const auto& scan) { grid_->insert(scan); }, s->job->scan.scan);
-      } catch (const std::exception& e) {
-        // Validated at the HTTP boundary, so this is a bug; the scan is journaled and counted all the same.
-        std::cerr << "wmd: scan " << s->seq << " not inserted into the grid: " << e.what() << "\n";
-      }
-      inserted_ahead_.insert(s->seq);
-    }
-    // The tiles are flushed, and the revision told, only through a scan whose predecessors are all in (laser and
-    // sonar arrive on two ports): the journal is replayed past the flush at start.
-    while (!inserted_ahead_.empty() && *inserted_ahead_.begin() == last_scan_seq_ + 1) {
-      last_scan_seq_ = *inserted_ahead_.begin();
-      inserted_ahead_.erase(inserted_ahead_.begin());
-    }
-    grid_revision_ = last_scan_seq_;
-  }
-  // Counted before the flush below, which writes them through the same scan as the tiles.
-  for (const auto& s : scans) count_edge_beams(s->job->scan);
-  if (inserted_ahead_.empty()) {
+  const auto state = snapshot();
+  for (const auto& s : scans) {
     try {
-      flush_grid(false);
+      grid_.insert(s->job->scan, s->seq, *state);
     } catch (const std::exception& e) {
-      std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what()
-                << "\n";
+      // Validated at the HTTP boundary, so this is a bug; the scan is journaled and counted all the same.
+      std::cerr << "wmd: scan " << s->seq << " not inserted into the grid: " << e.what() << "\n";
     }
+  }
+  try {
+    grid_.flush(false);
+  } catch (const std::exception& e) {
+    std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what() << "\n";
   }
   for (const auto& s : scans) {
     emit_scan_event(s->job->scan, s->seq);

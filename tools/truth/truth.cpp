@@ -139,6 +139,11 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
       stamp += 0.5;
     }
     outcome.state = world.snapshot();
+    if (plan && std::getenv("WM_TRUTH_VERBOSE"))
+      for (const auto& d : world.decisions(0, 1'000'000, std::nullopt))
+        if (d.object.value_or(d.matched_object.value_or("")) == kTableId)
+          std::fprintf(stderr, "table decision %lld: %s %s: %s\n", static_cast<long long>(d.observation_seq),
+                       std::string(rules::wire_name(d.action)).c_str(), d.rule.c_str(), d.explanation.c_str());
     outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;
@@ -155,13 +160,28 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
     for (const auto& line : world.lines)
       if (on_line(e, line)) candidates.push_back(&line);
     const double each = e.length() / static_cast<double>(e.samples());
+    double good_here = 0;
     for (std::size_t k = 0; k < e.samples(); ++k) {
       const Vec p = e.sample(k);
       for (const auto* line : candidates)
         if (point_segment_distance(p, line->p0, line->p1) <= kOnLineM) {
-          good += each;
+          good_here += each;
           break;
         }
+    }
+    good += good_here;
+    if (std::getenv("WM_TRUTH_VERBOSE") && good_here < e.length() - 1e-9) {
+      double nearest = 1e9, angle = 0;
+      for (const auto& line : world.lines) {
+        const double d = segment_distance(e.p0, e.p1, line.p0, line.p1);
+        if (d < nearest) {
+          nearest = d;
+          angle = direction_difference(e.p1 - e.p0, line.p1 - line.p0);
+        }
+      }
+      std::fprintf(stderr, "off the walls: %.2f of %.2f m from (%.2f, %.2f) to (%.2f, %.2f), nearest wall %.3f m, %.1f deg\n",
+                   e.length() - good_here, e.length(), e.p0.x(), e.p0.y(), e.p1.x(), e.p1.y(), nearest,
+                   angle * 180 / 3.141592653589793);
     }
   }
   const auto cover = covering(elements, world.lines);
@@ -313,6 +333,14 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
       found_new += covered / seen;
       ++partitions_seen;
     }
+    if (std::getenv("WM_TRUTH_VERBOSE")) {
+      const auto& line = world.lines[static_cast<std::size_t>(p)];
+      std::fprintf(stderr, "partition (%.2f, %.2f) to (%.2f, %.2f): %.2f m seen, %.2f m covered; uncovered bins:",
+                   line.p0.x(), line.p0.y(), line.p1.x(), line.p1.y(), seen, covered);
+      for (std::size_t b = 0; b < cover[p].size(); ++b)
+        if (coverage.hits[p][b] > 0 && cover[p][b].empty()) std::fprintf(stderr, " %zu(%u)", b, coverage.hits[p][b]);
+      std::fprintf(stderr, "\n");
+    }
   }
   score.new_found = partitions_seen > 0 ? found_new / static_cast<double>(partitions_seen) : 0;
 
@@ -337,7 +365,14 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
           }
       }
       score.table_edge_elements += 2 * near >= e.samples() ? 1 : 0;
+      if (std::getenv("WM_TRUTH_VERBOSE") && 2 * near >= e.samples())
+        std::fprintf(stderr, "table side as an element: (%.2f, %.2f) to (%.2f, %.2f)\n", e.p0.x(), e.p0.y(), e.p1.x(),
+                     e.p1.y());
     }
+    if (std::getenv("WM_TRUTH_VERBOSE"))
+      std::fprintf(stderr, "table: drawn at (%.2f, %.2f, %.1f deg), stands at (%.2f, %.2f, %.1f deg)\n",
+                   building.table.x_m, building.table.y_m, building.table.theta_rad / kDeg, world.table->x_m,
+                   world.table->y_m, world.table->theta_rad / kDeg);
   }
   score.people_element_m = people_elements(elements, world);
   return score;

@@ -1,0 +1,162 @@
+// GridStore against a real SQLite store: inserts in journal order, the flush and the reload, gaps, and the beams
+// counted at a plan's edges.
+#include "server/service/grid_store.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "support/temp_dir.h"
+
+namespace wm::service {
+namespace {
+
+// A 360° laser scan of 720 beams from (x, 0), every beam returning at `range`.
+json_codec::ScanRequest ring_scan(double x, double range) {
+  fusion::LaserScan scan;
+  scan.sensor_pose = {x, 0, 0};
+  scan.angle_min_rad = -std::numbers::pi;
+  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
+  scan.ranges_m.assign(720, range);
+  scan.range_min_m = 0.05;
+  scan.range_max_m = 30;
+  json_codec::ScanRequest request;
+  request.observer = "test";
+  request.scan = scan;
+  return request;
+}
+
+// A plan with one solid wall from (2, −1) to (2, 1), drawn `shift_m` further along x.
+world::WorldState wall_state(double shift_m = 0) {
+  apriori::FloorPlan plan;
+  plan.name = "wall";
+  apriori::PlanObject wall;
+  wall.id = "w";
+  wall.kind = "wall";
+  wall.attributes = {"solid"};
+  wall.polylines = {{{2 + shift_m, -1}, {2 + shift_m, 1}}};
+  plan.objects = {wall};
+  world::WorldState state;
+  state.objects = world::ObjectTable(world::make_objects(plan, world::WorldOptions{}, 1));
+  return state;
+}
+
+GridStoreOptions options() {
+  GridStoreOptions o;
+  o.flush_interval = std::chrono::hours(1);  // only forced flushes
+  return o;
+}
+
+storage::StoreOptions store_options(const testing::TempDir& dir) { return {(dir.path() / "grid.db").string(), false}; }
+
+TEST(GridStoreTest, FlushedGridAndBeamCountsComeBackAfterAReload) {
+  testing::TempDir dir;
+  const auto state = wall_state();
+  GridLayerValues before;
+  std::int64_t beams_before = 0;
+  {
+    storage::Store store(store_options(dir));
+    GridStore grid(options(), store);
+    EXPECT_EQ(grid.revision(), 0);
+    for (std::int64_t seq = 1; seq <= 5; ++seq) grid.insert(ring_scan(0, 5.0), seq, state);
+    EXPECT_EQ(grid.revision(), 5);
+    EXPECT_EQ(grid.last_scan_seq(), 5);
+    grid.flush(false);  // within the interval: nothing written
+    EXPECT_EQ(grid.flushed_scan_seq(), 0);
+    grid.flush(true);
+    EXPECT_EQ(grid.flushed_scan_seq(), 5);
+    const auto bounds = grid.bounds();
+    ASSERT_TRUE(bounds);
+    before = grid.layer(fusion::OccupancyGrid::Layer::bayes_probability, *bounds);
+    std::int64_t revision = 0;
+    const auto evidence = grid.edge_evidence(state, std::nullopt, world::PlanEvidenceOptions{}, revision);
+    ASSERT_EQ(evidence.size(), 1u);
+    EXPECT_EQ(revision, 5);
+    // The wall subtends 2·atan(0.5) = 53.1°: 106 beams of 0.5° per scan pass through it (they return at 5 m).
+    EXPECT_NEAR(static_cast<double>(evidence[0].beams_through), 5 * 106.0, 5.0);
+    EXPECT_EQ(evidence[0].beams_ended, 0);
+    EXPECT_GT(evidence[0].seen_through, 0.9);
+    beams_before = evidence[0].beams_through;
+  }
+  storage::Store store(store_options(dir));
+  GridStore grid(options(), store);
+  EXPECT_EQ(grid.revision(), 5);
+  EXPECT_EQ(grid.flushed_scan_seq(), 5);
+  const auto bounds = grid.bounds();
+  ASSERT_TRUE(bounds);
+  const auto after = grid.layer(fusion::OccupancyGrid::Layer::bayes_probability, *bounds);
+  ASSERT_EQ(after.values.size(), before.values.size());
+  for (std::size_t i = 0; i < after.values.size(); ++i) {
+    if (std::isnan(before.values[i])) {
+      EXPECT_TRUE(std::isnan(after.values[i])) << i;
+    } else {
+      EXPECT_FLOAT_EQ(after.values[i], before.values[i]) << i;
+    }
+  }
+  std::int64_t revision = 0;
+  const auto evidence = grid.edge_evidence(state, std::nullopt, world::PlanEvidenceOptions{}, revision);
+  ASSERT_EQ(evidence.size(), 1u);
+  EXPECT_EQ(evidence[0].beams_through, beams_before);
+}
+
+TEST(GridStoreTest, TheRevisionMovesOnlyThroughScansWhosePredecessorsAreIn) {
+  testing::TempDir dir;
+  storage::Store store(store_options(dir));
+  GridStore grid(options(), store);
+  const auto state = wall_state();
+  grid.insert(ring_scan(0, 5.0), 2, state);  // the sonar port's scan 2 before the laser port's scan 1
+  EXPECT_EQ(grid.revision(), 0);
+  EXPECT_FALSE(grid.complete());
+  grid.flush(true);  // nothing is written past a gap: the journal replays from the last flush at start
+  EXPECT_EQ(grid.flushed_scan_seq(), 0);
+  grid.insert(ring_scan(0, 5.0), 1, state);
+  EXPECT_EQ(grid.revision(), 2);
+  EXPECT_TRUE(grid.complete());
+  grid.flush(true);
+  EXPECT_EQ(grid.flushed_scan_seq(), 2);
+}
+
+TEST(GridStoreTest, AScanTheGridRefusesStillTakesItsPlaceInTheSequence) {
+  testing::TempDir dir;
+  storage::Store store(store_options(dir));
+  GridStore grid(options(), store);
+  auto bad = ring_scan(0, 5.0);
+  std::get<fusion::LaserScan>(bad.scan).angle_increment_rad = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(grid.insert(bad, 1, wall_state()), std::exception);
+  EXPECT_EQ(grid.revision(), 1);
+  grid.insert(ring_scan(0, 5.0), 2, wall_state());
+  EXPECT_EQ(grid.revision(), 2);
+}
+
+TEST(GridStoreTest, BeamsCountedWhereAnEdgeStoodDoNotFollowItWhenItMoves) {
+  testing::TempDir dir;
+  storage::Store store(store_options(dir));
+  GridStore grid(options(), store);
+  for (std::int64_t seq = 1; seq <= 4; ++seq) grid.insert(ring_scan(0, 5.0), seq, wall_state());
+  // The plan is placed 0.5 m further: the counts were of another line of the world.
+  const auto moved = wall_state(0.5);
+  std::int64_t revision = 0;
+  auto evidence = grid.edge_evidence(moved, std::nullopt, world::PlanEvidenceOptions{}, revision);
+  ASSERT_EQ(evidence.size(), 1u);
+  EXPECT_EQ(evidence[0].beams_through, 0);
+  grid.insert(ring_scan(0, 5.0), 5, moved);  // counted again from here, at the new place
+  evidence = grid.edge_evidence(moved, std::nullopt, world::PlanEvidenceOptions{}, revision);
+  ASSERT_EQ(evidence.size(), 1u);
+  EXPECT_GT(evidence[0].beams_through, 50);
+  EXPECT_LT(evidence[0].beams_through, 120);  // one scan's, not five
+}
+
+TEST(GridStoreTest, ChangedRegionCoversTheScanUpToItsReturns) {
+  testing::TempDir dir;
+  storage::Store store(store_options(dir));
+  GridStore grid(options(), store);
+  const auto box = grid.changed_region(ring_scan(1.0, 3.0), 0.1);
+  EXPECT_LE(box.min().x(), 1.0 - 3.0 - 0.1 + 1e-6);
+  EXPECT_GE(box.max().x(), 1.0 + 3.0 + 0.1 - 1e-6);
+  EXPECT_LT(box.max().x(), 1.0 + 3.0 + 0.5);
+}
+
+}  // namespace
+}  // namespace wm::service
