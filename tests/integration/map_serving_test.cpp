@@ -1,4 +1,4 @@
-// Serving the map (issue 15): one body per version with its ETag, 304 on If-None-Match, gzip, and ?since= deltas
+// Serving the map: one body per version with its ETag, 304 on If-None-Match, gzip, and ?since= deltas
 // that bring an old map to the new one exactly, over random sequences of writes.
 #include <zlib.h>
 

@@ -1,4 +1,4 @@
-// The HTTP edge under hostile input (issue 10): JSON nesting, invalid UTF-8, Host and Origin checks, the
+// The HTTP edge under hostile input: JSON nesting, invalid UTF-8, Host and Origin checks, the
 // events WebSocket's auth, the token scheme, dry runs without a token, non-loopback binds, bounded query
 // answers, handlers off the I/O threads and the accept loop's back-off. Each test replays the reproducer.
 #include <sys/resource.h>
@@ -75,7 +75,7 @@ json body_of(const std::string& text) { return json::parse(text, nullptr, false)
 
 class SecurityHttpTest : public ServerFixture {};
 
-// Issue 10 item 2: 100 000 nested objects in a PUT /api/v1/floorplan crashed wmd (SIGSEGV in nlohmann's
+// Deep JSON cannot crash wmd: 100 000 nested objects in a PUT /api/v1/floorplan crashed it (SIGSEGV in nlohmann's
 // recursive parse/copy). Every JSON body now goes through one nesting check first.
 TEST_F(SecurityHttpTest, DeeplyNestedJsonIsRefusedWith400Everywhere) {
   const std::string deep = nested_objects(100000);
@@ -124,7 +124,7 @@ TEST_F(SecurityHttpTest, ADeeplyNestedFloorPlanFileIsRefusedAtStart) {
   EXPECT_NE(r.output.find("JSON nested deeper than 64 levels"), std::string::npos) << r.output;
 }
 
-// Issue 10 item 10: invalid UTF-8 in YAML (or in a name given as a query parameter) answered 500
+// Outside text is checked as UTF-8: invalid UTF-8 in YAML (or in a name given as a query parameter) answered 500
 // (nlohmann type_error 316 when the plan was written); now 400 naming where.
 TEST_F(SecurityHttpTest, InvalidUtf8IsRefusedWith400NamingTheField) {
   std::string yaml = slurp(std::filesystem::path(WM_SOURCE_DIR) / "tests/data/plans/rmf-office.building.yaml");
@@ -148,7 +148,7 @@ TEST_F(SecurityHttpTest, InvalidUtf8IsRefusedWith400NamingTheField) {
   EXPECT_EQ(body_of(good.body).value("name", ""), "pavill\xc3\xb3n");
 }
 
-// Issue 10 item 9: DNS rebinding. With no token, a page of attacker.example re-resolved to 127.0.0.1 could
+// Against DNS rebinding: with no token, a page of attacker.example re-resolved to 127.0.0.1 could
 // write; every request's Host must be a loopback name, the bind address, an IP literal or --allowed-hosts.
 TEST_F(SecurityHttpTest, HostHeaderIsCheckedOnEveryRequest) {
   const int port = server_->port();
@@ -193,7 +193,8 @@ TEST_F(SecurityHttpTest, WritesFromAnotherOriginAreRefused) {
             200);
 }
 
-// Issue 10 item 9: the events WebSocket upgraded with no token, a wrong token, or Origin attacker.example.
+// The events WebSocket is authorised like a write: it upgraded with no token, a wrong token, or Origin
+// attacker.example.
 TEST_F(SecurityHttpTest, EventsWebSocketNeedsTheTokenAndTheServersOrigin) {
   extra_args_ = {"--token", "s3cret", "--allowed-origins", "http://viewer.example:3000"};
   restart();
@@ -226,7 +227,7 @@ TEST_F(SecurityHttpTest, EventsWebSocketWithoutATokenStillChecksOrigin) {
   EXPECT_EQ(ws_upgrade(port, "/api/v1/events", {}).status, 101);
 }
 
-// Issue 10 item 10: RFC 7235 makes the auth scheme case-insensitive; "bearer" in lower case was refused.
+// The token's scheme is matched as RFC 7235 says, case-insensitively: "bearer" in lower case was refused.
 TEST_F(SecurityHttpTest, BearerSchemeIsCaseInsensitive) {
   extra_args_ = {"--token", "s3cret"};
   restart();
@@ -247,7 +248,7 @@ TEST_F(SecurityHttpTest, BearerSchemeIsCaseInsensitive) {
   EXPECT_EQ(status(""), 401);
 }
 
-// Issue 10 item 1 (HTTP side): a dry run loads rule text, so it needs the token; with none configured it is
+// Dry runs are writes of code: a dry run loads rule text, so it needs the token; with none configured it is
 // refused unless wmd was started with --allow-dry-run-without-token.
 TEST_F(SecurityHttpTest, DryRunNeedsATokenOrAnExplicitFlag) {
   const std::string dry_run = R"({"file": "zz.pl", "text": "x."})";
@@ -269,7 +270,7 @@ TEST_F(SecurityHttpTest, DryRunNeedsATokenOrAnExplicitFlag) {
   EXPECT_EQ(with_token.status, 200) << with_token.body;
 }
 
-// Issue 10 item 10: --bind 0.0.0.0 without --token started without a word.
+// A server reachable from the network needs a token: --bind 0.0.0.0 without --token started without a word.
 TEST_F(SecurityHttpTest, NonLoopbackBindWithoutTokenIsRefusedUnlessExplicit) {
   const auto base = "timeout 30 " + std::string(WM_WMD_PATH) + " --db " + (dir_.path() / "bind.db").string() +
                     " --port 0 --rules " + WM_RULES_DIR + " --bind 0.0.0.0";
@@ -289,7 +290,7 @@ TEST_F(SecurityHttpTest, NonLoopbackBindWithoutTokenIsRefusedUnlessExplicit) {
   EXPECT_EQ(client::HttpClient(with_token.url()).request("GET", "/api/v1/health").status, 200);
 }
 
-// Issue 10 item 10: /api/v1/health showed the absolute path of the rules directory.
+// No file system layout leaks: /api/v1/health showed the absolute path of the rules directory.
 TEST_F(SecurityHttpTest, HealthShowsNoAbsolutePath) {
   const auto r = call("GET", "/api/v1/health");
   ASSERT_EQ(r.status, 200);
@@ -300,7 +301,7 @@ TEST_F(SecurityHttpTest, HealthShowsNoAbsolutePath) {
   EXPECT_EQ(get_json("/api/v1/rules")["files"][0]["path"], "prolog/world_model.pl");
 }
 
-// Issue 10 item 3: length(L, 10000000) answered 50 MB. Answers are bounded at the edge (8 MiB).
+// Query answers are bounded at the edge (8 MiB): length(L, 10000000) answered 50 MB.
 TEST_F(SecurityHttpTest, AHugeQueryAnswerIsRefusedNotSent) {
   const auto r = call("POST", "/api/v1/query", R"json({"goal": "length(L, 2000000)"})json");
   EXPECT_EQ(r.status, 422) << r.body.substr(0, 300);
@@ -310,8 +311,8 @@ TEST_F(SecurityHttpTest, AHugeQueryAnswerIsRefusedNotSent) {
   EXPECT_EQ(get_json("/api/v1/health")["status"], "ok");
 }
 
-// Issue 10 items 3 and 7: a slow handler held one of the I/O threads; with --threads 1, /health waited for
-// it. Handlers now run on their own pool and the I/O thread keeps answering.
+// A slow handler cannot hold up the I/O threads: with --threads 1, /health waited for a slow query. Handlers now
+// run on their own pool and the I/O thread keeps answering.
 TEST_F(SecurityHttpTest, ASlowQueryDoesNotHoldUpHealth) {
   extra_args_ = {"--threads", "1", "--rule-time-limit", "3", "--rule-inferences", "1000000000"};
   restart();
@@ -376,7 +377,7 @@ double cpu_seconds(pid_t pid) {
   return ticks / static_cast<double>(::sysconf(_SC_CLK_TCK));
 }
 
-// Issue 10 item 8: with its file descriptors exhausted wmd's accept loop re-armed at once and spun a core.
+// The accept loop survives running out of descriptors: with them exhausted, it re-armed at once and spun a core.
 // Now it backs off (50 ms doubling to 1 s) and serves again once descriptors are free.
 TEST_F(SecurityHttpTest, AcceptBacksOffWhenFileDescriptorsRunOut) {
   const auto db = (dir_.path() / "wm.db").string();

@@ -1,4 +1,4 @@
-// Issue 10's reproducers against the knowledge base: rule texts (dry-run candidates and rule files)
+// Hostile input against the knowledge base: rule texts (dry-run candidates and rule files)
 // that try to run code, and queries that tried to crash the process or outrun the time limit. Each
 // test asserts what was refused, that nothing ran, and that the knowledge base still answers.
 #include <gtest/gtest.h>

@@ -73,7 +73,7 @@ TEST(CodecTest, TooManySegmentsAreRefused) {
                CodecError);
 }
 
-// Issue 10: 100 000 nested objects crashed nlohmann's recursive parse; the nesting is checked first.
+// Guards the parser's stack: 100 000 nested objects crashed nlohmann's recursive parse; the nesting is checked first.
 TEST(CodecTest, ParseJsonRefusesNestingBeyond64LevelsBeforeParsing) {
   const auto nested = [](std::size_t levels) { return std::string(levels, '[') + std::string(levels, ']'); };
   EXPECT_NO_THROW(parse_json(nested(64)));
@@ -135,7 +135,7 @@ rules::QueryValue atom(std::string text) {
   return v;
 }
 
-// Issue 10: length(L, 10000000) answered 50 MB. The answer is refused while it is built.
+// Guards the answer's size: length(L, 10000000) answered 50 MB. The answer is refused while it is built.
 TEST(CodecTest, QueryAnswersAreBoundedInBytesAndNesting) {
   rules::QueryResult result;
   result.variables = {"X"};
@@ -169,7 +169,7 @@ TEST(CodecTest, QueryAnswersAreBoundedInBytesAndNesting) {
   }
 }
 
-// Issue 10: /api/v1/health showed the absolute path of the rules directory.
+// Guards against leaking the file system's layout: /api/v1/health showed the absolute path of the rules directory.
 TEST(CodecTest, RulesStatusShowsPathsRelativeToTheRulesDirectorysParent) {
   rules::RulesStatus status{
       {{"/home/robot/wm/rules/prolog/world_model.pl", "ab", 1}, {"/home/robot/wm/rules/prolog/glass.pl", "cd", 2}},
