@@ -12,22 +12,21 @@
 
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
+#include "server/service/knowledge_facts.h"
 #include "server/world/plan_edit.h"
 
 namespace wm::service {
 namespace {
 
+std::set<std::string> rejected_changes(storage::Store& store) {
+  std::set<std::string> ids;
+  for (const auto& decided : store.plan_changes())
+    if (decided.verdict == "rejected") ids.insert(decided.change_id);
+  return ids;
+}
+
 double now_unix_s() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
-
-rules::ElementFacts element_facts(const world::Element& e) {
-  return {e.id(),    e.origin,           e.observer, e.segment.line.rho_m, e.segment.line.phi_rad, e.segment.length_m(),
-          e.support, e.updated_at_unix_s};
-}
-
-rules::DecisionFacts decision_facts(const world::DecisionRecord& d, double at) {
-  return {d.seq, std::string(rules::wire_name(d.action)), d.rule, d.element, d.object, d.observer, at};
 }
 
 }  // namespace
@@ -39,7 +38,8 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
       engine_(engine),
       events_(events),
       published_(store.load(options.world)),
-      grid_(GridStoreOptions{options.grid, options.grid_flush_interval, options.beam_crossings}, store) {
+      grid_(GridStoreOptions{options.grid, options.grid_flush_interval, options.beam_crossings}, store),
+      plan_checks_(PlanChecksOptions{options.plan_evidence, options.changes}, grid_, engine, rejected_changes(store)) {
   head_ = published_.current();
   // The journal is the grid's source of truth: a scan is journaled (with its line decisions) before it
   // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
@@ -75,8 +75,6 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
     }
   }
   restore_robots();
-  for (const auto& decided : store_.plan_changes())
-    if (decided.verdict == "rejected") rejected_changes_.insert(decided.change_id);
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
   const auto spec = options_.network_file ? pipeline::read_task_file(options_.network_file->string())
                                           : pipeline::parse_task(default_network_yaml(), "<default network>");
@@ -84,12 +82,12 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   network_->start();
   // The knowledge base mirrors the committed map; fill it before the first request is taken.
   run_command([this, &due_trim] {
-    sync_all_facts(*snapshot());
+    sync_all_facts(engine_, *snapshot(), options_.world);
     std::vector<rules::DecisionFacts> recent;
     for (const auto& d : store_.latest_decisions(options_.decision_facts_kept)) recent.push_back(decision_facts(d, 0));
     engine_.add_decisions(recent, options_.decision_facts_kept);
     // The evidence comes from the grid as the journal rebuilt it, so a restart sees what an uninterrupted run saw.
-    refresh_plan_evidence(*snapshot(), std::nullopt);
+    plan_checks_.refresh(*snapshot(), std::nullopt);
     if (due_trim) trim_now(due_trim->first, due_trim->second);
     return 0;
   });
@@ -199,106 +197,16 @@ std::set<std::string> removed_objects(const world::WorldState& before, const wor
   return ids;
 }
 
-/// "<object>/<k>" back to k, when the id is that object's.
-std::optional<std::size_t> edge_index(const std::string& object_id, const std::string& edge_id) {
-  if (edge_id.size() <= object_id.size() + 1 || edge_id.compare(0, object_id.size(), object_id) != 0 ||
-      edge_id[object_id.size()] != '/')
-    return std::nullopt;
-  std::size_t k = 0;
-  for (std::size_t i = object_id.size() + 1; i < edge_id.size(); ++i) {
-    if (edge_id[i] < '0' || edge_id[i] > '9' || k > (std::size_t{1} << 40)) return std::nullopt;
-    k = k * 10 + static_cast<std::size_t>(edge_id[i] - '0');
-  }
-  return k;
-}
-
 }  // namespace
 
-std::shared_ptr<const world::PlanReport> WorldService::plan_report() const {
-  std::lock_guard lock(plan_report_mutex_);
-  return plan_report_;
-}
+std::shared_ptr<const world::PlanReport> WorldService::plan_report() const { return plan_checks_.report(); }
 
 std::shared_ptr<const world::PlanReport> WorldService::refresh_plan_report() {
   run_command([this] {
-    refresh_plan_evidence(*snapshot(), std::nullopt);
+    plan_checks_.refresh(*snapshot(), std::nullopt);
     return 0;
   });
   return plan_report();
-}
-
-void WorldService::refresh_plan_evidence(const world::WorldState& state, const std::optional<world::Box>& region,
-                                         bool verdicts_only) {
-  try {
-    const auto previous = plan_report();
-    auto report = std::make_shared<world::PlanReport>();
-    report->map_version = state.version;
-    std::vector<world::EdgeEvidence> fresh;
-    report->grid_revision = previous->grid_revision;
-    if (!verdicts_only) fresh = grid_.edge_evidence(state, region, options_.plan_evidence, report->grid_revision);
-    std::vector<rules::EdgeEvidenceFacts> facts;
-    std::vector<rules::EdgeKey> keys;
-    std::set<std::pair<std::size_t, std::size_t>> refreshed;
-    std::set<std::string> objects_refreshed;
-    facts.reserve(fresh.size());
-    for (const auto& e : fresh) {
-      const auto& object_id = state.objects[e.object].plan->id;
-      rules::EdgeEvidenceFacts f{
-          object_id,    world::edge_id(object_id, e.edge), e.backed, e.seen_through, e.observed, {}, e.beams_through,
-          e.beams_ended};
-      for (const auto& stretch : e.seen_through_stretches)
-        f.stretches.push_back({stretch.s0_m, stretch.s1_m, stretch.beams_through});
-      keys.push_back({f.object_id, f.edge_id});
-      facts.push_back(std::move(f));
-      refreshed.insert({e.object, e.edge});
-      objects_refreshed.insert(object_id);
-    }
-    // A region's check leaves the evidence of the edges outside it as it was; a whole check replaces it all (the
-    // plan or its placement changed, or the server started).
-    const bool whole = !region && !verdicts_only;
-    if (!verdicts_only) engine_.set_edge_evidence(facts, whole);
-    const bool scoped = region.has_value() && !verdicts_only;
-    const auto verdicts = engine_.plan_verdicts(scoped ? std::optional(keys) : std::nullopt, 100000);
-
-    report->edges = verdicts_only ? previous->edges : std::move(fresh);
-    if (scoped)
-      for (const auto& e : previous->edges)
-        if (!refreshed.contains({e.object, e.edge}) && e.object < state.objects.size()) report->edges.push_back(e);
-    std::sort(report->edges.begin(), report->edges.end(), [](const auto& a, const auto& b) {
-      return std::pair{a.object, a.edge} < std::pair{b.object, b.edge};
-    });
-    if (scoped)
-      for (const auto& v : previous->verdicts) {
-        const auto index = state.objects.index_of(v.object_id);
-        if (!index) continue;  // the plan changed since
-        const bool asked = v.edge ? refreshed.contains({*index, *v.edge}) : objects_refreshed.contains(v.object_id);
-        if (!asked) report->verdicts.push_back(v);
-      }
-    for (const auto& f : verdicts) {
-      world::Verdict v;
-      v.object_id = f.object_id;
-      if (f.edge_id) {
-        v.edge = edge_index(f.object_id, *f.edge_id);
-        if (!v.edge) continue;  // not an edge of this plan: nothing to show it on
-      }
-      v.verdict = f.verdict;
-      v.stretch = {f.s0_m, f.s1_m};
-      v.rule = f.rule;
-      v.explanation = f.explanation;
-      report->verdicts.push_back(std::move(v));
-    }
-    std::sort(report->verdicts.begin(), report->verdicts.end(), [&state](const auto& a, const auto& b) {
-      const auto ia = state.objects.index_of(a.object_id).value_or(0),
-                 ib = state.objects.index_of(b.object_id).value_or(0);
-      const auto ea = a.edge ? static_cast<std::int64_t>(*a.edge) : -1,
-                 eb = b.edge ? static_cast<std::int64_t>(*b.edge) : -1;
-      return std::tuple{ia, ea, a.stretch.s0_m} < std::tuple{ib, eb, b.stretch.s0_m};
-    });
-    std::lock_guard lock(plan_report_mutex_);
-    plan_report_ = std::move(report);
-  } catch (const std::exception& e) {
-    std::cerr << "wmd: the plan's evidence was not refreshed: " << e.what() << "\n";
-  }
 }
 
 void WorldService::add_to_trim_region(const json_codec::ScanRequest& scan) {
@@ -351,7 +259,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const wor
       checked = std::move(trimmed.checked);
     });
     // The plan's edges the same scans could see: the evidence of missing walls follows the grid.
-    refresh_plan_evidence(*p.base, region);
+    plan_checks_.refresh(*p.base, region);
     // The trimmed elements' facts first (that drops their old element_grid/3), then what the grid said of every
     // element checked: the rules' prune/3 may remove what the grid backs nowhere.
     std::vector<rules::ElementFacts> upserts;
@@ -377,7 +285,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const wor
   } catch (const std::exception& e) {
     std::cerr << "wmd: grid trim failed: " << e.what() << "\n";
     try {
-      sync_all_facts(*head());  // the rules see the map as decided before the trim
+      sync_all_facts(engine_, *head(), options_.world);  // the rules see the map as decided before the trim
     } catch (const std::exception& again) {
       std::cerr << "wmd: rule facts not restored after the failed grid trim: " << again.what() << "\n";
     }
@@ -406,31 +314,6 @@ std::shared_ptr<const world::WorldState> WorldService::snapshot() const { return
 
 std::optional<MapRemovals> WorldService::removed_since(std::int64_t since, std::int64_t up_to) const {
   return published_.removed_since(since, up_to);
-}
-
-std::vector<rules::ObjectFacts> WorldService::object_facts(const world::WorldState& state) const {
-  std::vector<rules::ObjectFacts> result;
-  result.reserve(state.objects.size());
-  for (const auto& object : state.objects) {
-    rules::ObjectFacts f;
-    f.id = object.plan->id;
-    f.kind = object.plan->kind;
-    f.attributes = object.plan->attributes;
-    for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
-      const auto edge = world::apriori_edge(object, k, options_.world);
-      f.edges.push_back({world::edge_id(f.id, k), edge.line.rho_m, edge.line.phi_rad, edge.length_m()});
-    }
-    result.push_back(std::move(f));
-  }
-  return result;
-}
-
-void WorldService::sync_all_facts(const world::WorldState& state) {
-  engine_.set_floor_plan(object_facts(state));
-  std::vector<rules::ElementFacts> elements;
-  elements.reserve(state.elements.size());
-  for (const auto& [number, e] : state.elements) elements.push_back(element_facts(e));
-  engine_.set_elements(elements);
 }
 
 PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, const std::string& payload) {
@@ -476,9 +359,9 @@ WorldService::PreparedUpdate WorldService::prepare_update(world::Observation obs
     // Edge facts are in the world frame: a moved object must be seen where it is now by the next rule call.
     if (std::any_of(p.update.decisions.begin(), p.update.decisions.end(),
                     [](const auto& d) { return d.action == rules::Action::rigid_adjust; }))
-      engine_.set_floor_plan(object_facts(p.update.state));
+      engine_.set_floor_plan(object_facts(p.update.state, options_.world));
   } catch (...) {
-    sync_all_facts(*p.base);  // nothing was applied: the facts go back to the map decided before
+    sync_all_facts(engine_, *p.base, options_.world);  // nothing was applied: the facts go back to the map decided before
     throw;
   }
   p.observation = std::move(observation);
@@ -490,7 +373,7 @@ void WorldService::commit_prepared(const PreparedUpdate& prepared, F&& commit) {
   try {
     commit();
   } catch (...) {
-    sync_all_facts(*prepared.base);  // nothing was applied: the facts go back to the committed map
+    sync_all_facts(engine_, *prepared.base, options_.world);  // nothing was applied: the facts go back to the committed map
     throw;
   }
 }
@@ -539,14 +422,14 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
   return run_command([this, plan = std::move(plan)] {
     const auto current = snapshot();
     auto update = world::apply_floor_plan(*current, plan, options_.world);
-    auto new_facts = object_facts(update.state);
+    auto new_facts = object_facts(update.state, options_.world);
     store_.commit_floor_plan(update, plan);
     const auto version = update.state.version;
     MapRemovals removed;  // the objects of the old plan that the new one does not have
     removed.objects = removed_objects(*current, update.state);
     published_.publish(std::move(update.state), std::move(removed));
     engine_.set_floor_plan(new_facts);
-    refresh_plan_evidence(*snapshot(), std::nullopt);
+    plan_checks_.refresh(*snapshot(), std::nullopt);
     emit({{"type", "floorplan"}, {"version", version}, {"name", plan.name}, {"objects", plan.objects.size()}});
     return version;
   });
@@ -558,7 +441,7 @@ rules::RulesStatus WorldService::reload_rules() {
   return run_command([this] {
     try {
       auto status = engine_.reload();
-      refresh_plan_evidence(*snapshot(), std::nullopt, true);  // the new rules' verdicts on the same evidence
+      plan_checks_.refresh(*snapshot(), std::nullopt, true);  // the new rules' verdicts on the same evidence
       emit({{"type", "rules"}, {"status", json_codec::rules_status_json(status)}});
       return status;
     } catch (const rules::RuleError&) {
@@ -728,8 +611,8 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
   const auto placement = p.update.state.placement;
   auto outcome = finish_update(std::move(p));
   // The rules see the edges where the plan now is, before the next request is decided.
-  engine_.set_floor_plan(object_facts(*snapshot()));
-  refresh_plan_evidence(*snapshot(), std::nullopt);
+  engine_.set_floor_plan(object_facts(*snapshot(), options_.world));
+  plan_checks_.refresh(*snapshot(), std::nullopt);
   emit({{"type", "placement"},
         {"version", outcome.version},
         {"placement", json_codec::placement_json(placement, snapshot()->placement_cov)},
@@ -886,7 +769,7 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
   const std::string payload = "{\"redecide\": " + std::to_string(outcome.elements) + "}";
   commit_prepared(p, [&] { store_.commit_observation(p.update, p.observation, payload); });
   auto done = finish_update(std::move(p));
-  sync_all_facts(*snapshot());
+  sync_all_facts(engine_, *snapshot(), options_.world);
   outcome.version = done.version;
   outcome.decisions = std::move(done.decisions);
   return outcome;
@@ -914,10 +797,7 @@ std::vector<world::Change> WorldService::changes(std::shared_ptr<const world::Wo
                                                  std::shared_ptr<const world::PlanReport>& evidence) const {
   state = snapshot();
   evidence = plan_report();
-  auto list = world::list_changes(*state, evidence.get(), options_.changes);
-  std::lock_guard lock(rejected_mutex_);
-  std::erase_if(list, [this](const world::Change& c) { return rejected_changes_.contains(c.id); });
-  return list;
+  return plan_checks_.changes(*state, evidence.get());
 }
 
 ChangeOutcome WorldService::decide_change(const std::string& change_id, bool accept, std::string observer) {
@@ -960,11 +840,10 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
     auto removed = removed_objects(*state, p.update.state);
     outcome.version = finish_update(std::move(p), std::move(removed)).version;
     if (accept) {
-      sync_all_facts(*snapshot());
-      refresh_plan_evidence(*snapshot(), std::nullopt);
+      sync_all_facts(engine_, *snapshot(), options_.world);
+      plan_checks_.refresh(*snapshot(), std::nullopt);
     } else {
-      std::lock_guard lock(rejected_mutex_);
-      rejected_changes_.insert(change_id);
+      plan_checks_.reject(change_id);
     }
     emit({{"type", "change"},
           {"change", change_id},
@@ -996,11 +875,10 @@ ChangeOutcome WorldService::undo_change(std::string observer) {
     auto removed = removed_objects(*state, p.update.state);
     outcome.version = finish_update(std::move(p), std::move(removed)).version;
     if (plan) {
-      sync_all_facts(*snapshot());
-      refresh_plan_evidence(*snapshot(), std::nullopt);
+      sync_all_facts(engine_, *snapshot(), options_.world);
+      plan_checks_.refresh(*snapshot(), std::nullopt);
     } else {
-      std::lock_guard lock(rejected_mutex_);
-      rejected_changes_.erase(last.change_id);
+      plan_checks_.unreject(last.change_id);
     }
     emit({{"type", "change"}, {"change", last.change_id}, {"verdict", "undone"}, {"version", outcome.version}});
     return outcome;

@@ -25,6 +25,7 @@
 #include "server/json/codec.h"
 #include "server/json/robots_json.h"
 #include "server/service/grid_store.h"
+#include "server/service/plan_checks.h"
 #include "server/service/prolog_worker.h"
 #include "server/service/rules_watcher.h"
 #include "server/service/snapshot_log.h"
@@ -176,8 +177,6 @@ class WorldService final : public WorldPort {
   bool accepts_scans(const std::string& sensor) const;
 
  private:
-  std::vector<rules::ObjectFacts> object_facts(const world::WorldState& state) const;
-  void sync_all_facts(const world::WorldState& state);
   void on_rules_changed();
   /// The robots as the journal left them (at start).
   void restore_robots();
@@ -218,11 +217,6 @@ class WorldService final : public WorldPort {
   std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
   /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
   void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
-  /// On the writer: checks the plan's edges in `region` (all of them when nullopt) of `state` against the grid,
-  /// hands the evidence to the rules, asks them for their verdicts and publishes the new plan report. Failures are
-  /// logged and leave the previous report. `verdicts_only`: the evidence facts stand, the rules changed.
-  void refresh_plan_evidence(const world::WorldState& state, const std::optional<world::Box>& region,
-                             bool verdicts_only = false);
   void emit(const nlohmann::json& event);
 
   // The processing network (world_service_network.cpp).
@@ -289,10 +283,7 @@ class WorldService final : public WorldPort {
   RobotRegistry robots_;
   SnapshotLog published_;  // the committed map, what each version removed
   GridStore grid_;         // inserted on the grid thread (and at start, before the network runs)
-  mutable std::mutex rejected_mutex_;
-  std::set<std::string> rejected_changes_;  // change ids a person rejected (not undone)
-  mutable std::mutex plan_report_mutex_;
-  std::shared_ptr<const world::PlanReport> plan_report_ = std::make_shared<const world::PlanReport>();
+  PlanChecks plan_checks_;  // refreshed on the writer
   std::atomic<bool> aligning_{false};      // an align_floor_plan search is running
   std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see (trim_mutex_)
 

@@ -6,10 +6,10 @@
 
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
+#include "server/service/knowledge_facts.h"
 #include "server/service/world_service.h"
 
 namespace wm::service {
-namespace {}  // namespace
 
 // FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
 // Not a defence against a client that crafts collisions, which could only confuse its own requests.
@@ -293,7 +293,7 @@ void WorldService::resync_after_failure() {
   head_ = snapshot();
   next_scan_seq_ = committed_scan_seq_;
   try {
-    sync_all_facts(*head_);
+    sync_all_facts(engine_, *head_, options_.world);
   } catch (const std::exception& e) {
     std::cerr << "wmd: rule facts not restored after a failed commit: " << e.what() << "\n";
   }

@@ -6,42 +6,12 @@
 
 #include <cmath>
 #include <limits>
-#include <numbers>
 
+#include "server/service/service_test_helpers.h"
 #include "support/temp_dir.h"
 
 namespace wm::service {
 namespace {
-
-// A 360° laser scan of 720 beams from (x, 0), every beam returning at `range`.
-json_codec::ScanRequest ring_scan(double x, double range) {
-  fusion::LaserScan scan;
-  scan.sensor_pose = {x, 0, 0};
-  scan.angle_min_rad = -std::numbers::pi;
-  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
-  scan.ranges_m.assign(720, range);
-  scan.range_min_m = 0.05;
-  scan.range_max_m = 30;
-  json_codec::ScanRequest request;
-  request.observer = "test";
-  request.scan = scan;
-  return request;
-}
-
-// A plan with one solid wall from (2, −1) to (2, 1), drawn `shift_m` further along x.
-world::WorldState wall_state(double shift_m = 0) {
-  apriori::FloorPlan plan;
-  plan.name = "wall";
-  apriori::PlanObject wall;
-  wall.id = "w";
-  wall.kind = "wall";
-  wall.attributes = {"solid"};
-  wall.polylines = {{{2 + shift_m, -1}, {2 + shift_m, 1}}};
-  plan.objects = {wall};
-  world::WorldState state;
-  state.objects = world::ObjectTable(world::make_objects(plan, world::WorldOptions{}, 1));
-  return state;
-}
 
 GridStoreOptions options() {
   GridStoreOptions o;

@@ -35,6 +35,8 @@ struct SharedFile {
 };
 
 TEST(SigbusGuardTest, WritingPastAShrunkFileEndKillsWithoutAGuard) {
+  // A fresh process: a library of the same test binary (SWI-Prolog) may have put its own SIGBUS handler in place.
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
   // What the guard is for: the default outcome.
   EXPECT_EXIT(
       {
@@ -79,6 +81,8 @@ TEST(SigbusGuardTest, GuardsNestAndEachMarksOnlyItsOwnRange) {
 }
 
 TEST(SigbusGuardTest, AFaultOutsideEveryGuardedRangeStillKills) {
+  // A fresh process: a library of the same test binary (SWI-Prolog) may have put its own SIGBUS handler in place.
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
       {
         SharedFile guarded;
