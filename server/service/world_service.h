@@ -5,6 +5,7 @@
 #include <chrono>
 #include <deque>
 #include <filesystem>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
@@ -76,6 +77,9 @@ struct ServiceOptions {
 /// The default processing network (its YAML task file): matcher, store, grid and grid lines each on their own
 /// executor.
 std::string default_network_yaml();
+
+/// Now, in seconds since the Unix epoch (when an observation was received).
+double now_unix_s();
 
 /// Owns the world model. Writes run on a processing network (pipeline::Network, from a task file): the matcher
 /// decides scans' lines and posted primitives against the map as the requests before them leave it (match → rules
@@ -194,8 +198,7 @@ class WorldService final : public WorldPort {
   static PreparedUpdate own_observation(std::shared_ptr<const world::WorldState> base, std::string observer,
                                         std::string origin, std::string sensor);
   /// Runs `commit`; if it throws, puts the rules' facts back to the committed map and rethrows.
-  template <typename F>
-  void commit_prepared(const PreparedUpdate& prepared, F&& commit);
+  void commit_prepared(const PreparedUpdate& prepared, const std::function<void()>& commit);
   /// After the commit: publishes the new state, tells the rules and live clients.
   PrimitivesOutcome finish_update(PreparedUpdate prepared, std::set<std::string> removed_objects = {});
   PrimitivesOutcome apply_on_writer(world::Observation observation, const std::string& payload);

@@ -187,4 +187,11 @@ UpdateResult apply_plan_edit(const WorldState& current, const apriori::FloorPlan
   return result;
 }
 
+std::set<std::string> removed_objects(const WorldState& before, const WorldState& after) {
+  std::set<std::string> ids;
+  for (const auto& object : before.objects) ids.insert(object.plan->id);
+  for (const auto& object : after.objects) ids.erase(object.plan->id);
+  return ids;
+}
+
 }  // namespace wm::world

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <optional>
+#include <set>
 #include <string>
 
 #include "apriori/floor_plan.h"
@@ -36,5 +37,8 @@ UpdateResult apply_plan_edit(const WorldState& current, const apriori::FloorPlan
                              const std::vector<std::int64_t>& remove_elements, std::int64_t observation_seq,
                              rules::Action action, const std::string& rule, const std::string& explanation,
                              const std::string& observer, const std::string& subject);
+
+/// The ids of the objects of `before` that `after` does not have (a new plan, an accepted change, an undo).
+std::set<std::string> removed_objects(const WorldState& before, const WorldState& after);
 
 }  // namespace wm::world
