@@ -148,8 +148,7 @@ TaskSpec parse_task(const std::string& yaml, const std::string& source) {
   for (const auto& entry : executors) {
     TaskSpec::ExecutorSpec executor{scalar(source, entry.first, "an executor name"),
                                     names(source, entry.second, "an executor's components")};
-    if (executor.components.empty())
-      refuse(source, entry.second, "executor '" + executor.name + "' runs no component");
+    if (executor.components.empty()) refuse(source, entry.second, "executor '" + executor.name + "' runs no component");
     spec.executors.push_back(std::move(executor));
   }
   return spec;

@@ -153,10 +153,9 @@ class SharedMapExport::Segment {
     const bool same = std::memcmp(h.magic, layout::kMagic, sizeof h.magic) == 0 &&
                       h.layout_version == layout::kLayoutVersion && h.header_bytes == layout::kHeaderBytes &&
                       h.layer_count == layout::kLayerCount && h.tile_size_cells == layout_.tile_size_cells &&
-                      h.slot_bytes == layout_.slot_bytes &&
-                      h.tiles_offset == layout_.tiles_offset && h.tile_capacity == layout_.tile_capacity &&
-                      h.map_offset == layout_.map_offset && h.map_capacity_bytes == layout_.map_capacity_bytes &&
-                      h.segment_bytes == layout_.bytes;
+                      h.slot_bytes == layout_.slot_bytes && h.tiles_offset == layout_.tiles_offset &&
+                      h.tile_capacity == layout_.tile_capacity && h.map_offset == layout_.map_offset &&
+                      h.map_capacity_bytes == layout_.map_capacity_bytes && h.segment_bytes == layout_.bytes;
     return same && !lost();
   }
 
@@ -503,9 +502,9 @@ bool SharedMapExport::grow(std::uint64_t tiles, std::uint64_t map_bytes, bool co
       map.edge_count = counts_.edges;
       header.tile_count.store(slots_.size(), std::memory_order_relaxed);
       header.grid_revision.store(grid_revision_, std::memory_order_relaxed);
-      header.truncated.store((counts_.tiles_complete ? 0 : layout::kTilesTruncated) |
-                                 (counts_.map_complete ? 0 : layout::kMapTruncated),
-                             std::memory_order_relaxed);
+      header.truncated.store(
+          (counts_.tiles_complete ? 0 : layout::kTilesTruncated) | (counts_.map_complete ? 0 : layout::kMapTruncated),
+          std::memory_order_relaxed);
       header.updated_unix_ns.store(counts_.updated_unix_ns, std::memory_order_relaxed);
     }
     header.state.store(static_cast<std::uint32_t>(layout::SegmentState::live), std::memory_order_release);

@@ -48,8 +48,8 @@ void SigbusGuard::handle(int signal, siginfo_t* info, void* context) {
     guard->lost_.store(true, std::memory_order_relaxed);
     // mmap is a bare system call (Wayland's compositors do the same for their clients' shm pools); the faulting
     // access is restarted on return and lands in the new pages.
-    if (::mmap(guard->base_, guard->bytes_, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_FIXED | MAP_ANONYMOUS | MAP_NORESERVE,
-               -1, 0) != MAP_FAILED)
+    if (::mmap(guard->base_, guard->bytes_, PROT_READ | PROT_WRITE,
+               MAP_PRIVATE | MAP_FIXED | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0) != MAP_FAILED)
       return;
     break;
   }
