@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <optional>
 #include <stdexcept>
 
@@ -45,9 +46,22 @@ void mark_junctions(const WorldState& state, std::size_t object_index, std::size
 }
 
 /// Junction samples take the verdict of the samples beside them: at an end, the nearest one inside; between two,
-/// theirs when both agree (else what the probe said stays).
+/// theirs when both agree (else what the probe said stays). Only from a run of non-junction samples with that verdict
+/// at least as long as the junction run: a short wall end (the 30 cm cap of a thick wall) is mostly junction, and
+/// one sample in its middle must not speak for all of it.
 void fill_junctions(const std::vector<bool>& at_junction, std::vector<EdgeSample>& samples) {
   const std::size_t n = samples.size();
+  const std::vector<EdgeSample> probed = samples;
+  // The length of the run of equal, non-junction samples that ends (or starts) at i, walking in `step`.
+  const auto run_from = [&](std::size_t i, int step) {
+    std::size_t length = 0;
+    for (auto j = static_cast<std::ptrdiff_t>(i); j >= 0 && j < static_cast<std::ptrdiff_t>(n); j += step) {
+      const auto k = static_cast<std::size_t>(j);
+      if (at_junction[k] || probed[k] != probed[i]) break;
+      ++length;
+    }
+    return length;
+  };
   for (std::size_t i = 0; i < n;) {
     if (!at_junction[i]) {
       ++i;
@@ -55,13 +69,16 @@ void fill_junctions(const std::vector<bool>& at_junction, std::vector<EdgeSample
     }
     std::size_t j = i;
     while (j < n && at_junction[j]) ++j;
+    const std::size_t junction = j - i;
     std::optional<EdgeSample> fill;
+    const bool before = i > 0 && run_from(i - 1, -1) >= junction;
+    const bool after = j < n && run_from(j, +1) >= junction;
     if (i > 0 && j < n) {
-      if (samples[i - 1] == samples[j]) fill = samples[j];
+      if (before && after && probed[i - 1] == probed[j]) fill = probed[j];
     } else if (i > 0) {
-      fill = samples[i - 1];
+      if (before) fill = probed[i - 1];
     } else if (j < n) {
-      fill = samples[j];
+      if (after) fill = probed[j];
     }
     if (fill)
       for (std::size_t m = i; m < j; ++m) samples[m] = *fill;

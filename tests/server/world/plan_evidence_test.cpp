@@ -173,6 +173,33 @@ TEST(PlanEvidenceTest, WhereAnotherWallMeetsAnEdgeItTakesTheVerdictBesideIt) {
   EXPECT_NEAR(plan_evidence(state, gone, o)[0].seen_through, 0.925, 1e-9);
 }
 
+TEST(PlanEvidenceTest, AShortWallEndMostlyAtJunctionsKeepsWhatTheProbeSaid) {
+  // The 30 cm end cap of a thick wall, met at both ends by the wall's long faces: 5 of its 6 samples lie within
+  // 2.5 cells of a face, and the one between must not speak for all of them.
+  apriori::FloorPlan plan;
+  plan.name = "cap";
+  const auto wall = [](std::string id, Eigen::Vector2d a, Eigen::Vector2d b) {
+    apriori::PlanObject o;
+    o.id = std::move(id);
+    o.kind = "wall";
+    o.attributes = {"solid"};
+    o.polylines = {{a, b}};
+    return o;
+  };
+  plan.objects = {wall("cap", {0, 0}, {0.3, 0}), wall("left", {0, 0}, {0, 5}), wall("right", {0.3, 0}, {0.3, 5})};
+  WorldState state;
+  state.objects = ObjectTable(make_objects(plan, WorldOptions{}, 1));
+  const auto middle_free = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    if (std::abs(p.y()) > 1e-9) return EdgeSample::unknown;
+    return std::abs(p.x() - 0.15) < 0.03 ? EdgeSample::seen_through : EdgeSample::backed;
+  };
+  const auto found = plan_evidence(state, middle_free, options());
+  ASSERT_FALSE(found.empty());
+  EXPECT_EQ(found[0].object, 0u);
+  EXPECT_LT(found[0].seen_through, 0.5);
+  EXPECT_TRUE(found[0].seen_through_stretches.empty());
+}
+
 TEST(PlanEvidenceTest, BadOptionsAreRefused) {
   const auto state = plan_state();
   const EdgeProbe probe = [](const Eigen::Vector2d&, const Eigen::Vector2d&) { return EdgeSample::backed; };
