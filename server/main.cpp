@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "apriori/floor_plan.h"
+#include "common/diagnostics.h"
 #include "server/api/router.h"
 #include "server/config/server_config.h"
 #include "server/foxglove/bridge.h"
@@ -63,11 +64,13 @@ int main(int argc, char** argv) {
     std::cout << service::default_network_yaml();
     return 0;
   }
+  // What the parts below report as they run: echoed to stderr as before, and counted in GET /api/v1/health.
+  common::Diagnostics diagnostics("wmd: ");
   try {
     storage::Store store(cfg.store);
     rules::Engine engine(cfg.rules);
     events::EventHub events;
-    service::WorldService world(cfg.service, store, engine, &events);
+    service::WorldService world(cfg.service, store, engine, diagnostics, &events);
     if (cfg.floor_plan_file) {
       auto plan = apriori::parse_floor_plan_json(read_file(*cfg.floor_plan_file), cfg.api.plan_limits);
       std::cout << "wmd: loaded floor plan '" << plan.name << "' (" << plan.objects.size() << " objects) from "
@@ -75,6 +78,7 @@ int main(int argc, char** argv) {
       world.load_floor_plan(std::move(plan));
     }
     api::Services services{cfg.api, world};
+    services.diagnostics = &diagnostics;
     // Before the HTTP server, which hands it to handlers, and after the world it reads.
     std::optional<shm::SharedMapExport> shared_memory;
     if (cfg.shm.enabled) {
@@ -84,11 +88,11 @@ int main(int argc, char** argv) {
       if (status.available)
         std::cout << "wmd: shared memory /dev/shm/" << status.name << " (GET /api/v1/shm)\n";
       else
-        std::cerr << "wmd: warning: no shared memory export: " << status.error << "\n";
+        diagnostics.report(common::Severity::warning, "shm", "warning: no shared memory export: " + status.error);
     }
     // Before the HTTP server, whose connections it serves, and after the world and the event hub it reads.
     foxglove::Bridge foxglove_bridge(
-        cfg.foxglove, world, events,
+        cfg.foxglove, world, events, diagnostics,
         {"wmd (worldmodel)",
          services.map_cache->instance(),
          {{"api", "/api/v1"}, {"map_frame", "map"}, {"robot_frames", "<robot id>/base_link"}}});

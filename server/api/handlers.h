@@ -6,6 +6,7 @@
 // Which handler answers which method and path is said once, in the route table (server/api/routes.cpp).
 #include <string>
 
+#include "common/diagnostics.h"
 #include "server/api/api_options.h"
 #include "server/api/http_types.h"
 #include "server/api/map_cache.h"
@@ -23,7 +24,8 @@ struct Call {
   const ApiOptions& options;
   service::WorldPort& world;
   MapCache& map_cache;
-  const shm::SharedMapExport* shm = nullptr;  // nullptr when wmd runs with --no-shm
+  const shm::SharedMapExport* shm = nullptr;         // nullptr when wmd runs with --no-shm
+  const common::Diagnostics* diagnostics = nullptr;  // nullptr: the health answer has no "diagnostics"
   /// Run on an I/O thread (routes marked at_once): answer from what is ready or throw NotAtOnce; a body of bytes
   /// kept elsewhere goes to *shared_body, not into the response.
   bool at_once = false;

@@ -31,7 +31,7 @@ Response dispatch(const Request& request, Services& services,
   if (const auto match = find_route(request.method(), target.path)) {
     if (at_once && !match->route->at_once) throw NotAtOnce{};
     return match->route->handler(Call{request, target, match->param, services.options, services.world,
-                                      *services.map_cache, services.shm, at_once, shared_body});
+                                      *services.map_cache, services.shm, services.diagnostics, at_once, shared_body});
   }
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");

@@ -4,6 +4,7 @@
 #include <memory>
 #include <optional>
 
+#include "common/diagnostics.h"
 #include "server/api/api_options.h"
 #include "server/api/http_types.h"
 #include "server/api/map_cache.h"
@@ -19,6 +20,7 @@ struct Services {
   service::WorldPort& world;
   std::shared_ptr<MapCache> map_cache = std::make_shared<MapCache>();  // the map's bytes per version
   const shm::SharedMapExport* shm = nullptr;                           // the shared-memory export, when on
+  const common::Diagnostics* diagnostics = nullptr;  // what the server reported (GET /api/v1/health counts it)
 };
 
 /// The answer to a request whose route is marked at_once, when it can be given on the calling (I/O) thread without

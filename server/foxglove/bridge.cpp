@@ -9,7 +9,6 @@
 #include <cmath>
 #include <condition_variable>
 #include <deque>
-#include <iostream>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -84,12 +83,13 @@ struct InitialRequest {
 }  // namespace
 
 struct Bridge::Core {
-  Core(const FoxgloveOptions& o, service::WorldPort& w, events::EventHub& h, ServerInfo i)
-      : options(o), world(w), hub(h), info(std::move(i)), channels(fixed_channels()) {}
+  Core(const FoxgloveOptions& o, service::WorldPort& w, events::EventHub& h, common::Diagnostics& d, ServerInfo i)
+      : options(o), world(w), hub(h), diagnostics(d), info(std::move(i)), channels(fixed_channels()) {}
 
   const FoxgloveOptions options;
   service::WorldPort& world;
   events::EventHub& hub;
+  common::Diagnostics& diagnostics;  // reported to from the bridge's thread only
   const ServerInfo info;
 
   std::atomic<std::uint64_t> messages{0}, superseded{0}, dropped{0}, resyncs{0}, grid_messages{0};
@@ -546,14 +546,16 @@ void Bridge::Core::run() {
       if (changed) follow_clients();
       if (events && subscriber_) take_events();
     } catch (const std::exception& e) {  // a malformed event: what it said is lost, the next one brings it
-      std::cerr << "wmd: foxglove: " << e.what() << "\n";
+      diagnostics.report(common::Severity::warning, "foxglove", std::string("foxglove: ") + e.what());
     }
     produce();
     for (const auto& request : requests) {
       try {
         serve(request);
       } catch (const std::exception& e) {
-        std::cerr << "wmd: foxglove: current state of channel " << request.channel << " not sent: " << e.what() << "\n";
+        diagnostics.report(
+            common::Severity::warning, "foxglove",
+            "foxglove: current state of channel " + std::to_string(request.channel) + " not sent: " + e.what());
       }
     }
     lock.lock();
@@ -630,11 +632,12 @@ Clock::time_point Bridge::Core::next_wake() const {
 void Bridge::Core::produce() {
   const auto now = Clock::now();
   // A failure (a storage error reading decisions, a grid read refused) leaves its flag set: tried again next period.
-  const auto attempt = [](const char* what, auto&& step) {
+  const auto attempt = [this](const char* what, auto&& step) {
     try {
       step();
     } catch (const std::exception& e) {
-      std::cerr << "wmd: foxglove: " << what << " not sent: " << e.what() << "\n";
+      diagnostics.report(common::Severity::warning, "foxglove",
+                         std::string("foxglove: ") + what + " not sent: " + e.what());
     }
   };
   if (grid_dirty_ && now >= next_grid_) {
@@ -961,8 +964,9 @@ void Bridge::Core::serve(const InitialRequest& request) {
 
 // --- Bridge ---
 
-Bridge::Bridge(const FoxgloveOptions& options, service::WorldPort& world, events::EventHub& hub, ServerInfo info)
-    : core_(std::make_shared<Core>(options, world, hub, std::move(info))) {
+Bridge::Bridge(const FoxgloveOptions& options, service::WorldPort& world, events::EventHub& hub,
+               common::Diagnostics& diagnostics, ServerInfo info)
+    : core_(std::make_shared<Core>(options, world, hub, diagnostics, std::move(info))) {
   core_->thread = std::thread([core = core_.get()] { core->run(); });
 }
 

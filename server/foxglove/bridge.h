@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "common/diagnostics.h"
 #include "server/events/event_hub.h"
 #include "server/foxglove/foxglove_options.h"
 #include "server/foxglove/protocol.h"
@@ -49,8 +50,10 @@ struct BridgeStats {
 /// (scene updates carry only the entities that changed and deletions of those removed).
 class Bridge {
  public:
-  /// `world` and `hub` must outlive the bridge and every connection it made.
-  Bridge(const FoxgloveOptions& options, service::WorldPort& world, events::EventHub& hub, ServerInfo info);
+  /// `world` and `hub` must outlive the bridge and every connection it made; `diagnostics` (what the bridge's thread
+  /// could not send) must outlive the bridge.
+  Bridge(const FoxgloveOptions& options, service::WorldPort& world, events::EventHub& hub,
+         common::Diagnostics& diagnostics, ServerInfo info);
   ~Bridge();
   Bridge(const Bridge&) = delete;
   Bridge& operator=(const Bridge&) = delete;

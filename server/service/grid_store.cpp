@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <iostream>
 #include <type_traits>
 #include <variant>
 
@@ -50,7 +49,8 @@ world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, doubl
 
 }  // namespace
 
-GridStore::GridStore(const GridStoreOptions& options, storage::Store& store) : options_(options), store_(store) {
+GridStore::GridStore(const GridStoreOptions& options, storage::Store& store, common::Diagnostics& diagnostics)
+    : options_(options), store_(store), diagnostics_(diagnostics) {
   auto grid_options = options_.grid;
   const auto stored = store_.load_grid();
   if (stored) {
@@ -121,7 +121,8 @@ void GridStore::count_edge_beams(const json_codec::ScanRequest& scan, const worl
       edge_beams_[keys[n]] = std::move(segments[n]);
     }
   } catch (const std::exception& e) {
-    std::cerr << "wmd: beams of a scan not counted at the plan's edges: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::warning, "grid",
+                        std::string("beams of a scan not counted at the plan's edges: ") + e.what());
   }
 }
 

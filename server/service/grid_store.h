@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/diagnostics.h"
 #include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
@@ -41,8 +42,9 @@ struct GridStoreOptions {
 class GridStore {
  public:
   /// Loads the grid and the edges' beam counts as last flushed. The scans journaled after the flush are the
-  /// caller's to insert again (through_scan_seq() says from where). @throw storage::StorageError.
-  GridStore(const GridStoreOptions& options, storage::Store& store);
+  /// caller's to insert again (through_scan_seq() says from where). `diagnostics` hears of the beams it could not
+  /// count. @throw storage::StorageError.
+  GridStore(const GridStoreOptions& options, storage::Store& store, common::Diagnostics& diagnostics);
   GridStore(const GridStore&) = delete;
   GridStore& operator=(const GridStore&) = delete;
 
@@ -97,6 +99,7 @@ class GridStore {
 
   const GridStoreOptions options_;
   storage::Store& store_;
+  common::Diagnostics& diagnostics_;
   mutable WriterPreferringMutex mutex_;
   std::unique_ptr<fusion::OccupancyGrid> grid_;  // changed by the writer only
   double resolution_m_ = 0;

@@ -1,7 +1,6 @@
 #include "server/service/plan_checks.h"
 
 #include <algorithm>
-#include <iostream>
 #include <tuple>
 
 namespace wm::service {
@@ -23,8 +22,8 @@ std::optional<std::size_t> edge_index(const std::string& object_id, const std::s
 }  // namespace
 
 PlanChecks::PlanChecks(const PlanChecksOptions& options, const GridStore& grid, rules::Engine& engine,
-                       std::set<std::string> rejected)
-    : options_(options), grid_(grid), engine_(engine), rejected_(std::move(rejected)) {}
+                       common::Diagnostics& diagnostics, std::set<std::string> rejected)
+    : options_(options), grid_(grid), engine_(engine), diagnostics_(diagnostics), rejected_(std::move(rejected)) {}
 
 std::shared_ptr<const world::PlanReport> PlanChecks::report() const {
   std::lock_guard lock(report_mutex_);
@@ -100,7 +99,8 @@ void PlanChecks::refresh(const world::WorldState& state, const std::optional<wor
     std::lock_guard lock(report_mutex_);
     report_ = std::move(report);
   } catch (const std::exception& e) {
-    std::cerr << "wmd: the plan's evidence was not refreshed: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::warning, "plan_checks",
+                        std::string("the plan's evidence was not refreshed: ") + e.what());
   }
 }
 

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "common/diagnostics.h"
 #include "rules/engine.h"
 #include "server/service/grid_store.h"
 #include "server/world/changes.h"
@@ -29,9 +30,9 @@ struct PlanChecksOptions {
 /// or reject, less those rejected. The writer refreshes it; anyone reads the last report.
 class PlanChecks {
  public:
-  /// `rejected`: the change ids rejected before (from the store).
+  /// `rejected`: the change ids rejected before (from the store). `diagnostics` hears of the refreshes that failed.
   PlanChecks(const PlanChecksOptions& options, const GridStore& grid, rules::Engine& engine,
-             std::set<std::string> rejected = {});
+             common::Diagnostics& diagnostics, std::set<std::string> rejected = {});
   PlanChecks(const PlanChecks&) = delete;
   PlanChecks& operator=(const PlanChecks&) = delete;
 
@@ -40,7 +41,7 @@ class PlanChecks {
   /// On the writer: checks the edges of `state` in `region` (every edge when nullopt: a new plan or placement, or the
   /// start) against the grid, replaces the rules' evidence facts for them, asks the rules for their verdicts and
   /// publishes the new report; edges outside the region keep theirs. `verdicts_only`: the evidence stands, the rules
-  /// changed. Failures are logged and leave the previous report.
+  /// changed. Failures are reported to the diagnostics and leave the previous report.
   void refresh(const world::WorldState& state, const std::optional<world::Box>& region, bool verdicts_only = false);
   /// The differences between `state`'s plan and the building, less the rejected ones.
   std::vector<world::Change> changes(const world::WorldState& state, const world::PlanReport* report) const;
@@ -52,6 +53,7 @@ class PlanChecks {
   const PlanChecksOptions options_;
   const GridStore& grid_;
   rules::Engine& engine_;
+  common::Diagnostics& diagnostics_;
   mutable std::mutex report_mutex_;
   std::shared_ptr<const world::PlanReport> report_ = std::make_shared<const world::PlanReport>();
   mutable std::mutex rejected_mutex_;

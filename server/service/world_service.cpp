@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <iostream>
 #include <set>
 #include <system_error>
 #include <tuple>
@@ -33,14 +32,16 @@ double now_unix_s() {
 }
 
 WorldService::WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine,
-                           events::EventHub* events)
+                           common::Diagnostics& diagnostics, events::EventHub* events)
     : options_(options),
       store_(store),
       engine_(engine),
+      diagnostics_(diagnostics),
       events_(events),
       published_(store.load(options.world)),
-      grid_(GridStoreOptions{options.grid, options.grid_flush_interval, options.beam_crossings}, store),
-      plan_checks_(PlanChecksOptions{options.plan_evidence, options.changes}, grid_, engine, rejected_changes(store)) {
+      grid_(GridStoreOptions{options.grid, options.grid_flush_interval, options.beam_crossings}, store, diagnostics),
+      plan_checks_(PlanChecksOptions{options.plan_evidence, options.changes}, grid_, engine, diagnostics,
+                   rejected_changes(store)) {
   head_ = published_.current();
   // The journal is the grid's source of truth: a scan is journaled (with its line decisions) before it
   // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
@@ -67,7 +68,8 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
       try {
         add_to_trim_region(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}));
       } catch (const std::exception& e) {
-        std::cerr << "wmd: scan " << record.seq << " left out of the grid trim: " << e.what() << "\n";
+        diagnostics_.report(common::Severity::warning, "grid_trim",
+                            "scan " + std::to_string(record.seq) + " left out of the grid trim: " + e.what());
       }
     }
     if (due && trim_region_) {
@@ -101,11 +103,14 @@ WorldService::~WorldService() {
   watcher_.reset();
   const auto report = network_->stop(true);
   for (const auto& [port, count] : report.dropped)
-    std::cerr << "wmd: stopped with " << count << " values left in " << port << " (their requests got 503)\n";
+    diagnostics_.report(
+        common::Severity::warning, "network",
+        "stopped with " + std::to_string(count) + " values left in " + port + " (their requests got 503)");
   try {
     grid_.flush(true);  // not past a gap: the journal replays from there at start
   } catch (const std::exception& e) {
-    std::cerr << "wmd: final grid flush failed (the journal still has every scan): " << e.what() << "\n";
+    diagnostics_.report(common::Severity::warning, "grid",
+                        std::string("final grid flush failed (the journal still has every scan): ") + e.what());
   }
   reader_.reset();
 }
@@ -115,7 +120,7 @@ void WorldService::emit(const nlohmann::json& event) {
   try {
     events_->publish(event.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   } catch (const std::exception& e) {
-    std::cerr << "wmd: event not published: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::warning, "events", std::string("event not published: ") + e.what());
   }
 }
 
@@ -217,7 +222,8 @@ void WorldService::trim_now(std::int64_t scan_seq, const world::Box& region) {
     commit_prepared(*p, [&] { store_.commit_observation(p->update, p->observation, payload); });
     finish_update(std::move(*p));
   } catch (const std::exception& e) {
-    std::cerr << "wmd: the grid trim of scan " << scan_seq << " was not applied: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::error, "grid_trim",
+                        "the grid trim of scan " + std::to_string(scan_seq) + " was not applied: " + e.what());
   }
 }
 
@@ -273,11 +279,12 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const wor
     if (p.update.decisions.empty()) return std::nullopt;
     return p;
   } catch (const std::exception& e) {
-    std::cerr << "wmd: grid trim failed: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::warning, "grid_trim", std::string("grid trim failed: ") + e.what());
     try {
       sync_all_facts(engine_, *head(), options_.world);  // the rules see the map as decided before the trim
     } catch (const std::exception& again) {
-      std::cerr << "wmd: rule facts not restored after the failed grid trim: " << again.what() << "\n";
+      diagnostics_.report(common::Severity::error, "rules",
+                          std::string("rule facts not restored after the failed grid trim: ") + again.what());
     }
   }
   return std::nullopt;
@@ -374,7 +381,9 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
   std::vector<rules::DecisionFacts> logged;
   for (const auto& d : update.decisions) {
     logged.push_back(decision_facts(d, observation.received_at_unix_s));
-    if (d.fallback) std::cerr << "wmd: decision " << d.seq << " fell back to add: " << d.explanation << "\n";
+    if (d.fallback)
+      diagnostics_.report(common::Severity::warning, "decisions",
+                          "decision " + std::to_string(d.seq) + " fell back to add: " + d.explanation);
   }
   PrimitivesOutcome outcome{seq, update.state.version, update.decisions, false};
   std::vector<std::string> removed;  // ids, in element order
@@ -402,7 +411,8 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
   try {
     engine_.add_decisions(logged, options_.decision_facts_kept);
   } catch (const std::exception& e) {
-    std::cerr << "wmd: decision facts of observation " << seq << " not kept: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::warning, "rules",
+                        "decision facts of observation " + std::to_string(seq) + " not kept: " + e.what());
   }
   return outcome;
 }
@@ -443,11 +453,14 @@ rules::RulesStatus WorldService::reload_rules() {
 void WorldService::on_rules_changed() {
   try {
     const auto status = reload_rules();
-    std::cerr << "wmd: rules reloaded (generation " << status.generation << ", " << status.files.size() << " files)\n";
+    diagnostics_.report(common::Severity::info, "rules",
+                        "rules reloaded (generation " + std::to_string(status.generation) + ", " +
+                            std::to_string(status.files.size()) + " files)");
   } catch (const rules::RuleError& e) {
-    std::cerr << "wmd: rules edit rejected, the previous rules stay active:\n" << e.what() << "\n";
+    diagnostics_.report(common::Severity::warning, "rules",
+                        std::string("rules edit rejected, the previous rules stay active:\n") + e.what());
   } catch (const std::exception& e) {
-    std::cerr << "wmd: rules reload failed: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::error, "rules", std::string("rules reload failed: ") + e.what());
   }
 }
 

@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "common/diagnostics.h"
 #include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
@@ -92,9 +93,11 @@ double now_unix_s();
 class WorldService final : public WorldPort {
  public:
   /// Starts the writer with the state loaded from `store`. @throw storage::StorageError, rules::RuleError.
-  /// `events` (optional) receives what changed after every commit, for live clients.
+  /// `diagnostics` hears of what the service handles without failing a request (a flush retried, a rules edit
+  /// rejected by the watcher) and must outlive it; `events` (optional) receives what changed after every commit, for
+  /// live clients.
   WorldService(const ServiceOptions& options, storage::Store& store, rules::Engine& engine,
-               events::EventHub* events = nullptr);
+               common::Diagnostics& diagnostics, events::EventHub* events = nullptr);
   ~WorldService();
   WorldService(const WorldService&) = delete;
   WorldService& operator=(const WorldService&) = delete;
@@ -281,6 +284,7 @@ class WorldService final : public WorldPort {
   const ServiceOptions options_;
   storage::Store& store_;
   rules::Engine& engine_;
+  common::Diagnostics& diagnostics_;
   events::EventHub* events_;
 
   RobotRegistry robots_;

@@ -2,7 +2,6 @@
 // file, and the matcher's commands.
 #include <cmath>
 #include <future>
-#include <iostream>
 
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
@@ -295,7 +294,8 @@ void WorldService::resync_after_failure() {
   try {
     sync_all_facts(engine_, *head_, options_.world);
   } catch (const std::exception& e) {
-    std::cerr << "wmd: rule facts not restored after a failed commit: " << e.what() << "\n";
+    diagnostics_.report(common::Severity::error, "rules",
+                        std::string("rule facts not restored after a failed commit: ") + e.what());
   }
 }
 
@@ -370,7 +370,8 @@ void WorldService::decide_primitives(pipeline::Activation& a) {
       try {
         throw;
       } catch (const std::exception& e) {
-        std::cerr << "wmd: the grid line extractor's observation was not applied: " << e.what() << "\n";
+        diagnostics_.report(common::Severity::error, "grid_lines",
+                            std::string("the grid line extractor's observation was not applied: ") + e.what());
       }
     }
   }
@@ -448,8 +449,9 @@ void WorldService::finish_committed(pipeline::Activation& a) {
     else if (d->primitives && d->primitives->ticket)
       d->primitives->ticket->fail(d->error);
     else
-      std::cerr << "wmd: the server's own observation (" << (d->primitives ? "grid lines" : "grid trim")
-                << ") was not stored\n";
+      diagnostics_.report(common::Severity::error, "store",
+                          std::string("the server's own observation (") + (d->primitives ? "grid lines" : "grid trim") +
+                              ") was not stored");
     return;
   }
   std::optional<PrimitivesOutcome> lines;
@@ -475,13 +477,16 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
       grid_.insert(s->job->scan, s->seq, *state);
     } catch (const std::exception& e) {
       // Validated at the HTTP boundary, so this is a bug; the scan is journaled and counted all the same.
-      std::cerr << "wmd: scan " << s->seq << " not inserted into the grid: " << e.what() << "\n";
+      diagnostics_.report(common::Severity::error, "grid",
+                          "scan " + std::to_string(s->seq) + " not inserted into the grid: " + e.what());
     }
   }
   try {
     grid_.flush(false);
   } catch (const std::exception& e) {
-    std::cerr << "wmd: grid flush failed (the journal has every scan; retried at the next flush): " << e.what() << "\n";
+    diagnostics_.report(
+        common::Severity::warning, "grid",
+        std::string("grid flush failed (the journal has every scan; retried at the next flush): ") + e.what());
   }
   for (const auto& s : scans) {
     emit_scan_event(s->job->scan, s->seq);
@@ -490,7 +495,8 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
     try {
       add_to_trim_region(s->job->scan);
     } catch (const std::exception& e) {
-      std::cerr << "wmd: scan " << s->seq << " left out of the grid trim: " << e.what() << "\n";
+      diagnostics_.report(common::Severity::warning, "grid_trim",
+                          "scan " + std::to_string(s->seq) + " left out of the grid trim: " + e.what());
     }
     // The scan is answered after the trim it makes due, so a client that posts one scan at a time sees the same map
     // as before the network (and a replay stays deterministic). The tick takes the region of exactly the scans since

@@ -205,13 +205,15 @@ class FoxgloveBridgeTest : public ::testing::Test {
     options_.grid_period = 1ms;
   }
   std::unique_ptr<Bridge> start() {
-    return std::make_unique<Bridge>(options_, world_, hub_, ServerInfo{"wmd test", "run-1", {{"api", "/api/v1"}}});
+    return std::make_unique<Bridge>(options_, world_, hub_, diagnostics_,
+                                    ServerInfo{"wmd test", "run-1", {{"api", "/api/v1"}}});
   }
   void publish(const char* type) { hub_.publish(json({{"type", type}}).dump()); }
 
   FoxgloveOptions options_;
   LiveWorld world_;
   events::EventHub hub_;
+  common::Diagnostics diagnostics_;
 };
 
 TEST_F(FoxgloveBridgeTest, AClientIsGreetedWithServerInfoThenTheChannels) {

@@ -234,7 +234,8 @@ TEST(PlanChangesTest, AcceptedAndRejectedChangesSurviveARestartAndUndoTakesThemB
   rules::EngineOptions engine_options;
   engine_options.rules_dir = WM_RULES_DIR;
   rules::Engine engine(engine_options);
-  service::WorldService service(service::ServiceOptions{}, store, engine, nullptr);
+  common::Diagnostics diagnostics;
+  service::WorldService service(service::ServiceOptions{}, store, engine, diagnostics);
   std::shared_ptr<const world::WorldState> state;
   std::shared_ptr<const world::PlanReport> evidence;
   auto listed = service.changes(state, evidence);

@@ -5,6 +5,7 @@
 
 #include "clients/logs/carmen_log_reader.h"
 #include "clients/logs/scan_body.h"
+#include "common/diagnostics.h"
 #include "rules/engine.h"
 #include "server/storage/store.h"
 
@@ -19,7 +20,8 @@ LogReplayResult replay_log(const std::filesystem::path& log, const LogReplayOpti
   rules::EngineOptions engine_options;
   engine_options.rules_dir = options.rules_dir;
   rules::Engine engine(engine_options);
-  service::WorldService world(options.service, store, engine, nullptr);
+  common::Diagnostics diagnostics("wmd: ");  // on stderr as wmd has them; nobody asks for the counts
+  service::WorldService world(options.service, store, engine, diagnostics);
 
   if (options.plan) world.load_floor_plan(*options.plan);
 

@@ -13,6 +13,7 @@
 #include <tuple>
 
 #include "clients/logs/scan_body.h"
+#include "common/diagnostics.h"
 #include "rules/engine.h"
 #include "server/storage/store.h"
 
@@ -124,8 +125,9 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
   rules::EngineOptions engine_options;
   engine_options.rules_dir = options.rules_dir;
   rules::Engine engine(engine_options);
+  common::Diagnostics diagnostics("wmd: ");  // on stderr as wmd has them; nobody asks for the counts
   {
-    service::WorldService world(options.service, store, engine, nullptr);
+    service::WorldService world(options.service, store, engine, diagnostics);
     if (plan) world.load_floor_plan(*plan);
     double stamp = 0;
     for (const auto& scan : scans) {

@@ -35,6 +35,7 @@ class ApiTest : public ::testing::Test {
   }
   api::Response send(const api::Request& request) {
     api::Services services{options_, world_};
+    services.diagnostics = diagnostics_;
     return api::handle_request(request, services);
   }
   static nlohmann::json json_of(const api::Response& response) {
@@ -55,6 +56,7 @@ class ApiTest : public ::testing::Test {
 
   api::ApiOptions options_;
   FakeWorldPort world_;
+  const common::Diagnostics* diagnostics_ = nullptr;  // as wmd's when a test sets it
 };
 
 }  // namespace wm::testing

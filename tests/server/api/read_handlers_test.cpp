@@ -54,6 +54,38 @@ TEST_F(ReadHandlersTest, HealthSaysOkWithTheMapsCounts) {
   EXPECT_EQ(response[http::field::content_type], "application/json");
 }
 
+TEST_F(ReadHandlersTest, HealthCountsWhatTheServerReportedAndListsTheLastReports) {
+  EXPECT_FALSE(json_of(send(verb::get, "/api/v1/health")).contains("diagnostics"));  // no sink wired
+  common::Diagnostics diagnostics("", nullptr, 2);
+  diagnostics_ = &diagnostics;
+  auto body = json_of(send(verb::get, "/api/v1/health"));
+  EXPECT_EQ(body["diagnostics"]["warnings"], 0);
+  EXPECT_EQ(body["diagnostics"]["errors"], 0);
+  EXPECT_TRUE(body["diagnostics"]["recent"].empty());
+
+  diagnostics.report(common::Severity::warning, "grid", "grid flush failed");
+  diagnostics.report(common::Severity::info, "rules", "rules reloaded");
+  diagnostics.report(common::Severity::error, "grid", "scan 7 not inserted into the grid");
+  diagnostics.report(common::Severity::warning, "foxglove", "foxglove: grid not sent");
+  body = json_of(send(verb::get, "/api/v1/health"));
+  ASSERT_EQ(body["status"], "ok");
+  const auto& d = body["diagnostics"];
+  EXPECT_EQ(d["warnings"], 2);
+  EXPECT_EQ(d["errors"], 1);
+  EXPECT_EQ(d["info"], 1);
+  EXPECT_EQ(d["by_where"]["grid"]["warnings"], 1);
+  EXPECT_EQ(d["by_where"]["grid"]["errors"], 1);
+  EXPECT_EQ(d["by_where"]["foxglove"]["warnings"], 1);
+  // Only the last two are kept, oldest first.
+  ASSERT_EQ(d["recent"].size(), 2u);
+  EXPECT_EQ(d["recent"][0]["where"], "grid");
+  EXPECT_EQ(d["recent"][0]["severity"], "error");
+  EXPECT_EQ(d["recent"][0]["message"], "scan 7 not inserted into the grid");
+  EXPECT_EQ(d["recent"][1]["where"], "foxglove");
+  EXPECT_EQ(d["recent"][1]["severity"], "warning");
+  EXPECT_GT(d["recent"][1]["at"].get<double>(), 1.6e9);  // seconds since the Unix epoch
+}
+
 TEST_F(ReadHandlersTest, RootIsTheIndexWithoutAViewerAndTheViewerWithOne) {
   EXPECT_EQ(json_of(send(verb::get, "/"))["api"], "/api/v1");
   TempDir dir;

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 #include <limits>
+#include <sstream>
 
 #include "server/service/service_test_helpers.h"
 #include "support/temp_dir.h"
@@ -28,7 +30,8 @@ TEST(GridStoreTest, FlushedGridAndBeamCountsComeBackAfterAReload) {
   std::int64_t beams_before = 0;
   {
     storage::Store store(store_options(dir));
-    GridStore grid(options(), store);
+    common::Diagnostics diagnostics;
+    GridStore grid(options(), store, diagnostics);
     EXPECT_EQ(grid.revision(), 0);
     for (std::int64_t seq = 1; seq <= 5; ++seq) grid.insert(ring_scan(0, 5.0), seq, state);
     EXPECT_EQ(grid.revision(), 5);
@@ -51,7 +54,8 @@ TEST(GridStoreTest, FlushedGridAndBeamCountsComeBackAfterAReload) {
     beams_before = evidence[0].beams_through;
   }
   storage::Store store(store_options(dir));
-  GridStore grid(options(), store);
+  common::Diagnostics diagnostics;
+  GridStore grid(options(), store, diagnostics);
   EXPECT_EQ(grid.revision(), 5);
   EXPECT_EQ(grid.flushed_scan_seq(), 5);
   const auto bounds = grid.bounds();
@@ -74,7 +78,8 @@ TEST(GridStoreTest, FlushedGridAndBeamCountsComeBackAfterAReload) {
 TEST(GridStoreTest, TheRevisionMovesOnlyThroughScansWhosePredecessorsAreIn) {
   testing::TempDir dir;
   storage::Store store(store_options(dir));
-  GridStore grid(options(), store);
+  common::Diagnostics diagnostics;
+  GridStore grid(options(), store, diagnostics);
   const auto state = wall_state();
   grid.insert(ring_scan(0, 5.0), 2, state);  // the sonar port's scan 2 before the laser port's scan 1
   EXPECT_EQ(grid.revision(), 0);
@@ -91,7 +96,8 @@ TEST(GridStoreTest, TheRevisionMovesOnlyThroughScansWhosePredecessorsAreIn) {
 TEST(GridStoreTest, AScanTheGridRefusesStillTakesItsPlaceInTheSequence) {
   testing::TempDir dir;
   storage::Store store(store_options(dir));
-  GridStore grid(options(), store);
+  common::Diagnostics diagnostics;
+  GridStore grid(options(), store, diagnostics);
   auto bad = ring_scan(0, 5.0);
   std::get<fusion::LaserScan>(bad.scan).angle_increment_rad = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(grid.insert(bad, 1, wall_state()), std::exception);
@@ -100,10 +106,38 @@ TEST(GridStoreTest, AScanTheGridRefusesStillTakesItsPlaceInTheSequence) {
   EXPECT_EQ(grid.revision(), 2);
 }
 
+TEST(GridStoreTest, BeamsItCannotCountAreReportedToTheDiagnosticsAndNotWrittenToStderr) {
+  testing::TempDir dir;
+  storage::Store store(store_options(dir));
+  std::ostringstream echo;
+  common::Diagnostics diagnostics("wmd: ", &echo);
+  GridStore grid(options(), store, diagnostics);
+  // A pose covariance the HTTP boundary would refuse: the grid takes the scan, the beam counting does not.
+  auto bad = ring_scan(0, 5.0);
+  bad.pose_cov(2, 2) = -1;
+  std::ostringstream stderr_text;
+  auto* const stderr_buffer = std::cerr.rdbuf(stderr_text.rdbuf());
+  EXPECT_NO_THROW(grid.insert(bad, 1, wall_state()));
+  grid.insert(ring_scan(0, 5.0), 2, wall_state());  // counted: nothing reported
+  std::cerr.rdbuf(stderr_buffer);
+  EXPECT_EQ(stderr_text.str(), "");
+  EXPECT_EQ(grid.revision(), 2);
+  const auto summary = diagnostics.summary();
+  EXPECT_EQ(summary.total.warnings, 1u);
+  EXPECT_EQ(summary.total.errors, 0u);
+  ASSERT_TRUE(summary.by_where.contains("grid"));
+  EXPECT_EQ(summary.by_where.at("grid").warnings, 1u);
+  ASSERT_EQ(summary.recent.size(), 1u);
+  EXPECT_EQ(summary.recent[0].severity, common::Severity::warning);
+  EXPECT_NE(summary.recent[0].message.find("beams of a scan not counted at the plan's edges"), std::string::npos);
+  EXPECT_EQ(echo.str().rfind("wmd: beams of a scan not counted", 0), 0u) << echo.str();
+}
+
 TEST(GridStoreTest, BeamsCountedWhereAnEdgeStoodDoNotFollowItWhenItMoves) {
   testing::TempDir dir;
   storage::Store store(store_options(dir));
-  GridStore grid(options(), store);
+  common::Diagnostics diagnostics;
+  GridStore grid(options(), store, diagnostics);
   for (std::int64_t seq = 1; seq <= 4; ++seq) grid.insert(ring_scan(0, 5.0), seq, wall_state());
   // The plan is placed 0.5 m further: the counts were of another line of the world.
   const auto moved = wall_state(0.5);
@@ -121,7 +155,8 @@ TEST(GridStoreTest, BeamsCountedWhereAnEdgeStoodDoNotFollowItWhenItMoves) {
 TEST(GridStoreTest, ChangedRegionCoversTheScanUpToItsReturns) {
   testing::TempDir dir;
   storage::Store store(store_options(dir));
-  GridStore grid(options(), store);
+  common::Diagnostics diagnostics;
+  GridStore grid(options(), store, diagnostics);
   const auto box = grid.changed_region(ring_scan(1.0, 3.0), 0.1);
   EXPECT_LE(box.min().x(), 1.0 - 3.0 - 0.1 + 1e-6);
   EXPECT_GE(box.max().x(), 1.0 + 3.0 + 0.1 - 1e-6);

@@ -14,7 +14,7 @@ class PlanChecksTest : public ::testing::Test {
  protected:
   PlanChecksTest()
       : store_({(dir_.path() / "plan.db").string(), false}),
-        grid_(GridStoreOptions{}, store_),
+        grid_(GridStoreOptions{}, store_, diagnostics_),
         engine_(rules::EngineOptions{WM_SOURCE_DIR "/rules/prolog"}) {
     sync_all_facts(engine_, state_, world::WorldOptions{});
   }
@@ -24,6 +24,7 @@ class PlanChecksTest : public ::testing::Test {
 
   testing::TempDir dir_;
   storage::Store store_;
+  common::Diagnostics diagnostics_;
   GridStore grid_;
   rules::Engine engine_;
   world::WorldState state_ = wall_state();
@@ -32,7 +33,7 @@ class PlanChecksTest : public ::testing::Test {
 
 TEST_F(PlanChecksTest, AWallTheLaserSawThroughIsMissingAndListedAsAChange) {
   drive(ring_scan(0, 5.0), 5);
-  PlanChecks checks(PlanChecksOptions{}, grid_, engine_);
+  PlanChecks checks(PlanChecksOptions{}, grid_, engine_, diagnostics_);
   EXPECT_TRUE(checks.report()->edges.empty());  // nothing checked yet
   checks.refresh(state_, std::nullopt);
   const auto report = checks.report();
@@ -54,14 +55,14 @@ TEST_F(PlanChecksTest, AWallTheLaserSawThroughIsMissingAndListedAsAChange) {
   checks.unreject(id);
   ASSERT_EQ(checks.changes(state_, report.get()).size(), 1u);
   // Rejected before a restart (the ids come from the store): not listed.
-  PlanChecks restarted(PlanChecksOptions{}, grid_, engine_, {id});
+  PlanChecks restarted(PlanChecksOptions{}, grid_, engine_, diagnostics_, {id});
   restarted.refresh(state_, std::nullopt);
   EXPECT_TRUE(restarted.changes(state_, restarted.report().get()).empty());
 }
 
 TEST_F(PlanChecksTest, AStandingWallIsBackedAndGetsNoVerdict) {
   drive(scan_of_standing_wall(), 5);
-  PlanChecks checks(PlanChecksOptions{}, grid_, engine_);
+  PlanChecks checks(PlanChecksOptions{}, grid_, engine_, diagnostics_);
   checks.refresh(state_, std::nullopt);
   const auto report = checks.report();
   ASSERT_EQ(report->edges.size(), 1u);
@@ -73,7 +74,7 @@ TEST_F(PlanChecksTest, AStandingWallIsBackedAndGetsNoVerdict) {
 
 TEST_F(PlanChecksTest, ARegionsCheckKeepsWhatLiesOutsideIt) {
   drive(ring_scan(0, 5.0), 5);
-  PlanChecks checks(PlanChecksOptions{}, grid_, engine_);
+  PlanChecks checks(PlanChecksOptions{}, grid_, engine_, diagnostics_);
   checks.refresh(state_, std::nullopt);
   ASSERT_EQ(checks.report()->verdicts.size(), 1u);
   // A region far from the wall: its evidence and verdict stay as they were.
