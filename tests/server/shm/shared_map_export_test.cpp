@@ -287,23 +287,27 @@ TEST(SharedMapExportTest, TheReaderRefusesFilesThatAreNotSegments) {
   EXPECT_THROW(reader::Reader{"wm-does-not-exist"}, reader::Error);
 }
 
+// The death tests below run in a fresh process (threadsafe style): a forked child of this binary would inherit the
+// Prolog runtime of earlier tests, its threads and its allocations (LeakSanitizer's report turns exit 0 into 1).
 TEST(SharedMapExportTest, TheReaderRefusesAFifoWithoutWaitingOnIt) {
-  const auto fifo = std::string(reader::kNamePrefix) + boost::uuids::to_string(boost::uuids::random_generator()());
-  ASSERT_EQ(::mkfifo(("/dev/shm/" + fifo).c_str(), 0600), 0);
-  // Opening a FIFO for reading blocks until a writer comes: the alarm turns such a hang into a failure.
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
       {
-        ::alarm(10);
+        ::alarm(10);  // opening a FIFO for reading blocks until a writer comes: a hang becomes a failure
+        const auto fifo =
+            std::string(reader::kNamePrefix) + boost::uuids::to_string(boost::uuids::random_generator()());
+        if (::mkfifo(("/dev/shm/" + fifo).c_str(), 0600) != 0) std::exit(3);
+        int status = 2;
         try {
           reader::Reader segment(fifo);
         } catch (const reader::Error& e) {
           std::cerr << e.what() << "\n";
-          std::exit(std::string(e.what()).find("is not a regular file") != std::string::npos ? 0 : 1);
+          status = std::string(e.what()).find("is not a regular file") != std::string::npos ? 0 : 1;
         }
-        std::exit(2);
+        ::unlink(("/dev/shm/" + fifo).c_str());
+        std::exit(status);
       },
       ::testing::ExitedWithCode(0), "is not a regular file");
-  ::unlink(("/dev/shm/" + fifo).c_str());
 }
 
 /// Another process of the server's user, which may map the segment read-write like any file of its own.
@@ -363,6 +367,7 @@ bool segment_holds(const shm::SharedMapExport& exporter, CountingGridPort& port,
 // Each attack below used to crash the exporter (SIGSEGV or SIGBUS); it runs in a child so that a crash fails the
 // test, and the child's stderr shows what differed.
 TEST(SharedMapExportTest, ALayoutRewrittenInTheHeaderIsNeitherUsedNorLeftForReaders) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
       {
         const bool ok = [] {
@@ -399,6 +404,7 @@ TEST(SharedMapExportTest, ALayoutRewrittenInTheHeaderIsNeitherUsedNorLeftForRead
 }
 
 TEST(SharedMapExportTest, ATruncatedSegmentIsReplacedAndTheExporterLivesOn) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
   EXPECT_EXIT(
       {
         const bool ok = [] {
@@ -426,6 +432,7 @@ TEST(SharedMapExportTest, ATruncatedSegmentIsReplacedAndTheExporterLivesOn) {
 }
 
 TEST(SharedMapExportTest, TruncationsRacingTheCopiesNeverKillTheExporter) {
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
   // No check of the size before a write can close this: the file shrinks between the check and the copy.
   EXPECT_EXIT(
       {
