@@ -28,6 +28,7 @@ void count_beam_crossings(const LaserScan& scan, double reach_m, const BeamCross
   if (!std::isfinite(reach_m) || reach_m < 0) throw std::invalid_argument("count_beam_crossings: bad reach");
   if (!pose_cov.allFinite() || pose_cov(0, 0) < 0 || pose_cov(1, 1) < 0 || pose_cov(2, 2) < 0)
     throw std::invalid_argument("count_beam_crossings: bad pose covariance");
+  validate(scan);  // a non-finite pose or angle would index beams out of range
   const std::size_t beams = scan.ranges_m.size();
   if (beams == 0 || scan.angle_increment_rad == 0) return;
   const Eigen::Vector2d origin(scan.sensor_pose.x_m, scan.sensor_pose.y_m);

@@ -34,8 +34,8 @@ std::size_t beam_bins(double length_m, const BeamCrossingOptions& options);
 /// `reach_m` (the grid's usable range): a return beyond it, or no return, means free space up to reach_m.
 /// `pose_cov` (x, y, θ) is the sensor pose's covariance: a beam's margin widens with it. Cost: for each segment,
 /// only the beams whose bearing lies between its ends'.
-/// @throw std::invalid_argument for bad options, a non-finite reach or covariance, or a segment whose bins do not
-///        match its length.
+/// @throw std::invalid_argument for bad options, a non-finite reach or covariance, a scan validate() refuses, or a
+///        segment whose bins do not match its length.
 void count_beam_crossings(const LaserScan& scan, double reach_m, const BeamCrossingOptions& options,
                           std::vector<SegmentBeams>& segments,
                           const Eigen::Matrix3d& pose_cov = Eigen::Matrix3d::Zero());

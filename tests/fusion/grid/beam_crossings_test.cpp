@@ -157,6 +157,9 @@ TEST(BeamCrossingsTest, BadInputIsRefused) {
   EXPECT_THROW(count_beam_crossings(ring_scan(5.0), 20.0, options, segments), std::invalid_argument);
   segments = {segment({2, -1}, {2, 1}, options)};
   EXPECT_THROW(count_beam_crossings(ring_scan(5.0), std::nan(""), options, segments), std::invalid_argument);
+  auto no_angle = ring_scan(5.0);
+  no_angle.angle_increment_rad = std::nan("");
+  EXPECT_THROW(count_beam_crossings(no_angle, 20.0, options, segments), std::invalid_argument);
   options.bin_m = 0;
   EXPECT_THROW(count_beam_crossings(ring_scan(5.0), 20.0, options, segments), std::invalid_argument);
 }
