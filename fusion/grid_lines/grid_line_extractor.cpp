@@ -13,6 +13,7 @@
 #include "fusion/grid_lines/internal/raster_frame.h"
 #include "fusion/grid_lines/internal/raster_lines.h"
 #include "fusion/grid_lines/thinning.h"
+#include "fusion/kalman/line_map.h"
 #include "fusion/lines/line_fit.h"
 
 namespace wm::fusion {
@@ -212,8 +213,107 @@ class Extractor {
     segment.t1_m = f->t1_m;
     if (segment.length_m() < options_.min_length_m) return false;
     claim(f->cell, along_other(line, f->cell, t_lo), along_other(line, f->cell, t_hi));
-    segments_.push_back(segment);
+    segments_.push_back(options_.place_on_surface ? on_surface(segment) : segment);
     return true;
+  }
+
+  // What a cell says of a point [m]: occupied (p >= p_occupied), free (seen, p < 0.5), or neither (unknown, outside
+  // the raster, or in between).
+  enum class Seen { occupied, free, neither };
+  Seen seen_at(const Eigen::Vector2d& point) const {
+    const CellIndex c = raster_.geometry.cell_of(point);
+    if (!raster_.geometry.contains(c)) return Seen::neither;
+    const float p = raster_.p[cell_index(c.x, c.y)];
+    if (std::isnan(p)) return Seen::neither;
+    if (p >= options_.p_occupied) return Seen::occupied;
+    return p < 0.5f ? Seen::free : Seen::neither;
+  }
+
+  // The segment moved across to the surface the laser saw, when its band borders free space on one side only. The
+  // laser's inverse model marks the cell of a return and cells up to half a cell in front of it, and a beam's cone
+  // lays its hits on an arc that runs on behind an obliquely seen surface, so the band reaches 1–3 cells behind the
+  // surface and its centre (the fit) lies 2–7 cm behind it; its free-side edge is the surface. Across the segment at
+  // every cell along it, the occupied run through the line is followed out to both edges; a side is free when a free
+  // cell lies within a cell past its edge. When most of those cuts are free on one side only (at least twice as
+  // many as on the other side), the line moves parallel to the median centre of the first occupied cell on that side:
+  // within half a cell of the surface wherever the surface lies in that cell. Its ends move in to the outermost cuts
+  // that show that surface: at a corner the band of the crossing wall runs on behind the surface, which put the
+  // band's end 5–12 cm past the corner. Free on both sides (a partition seen from both) or on neither (no free space
+  // in the raster), the segment stays as fitted. The quantisation does not average out along an axis-aligned wall,
+  // so the offset σ at the middle is floored at cell/√12.
+  LineSegment on_surface(const LineSegment& segment) const {
+    const double res = resolution_m_;
+    const double step = 0.25 * res;
+    const double reach = (options_.fit_band_cells + 2.0) * res;
+    const Eigen::Vector2d n = segment.line.normal(), dir = segment.line.direction();
+    const double length = segment.length_m();
+    const auto cuts = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::floor(length / res)));
+    const double spacing = length / static_cast<double>(cuts);
+    struct Cut {
+      double t = 0.0;
+      int free_side = -1;  // 0: free toward −n only, 1: toward +n only, −1: neither or both
+      double front = 0.0;  // offset of the first occupied cell's centre on the free side [m]
+    };
+    std::vector<Cut> across;
+    for (std::int64_t k = 0; k < cuts; ++k) {
+      Cut cut;
+      cut.t = segment.t0_m + (static_cast<double>(k) + 0.5) * spacing;
+      const Eigen::Vector2d base = segment.line.rho_m * n + cut.t * dir;
+      const auto at = [&](double d) { return seen_at(base + d * n); };
+      // The occupied run through the line: from its occupied sample nearest the line.
+      std::optional<double> start;
+      for (double j = 0.0; j <= options_.fit_band_cells * res && !start; j += step) {
+        if (at(-j) == Seen::occupied) {
+          start = -j;
+        } else if (at(j) == Seen::occupied) {
+          start = j;
+        }
+      }
+      if (!start) continue;
+      double edge[2] = {*start, *start};
+      bool free[2] = {false, false};
+      for (int side = 0; side < 2; ++side) {
+        const double sign = side == 0 ? -1.0 : 1.0;
+        while (std::abs(edge[side] + sign * step) <= reach && at(edge[side] + sign * step) == Seen::occupied)
+          edge[side] += sign * step;
+        for (double j = step; j <= res + 1e-9 && !free[side]; j += step) {
+          const Seen s = at(edge[side] + sign * j);
+          if (s == Seen::occupied) break;
+          free[side] = s == Seen::free;
+        }
+      }
+      if (free[0] != free[1]) {
+        cut.free_side = free[0] ? 0 : 1;
+        const CellIndex c = raster_.geometry.cell_of(base + edge[cut.free_side] * n);
+        cut.front = segment.line.signed_distance(raster_.geometry.center_of(c));
+      }
+      across.push_back(cut);
+    }
+    std::size_t count[2] = {0, 0};
+    for (const Cut& cut : across)
+      if (cut.free_side >= 0) ++count[cut.free_side];
+    int side = -1;
+    for (int s = 0; s < 2; ++s) {
+      if (count[s] >= 3 && count[s] >= 2 * count[1 - s] && 2 * count[s] >= across.size()) side = s;
+    }
+    if (side < 0) return segment;
+    std::vector<double> offsets;
+    double t_lo = std::numeric_limits<double>::infinity(), t_hi = -t_lo;
+    for (const Cut& cut : across) {
+      if (cut.free_side != side) continue;
+      offsets.push_back(cut.front);
+      t_lo = std::min(t_lo, cut.t - 0.5 * spacing);
+      t_hi = std::max(t_hi, cut.t + 0.5 * spacing);
+    }
+    std::nth_element(offsets.begin(), offsets.begin() + static_cast<std::ptrdiff_t>(offsets.size() / 2), offsets.end());
+    const double shift = offsets[offsets.size() / 2];
+    const Eigen::Vector2d a = (segment.line.rho_m + shift) * n + t_lo * dir;
+    const Eigen::Vector2d b = (segment.line.rho_m + shift) * n + t_hi * dir;
+    LineSegment moved;
+    moved.line = LineFeature{segment.line.rho_m + shift, segment.line.phi_rad, segment.line.cov}.normalized();
+    moved.t0_m = std::min(moved.line.coordinate_along(a), moved.line.coordinate_along(b));
+    moved.t1_m = std::max(moved.line.coordinate_along(a), moved.line.coordinate_along(b));
+    return with_covariance_floor(moved, {res / std::sqrt(12.0), 0.0});
   }
 
   // Weighted TLS over the occupied cells across [t_lo, t_hi] of the line, widened by the fit band (eq. 3

@@ -31,6 +31,10 @@ struct GridLineOptions {
   double min_length_m = 0.3;  // shorter segments are dropped [m], >= 0
   std::size_t min_cells = 6;  // segments with fewer skeleton cells are dropped, >= 2
   int refine_iterations = 8;  // at most this many rounds of fit → re-collect along the fitted line, [1, 100]
+  /// A laser-built grid's occupied band reaches 1–3 cells behind the surface that returned the beams, so a band
+  /// with free space on one side only gives its line on that edge (the surface), not through its centre. false:
+  /// every line through its band's centre (a drawn map, whose walls are painted about their axes).
+  bool place_on_surface = true;
 };
 
 /// @throw std::invalid_argument for a field outside the ranges documented in GridLineOptions or HoughOptions.
@@ -52,9 +56,13 @@ double grid_cell_sigma_m(double resolution_m, double p_occupied);
 ///     (so a long wall is followed beyond the Hough bin's reach), until neither the run nor the line moves;
 ///  4. a run with at least min_cells skeleton cells and min_length_m becomes a segment; its skeleton cells (all
 ///     within the fit band over its extent) are claimed, so each skeleton cell serves at most one segment, and
-///     their votes leave the accumulator before the next peak is taken (peaks are re-scored lazily).
-/// Each segment's line carries the fit's covariance C_L over (ρ [m], φ [rad]); its extent spans the fitted
-/// cells' centres plus half a cell at each end. Segments come in the order found (strongest line first).
+///     their votes leave the accumulator before the next peak is taken (peaks are re-scored lazily);
+///  5. with place_on_surface, a segment whose band borders free space on one side only (most cuts across it, one
+///     per cell) is moved parallel to that side's edge, the median centre of the first occupied cell there (within
+///     half a cell of the surface the laser saw), and its ends in to the outermost cuts that show that edge.
+/// Each segment's line carries the fit's covariance C_L over (ρ [m], φ [rad]), for a moved one with the offset σ
+/// at its middle floored at cell/√12 (the edge is known to a cell); its extent spans the fitted cells' centres
+/// plus half a cell at each end (a moved one's: its cuts). Segments come in the order found (strongest line first).
 /// @throw std::invalid_argument for an invalid raster or options.
 std::vector<LineSegment> extract_grid_lines(const ProbabilityRaster& raster, const GridLineOptions& options);
 

@@ -493,6 +493,133 @@ void apply_rigid(UpdateResult& result, std::size_t index, const PendingRigid& pe
   }
 }
 
+// Whether element `e` was made from grid lines alone, or from scans or by a client.
+bool made_by_grid(const Element& e) { return e.origin == "grid"; }
+
+// The element made from scans or by a client that the grid line lies on (GridLineMatchOptions), the closest (the
+// larger of the grid line's end offsets); nullopt when there is none.
+std::optional<std::int64_t> grid_line_on_element(const WorldState& state, const fusion::LineSegment& seen,
+                                                 const GridLineMatchOptions& options) {
+  std::optional<std::int64_t> best;
+  double best_offset = std::numeric_limits<double>::infinity();
+  for (const auto number : state.elements.near(Box::of(seen, options.on_element_offset_m))) {
+    const Element& element = state.elements.at(number);
+    if (made_by_grid(element)) continue;
+    const fusion::LineSegment& e = element.segment;
+    if (std::abs(std::remainder(seen.line.phi_rad - e.line.phi_rad, std::numbers::pi)) > options.on_element_angle_rad)
+      continue;
+    const double ta = e.line.coordinate_along(seen.p0()), tb = e.line.coordinate_along(seen.p1());
+    if (std::min(std::max(ta, tb), e.t1_m) < std::max(std::min(ta, tb), e.t0_m)) continue;  // end to end
+    const double offset =
+        std::max(std::abs(e.line.signed_distance(seen.p0())), std::abs(e.line.signed_distance(seen.p1())));
+    if (offset > options.on_element_offset_m || offset >= best_offset) continue;
+    best = number;
+    best_offset = offset;
+  }
+  return best;
+}
+
+// The stretch [t0, t1] along `line` [m] over which the segment lies within `offset_m` of it; nullopt when nowhere.
+std::optional<std::pair<double, double>> stretch_within(const fusion::LineFeature& line,
+                                                        const fusion::LineSegment& segment, double offset_m) {
+  double ta = line.coordinate_along(segment.p0()), tb = line.coordinate_along(segment.p1());
+  double oa = line.signed_distance(segment.p0()), ob = line.signed_distance(segment.p1());
+  if (ta > tb) {
+    std::swap(ta, tb);
+    std::swap(oa, ob);
+  }
+  // The offset runs linearly from oa at ta to ob at tb.
+  double lo = ta, hi = tb;
+  if (std::abs(ob - oa) > 1e-12) {
+    const double slope = (ob - oa) / (tb - ta);
+    const double u = (offset_m - oa) / slope, v = (-offset_m - oa) / slope;
+    lo = std::max(lo, ta + std::min(u, v));
+    hi = std::min(hi, ta + std::max(u, v));
+  } else if (std::abs(oa) > offset_m) {
+    return std::nullopt;
+  }
+  if (hi < lo) return std::nullopt;
+  return std::pair{lo, hi};
+}
+
+// After a grid extraction: an element cannot run on behind a surface the grid saw. Each element whose end runs past
+// the line of one of `surfaces` (the elements the extraction's lines confirmed, merged into or became) near that
+// surface's extent, crossing it at a real angle, is cut back to it when the part past it is short and the rest of
+// the element lies on the other side (GridLineMatchOptions). Why: an element's extent is the union of its views,
+// and near a corner the extreme views of a few hundred reach 5–10 cm behind the other wall; the grid trim does not
+// see that, as the other wall's occupied band backs it. Each cut is a "trim" decision (rule grid_crossing_trimmed)
+// with the old and new endpoints; the line, its covariance and its moments stay. Client elements are not cut.
+void cut_at_grid_surfaces(UpdateResult& result, const std::set<std::int64_t>& surfaces, const Observation& observation,
+                          std::int64_t observation_seq, const GridLineMatchOptions& options) {
+  WorldState& state = result.state;
+  for (const auto surface_number : surfaces) {
+    const Element* surface = state.elements.find(surface_number);
+    if (!surface) continue;
+    const fusion::LineSegment wall = surface->segment;
+    const std::string wall_id = surface->id();
+    const Eigen::Vector2d nw = wall.line.normal();
+    for (const auto number :
+         state.elements.near(Box::of(wall, options.max_corner_cut_m + options.on_element_offset_m))) {
+      if (number == surface_number) continue;
+      const Element& element = state.elements.at(number);
+      if (element.origin == "client") continue;
+      const fusion::LineSegment& s = element.segment;
+      if (std::abs(std::remainder(s.line.phi_rad - wall.line.phi_rad, std::numbers::pi)) <
+          options.min_crossing_angle_rad)
+        continue;
+      // Where the lines cross: n_s·X = ρ_s and n_w·X = ρ_w.
+      const Eigen::Vector2d ns = s.line.normal();
+      const double det = ns.x() * nw.y() - ns.y() * nw.x();  // sin of the angle between them: not small here
+      const Eigen::Vector2d crossing((s.line.rho_m * nw.y() - ns.y() * wall.line.rho_m) / det,
+                                     (ns.x() * wall.line.rho_m - s.line.rho_m * nw.x()) / det);
+      const double along_wall = wall.line.coordinate_along(crossing);
+      if (along_wall < wall.t0_m - options.on_element_offset_m || along_wall > wall.t1_m + options.on_element_offset_m)
+        continue;
+      const double t = s.line.coordinate_along(crossing);
+      const double past_hi = s.t1_m - t, past_lo = t - s.t0_m;
+      fusion::LineSegment cut = s;
+      if (past_hi >= options.min_corner_cut_m && past_hi <= options.max_corner_cut_m &&
+          past_lo > options.max_corner_cut_m) {
+        cut.t1_m = t;
+      } else if (past_lo >= options.min_corner_cut_m && past_lo <= options.max_corner_cut_m &&
+                 past_hi > options.max_corner_cut_m) {
+        cut.t0_m = t;
+      } else {
+        continue;
+      }
+      Element trimmed = element;
+      trimmed.segment = cut;
+      trimmed.updated_version = state.version;
+      trimmed.updated_at_unix_s = observation.received_at_unix_s;
+
+      DecisionRecord record;
+      record.seq = ++state.last_decision_seq;
+      record.observation_seq = observation_seq;
+      record.index = -1;  // not about a segment of the request
+      record.action = rules::Action::trim;
+      record.rule = "grid_crossing_trimmed";
+      char text[256];
+      std::snprintf(text, sizeof text,
+                    "element %s ran %.3f m past element %s, a surface the grid line extractor saw: cut from %.3f m "
+                    "to %.3f m",
+                    element.id().c_str(), s.length_m() - cut.length_m(), wall_id.c_str(), s.length_m(), cut.length_m());
+      record.explanation = text;
+      record.element = element.id();
+      record.matched_element = wall_id;
+      record.observer = observation.observer;
+      record.origin = observation.origin;
+      record.sensor = observation.sensor;
+      record_observed(record, cut);
+      const Eigen::Vector2d a = s.p0(), b = s.p1();
+      record.before = {a.x(), a.y(), b.x(), b.y()};
+      record.after = {record.p0.x(), record.p0.y(), record.p1.x(), record.p1.y()};
+      result.decisions.push_back(std::move(record));
+      result.changed_elements.insert(number);
+      state.elements.put(std::move(trimmed));
+    }
+  }
+}
+
 std::string pose_text(const fusion::Pose2D& pose) {
   char text[96];
   std::snprintf(text, sizeof text, "(%.3f, %.3f, %.4f)", pose.x_m, pose.y_m, pose.theta_rad);
@@ -510,6 +637,8 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
 
   const FoundByShape found = find_moved_objects(current, observation, options);
   std::map<std::size_t, PendingRigid> pending;  // by object index
+  const bool grid_line = observation.origin == "grid";
+  std::set<std::int64_t> grid_surfaces;  // the elements a grid line confirmed, merged into or became
 
   for (std::size_t i = 0; i < observation.segments.size(); ++i) {
     const auto& seen = observation.segments[i].segment;
@@ -517,6 +646,19 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     // once, after the last segment).
     Candidates candidates = collect_candidates(state, seen, options);
     auto match = fusion::best_match(candidates.segments, seen, options.match);
+    if (grid_line && !found.ref[i] && !(match && candidates.refs[match->index].object)) {
+      // A grid line is known to a cell across (and a short one fitted near a corner may lean by a degree): on a
+      // wall the scans mapped it can fall outside that element's segment gate, whose σ are the scans' own.
+      if (const auto on = grid_line_on_element(state, seen, options.grid_lines)) {
+        std::size_t k = 0;
+        while (k < candidates.refs.size() && (candidates.refs[k].object || candidates.refs[k].element != *on)) ++k;
+        if (k == candidates.refs.size()) {
+          candidates.segments.push_back(state.elements.at(*on).segment);
+          candidates.refs.push_back({std::nullopt, 0, *on});
+        }
+        match = fusion::MatchResult{k, fusion::mahalanobis_squared(candidates.segments[k].line, seen.line), 0.0};
+      }
+    }
     if (found.ref[i]) {
       // A view of a carried object: matched to its edge where its shape was found.
       const CandidateRef& f = *found.ref[i];
@@ -563,6 +705,13 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       make_fallback(record, decision.action, "rigid_adjust needs a matched CAD object");
     }
 
+    // A grid line merged into an element that scans or a client made gives it its support and its extent, not its
+    // line: the element's line, covariance and moments stay what its own views say (the grid knows the surface to
+    // a cell, those views to a centimetre or two). The grid line's ends lie on the surface's ends to half a cell,
+    // and an end past a wall the grid saw is cut back to it after the last line (cut_at_grid_surfaces).
+    const bool grid_on_measured = grid_line && ref && !ref->object && !made_by_grid(state.elements.at(ref->element));
+    if (grid_line && ref && !ref->object && record.action == rules::Action::confirm) grid_surfaces.insert(ref->element);
+
     if (record.action == rules::Action::confirm) {
       if (ref && ref->object) {
         ObjectState object = state.objects[*ref->object];
@@ -581,8 +730,16 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     } else if (record.action == rules::Action::merge && !ref->object) {
       Element element = state.elements.at(ref->element);
       record.before = line_numbers(element.segment.line);
-      element.moments += fusion::SegmentMoments::of(seen);
-      element.segment = fused_and_refit(fusion::fuse(element.segment, seen, options.fusion), element.moments);
+      if (grid_on_measured) {
+        if (const auto stretch = stretch_within(element.segment.line, seen, options.grid_lines.extend_offset_m)) {
+          element.segment.t0_m = std::min(element.segment.t0_m, stretch->first);
+          element.segment.t1_m = std::max(element.segment.t1_m, stretch->second);
+        }
+        record.explanation += " (a grid line on an element from scans or a client: its extent taken in, not its line)";
+      } else {
+        element.moments += fusion::SegmentMoments::of(seen);
+        element.segment = fused_and_refit(fusion::fuse(element.segment, seen, options.fusion), element.moments);
+      }
       record.after = line_numbers(element.segment.line);
       ++element.support;
       element.updated_version = state.version;
@@ -626,9 +783,12 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     }
     result.decisions.push_back(std::move(record));
     if (grown) join_neighbours(result, *grown, observation, observation_seq, options, decide);
+    // The element a grid line merged into or became, unless a join took it into another one: a surface the grid saw.
+    if (grid_line && grown && state.elements.contains(*grown)) grid_surfaces.insert(*grown);
   }
   for (const auto& [index, p] : pending)
     apply_rigid(result, index, p, found, observation, observation_seq, options, decide);
+  if (grid_line) cut_at_grid_surfaces(result, grid_surfaces, observation, observation_seq, options.grid_lines);
   return result;
 }
 

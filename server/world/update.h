@@ -80,7 +80,11 @@ using Decide = std::function<rules::Decision(const rules::DecisionQuery&)>;
 /// candidate for a line that runs past its extent (the wall beside a table). A not_deformable object carried beyond
 /// its gate is found again by its shape: unmatched lines of the request near it that its edges explain after one
 /// rigid transform are matched to those edges (fusion::find_by_shape), and a rigid_adjust of them starts from the
-/// pose found, with the covariance widened to cover the move. An action the
+/// pose found, with the covariance widened to cover the move. Lines of origin "grid" (the grid line extractor's): one
+/// that lies on an element from scans or a client (WorldOptions::grid_lines) is matched to it even outside the
+/// segment gate, and a merge into such an element takes in its support and extent, not its line; after the last
+/// line, an element whose end runs a little past an element the lines confirmed, merged into or became is cut back
+/// to it (a trim decision, rule grid_crossing_trimmed). An action the
 /// server cannot apply to the match (merge or rigid_adjust without a match, rigid_adjust on an element,
 /// an unknown action) becomes the documented fallback: add, with fallback = true. `current` is not changed.
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,

@@ -20,6 +20,27 @@
 
 namespace wm::world {
 
+/// How lines of the grid line extractor (origin "grid") meet the elements that scans or a client made. The grid
+/// knows a surface only to its cells (and a band fitted near a corner may lean by a degree), while those elements
+/// lie within a centimetre or two of theirs, so a grid line never moves them: a merge takes in its extent, not its
+/// line, and it bounds the ends of elements that run past it.
+struct GridLineMatchOptions {
+  /// A grid line lies on such an element when their directions differ by at most on_element_angle_rad, the grid
+  /// line overlaps the element's extent, and both its ends are within on_element_offset_m of the element's line:
+  /// two cells of the default 5 cm grid [m], [rad].
+  double on_element_offset_m = 0.10;
+  double on_element_angle_rad = 0.035;  // 2°
+  /// A merge takes in the grid line's extent only where the grid line is within extend_offset_m of the element's
+  /// line: one cell, so that an element is not carried along its own direction past where its wall turns away [m].
+  double extend_offset_m = 0.05;
+  /// An element whose end runs past the line of an element the grid's lines confirmed, merged into or became (a
+  /// surface the grid saw), crossing it at min_crossing_angle_rad or more within on_element_offset_m of its extent,
+  /// by at least min_corner_cut_m and at most max_corner_cut_m (three cells), is cut back to that line [m], [rad].
+  double max_corner_cut_m = 0.15;
+  double min_corner_cut_m = 0.02;
+  double min_crossing_angle_rad = 0.5236;  // 30°
+};
+
 /// Numbers the world model uses when a request does not give them. Validated once by the config reader.
 struct WorldOptions {
   fusion::MatchOptions match;
@@ -47,6 +68,7 @@ struct WorldOptions {
   double apriori_angle_sigma_rad = 0.005;
   /// Pose covariance of plan objects that do not state one (σxy = 5 cm, σθ = 0.05 rad).
   Eigen::Matrix3d default_pose_cov = Eigen::Vector3d(2.5e-3, 2.5e-3, 2.5e-3).asDiagonal();
+  GridLineMatchOptions grid_lines;
 };
 
 /// A CAD object as the world model holds it: the drawing, and the body whose pose observations may move.

@@ -1,4 +1,5 @@
 // The occupancy grids: a layer as JSON or PGM, the map_server pair, and the grid line extractor on request.
+#include <algorithm>
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -159,7 +160,9 @@ Response post_grid_extract(const Call& call) {
   const auto outcome = call.world.extract_grid_lines();
   nlohmann::json answer = {{"segments", 0}, {"observation", nullptr}, {"decisions", nlohmann::json::array()}};
   if (outcome) {
-    answer["segments"] = outcome->decisions.size();
+    // One decision per segment (index >= 0); joins and end cuts the segments led to come with index -1.
+    answer["segments"] = std::count_if(outcome->decisions.begin(), outcome->decisions.end(),
+                                       [](const world::DecisionRecord& d) { return d.index >= 0; });
     answer["observation"] = outcome->seq;
     answer["decisions"] = json_codec::decisions_json(outcome->decisions);
   }

@@ -29,6 +29,13 @@ std::string describe(const LineSegment& s) {
          std::to_string(s.p1().y()) + ")";
 }
 
+// The synthetic maps below are drawn: each wall painted about its axis, so its line is its band's centre.
+GridLineOptions drawn_map() {
+  GridLineOptions options;
+  options.place_on_surface = false;
+  return options;
+}
+
 // No wall found twice over the same stretch (a failure), and the descriptions of the spurious segments
 // (testing::spurious_segments).
 std::vector<std::string> duplicates_and_spurious(const testing::SyntheticMap& map,
@@ -56,7 +63,7 @@ TEST(GridLineExtractorTest, FindsEveryWallOfRoomsWithBoxesAndNothingElse) {
   for (const double angle : angles_deg) {
     SCOPED_TRACE("room turned by " + std::to_string(angle) + " deg, seed " + std::to_string(seed));
     const testing::SyntheticMap map = testing::room_with_boxes(seed++, angle * kDeg, 0.025);
-    const std::vector<LineSegment> segments = extract_grid_lines(map.raster, GridLineOptions{});
+    const std::vector<LineSegment> segments = extract_grid_lines(map.raster, drawn_map());
     const std::vector<TrueWall> walls = longer_than(map.walls, 0.5);
     std::vector<const TrueWall*> missed;
     EXPECT_EQ(count_found(walls, segments, 0.025, &missed), walls.size());
@@ -77,7 +84,7 @@ TEST(GridLineExtractorTest, FindsTheWallsOfRoomsAtFiveCentimetres) {
   for (const double angle : angles_deg) {
     SCOPED_TRACE("room turned by " + std::to_string(angle) + " deg, seed " + std::to_string(seed));
     const testing::SyntheticMap map = testing::room_with_boxes(seed++, angle * kDeg, 0.05);
-    const std::vector<LineSegment> segments = extract_grid_lines(map.raster, GridLineOptions{});
+    const std::vector<LineSegment> segments = extract_grid_lines(map.raster, drawn_map());
     const std::vector<TrueWall> room(map.walls.begin(), map.walls.begin() + 4);
     for (const TrueWall& w : room) {
       bool hit = false;
@@ -103,7 +110,7 @@ TEST(GridLineExtractorTest, FindsTheWallsOfRoomsAtFiveCentimetres) {
 // beside a door); furniture sides (0.5–1 m, 1–2 cells thick, half of them turned): measured 43 of 48.
 TEST(GridLineExtractorTest, FindsTheWallsOfABuildingSplitAtTheDoors) {
   const testing::SyntheticMap map = testing::building(3, 3, 2, 4.5);
-  const std::vector<LineSegment> segments = extract_grid_lines(map.raster, GridLineOptions{});
+  const std::vector<LineSegment> segments = extract_grid_lines(map.raster, drawn_map());
   std::vector<TrueWall> structure, furniture;
   for (const TrueWall& w : longer_than(map.walls, 0.5)) (w.thickness_m > 0.12 ? structure : furniture).push_back(w);
   ASSERT_GT(structure.size(), 10u);
@@ -201,6 +208,65 @@ TEST(GridLineExtractorTest, CovarianceIsTheWeightedFitOverTheWallsCells) {
   EXPECT_NEAR(segments[0].line.rho_m, expected.rho_m, 1e-9);
   EXPECT_NEAR(segments[0].line.phi_rad, expected.phi_rad, 1e-9);
   EXPECT_TRUE(segments[0].line.cov.isApprox(expected.cov, 1e-9)) << segments[0].line.cov << "\n" << expected.cov;
+}
+
+// Two walls of a room meeting at a corner as a laser grid holds them (5 cm cells): free space in the room; at each
+// wall the cells within half a cell in front of the surface and up to 3 cells behind it occupied; unknown behind.
+// Surfaces at y = 1.512 (wall A, room above) and x = 4.012 (wall B, room to the left), inside cells on purpose.
+constexpr double kSurfaceA = 1.512, kSurfaceB = 4.012;
+ProbabilityRaster laser_corner() {
+  const GridGeometry g({0, 0}, 0.05, 100, 60);
+  std::vector<float> p(100 * 60, std::numeric_limits<float>::quiet_NaN());
+  for (std::int64_t y = 0; y < 60; ++y) {
+    for (std::int64_t x = 0; x < 100; ++x) {
+      const Eigen::Vector2d c = g.center_of({x, y});
+      const bool band_a =
+          c.y() >= kSurfaceA - 0.15 && c.y() <= kSurfaceA + 0.025 && c.x() >= 0.5 && c.x() <= kSurfaceB + 0.15;
+      const bool band_b =
+          c.x() >= kSurfaceB - 0.025 && c.x() <= kSurfaceB + 0.15 && c.y() >= kSurfaceA - 0.15 && c.y() <= 2.8;
+      const bool room = c.x() >= 0.5 && c.x() < kSurfaceB - 0.025 && c.y() > kSurfaceA + 0.025 && c.y() <= 2.8;
+      float& cell = p[static_cast<std::size_t>(y * 100 + x)];
+      if (band_a || band_b) {
+        cell = 0.95f;
+      } else if (room) {
+        cell = 0.1f;
+      }
+    }
+  }
+  return {g, p};
+}
+
+// The band's centre lies 6 cm behind each surface, and wall A's line through it ran on into wall B's band, 11 cm past
+// the corner; on the free-side edge the lines lie within half a cell of the surfaces, end where that edge ends, and
+// their offset σ admits the cell.
+TEST(GridLineExtractorTest, ALaserBandGivesItsLineOnTheSurfaceFacingFreeSpace) {
+  const std::vector<LineSegment> segments = extract_grid_lines(laser_corner(), GridLineOptions{});
+  ASSERT_EQ(segments.size(), 2u);
+  const LineSegment* a = nullptr;
+  const LineSegment* b = nullptr;
+  for (const LineSegment& s : segments) (std::abs(s.line.normal().y()) > 0.9 ? a : b) = &s;
+  ASSERT_TRUE(a && b);
+  for (const Eigen::Vector2d& end : {a->p0(), a->p1()}) EXPECT_NEAR(end.y(), kSurfaceA, 0.025) << describe(*a);
+  for (const Eigen::Vector2d& end : {b->p0(), b->p1()}) EXPECT_NEAR(end.x(), kSurfaceB, 0.025) << describe(*b);
+  // Never past the corner by more than half a cell, nor short of it by more than a cell and a half.
+  const double a_end = std::max(a->p0().x(), a->p1().x());
+  EXPECT_LE(a_end, kSurfaceB + 0.025) << describe(*a);
+  EXPECT_GE(a_end, kSurfaceB - 0.075) << describe(*a);
+  const double b_low = std::min(b->p0().y(), b->p1().y());
+  EXPECT_LE(b_low, kSurfaceA + 0.075) << describe(*b);
+  EXPECT_GE(b_low, kSurfaceA - 0.025) << describe(*b);
+  // σ across the line at its middle: at least a cell's quantisation, 0.05/√12.
+  const double t = 0.5 * (a->t0_m + a->t1_m);
+  const Eigen::Vector2d j(1.0, -t);
+  EXPECT_GE(std::sqrt(j.dot(a->line.cov * j)), 0.05 / std::sqrt(12.0) - 1e-9);
+
+  // A drawn map's line is its band's centre.
+  const std::vector<LineSegment> centred = extract_grid_lines(laser_corner(), drawn_map());
+  ASSERT_EQ(centred.size(), 2u);
+  for (const LineSegment& s : centred) {
+    if (std::abs(s.line.normal().y()) < 0.9) continue;
+    EXPECT_NEAR(0.5 * (s.p0().y() + s.p1().y()), 1.45, 0.01) << describe(s);
+  }
 }
 
 TEST(GridLineExtractorTest, UnknownOrFreeRastersGiveNoSegments) {
