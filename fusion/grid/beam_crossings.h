@@ -18,7 +18,7 @@ struct SegmentBeams {
 };
 
 struct BeamCrossingOptions {
-  double bin_m = 0.10;     // bin length along a segment [m], > 0
+  double bin_m = 0.10;  // bin length along a segment [m], > 0
   /// A return within this of the segment, measured across it, ended on it; beyond it by more, it passed [m], > 0.
   /// Widened per beam by two σ of where the pose and the reading put the return across the segment.
   double margin_m = 0.10;

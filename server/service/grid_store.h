@@ -19,8 +19,8 @@
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
 #include "server/json/codec.h"
-#include "server/service/writer_preferring_mutex.h"
 #include "server/service/world_port.h"
+#include "server/service/writer_preferring_mutex.h"
 #include "server/storage/store.h"
 #include "server/world/plan_evidence.h"
 #include "server/world/world_state.h"
@@ -89,7 +89,8 @@ class GridStore {
   /// The grid's evidence on the plan edges of `state` in `region` (every edge when nullopt) that anything observed,
   /// with the beams counted at each edge and at each stretch seen through; `revision` is set to the grid revision
   /// it was read at. options.step_m is the grid's cell size.
-  std::vector<world::EdgeEvidence> edge_evidence(const world::WorldState& state, const std::optional<world::Box>& region,
+  std::vector<world::EdgeEvidence> edge_evidence(const world::WorldState& state,
+                                                 const std::optional<world::Box>& region,
                                                  world::PlanEvidenceOptions options, std::int64_t& revision) const;
 
  private:

@@ -24,7 +24,6 @@ std::set<std::string> rejected_changes(storage::Store& store) {
   return ids;
 }
 
-
 }  // namespace
 
 double now_unix_s() {
@@ -61,8 +60,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   if (options_.grid_trim_every > 0 && last_scan_seq > 0) {
     const auto every = static_cast<std::int64_t>(options_.grid_trim_every);
     auto since = last_scan_seq - last_scan_seq % every;
-    const bool due =
-        last_scan_seq % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq));
+    const bool due = last_scan_seq % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq));
     if (due) since = last_scan_seq - every;
     for (const auto& record : store_.scans_after(since)) {
       try {
@@ -192,7 +190,6 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
         {"bbox", {changed.min().x(), changed.min().y(), changed.max().x(), changed.max().y()}},
         {"points", returns}});
 }
-
 
 std::shared_ptr<const world::PlanReport> WorldService::plan_report() const { return plan_checks_.report(); }
 
@@ -358,7 +355,8 @@ WorldService::PreparedUpdate WorldService::prepare_update(world::Observation obs
                     [](const auto& d) { return d.action == rules::Action::rigid_adjust; }))
       engine_.set_floor_plan(object_facts(p.update.state, options_.world));
   } catch (...) {
-    sync_all_facts(engine_, *p.base, options_.world);  // nothing was applied: the facts go back to the map decided before
+    sync_all_facts(engine_, *p.base,
+                   options_.world);  // nothing was applied: the facts go back to the map decided before
     throw;
   }
   p.observation = std::move(observation);
@@ -369,7 +367,8 @@ void WorldService::commit_prepared(const PreparedUpdate& prepared, const std::fu
   try {
     commit();
   } catch (...) {
-    sync_all_facts(engine_, *prepared.base, options_.world);  // nothing was applied: the facts go back to the committed map
+    sync_all_facts(engine_, *prepared.base,
+                   options_.world);  // nothing was applied: the facts go back to the committed map
     throw;
   }
 }
@@ -406,7 +405,8 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
           {"removed_objects", removed_objects},
           {"objects", objects}});
   }
-  published_.publish(std::move(update.state), MapRemovals{{removed.begin(), removed.end()}, std::move(removed_objects)});
+  published_.publish(std::move(update.state),
+                     MapRemovals{{removed.begin(), removed.end()}, std::move(removed_objects)});
   // Committed and published: the request is answered as applied whatever happens here.
   try {
     engine_.add_decisions(logged, options_.decision_facts_kept);

@@ -288,9 +288,9 @@ class WorldService final : public WorldPort {
   events::EventHub* events_;
 
   RobotRegistry robots_;
-  SnapshotLog published_;  // the committed map, what each version removed
-  GridStore grid_;         // inserted on the grid thread (and at start, before the network runs)
-  PlanChecks plan_checks_;  // refreshed on the writer
+  SnapshotLog published_;                  // the committed map, what each version removed
+  GridStore grid_;                         // inserted on the grid thread (and at start, before the network runs)
+  PlanChecks plan_checks_;                 // refreshed on the writer
   std::atomic<bool> aligning_{false};      // an align_floor_plan search is running
   std::optional<world::Box> trim_region_;  // what the scans since the last grid trim could see (trim_mutex_)
 

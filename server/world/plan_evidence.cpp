@@ -98,7 +98,8 @@ std::optional<EdgeEvidence> edge_evidence(const WorldState& state, std::size_t o
   const Eigen::Vector2d a = segment.p0(), b = segment.p1();
   const Eigen::Vector2d normal = segment.line.normal();
   std::vector<Eigen::Vector2d> points;
-  for (std::size_t i = 0; i < n; ++i) points.push_back(a + (static_cast<double>(i) + 0.5) / static_cast<double>(n) * (b - a));
+  for (std::size_t i = 0; i < n; ++i)
+    points.push_back(a + (static_cast<double>(i) + 0.5) / static_cast<double>(n) * (b - a));
   samples.clear();
   for (const auto& point : points) samples.push_back(probe(point, normal));
   std::vector<bool> at_junction;

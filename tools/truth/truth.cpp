@@ -181,7 +181,8 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
           angle = direction_difference(e.p1 - e.p0, line.p1 - line.p0);
         }
       }
-      std::fprintf(stderr, "off the walls: %.2f of %.2f m from (%.2f, %.2f) to (%.2f, %.2f), nearest wall %.3f m, %.1f deg\n",
+      std::fprintf(stderr,
+                   "off the walls: %.2f of %.2f m from (%.2f, %.2f) to (%.2f, %.2f), nearest wall %.3f m, %.1f deg\n",
                    e.length() - good_here, e.length(), e.p0.x(), e.p0.y(), e.p1.x(), e.p1.y(), nearest,
                    angle * 180 / 3.141592653589793);
     }
@@ -337,8 +338,9 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
     }
     if (std::getenv("WM_TRUTH_VERBOSE")) {
       const auto& line = world.lines[static_cast<std::size_t>(p)];
-      std::fprintf(stderr, "partition (%.2f, %.2f) to (%.2f, %.2f): %.2f m seen, %.2f m covered; uncovered bins:",
-                   line.p0.x(), line.p0.y(), line.p1.x(), line.p1.y(), seen, covered);
+      std::fprintf(stderr,
+                   "partition (%.2f, %.2f) to (%.2f, %.2f): %.2f m seen, %.2f m covered; uncovered bins:", line.p0.x(),
+                   line.p0.y(), line.p1.x(), line.p1.y(), seen, covered);
       for (std::size_t b = 0; b < cover[p].size(); ++b)
         if (coverage.hits[p][b] > 0 && cover[p][b].empty()) std::fprintf(stderr, " %zu(%u)", b, coverage.hits[p][b]);
       std::fprintf(stderr, "\n");
