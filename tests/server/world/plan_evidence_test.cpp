@@ -120,18 +120,20 @@ TEST(PlanEvidenceTest, EdgesFollowAMovedObject) {
     }
 }
 
+// A solid wall of one straight line from a to b.
+apriori::PlanObject wall(std::string id, Eigen::Vector2d a, Eigen::Vector2d b) {
+  apriori::PlanObject o;
+  o.id = std::move(id);
+  o.kind = "wall";
+  o.attributes = {"solid"};
+  o.polylines = {{a, b}};
+  return o;
+}
+
 // Wall "w" from (0, 0) to (4, 0), met by "end" at its far end and by "tee" at x = 2, with "face" 5 cm beside it.
 WorldState walls_meeting() {
   apriori::FloorPlan plan;
   plan.name = "junctions";
-  const auto wall = [](std::string id, Eigen::Vector2d a, Eigen::Vector2d b) {
-    apriori::PlanObject o;
-    o.id = std::move(id);
-    o.kind = "wall";
-    o.attributes = {"solid"};
-    o.polylines = {{a, b}};
-    return o;
-  };
   plan.objects = {wall("w", {0, 0}, {4, 0}), wall("end", {4, -1}, {4, 1}), wall("tee", {2, 0}, {2, 2}),
                   wall("face", {0, 0.05}, {4, 0.05})};
   WorldState state;
@@ -178,14 +180,6 @@ TEST(PlanEvidenceTest, AShortWallEndMostlyAtJunctionsKeepsWhatTheProbeSaid) {
   // 2.5 cells of a face, and the one between must not speak for all of them.
   apriori::FloorPlan plan;
   plan.name = "cap";
-  const auto wall = [](std::string id, Eigen::Vector2d a, Eigen::Vector2d b) {
-    apriori::PlanObject o;
-    o.id = std::move(id);
-    o.kind = "wall";
-    o.attributes = {"solid"};
-    o.polylines = {{a, b}};
-    return o;
-  };
   plan.objects = {wall("cap", {0, 0}, {0.3, 0}), wall("left", {0, 0}, {0, 5}), wall("right", {0.3, 0}, {0.3, 5})};
   WorldState state;
   state.objects = ObjectTable(make_objects(plan, WorldOptions{}, 1));
