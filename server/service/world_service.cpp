@@ -166,7 +166,10 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   observation.origin = "scan";
   observation.sensor = "laser";
   observation.stamp_s = scan.stamp_s;
-  for (const auto& segment : segments) observation.segments.push_back({segment});
+  // Which face of each wall the laser saw: the two faces of a thin wall are kept apart by it.
+  const Eigen::Vector2d viewpoint(laser->sensor_pose.x_m, laser->sensor_pose.y_m);
+  for (const auto& segment : segments)
+    observation.segments.push_back({segment, world::facing_toward(segment, viewpoint)});
   return prepare_update(std::move(observation));
 }
 

@@ -45,6 +45,24 @@ bool within_extent(const ObjectState& object, const fusion::LineSegment& edge, c
   return std::min(ta, tb) >= edge.t0_m - slack && std::max(ta, tb) <= edge.t1_m + slack;
 }
 
+// How far from one straight line (RMS) an element and a new view of it may lie together: the fixed allowance, or
+// WorldOptions::straightness_sigmas σ of the spread the view's own covariance gives (across its middle, and its
+// direction's σ over its length), whichever is larger.
+double straightness_allowance_m(const fusion::LineSegment& seen, const WorldOptions& options) {
+  const double middle = 0.5 * (seen.t0_m + seen.t1_m), length = seen.length_m();
+  const double spread_sq = std::max(0.0, fusion::offset_variance_at(seen.line, middle)) +
+                           std::max(0.0, seen.line.cov(1, 1)) * length * length / 12.0;
+  return std::max(options.max_straightness_rms_m, options.straightness_sigmas * std::sqrt(spread_sq));
+}
+
+// The same for joining two elements: each is already as straight as its views' spread let it be, so the join
+// may spread WorldOptions::join_scatter_factor times as much as the less straight one, never less than the fixed
+// allowance. (Their covariances would not do: the fusion floor gives every element 0.5° however good its poses.)
+double join_straightness_allowance_m(const Element& a, const Element& b, const WorldOptions& options) {
+  return std::max(options.max_straightness_rms_m,
+                  options.join_scatter_factor * std::max(a.moments.rms_offset_m(), b.moments.rms_offset_m()));
+}
+
 struct Candidates {
   std::vector<fusion::LineSegment> segments;
   std::vector<CandidateRef> refs;
@@ -52,7 +70,8 @@ struct Candidates {
 
 // What can match `seen`: the CAD edges and elements whose boxes come near it (the gate tolerances stay well
 // inside the margin).
-Candidates collect_candidates(const WorldState& state, const fusion::LineSegment& seen, const WorldOptions& options) {
+Candidates collect_candidates(const WorldState& state, const fusion::LineSegment& seen,
+                              const std::optional<double>& seen_facing, const WorldOptions& options) {
   const Box near = Box::of(seen, candidate_margin(options.match));
   Candidates c;
   for (const auto& [i, k] : state.objects.edges_near(near)) {
@@ -63,11 +82,12 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
     c.refs.push_back({i, k, 0});
   }
   const auto seen_moments = fusion::SegmentMoments::of(seen);
+  const double straightness = straightness_allowance_m(seen, options);
   for (const auto number : state.elements.near(near)) {
     const Element& element = state.elements.at(number);
-    if (!Box::of(element.segment).overlaps(near)) continue;
+    if (!Box::of(element.segment).overlaps(near) || !faces_agree(element.facing_rad, seen_facing)) continue;
     // Taking `seen` in would bend the element: not the same straight wall, whatever the gate says.
-    if ((element.moments + seen_moments).rms_offset_m() > options.max_straightness_rms_m) continue;
+    if ((element.moments + seen_moments).rms_offset_m() > straightness) continue;
     c.segments.push_back(element.segment);
     c.refs.push_back({std::nullopt, 0, number});
   }
@@ -219,6 +239,10 @@ bool join_into(UpdateResult& result, std::int64_t into, std::int64_t from, const
   joined.segment = fused_and_refit(piece ? keeper.segment : fusion::fuse(keeper.segment, other.segment, options.fusion),
                                    joined.moments);
   joined.support += other.support;
+  // A thin surface seen from both sides faces both ways: views from either side match it from now on.
+  joined.facing_rad = faces_agree(keeper.facing_rad, other.facing_rad)
+                          ? keeper.facing_rad.has_value() ? keeper.facing_rad : other.facing_rad
+                          : std::nullopt;
   joined.updated_version = state.version;
   joined.updated_at_unix_s = observation.received_at_unix_s;
   record.after = line_numbers(joined.segment.line);
@@ -249,8 +273,21 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
     for (const auto other_number : state.elements.near(near)) {
       const Element& other = state.elements.at(other_number);
       if (other_number == number || declined.count(other_number) || !Box::of(other.segment).overlaps(near) ||
-          (keeper.moments + other.moments).rms_offset_m() > options.max_straightness_rms_m)
+          (keeper.moments + other.moments).rms_offset_m() > join_straightness_allowance_m(keeper, other, options))
         continue;
+      if (!faces_agree(keeper.facing_rad, other.facing_rad)) {
+        // Seen from opposite sides: one surface only if it is thin (a partition, a wall drawn as one line), i.e.
+        // the two lie within thin_surface_m of each other where they overlap; the faces of a thicker wall stay two.
+        const auto gate = fusion::segment_gate(keeper.segment, other.segment, options.join);
+        if (gate.passes && std::max(gate.offset_m[0], gate.offset_m[1]) <= options.thin_surface_m &&
+            (!best || gate.cost < best->cost)) {
+          best =
+              fusion::MatchResult{0, fusion::mahalanobis_squared(keeper.segment.line, other.segment.line), gate.cost};
+          best_number = other_number;
+          keeper_is_piece = other_is_piece = false;
+        }
+        continue;
+      }
       auto m = fusion::match_segment(keeper.segment, other.segment, options.join);
       bool keeper_piece = false, other_piece = false;
       const double band = options.max_straightness_rms_m, gap = options.join.max_gap_m;
@@ -349,7 +386,7 @@ FoundByShape find_moved_objects(const WorldState& state, const Observation& obse
       const auto& seen = observation.segments[i].segment;
       if (found.ref[i] || distance_to_segment(centre, seen) > kShapeSearchM + radius) continue;
       if (!matched[i]) {
-        const Candidates candidates = collect_candidates(state, seen, options);
+        const Candidates candidates = collect_candidates(state, seen, observation.segments[i].facing_rad, options);
         const auto m = fusion::best_match(candidates.segments, seen, options.match);
         matched[i] = !m ? std::optional<std::size_t>{} : candidates.refs[m->index].object.value_or(kElement);
         if (m && !candidates.refs[m->index].object) matched_element[i] = candidates.refs[m->index].element;
@@ -388,12 +425,13 @@ FoundByShape find_moved_objects(const WorldState& state, const Observation& obse
 }
 
 // A new element from an observed segment (the add action); its number.
-std::int64_t add_element(UpdateResult& result, const fusion::LineSegment& seen, const Observation& observation) {
+std::int64_t add_element(UpdateResult& result, const ObservedSegment& seen, const Observation& observation) {
   WorldState& state = result.state;
   Element element;
   element.number = state.next_element_number++;
-  element.segment = seen;
-  element.moments = fusion::SegmentMoments::of(seen);
+  element.segment = seen.segment;
+  element.moments = fusion::SegmentMoments::of(seen.segment);
+  element.facing_rad = seen.facing_rad;
   element.origin = observation.origin;
   element.observer = observation.observer;
   element.created_version = state.version;
@@ -486,7 +524,7 @@ void apply_rigid(UpdateResult& result, std::size_t index, const PendingRigid& pe
       make_fallback(record, rules::wire_name(rules::Action::rigid_adjust),
                     std::string("rigid update failed: ") + e.what());
       record.object.reset();
-      const auto number = add_element(result, observation.segments[pending.segments[j]].segment, observation);
+      const auto number = add_element(result, observation.segments[pending.segments[j]], observation);
       record.element = element_id(number);
       join_neighbours(result, number, observation, observation_seq, options, decide);
     }
@@ -628,6 +666,16 @@ std::string pose_text(const fusion::Pose2D& pose) {
 
 }  // namespace
 
+double facing_toward(const fusion::LineSegment& segment, const Eigen::Vector2d& viewpoint) {
+  const double phi = segment.line.phi_rad;
+  return segment.line.signed_distance(viewpoint) >= 0 ? phi
+                                                      : std::remainder(phi + std::numbers::pi, 2 * std::numbers::pi);
+}
+
+bool faces_agree(const std::optional<double>& a, const std::optional<double>& b) {
+  return !a || !b || std::cos(*a - *b) > 0;
+}
+
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,
                                const WorldOptions& options, const Decide& decide) {
   UpdateResult result{current, {}, {}, {}, {}};
@@ -644,7 +692,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     const auto& seen = observation.segments[i].segment;
     // Matching runs against the map as changed by the earlier segments of the same request (rigid objects move
     // once, after the last segment).
-    Candidates candidates = collect_candidates(state, seen, options);
+    Candidates candidates = collect_candidates(state, seen, observation.segments[i].facing_rad, options);
     auto match = fusion::best_match(candidates.segments, seen, options.match);
     if (grid_line && !found.ref[i] && !(match && candidates.refs[match->index].object)) {
       // A grid line is known to a cell across (and a short one fitted near a corner may lean by a degree): on a
@@ -739,6 +787,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       } else {
         element.moments += fusion::SegmentMoments::of(seen);
         element.segment = fused_and_refit(fusion::fuse(element.segment, seen, options.fusion), element.moments);
+        if (!element.facing_rad) element.facing_rad = observation.segments[i].facing_rad;
       }
       record.after = line_numbers(element.segment.line);
       ++element.support;
@@ -757,6 +806,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       element.number = state.next_element_number++;
       element.segment = fusion::fuse(drawn, seen, options.fusion);
       element.moments = fusion::SegmentMoments::of(seen);
+      element.facing_rad = observation.segments[i].facing_rad;
       element.support = 2;
       element.origin = observation.origin;
       element.observer = observation.observer;
@@ -776,7 +826,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       p.by_shape |= found.ref[i].has_value();
     }
     if (record.action == rules::Action::add) {
-      const auto number = add_element(result, seen, observation);
+      const auto number = add_element(result, observation.segments[i], observation);
       record.element = element_id(number);
       record.object.reset();
       grown = number;  // a view that missed the scan-line gate may still lie on an element

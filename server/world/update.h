@@ -4,6 +4,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "rules/action.h"
@@ -14,8 +15,22 @@ namespace wm::world {
 
 /// One posted segment after validation: the observed segment in the world frame.
 struct ObservedSegment {
+  ObservedSegment(fusion::LineSegment seen, std::optional<double> facing = std::nullopt)  // NOLINT: {segment}
+      : segment(std::move(seen)), facing_rad(facing) {}
+
   fusion::LineSegment segment;
+  /// Direction [rad] of the line's normal toward the sensor that saw it (see facing_toward); none when not known
+  /// (posted segments, grid lines).
+  std::optional<double> facing_rad;
 };
+
+/// The direction [rad] of the normal of `segment`'s line that points to `viewpoint`'s side: which face of a wall a
+/// sensor at `viewpoint` saw.
+double facing_toward(const fusion::LineSegment& segment, const Eigen::Vector2d& viewpoint);
+
+/// Whether two faces can be one surface: true unless both are known and point away from each other (more than
+/// 90° apart).
+bool faces_agree(const std::optional<double>& a, const std::optional<double>& b);
 
 /// A batch of segments from one request. Naming throughout world/ and storage/: `observer` is the robot (or
 /// client) that saw it, `origin` how the segments were made: posted by a client, extracted from a scan or from

@@ -57,6 +57,18 @@ struct WorldOptions {
   /// An element may only take in an observation (or another element) while everything it was built from stays
   /// this close to one straight line (RMS across it) [m]: what a wall seen with the poses' error spreads to.
   double max_straightness_rms_m = 0.05;
+  /// ... unless the view's own uncertainty spreads it more: a view posted with a pose σ of 3 cm / 0.5° lies
+  /// anywhere within a few cm across its midpoint and turns by 0.5°, which over 17 m is 4 cm RMS by itself. The
+  /// allowance is this many σ of that spread (offset at the view's middle, and σφ·L/√12 from its direction), so
+  /// the straightness asks no more of a noisy robot's views than its pose can give, and no less of a good one's.
+  double straightness_sigmas = 2.5;
+  /// Two elements may be joined while together they lie within this many times the RMS scatter of the less
+  /// straight one (or max_straightness_rms_m): two sets with the scatter of noisy views, a few cm apart.
+  double join_scatter_factor = 1.5;
+  /// Elements seen from opposite sides (Element::facing_rad) are the two faces of a wall, kept apart, unless they
+  /// lie this close to each other where they overlap [m]: then they are one thin surface (a partition, a board, a
+  /// wall drawn as a single line) and are joined into one element that faces both ways.
+  double thin_surface_m = 0.03;
   /// Uncertainty of a posted segment without "cov": σ across the line at the segment's midpoint [m] and σ of
   /// its direction [rad]. Stated at the midpoint because a plain diagonal (ρ, φ) covariance would be wrong for
   /// any segment far from the origin (ρ and φ are correlated through the lever arm); see midpoint_line_cov.
@@ -89,8 +101,11 @@ struct Element {
   fusion::LineSegment segment;
   fusion::SegmentMoments moments;  // of the observed segments it was built from (not of a CAD edge it began at)
   std::int64_t support = 1;        // observations fused into it (including the first)
-  std::string origin;              // of the first observation: client | scan | grid (SQL column and JSON "source")
-  std::string observer;            // who sent it first, e.g. robot-1
+  /// Direction [rad] of the normal pointing to the side the wall was seen from, when known (scan lines): the two
+  /// faces of a thin wall face away from each other and are never one element, however close under pose noise.
+  std::optional<double> facing_rad;
+  std::string origin;    // of the first observation: client | scan | grid (SQL column and JSON "source")
+  std::string observer;  // who sent it first, e.g. robot-1
   std::int64_t created_version = 0;
   std::int64_t updated_version = 0;
   double updated_at_unix_s = 0;  // wall-clock time of the last change (rules prune by age)

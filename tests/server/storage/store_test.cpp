@@ -86,6 +86,29 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
   EXPECT_TRUE(store.decisions(1, 10).empty());
 }
 
+// The side a wall was seen from keeps the two faces of a thick wall apart after a restart as before it; unknown
+// stays unknown (NULL), not 0 rad.
+TEST(StoreTest, AnElementsFacingSurvivesReopenAndUnknownStaysUnknown) {
+  testing::TempDir dir;
+  const auto path = (dir.path() / "a.db").string();
+  {
+    Store store({path, true});
+    auto update = add_element(world::WorldState{}, 1);
+    auto element = update.state.elements.at(1);
+    element.facing_rad = -1.25;
+    update.state.elements.put(element);
+    store.commit_observation(update, world::Observation{"r", "scan", "laser", 0, 0, {}}, "{}");
+    auto second = add_element(update.state, 2);
+    ASSERT_FALSE(second.state.elements.at(2).facing_rad.has_value());
+    store.commit_observation(second, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
+  }
+  Store store({path, true});
+  const auto state = store.load(world::WorldOptions{});
+  ASSERT_EQ(state.elements.size(), 2u);
+  EXPECT_EQ(state.elements.at(1).facing_rad, std::optional<double>(-1.25));
+  EXPECT_FALSE(state.elements.at(2).facing_rad.has_value());
+}
+
 TEST(StoreTest, FailedCommitLeavesNothingBehind) {
   testing::TempDir dir;
   Store store({(dir.path() / "a.db").string(), true});
@@ -193,7 +216,8 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   // Back to schema 3 as version 3 wrote it: scan 1 with lines (observation 2), scan 2 without.
   const char* v3 = R"sql(
     DROP INDEX decisions_by_observation; DROP TABLE requests; ALTER TABLE scans DROP COLUMN lines_seq;
-    ALTER TABLE elements DROP COLUMN moments; DROP TABLE placements; DROP TABLE georeference;
+    ALTER TABLE elements DROP COLUMN moments; ALTER TABLE elements DROP COLUMN facing; DROP TABLE placements;
+    DROP TABLE georeference;
     DROP TABLE robot_poses; DROP INDEX scans_by_observer; DROP TABLE plan_changes; DROP TABLE edge_beams;
     PRAGMA user_version = 3;
     INSERT INTO observations VALUES (1, 'client', 'r', 0, 0, '{}'), (2, 'scan', 'r', 0, 0, '{"scan": 1}');

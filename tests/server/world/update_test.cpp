@@ -293,6 +293,9 @@ TEST(UpdateTest, AnElementBuiltFromABentWallTakesNoMoreObservations) {
   EXPECT_NEAR(element.moments.rms_offset_m(), 0.1 / std::sqrt(12.0), 2e-3);
   state.elements.put(element);
   options.max_straightness_rms_m = 0.02;
+  // The fixed allowance alone: a 1 cm view's own spread would allow 2.9 cm, the element's scatter 4.4 cm.
+  options.straightness_sigmas = 0.0;
+  options.join_scatter_factor = 0.0;
   const auto result = apply_observation(state, observe({{{4, 0.0}, {6, 0.0}}}, options), 2, options, std::ref(rules));
   // Neither a candidate for the view nor joined with the element the view became.
   EXPECT_FALSE(rules.asked.back().element_id.has_value()) << "the bent element is no candidate";
@@ -301,6 +304,98 @@ TEST(UpdateTest, AnElementBuiltFromABentWallTakesNoMoreObservations) {
   const auto taken = apply_observation(state, observe({{{4, 0.0}, {6, 0.0}}}, options), 2, options, std::ref(rules));
   EXPECT_EQ(rules.asked.back().element_id, "e1");
   EXPECT_EQ(taken.state.elements.size(), 1u);
+}
+
+// One segment seen by a sensor at `viewpoint` (its facing set) with the midpoint-form σ a pose of that quality
+// gives; `facing` false leaves the facing unknown, as for a posted segment.
+Observation view_from(Eigen::Vector2d a, Eigen::Vector2d b, Eigen::Vector2d viewpoint, double offset_sigma_m,
+                      double angle_sigma_rad, bool facing = true) {
+  Observation obs;
+  obs.observer = "robot";
+  obs.origin = "scan";
+  auto s = fusion::LineSegment::from_points(a, b, Eigen::Matrix2d::Identity());
+  s.line.cov = midpoint_line_cov(s, offset_sigma_m, angle_sigma_rad);
+  obs.segments.push_back({s, facing ? std::optional<double>(facing_toward(s, viewpoint)) : std::nullopt});
+  return obs;
+}
+
+TEST(FacingTest, FacingPointsToTheSensorsSideWhicheverWayTheLineIsWritten) {
+  const auto s = fusion::LineSegment::from_points({0, 1}, {4, 1}, Eigen::Matrix2d::Identity());
+  const auto r = fusion::LineSegment::from_points({4, 1}, {0, 1}, Eigen::Matrix2d::Identity());
+  EXPECT_NEAR(std::cos(facing_toward(s, {2, 3})), 0.0, 1e-12);
+  EXPECT_NEAR(std::sin(facing_toward(s, {2, 3})), 1.0, 1e-12);
+  EXPECT_NEAR(std::sin(facing_toward(r, {2, 3})), 1.0, 1e-12);
+  EXPECT_NEAR(std::sin(facing_toward(s, {2, -3})), -1.0, 1e-12);
+  EXPECT_TRUE(faces_agree(facing_toward(s, {2, 3}), facing_toward(r, {1, 2})));
+  EXPECT_FALSE(faces_agree(facing_toward(s, {2, 3}), facing_toward(s, {2, -3})));
+  EXPECT_TRUE(faces_agree(std::nullopt, facing_toward(s, {2, -3})));
+}
+
+// A 12 cm wall seen from both sides by a robot whose pose is known to σ 5 cm across the view: the two faces pass
+// every gate, and only the side they were seen from tells them apart.
+TEST(FacingTest, TheTwoFacesOfAThickWallSeenFromEitherSideStayTwoElements) {
+  WorldOptions options;
+  JoiningRules rules;
+  const auto below = view_from({0, 0}, {6, 0}, {3, -2}, 0.05, 0.0087);
+  const auto above = view_from({0, 0.12}, {6, 0.12}, {3, 2.12}, 0.05, 0.0087);
+  auto state = apply_observation(WorldState{}, below, 1, options, std::ref(rules)).state;
+  const auto two = apply_observation(state, above, 2, options, std::ref(rules));
+  ASSERT_EQ(two.state.elements.size(), 2u) << "the faces of a 12 cm wall became one element";
+  EXPECT_NEAR(two.state.elements.at(1).segment.line.signed_distance({3, 0}), 0.0, 1e-9);
+  EXPECT_NEAR(std::abs(two.state.elements.at(2).segment.line.signed_distance({3, 0.12})), 0.0, 1e-9);
+  EXPECT_NEAR(std::sin(*two.state.elements.at(1).facing_rad), -1.0, 1e-9);
+  EXPECT_NEAR(std::sin(*two.state.elements.at(2).facing_rad), 1.0, 1e-9);
+  // The same views without their facing (posted segments): nothing tells them apart, and they are one element.
+  const auto below_posted = view_from({0, 0}, {6, 0}, {3, -2}, 0.05, 0.0087, false);
+  const auto above_posted = view_from({0, 0.12}, {6, 0.12}, {3, 2.12}, 0.05, 0.0087, false);
+  state = apply_observation(WorldState{}, below_posted, 1, options, std::ref(rules)).state;
+  EXPECT_EQ(apply_observation(state, above_posted, 2, options, std::ref(rules)).state.elements.size(), 1u);
+}
+
+TEST(FacingTest, AThinSurfaceSeenFromBothSidesIsOneElementThatFacesBothWays) {
+  WorldOptions options;
+  JoiningRules rules;
+  auto state =
+      apply_observation(WorldState{}, view_from({0, 0}, {6, 0}, {3, -2}, 0.01, 0.0035), 1, options, std::ref(rules))
+          .state;
+  // 1 cm from the first, seen from the other side: no candidate for the view, then joined as one thin surface.
+  const auto joined =
+      apply_observation(state, view_from({0, 0.01}, {6, 0.01}, {3, 2}, 0.01, 0.0035), 2, options, std::ref(rules));
+  ASSERT_EQ(joined.state.elements.size(), 1u);
+  const Element& surface = (*joined.state.elements.begin()).second;
+  EXPECT_FALSE(surface.facing_rad.has_value());
+  EXPECT_EQ(joined.decisions.back().rule, "elements_merged");
+  // From now on a view from either side merges straight into it.
+  for (const auto& viewpoint : {Eigen::Vector2d(3, -2), Eigen::Vector2d(3, 2)}) {
+    const auto more = apply_observation(joined.state, view_from({1, 0.005}, {5, 0.005}, viewpoint, 0.01, 0.0035), 3,
+                                        options, std::ref(rules));
+    EXPECT_EQ(more.state.elements.size(), 1u);
+    EXPECT_EQ(more.decisions.front().matched_element, surface.id());
+  }
+  // 5 cm apart is more than thin_surface_m: two faces.
+  const auto thick =
+      apply_observation(state, view_from({0, 0.05}, {6, 0.05}, {3, 2}, 0.01, 0.0035), 2, options, std::ref(rules));
+  EXPECT_EQ(thick.state.elements.size(), 2u);
+}
+
+// A 17 m wall: a second view turned by 1.5° (3σ of a 0.5° heading, 2σ of the difference of two) spreads the two to
+// 6.4 cm RMS, more than the fixed 5 cm, but within what the view's own covariance allows.
+TEST(UpdateTest, AViewOfALongWallPostedWithANoisyHeadingIsTakenIn) {
+  WorldOptions options;
+  JoiningRules rules;
+  const double tilt = 1.5 * std::numbers::pi / 180;
+  const auto first = view_from({0, 0}, {17, 0}, {8.5, -3}, 0.03, 0.0087);
+  const auto second = view_from({0, -0.5 * 17 * std::sin(tilt)}, {17 * std::cos(tilt), 0.5 * 17 * std::sin(tilt)},
+                                {8.5, -3}, 0.03, 0.0087);
+  const auto state = apply_observation(WorldState{}, first, 1, options, std::ref(rules)).state;
+  const auto spread = (state.elements.at(1).moments + fusion::SegmentMoments::of(second.segments[0].segment));
+  ASSERT_GT(spread.rms_offset_m(), options.max_straightness_rms_m);
+  const auto taken = apply_observation(state, second, 2, options, std::ref(rules));
+  EXPECT_EQ(taken.state.elements.size(), 1u);
+  EXPECT_EQ(taken.decisions.front().matched_element, "e1");
+  // Held to the fixed 5 cm alone, the view is another wall.
+  options.straightness_sigmas = 0.0;
+  EXPECT_EQ(apply_observation(state, second, 2, options, std::ref(rules)).state.elements.size(), 2u);
 }
 
 TEST(UpdateTest, MidpointCovarianceCarriesTheLeverArm) {
