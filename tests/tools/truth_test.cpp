@@ -182,5 +182,44 @@ INSTANTIATE_TEST_SUITE_P(Buildings, TruthBuildingTest,
                            return name;
                          });
 
+// The same drives with the pose posted at σ 3 cm / 0.5° (and its covariance): mapping without the plan, with the
+// figures reached (seed 1) as the floor, so that what keeps noisy views on their walls and the two faces of a wall
+// apart cannot quietly go. Targets not met here: precision (0.82-0.89: long walls fused a few cm off) and recall
+// (0.74-0.97).
+struct ExpectedNoisy {
+  const char* building;
+  double precision, recall;
+};
+
+class TruthHighNoiseTest : public ::testing::TestWithParam<ExpectedNoisy> {};
+
+TEST_P(TruthHighNoiseTest, NoisyPosesStillGiveOneElementPerWall) {
+  const auto& e = GetParam();
+  TruthOptions options;
+  options.data_dir = data_dir();
+  options.rules_dir = WM_RULES_DIR;
+  options.pose_noise = PoseNoise::high;
+  options.with_plan = false;  // the as-built figures at this noise are wm-truth's
+  const auto r = run_truth(e.building, options);
+  std::printf("%s", format_table({r}).c_str());
+  const auto& m = r.mapping;
+  EXPECT_GE(m.precision, e.precision);
+  EXPECT_GE(m.recall, e.recall);
+  EXPECT_LE(m.redundancy, 0.02);
+  EXPECT_LE(m.elements_per_wall, 1.2);
+  EXPECT_EQ(m.people_element_m, 0.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Buildings, TruthHighNoiseTest,
+                         ::testing::Values(ExpectedNoisy{"gdc1", 0.87, 0.83}, ExpectedNoisy{"ahg2", 0.80, 0.82},
+                                           ExpectedNoisy{"rmf-office", 0.83, 0.96},
+                                           ExpectedNoisy{"barcelona", 0.86, 0.72}),
+                         [](const auto& info) {
+                           std::string name = info.param.building;
+                           for (auto& ch : name)
+                             if (ch == '-') ch = '_';
+                           return name;
+                         });
+
 }  // namespace
 }  // namespace wm::truth
