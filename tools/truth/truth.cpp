@@ -280,11 +280,21 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
         const int w = world.demolished[g][m];
         demolished[w] = 1;
         const auto& bins = coverage.seen_through[g][m];
+        double wall_through = 0, wall_reported = 0;
+        std::string unreported;  // the seen-through bins no verdict covers, as [from, to) m along the wall
         for (std::size_t b = 0; b < bins.size(); ++b) {
           const bool seen = bins[b] >= kMinBeamsThrough;
-          through += seen ? kBinM : 0;
-          reported += seen && missing[w][b] ? kBinM : 0;
+          wall_through += seen ? kBinM : 0;
+          wall_reported += seen && missing[w][b] ? kBinM : 0;
+          if (seen && !missing[w][b])
+            unreported += " " + fixed(static_cast<double>(b) * kBinM, 2) + "(" + std::to_string(bins[b]) + ")";
         }
+        through += wall_through;
+        reported += wall_reported;
+        if (std::getenv("WM_TRUTH_VERBOSE"))
+          std::fprintf(stderr, "demolished %s/%zu (%.2f m): seen through %.2f m, reported missing %.2f m; not reported at m (beams):%s\n",
+                       walls[w].object_id.c_str(), walls[w].edge, (walls[w].p1 - walls[w].p0).norm(), wall_through,
+                       wall_reported, unreported.c_str());
       }
       if (through > 0) {
         found += reported / through;

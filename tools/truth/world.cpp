@@ -604,7 +604,8 @@ Drive drive(const Building& building, const BuiltWorld& world, const LaserOption
           const double t = ray_segment(o, dir, gone[g].p0, gone[g].p1);
           if (t >= best) continue;
           const Vec along = (gone[g].p1 - gone[g].p0).normalized();
-          if (std::abs(dir.x() * along.y() - dir.y() * along.x()) < std::sin(kMinIncidenceRad)) continue;
+          const double sin_incidence = std::abs(dir.x() * along.y() - dir.y() * along.x());
+          if (sin_incidence < std::sin(kMinIncidenceRad) || (best - t) * sin_incidence < kMinDepthBeyondM) continue;
           auto& bins = coverage.seen_through[group][m];
           bins[std::min(bins.size() - 1, static_cast<std::size_t>((o + t * dir - gone[g].p0).norm() / kBinM))] += 1;
         }

@@ -123,6 +123,10 @@ inline constexpr double kBinM = 0.05;
 /// What the drive saw of each line.
 /// Beams closer than this to running along a wall are not counted as seeing through it [rad] (10°).
 inline constexpr double kMinIncidenceRad = 0.1745;
+/// ... nor beams whose return lies less than this beyond it, across the wall [m]: a standing surface that close
+/// behind a drawn line (AHG2 draws a wall's faces and frames as parallel lines 2-15 cm apart, some of which stay) is,
+/// to any laser, that wall; the beam did not see space where the wall was.
+inline constexpr double kMinDepthBeyondM = 0.15;
 /// A stretch of a demolished wall counts as seen through when this many beams went through it: the grid needs
 /// about three views of free space before a cell is free.
 inline constexpr std::uint32_t kMinBeamsThrough = 3;
