@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
     // Before the HTTP server, which hands it to handlers, and after the world it reads.
     std::optional<shm::SharedMapExport> shared_memory;
     if (cfg.shm.enabled) {
-      shared_memory.emplace(world, cfg.shm, services.map_cache->instance());
+      shared_memory.emplace(world, cfg.shm, services.map_cache->instance(), diagnostics);
       services.shm = &*shared_memory;
       const auto status = shared_memory->status();
       if (status.available)
@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
           if (api::websocket_subprotocol(r) == foxglove::kSubprotocol) return foxglove_bridge.connect();
           return nullptr;
         }};
-    http::HttpServer server(cfg.http, std::move(handlers), &events);
+    http::HttpServer server(cfg.http, std::move(handlers), diagnostics, &events);
     std::thread signal_waiter([&server, signals] {
       int signal = 0;
       sigwait(&signals, &signal);

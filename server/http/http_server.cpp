@@ -16,7 +16,6 @@
 #include <chrono>
 #include <condition_variable>
 #include <deque>
-#include <iostream>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -209,8 +208,8 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
   // a grid of tens of megabytes.
   static constexpr std::chrono::seconds kIdleTimeout{120};
 
-  EndpointSession(tcp::socket&& socket, std::shared_ptr<WebSocketEndpoint> endpoint)
-      : ws_(std::move(socket)), endpoint_(std::move(endpoint)) {}
+  EndpointSession(tcp::socket&& socket, std::shared_ptr<WebSocketEndpoint> endpoint, common::Diagnostics& diagnostics)
+      : ws_(std::move(socket)), endpoint_(std::move(endpoint)), diagnostics_(diagnostics) {}
   ~EndpointSession() { stop(); }
 
   void run(bhttp::request<bhttp::string_body> request) {
@@ -237,7 +236,7 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
         if (auto self = weak.lock()) net::post(self->ws_.get_executor(), [self] { self->pump(); });
       });
     } catch (const std::exception& e) {
-      std::cerr << "wmd: WebSocket not opened: " << e.what() << "\n";
+      diagnostics_.report(common::Severity::warning, "http", std::string("WebSocket not opened: ") + e.what());
       return stop();
     }
     pump();
@@ -252,7 +251,7 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
         self->endpoint_->receive(std::string_view(static_cast<const char*>(data.data()), data.size()),
                                  !self->ws_.got_text());
       } catch (const std::exception& e) {  // endpoints do not throw; should one, its connection ends
-        std::cerr << "wmd: WebSocket closed: " << e.what() << std::endl;
+        self->diagnostics_.report(common::Severity::warning, "http", std::string("WebSocket closed: ") + e.what());
         return self->close_now();
       }
       self->buffer_.consume(self->buffer_.size());
@@ -265,7 +264,7 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
     try {
       for (auto& frame : endpoint_->take()) outbox_.push_back(std::move(frame));
     } catch (const std::exception& e) {
-      std::cerr << "wmd: WebSocket closed: " << e.what() << std::endl;
+      diagnostics_.report(common::Severity::warning, "http", std::string("WebSocket closed: ") + e.what());
       return close_now();
     }
     write_next();
@@ -313,6 +312,7 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
 
   websocket::stream<beast::tcp_stream> ws_;
   std::shared_ptr<WebSocketEndpoint> endpoint_;
+  common::Diagnostics& diagnostics_;
   beast::flat_buffer buffer_;
   std::deque<WebSocketFrame> outbox_;
   std::array<net::const_buffer, 2> buffers_;
@@ -324,8 +324,13 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
 class Session : public std::enable_shared_from_this<Session> {
  public:
   Session(tcp::socket&& socket, const HttpOptions& options, const HttpServer::Handlers& handlers, HandlerPool& pool,
-          events::EventHub* hub)
-      : stream_(std::move(socket)), options_(options), handlers_(handlers), pool_(pool), hub_(hub) {}
+          events::EventHub* hub, common::Diagnostics& diagnostics)
+      : stream_(std::move(socket)),
+        options_(options),
+        handlers_(handlers),
+        pool_(pool),
+        hub_(hub),
+        diagnostics_(diagnostics) {}
 
   void start() { net::dispatch(stream_.get_executor(), beast::bind_front_handler(&Session::read, shared_from_this())); }
 
@@ -367,7 +372,8 @@ class Session : public std::enable_shared_from_this<Session> {
       if (endpoint || hub_) {
         stream_.expires_never();
         if (endpoint) {
-          std::make_shared<EndpointSession>(stream_.release_socket(), std::move(endpoint))->run(parser_->release());
+          std::make_shared<EndpointSession>(stream_.release_socket(), std::move(endpoint), diagnostics_)
+              ->run(parser_->release());
         } else {
           std::make_shared<EventSession>(stream_.release_socket(), *hub_)->run(parser_->release());
         }
@@ -465,14 +471,17 @@ class Session : public std::enable_shared_from_this<Session> {
   const HttpServer::Handlers& handlers_;
   HandlerPool& pool_;
   events::EventHub* hub_;
+  common::Diagnostics& diagnostics_;
 };
 
 }  // namespace
 
 struct HttpServer::Impl {
-  explicit Impl(const HttpOptions& o) : options(o), pool(o.handler_threads, o.write_threads, o.handler_queue) {}
+  Impl(const HttpOptions& o, common::Diagnostics& d)
+      : options(o), diagnostics(d), pool(o.handler_threads, o.write_threads, o.handler_queue) {}
 
   const HttpOptions options;
+  common::Diagnostics& diagnostics;
   Handlers handlers;
   events::EventHub* hub = nullptr;
   net::io_context ioc;
@@ -487,10 +496,10 @@ struct HttpServer::Impl {
       if (ec == net::error::operation_aborted || !acceptor.is_open()) return;
       if (ec) return back_off(ec);
       if (accept_delay.count() != 0) {
-        std::cerr << "wmd: accepting connections again" << std::endl;
+        diagnostics.report(common::Severity::info, "http", "accepting connections again");
         accept_delay = std::chrono::milliseconds(0);
       }
-      std::make_shared<Session>(std::move(socket), options, handlers, pool, hub)->start();
+      std::make_shared<Session>(std::move(socket), options, handlers, pool, hub, diagnostics)->start();
       accept();
     });
   }
@@ -499,8 +508,8 @@ struct HttpServer::Impl {
   // fails again at once. Wait 50 ms, doubling up to 1 s, until descriptors are free again.
   void back_off(const beast::error_code& ec) {
     if (accept_delay.count() == 0)
-      std::cerr << "wmd: accept failed (" << ec.message() << "); retrying every 50 ms to 1 s until it succeeds"
-                << std::endl;
+      diagnostics.report(common::Severity::warning, "http",
+                         "accept failed (" + ec.message() + "); retrying every 50 ms to 1 s until it succeeds");
     accept_delay = std::clamp(accept_delay * 2, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
     accept_timer.expires_after(accept_delay);
     accept_timer.async_wait([this](beast::error_code wait_ec) {
@@ -509,8 +518,9 @@ struct HttpServer::Impl {
   }
 };
 
-HttpServer::HttpServer(const HttpOptions& options, Handlers handlers, events::EventHub* events)
-    : impl_(std::make_unique<Impl>(options)) {
+HttpServer::HttpServer(const HttpOptions& options, Handlers handlers, common::Diagnostics& diagnostics,
+                       events::EventHub* events)
+    : impl_(std::make_unique<Impl>(options, diagnostics)) {
   impl_->handlers = std::move(handlers);
   impl_->hub = events;
   const tcp::endpoint endpoint{net::ip::make_address(options.bind_address), options.port};

@@ -6,6 +6,7 @@
 #include <optional>
 #include <string>
 
+#include "common/diagnostics.h"
 #include "server/api/http_types.h"
 #include "server/events/event_hub.h"
 #include "server/http/websocket_endpoint.h"
@@ -60,9 +61,11 @@ class HttpServer {
     std::function<std::shared_ptr<WebSocketEndpoint>(const api::Request&)> open_websocket;
   };
   /// Binds and listens. WebSocket upgrades that `handlers.is_websocket` accepts run on the endpoint
-  /// `handlers.open_websocket` gives, or else subscribe to `events` (when given).
+  /// `handlers.open_websocket` gives, or else subscribe to `events` (when given). What the server recovers from (a
+  /// failed accept, an endpoint that threw) goes to `diagnostics` (where "http"), which must outlive it.
   /// @throw boost::system::system_error when the address cannot be bound.
-  HttpServer(const HttpOptions& options, Handlers handlers, events::EventHub* events = nullptr);
+  HttpServer(const HttpOptions& options, Handlers handlers, common::Diagnostics& diagnostics,
+             events::EventHub* events = nullptr);
   ~HttpServer();
   unsigned short port() const;
   /// Serves until stop(); runs the I/O threads (the caller's thread is one of them).

@@ -15,7 +15,6 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
-#include <iostream>
 #include <regex>
 #include <sstream>
 
@@ -167,14 +166,16 @@ class SharedMapExport::Segment {
   std::atomic<bool> lost_{false};
 };
 
-SharedMapExport::SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance)
-    : world_(world), options_(options), server_instance_(std::move(server_instance)) {
+SharedMapExport::SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance,
+                                 common::Diagnostics& diagnostics)
+    : world_(world), diagnostics_(diagnostics), options_(options), server_instance_(std::move(server_instance)) {
   const auto tiles = world_.grid_tiles();
   tile_size_cells_ = tiles.tile_size_cells;
   resolution_m_ = tiles.resolution_m;
   owner_start_ticks_ = process_stat(::getpid()).value_or(ProcessStat{}).start_ticks;
   for (const auto& name : remove_stale_segments())
-    std::cout << "wmd: removed shared memory " << name << " left by a server that is gone\n";
+    diagnostics_.report(common::Severity::info, "shm",
+                        "removed shared memory " + name + " left by a server that is gone");
   sync();
   try {
     thread_ = std::thread([this] { run(); });
@@ -228,7 +229,8 @@ void SharedMapExport::sync() {
   } catch (const std::exception& e) {
     error_ = e.what();  // the service keeps serving HTTP; the next pass tries again
   }
-  if (!error_.empty() && error_ != before) std::cerr << "wmd: shared memory export: " << error_ << "\n";
+  if (!error_.empty() && error_ != before)
+    diagnostics_.report(common::Severity::warning, "shm", "shared memory export: " + error_);
 }
 
 void SharedMapExport::sync_locked() {
@@ -239,8 +241,9 @@ void SharedMapExport::sync_locked() {
   // the world (nothing is copied from this one), and this one is retired with the new name where it still can be.
   const bool replace = segment_ && !segment_->intact();
   if (replace) {
-    std::cerr << "wmd: shared memory " << segment_->name()
-              << " was truncated or changed by another process: it is replaced\n";
+    diagnostics_.report(
+        common::Severity::warning, "shm",
+        "shared memory " + segment_->name() + " was truncated or changed by another process: it is replaced");
     slots_.clear();
     map_version_ = -1;
   }

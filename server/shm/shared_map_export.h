@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/diagnostics.h"
 #include "server/service/world_port.h"
 
 namespace wm::shm {
@@ -70,8 +71,10 @@ struct ShmStatus {
 class SharedMapExport {
  public:
   /// Removes stale segments, makes the segment, fills it once and starts the thread. Never throws for a segment
-  /// that cannot be made: status() says why, and each pass tries again.
-  SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance);
+  /// that cannot be made: status() says why, each pass tries again, and `diagnostics` (where "shm", which must
+  /// outlive this) counts each new failure and each segment replaced.
+  SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance,
+                  common::Diagnostics& diagnostics);
   ~SharedMapExport();
   SharedMapExport(const SharedMapExport&) = delete;
   SharedMapExport& operator=(const SharedMapExport&) = delete;
@@ -107,6 +110,7 @@ class SharedMapExport {
                  std::uint64_t objects, std::uint64_t edges);
 
   const service::WorldPort& world_;
+  common::Diagnostics& diagnostics_;
   const ShmOptions options_;
   const std::string server_instance_;
   std::int64_t tile_size_cells_ = 0;

@@ -76,7 +76,8 @@ shm::ShmOptions fast(std::uint64_t max_bytes = std::uint64_t{1} << 30) {
 TEST(SharedMapExportTest, ReadersNeverSeeATornTileWhileTheWriterHammersTheSlots) {
   CountingGridPort port;
   for (int i = 0; i < 8; ++i) port.bump(i, -i);
-  shm::SharedMapExport exporter(port, fast(), "test-run");
+  common::Diagnostics diagnostics("", nullptr);
+  shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
   const auto name = exporter.status().name;
 
   std::atomic<bool> done{false};
@@ -121,7 +122,8 @@ TEST(SharedMapExportTest, ReadersNeverSeeATornTileWhileTheWriterHammersTheSlots)
 TEST(SharedMapExportTest, GrowsIntoALargerSegmentAndTheOldOneNamesIt) {
   CountingGridPort port;
   port.bump(0, 0);
-  shm::SharedMapExport exporter(port, fast(), "test-run");
+  common::Diagnostics diagnostics("", nullptr);
+  shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
   const auto first = exporter.status();
   ASSERT_TRUE(first.available) << first.error;
   reader::Reader old_segment(first.name);
@@ -150,7 +152,9 @@ TEST(SharedMapExportTest, GrowsIntoALargerSegmentAndTheOldOneNamesIt) {
 
 TEST(SharedMapExportTest, ASizeCapLeavesTilesOutAndSaysSo) {
   CountingGridPort port;
-  shm::SharedMapExport exporter(port, fast(std::uint64_t{1} << 20), "test-run");  // 1 MB: about 180 slots of 16²
+  common::Diagnostics diagnostics("", nullptr);
+  shm::SharedMapExport exporter(port, fast(std::uint64_t{1} << 20), "test-run",
+                                diagnostics);  // 1 MB: about 180 slots of 16²
   for (std::int64_t i = 0; i < 1000; ++i) port.bump(i, 0);
   exporter.sync();
   const auto status = exporter.status();
@@ -169,7 +173,8 @@ TEST(SharedMapExportTest, ASizeCapLeavesTilesOutAndSaysSo) {
 TEST(SharedMapExportTest, AStopMarksTheSegmentStoppedAndRemovesItsName) {
   CountingGridPort port;
   port.bump(1, 1);
-  std::optional<shm::SharedMapExport> exporter(std::in_place, port, fast(), "test-run");
+  common::Diagnostics diagnostics("", nullptr);
+  std::optional<shm::SharedMapExport> exporter(std::in_place, port, fast(), "test-run", diagnostics);
   const auto name = exporter->status().name;
   ASSERT_TRUE(segment_exists(name));
   reader::Reader segment(name);
@@ -191,7 +196,8 @@ TEST(SharedMapExportTest, TheMapRecordsAreThePlanAsPlacedAndTheElements) {
   e.updated_version = 5;
   port.state().elements.put(e);
   port.state().version = 5;
-  shm::SharedMapExport exporter(port, fast(), "test-run");
+  common::Diagnostics diagnostics("", nullptr);
+  shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
   reader::Reader segment(exporter.status().name);
   const auto map = segment.read_map();
   EXPECT_EQ(map.version, 5);
@@ -255,7 +261,8 @@ TEST(SharedMapExportTest, SegmentsNoServerHoldsGoAndOthersStay) {
   // (Other test processes clean /dev/shm too, so what must go is checked by its absence, not by who removed it.)
   const auto left_before_start = leave_segment(12345, /*locked=*/false);
   CountingGridPort port;
-  std::optional<shm::SharedMapExport> alive(std::in_place, port, fast(), "test-run");
+  common::Diagnostics diagnostics("", nullptr);
+  std::optional<shm::SharedMapExport> alive(std::in_place, port, fast(), "test-run", diagnostics);
   EXPECT_FALSE(segment_exists(left_before_start->name)) << "a starting exporter removes what dead servers left";
   const auto own = alive->status().name;
   const auto unlocked = leave_segment(::getpid(), false);  // names a live pid, but no process holds its lock
@@ -373,7 +380,8 @@ TEST(SharedMapExportTest, ALayoutRewrittenInTheHeaderIsNeitherUsedNorLeftForRead
         const bool ok = [] {
           CountingGridPort port;
           for (int i = 0; i < 4; ++i) port.bump(i, 0);
-          shm::SharedMapExport exporter(port, fast(), "test-run");
+          common::Diagnostics diagnostics("", nullptr);
+          shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
           const auto before = exporter.status();
           {
             SameUser other(before.name);
@@ -410,7 +418,8 @@ TEST(SharedMapExportTest, ATruncatedSegmentIsReplacedAndTheExporterLivesOn) {
         const bool ok = [] {
           CountingGridPort port;
           for (int i = 0; i < 4; ++i) port.bump(i, 0);
-          shm::SharedMapExport exporter(port, fast(), "test-run");
+          common::Diagnostics diagnostics("", nullptr);
+          shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
           for (const std::size_t keep : {std::size_t{0}, std::size_t{4096}, std::size_t{8192}}) {
             const auto before = exporter.status().name;
             SameUser(before).truncate(keep);
@@ -423,6 +432,13 @@ TEST(SharedMapExportTest, ATruncatedSegmentIsReplacedAndTheExporterLivesOn) {
               return false;
             }
             if (!segment_holds(exporter, port, 4)) return false;
+          }
+          // Each replacement was reported, not only written to a terminal.
+          const auto summary = diagnostics.summary();
+          const auto shm = summary.by_where.find("shm");
+          if (shm == summary.by_where.end() || shm->second.warnings < 3) {
+            std::cerr << "the three replacements were not counted as warnings of \"shm\"\n";
+            return false;
           }
           return true;
         }();
@@ -439,7 +455,8 @@ TEST(SharedMapExportTest, TruncationsRacingTheCopiesNeverKillTheExporter) {
         const bool ok = [] {
           CountingGridPort port;
           for (int i = 0; i < 64; ++i) port.bump(i, 0);
-          shm::SharedMapExport exporter(port, fast(), "test-run");
+          common::Diagnostics diagnostics("", nullptr);
+          shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
           std::atomic<bool> done{false};
           std::atomic<int> cuts{0};
           std::thread other([&] {
