@@ -1,7 +1,5 @@
 // Lines extracted from the grid: matched to the elements the scans built without moving them, and ends cut
 // back to surfaces the grid saw.
-#include "server/world/update_internal.h"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include "server/world/update_internal.h"
 
 namespace wm::world::update_internal {
 std::optional<std::int64_t> grid_line_on_element(const WorldState& state, const fusion::LineSegment& seen,

@@ -1,6 +1,4 @@
 // Joining elements that turn out to be views of one wall, and the straightness an element keeps.
-#include "server/world/update_internal.h"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +8,8 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include "server/world/update_internal.h"
 
 namespace wm::world::update_internal {
 namespace {
@@ -21,7 +21,6 @@ double join_straightness_allowance_m(const Element& a, const Element& b, const W
   return std::max(options.max_straightness_rms_m,
                   options.join_scatter_factor * std::max(a.moments.rms_offset_m(), b.moments.rms_offset_m()));
 }
-
 
 // Whether `part` is a piece of the wall `whole` stands for, whatever its own direction says: at most half as long,
 // its ends projected within `max_gap_m` of the whole's extent, and the part as a whole within `band_m` RMS of its

@@ -1,7 +1,5 @@
 // Rigid (not_deformable) objects: found again by their shape when carried beyond their gate, and moved by
 // the lines the rules sent to rigid_adjust.
-#include "server/world/update_internal.h"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+
+#include "server/world/update_internal.h"
 
 namespace wm::world::update_internal {
 namespace {
