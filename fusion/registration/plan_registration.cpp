@@ -1,18 +1,18 @@
 #include "fusion/registration/plan_registration.h"
 
-#include <Eigen/Cholesky>
 #include <Eigen/Geometry>
-#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <numeric>
-#include <unordered_map>
+#include <string>
 
+#include "fusion/registration/plan_registration_internal.h"
+
+// The correlative search (branch and bound over a max-pooled pyramid) and register_plan, which drives it and the
+// refinement.
 namespace wm::fusion {
+using namespace internal;
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // Levels of the max-pooled pyramid above the finest: a root covers 2^7 = 128 search cells (Cartographer's
 // default branch-and-bound depth).
 constexpr int kLevels = 7;
@@ -23,34 +23,6 @@ constexpr std::size_t kMaxRoots = 4000000;
 // How far around a direction-histogram peak rotations are searched [rad]: the spread of the directions read from
 // rasterised walls (±1.5° at 160° on GDC1) that the correlation's peak still carries.
 constexpr double kPeakHalfWidth = 1.0 * kPi / 180;
-
-bool finite(const Eigen::Vector2d& p) { return std::isfinite(p.x()) && std::isfinite(p.y()); }
-
-Eigen::Vector2d perp(const Eigen::Vector2d& v) { return {-v.y(), v.x()}; }
-
-double total_length(const std::vector<DrawnEdge>& edges) {
-  double length = 0;
-  for (const auto& e : edges) length += (e.p1 - e.p0).norm();
-  return length;
-}
-
-// `count` points spread evenly by length along the edges (each in the middle of its stretch), drawn frame.
-std::vector<Eigen::Vector2d> sample_edges(const std::vector<DrawnEdge>& edges, std::size_t count) {
-  std::vector<Eigen::Vector2d> samples;
-  const double length = total_length(edges);
-  if (length <= 0 || count == 0) return samples;
-  const double step = length / static_cast<double>(count);
-  samples.reserve(count + edges.size());
-  double carry = 0.5 * step;  // distance from the start of the next edge to its first sample
-  for (const auto& e : edges) {
-    const double l = (e.p1 - e.p0).norm();
-    for (double t = carry; t < l; t += step) samples.push_back(e.p0 + (e.p1 - e.p0) * (t / l));
-    const double past = l - carry;
-    carry = past < 0 ? -past : step - std::fmod(past, step);
-    if (carry <= 0 || carry > step) carry = step;
-  }
-  return samples;
-}
 
 void validate(const std::vector<DrawnEdge>& edges, const ObservedMap& observed, const RegistrationOptions& o) {
   if (edges.empty()) throw RegistrationError("the plan has no edges to place");
@@ -323,274 +295,7 @@ std::vector<double> angles(double theta0, double range, double step) {
   return result;
 }
 
-// The dominant directions of buildings turn the rotation search into a few candidates: length-weighted histograms of
-// directions (mod π, 0.5° bins) of the drawn edges and of the occupied cells (from the second moments of their
-// occupied neighbours, weighted by how line-like those are) are cross-correlated; each peak δ gives the rotations
-// δ and δ + π. nullopt when the correlation has no clear peak (a round building, too little seen): then every
-// angle is searched.
-constexpr int kDirectionBins = 360;
-
-void add_direction(std::vector<double>& histogram, double angle, double weight) {
-  double bin = std::fmod(angle, kPi) / kPi * kDirectionBins;
-  if (bin < 0) bin += kDirectionBins;
-  const auto low = static_cast<int>(std::floor(bin)) % kDirectionBins;
-  const double frac = bin - std::floor(bin);
-  histogram[static_cast<std::size_t>(low)] += weight * (1 - frac);
-  histogram[static_cast<std::size_t>((low + 1) % kDirectionBins)] += weight * frac;
-}
-
-std::vector<double> smoothed(const std::vector<double>& histogram) {
-  std::vector<double> out(histogram.size(), 0.0);
-  for (int i = 0; i < kDirectionBins; ++i)
-    for (int d = -3; d <= 3; ++d)
-      out[static_cast<std::size_t>(i)] +=
-          std::exp(-0.5 * d * d) * histogram[static_cast<std::size_t>((i + d + kDirectionBins) % kDirectionBins)];
-  return out;
-}
-
-std::optional<std::vector<double>> direction_peaks(const std::vector<DrawnEdge>& edges, const ObservedMap& observed,
-                                                   double occupied_probability) {
-  std::vector<double> drawn(kDirectionBins, 0.0), seen(kDirectionBins, 0.0);
-  for (const auto& e : edges) {
-    const Eigen::Vector2d d = e.p1 - e.p0;
-    if (d.norm() > 0) add_direction(drawn, std::atan2(d.y(), d.x()), d.norm());
-  }
-  const auto& g = observed.geometry;
-  const auto occupied = [&](std::int64_t x, std::int64_t y) {
-    return x >= 0 && y >= 0 && x < g.width() && y < g.height() &&
-           observed.probability[static_cast<std::size_t>(y * g.width() + x)] > occupied_probability;
-  };
-  for (std::int64_t y = 0; y < g.height(); ++y)
-    for (std::int64_t x = 0; x < g.width(); ++x) {
-      if (!occupied(x, y)) continue;
-      // The occupied neighbours within a disk of four cells: a square window, or a smaller disk, bends the
-      // direction of a rasterised wall toward the grid's axes (a wall at 160° read as 150° with 5 × 5).
-      double sxx = 0, syy = 0, sxy = 0;
-      int n = 0;
-      for (int dy = -4; dy <= 4; ++dy)
-        for (int dx = -4; dx <= 4; ++dx)
-          if ((dx || dy) && dx * dx + dy * dy <= 16 && occupied(x + dx, y + dy)) {
-            sxx += dx * dx;
-            syy += dy * dy;
-            sxy += dx * dy;
-            ++n;
-          }
-      if (n < 4) continue;
-      const double anisotropy = std::hypot(sxx - syy, 2 * sxy) / (sxx + syy);
-      add_direction(seen, 0.5 * std::atan2(2 * sxy, sxx - syy), anisotropy);
-    }
-  drawn = smoothed(drawn);
-  seen = smoothed(seen);
-  std::vector<double> correlation(kDirectionBins, 0.0);
-  for (int k = 0; k < kDirectionBins; ++k)
-    for (int i = 0; i < kDirectionBins; ++i)
-      correlation[static_cast<std::size_t>(k)] +=
-          seen[static_cast<std::size_t>((i + k) % kDirectionBins)] * drawn[static_cast<std::size_t>(i)];
-  const double top = *std::max_element(correlation.begin(), correlation.end());
-  const double mean = std::accumulate(correlation.begin(), correlation.end(), 0.0) / kDirectionBins;
-  if (!(top > 1.5 * mean)) return std::nullopt;
-  std::vector<std::pair<double, double>> peaks;  // (correlation, shift [rad])
-  for (int k = 0; k < kDirectionBins; ++k) {
-    const double c = correlation[static_cast<std::size_t>(k)];
-    const double before = correlation[static_cast<std::size_t>((k + kDirectionBins - 1) % kDirectionBins)];
-    const double after = correlation[static_cast<std::size_t>((k + 1) % kDirectionBins)];
-    if (c < 0.5 * top || c < before || c <= after) continue;
-    // Parabolic interpolation between the bins.
-    const double curvature = before - 2 * c + after;
-    const double offset = curvature < 0 ? 0.5 * (before - after) / curvature : 0.0;
-    peaks.emplace_back(c, (k + offset) * kPi / kDirectionBins);
-  }
-  std::sort(peaks.begin(), peaks.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-  if (peaks.size() > 4) peaks.resize(4);
-  std::vector<double> shifts;
-  for (const auto& p : peaks) shifts.push_back(p.second);
-  return shifts;
-}
-
-// Occupied cells and element points, the data the refinement fits the drawn edges to.
-std::vector<Eigen::Vector2d> observed_points(const ObservedMap& observed, double occupied_probability) {
-  std::vector<Eigen::Vector2d> points = observed.element_points;
-  const auto& g = observed.geometry;
-  for (std::int64_t y = 0; y < g.height(); ++y)
-    for (std::int64_t x = 0; x < g.width(); ++x)
-      if (observed.probability[static_cast<std::size_t>(y * g.width() + x)] > occupied_probability)
-        points.push_back(g.center_of({x, y}));
-  return points;
-}
-
-// The covariance of a placement from that of the small similarity about `pivot` it was solved for, (dt, dθ, ds) with
-// t' = m + (1 + ds)·R(dθ)·(t − m) + dt, θ' = θ + dθ, s' = s·(1 + ds). The scale's row and column are zero when held.
-Eigen::Matrix4d placement_cov(const Similarity2D& placement, const Eigen::Vector2d& pivot, Eigen::Matrix4d correction,
-                              bool with_scale) {
-  if (!with_scale) {
-    correction.row(3).setZero();
-    correction.col(3).setZero();
-  }
-  const Eigen::Vector2d lever = Eigen::Vector2d(placement.x_m, placement.y_m) - pivot;
-  Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
-  a.block<2, 2>(0, 0).setIdentity();
-  a.block<2, 1>(0, 2) = perp(lever);
-  a.block<2, 1>(0, 3) = lever;
-  a(2, 2) = 1;
-  a(3, 3) = placement.scale;
-  return a * correction * a.transpose();
-}
-
-struct Refined {
-  Similarity2D placement;
-  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
-  double rms_m = 0;
-  std::size_t matched = 0;
-};
-
-// Gauss-Newton on point-to-line distances of the observed points to the nearest placed edge within a band that
-// narrows from `band0` to two cells. The unknowns are a small similarity about the matched points' centroid m,
-// x ↦ m + (1 + ds)·R(dθ)·(x − m) + dt, so the lever arms stay the building's size whatever the drawing's origin.
-Refined refine(const std::vector<DrawnEdge>& edges, const std::vector<Eigen::Vector2d>& points, Similarity2D placement,
-               double band0, double cell_m, bool with_scale) {
-  Refined result;
-  const int unknowns = with_scale ? 4 : 3;
-  const double band_min = 2.0 * cell_m;
-  double band = std::max(band0, band_min);
-  struct Placed {
-    Eigen::Vector2d a, dir, normal;
-    double length;
-  };
-  std::vector<Placed> placed(edges.size());
-  Eigen::Vector2d lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-  for (const auto& q : points) {
-    lo = lo.cwiseMin(q);
-    hi = hi.cwiseMax(q);
-  }
-  for (int iteration = 0; iteration < 40; ++iteration) {
-    for (std::size_t i = 0; i < edges.size(); ++i) {
-      const Eigen::Vector2d a = placement.transform_point(edges[i].p0), b = placement.transform_point(edges[i].p1);
-      const double length = (b - a).norm();
-      const Eigen::Vector2d dir = length > 0 ? Eigen::Vector2d((b - a) / length) : Eigen::Vector2d(1, 0);
-      placed[i] = {a, dir, perp(dir), length};
-    }
-    // Edges by bucket of `bucket` m, each in every bucket its band-widened box touches.
-    const double bucket = std::max(1.0, 2 * band);
-    const std::int64_t points_box[4] = {static_cast<std::int64_t>(std::floor(lo.x() / bucket)) - 1,
-                                        static_cast<std::int64_t>(std::floor(lo.y() / bucket)) - 1,
-                                        static_cast<std::int64_t>(std::floor(hi.x() / bucket)) + 1,
-                                        static_cast<std::int64_t>(std::floor(hi.y() / bucket)) + 1};
-    std::unordered_map<std::int64_t, std::vector<std::uint32_t>> buckets;
-    std::size_t entries = 0;  // bounded: an absurd plan must not exhaust memory here
-    const auto key = [](std::int64_t bx, std::int64_t by) { return bx * 73856093LL ^ by * 19349663LL; };
-    for (std::size_t i = 0; i < placed.size(); ++i) {
-      const auto& e = placed[i];
-      const Eigen::Vector2d b = e.a + e.dir * e.length;
-      const auto x0 = static_cast<std::int64_t>(std::floor((std::min(e.a.x(), b.x()) - band) / bucket));
-      const auto x1 = static_cast<std::int64_t>(std::floor((std::max(e.a.x(), b.x()) + band) / bucket));
-      const auto y0 = static_cast<std::int64_t>(std::floor((std::min(e.a.y(), b.y()) - band) / bucket));
-      const auto y1 = static_cast<std::int64_t>(std::floor((std::max(e.a.y(), b.y()) + band) / bucket));
-      // Only where there are observed points: an edge's box is clipped to theirs.
-      const auto cx0 = std::max(x0, points_box[0]), cx1 = std::min(x1, points_box[2]);
-      const auto cy0 = std::max(y0, points_box[1]), cy1 = std::min(y1, points_box[3]);
-      if (cx0 > cx1 || cy0 > cy1) continue;
-      const auto cells = static_cast<std::size_t>((cx1 - cx0 + 1) * (cy1 - cy0 + 1));
-      if (cells > 1'000'000 || entries + cells > 20'000'000) continue;  // absurd edges are left to the search
-      entries += cells;
-      for (auto by = cy0; by <= cy1; ++by)
-        for (auto bx = cx0; bx <= cx1; ++bx) buckets[key(bx, by)].push_back(static_cast<std::uint32_t>(i));
-    }
-    struct Match {
-      Eigen::Vector2d q, normal;
-      double offset;  // n·x = offset on the placed edge's line
-    };
-    std::vector<Match> matches;
-    Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
-    for (const auto& q : points) {
-      const auto it = buckets.find(key(static_cast<std::int64_t>(std::floor(q.x() / bucket)),
-                                       static_cast<std::int64_t>(std::floor(q.y() / bucket))));
-      if (it == buckets.end()) continue;
-      double nearest = band;
-      const Placed* match = nullptr;
-      for (const auto i : it->second) {
-        const auto& e = placed[i];
-        const double u = e.dir.dot(q - e.a);
-        if (u < -cell_m || u > e.length + cell_m) continue;
-        const double d = std::abs(e.normal.dot(q - e.a));
-        if (d < nearest) {
-          nearest = d;
-          match = &e;
-        }
-      }
-      if (!match) continue;
-      matches.push_back({q, match->normal, match->normal.dot(match->a)});
-      centroid += q;
-    }
-    if (matches.size() < static_cast<std::size_t>(unknowns) + 1) break;
-    centroid /= static_cast<double>(matches.size());
-    Eigen::Matrix4d normal_matrix = Eigen::Matrix4d::Zero();
-    Eigen::Vector4d gradient = Eigen::Vector4d::Zero();
-    double weighted_sq = 0, weight_sum = 0;
-    for (const auto& m : matches) {
-      const double r = m.normal.dot(m.q) - m.offset;
-      const double w = std::abs(r) <= cell_m ? 1.0 : cell_m / std::abs(r);  // Huber
-      Eigen::Vector4d j(-m.normal.x(), -m.normal.y(), perp(m.normal).dot(m.q - centroid),
-                        -(m.offset - m.normal.dot(centroid)));
-      if (!with_scale) j(3) = 0;
-      normal_matrix += w * j * j.transpose();
-      gradient += w * j * r;
-      weighted_sq += w * r * r;
-      weight_sum += w;
-    }
-    if (!with_scale) normal_matrix(3, 3) = 1;
-    const Eigen::Matrix4d inverse = normal_matrix.inverse();
-    if (!inverse.allFinite()) break;
-    const Eigen::Vector4d delta = -inverse * gradient;
-    // Compose the correction after the placement.
-    const Eigen::Vector2d t(placement.x_m, placement.y_m);
-    const Eigen::Vector2d t_new =
-        centroid + (1 + delta(3)) * (Eigen::Rotation2Dd(delta(2)) * (t - centroid)) + delta.head<2>();
-    placement = {t_new.x(), t_new.y(), placement.theta_rad + delta(2), placement.scale * (1 + delta(3))};
-    result.placement = placement;
-    result.matched = matches.size();
-    const double dof = std::max(1.0, static_cast<double>(matches.size()) - unknowns);
-    const double sigma_sq = weighted_sq / dof;
-    result.rms_m = std::sqrt(weighted_sq / std::max(weight_sum, 1.0));
-    result.covariance = placement_cov(placement, centroid, sigma_sq * inverse, with_scale);
-    const bool settled = delta.head<2>().norm() < 1e-4 && std::abs(delta(2)) < 1e-6 && std::abs(delta(3)) < 1e-7;
-    if (settled && band <= band_min) break;
-    band = std::max(band_min, band * 0.7);
-  }
-  if (result.matched == 0) result.placement = placement;
-  return result;
-}
-
 }  // namespace
-
-PlacementHypothesis score_placement(const std::vector<DrawnEdge>& edges, const ObservedMap& observed,
-                                    const Similarity2D& placement, double occupied_probability) {
-  const auto& g = observed.geometry;
-  const double length_m = total_length(edges) * placement.scale;
-  const auto count = static_cast<std::size_t>(std::clamp(length_m / g.resolution_m(), 1.0, 2.0e6));
-  const auto samples = sample_edges(edges, count);
-  std::size_t known = 0, on = 0;
-  for (const auto& s : samples) {
-    const auto w = placement.transform_point(s);
-    if (!finite(w)) continue;
-    const auto c = g.cell_of(w);
-    bool seen = false, occupied = false;
-    for (std::int64_t dy = -1; dy <= 1; ++dy)
-      for (std::int64_t dx = -1; dx <= 1; ++dx) {
-        const CellIndex n{c.x + dx, c.y + dy};
-        if (!g.contains(n)) continue;
-        const float p = observed.probability[static_cast<std::size_t>(n.y * g.width() + n.x)];
-        if (std::isnan(p)) continue;
-        seen = true;
-        occupied = occupied || p > occupied_probability;
-      }
-    known += seen;
-    on += occupied;
-  }
-  PlacementHypothesis h{placement, 0, 0};
-  if (!samples.empty()) h.coverage = static_cast<double>(known) / static_cast<double>(samples.size());
-  if (known > 0) h.score = static_cast<double>(on) / static_cast<double>(known);
-  return h;
-}
 
 RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const ObservedMap& observed,
                                  const RegistrationOptions& options) {
@@ -724,48 +429,6 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
   result.cancelled = search.cancelled();
   result.hypotheses_scored = search.scored();
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return result;
-}
-
-PairsPlacement place_from_pairs(const std::vector<PointPair>& pairs, bool with_scale, double point_sigma_m) {
-  if (pairs.size() < 2) throw RegistrationError("pairs: at least two point pairs are needed");
-  // Dynamic sizes: Umeyama on Matrix2Xd trips a GCC 12 stringop-overread warning inside Eigen.
-  Eigen::MatrixXd drawn(2, pairs.size()), world(2, pairs.size());
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    if (!finite(pairs[i].drawn) || !finite(pairs[i].world))
-      throw RegistrationError("pairs[" + std::to_string(i) + "]: expected finite coordinates");
-    drawn.col(static_cast<Eigen::Index>(i)) = pairs[i].drawn;
-    world.col(static_cast<Eigen::Index>(i)) = pairs[i].world;
-  }
-  const auto spread = [](const Eigen::MatrixXd& m) { return (m.colwise() - m.rowwise().mean()).norm(); };
-  // Points closer than a millimetre (drawn: relative to the drawing's own extent) leave the rotation undetermined.
-  if (spread(drawn) <= 1e-9 * std::max(1.0, drawn.cwiseAbs().maxCoeff()) || spread(world) < 1e-3)
-    throw RegistrationError("pairs: the points coincide, so the rotation is undetermined");
-  const Eigen::MatrixXd t = Eigen::umeyama(drawn, world, with_scale);
-  PairsPlacement result;
-  const double scale = t.block<2, 2>(0, 0).col(0).norm();
-  result.placement = {t(0, 2), t(1, 2), std::atan2(t(1, 0), t(0, 0)), with_scale ? scale : 1.0};
-  // Covariance by the same small similarity about the world points' centroid as the refinement uses.
-  const Eigen::Vector2d centroid = world.rowwise().mean();
-  Eigen::Matrix4d normal_matrix = Eigen::Matrix4d::Zero();
-  double sq = 0;
-  for (std::size_t i = 0; i < pairs.size(); ++i) {
-    const Eigen::Vector2d placed = result.placement.transform_point(pairs[i].drawn);
-    sq += (pairs[i].world - placed).squaredNorm();
-    for (int axis = 0; axis < 2; ++axis) {
-      Eigen::Vector4d j;
-      j.head<2>() = Eigen::Vector2d::Unit(axis);
-      j(2) = perp(placed - centroid)(axis);
-      j(3) = with_scale ? (placed - centroid)(axis) : 0.0;
-      normal_matrix += j * j.transpose();
-    }
-  }
-  if (!with_scale) normal_matrix(3, 3) = 1;
-  const auto unknowns = with_scale ? 4.0 : 3.0;
-  const double dof = 2.0 * static_cast<double>(pairs.size()) - unknowns;
-  result.rms_m = std::sqrt(sq / static_cast<double>(pairs.size()));
-  const double sigma_sq = std::max(point_sigma_m * point_sigma_m, dof > 0 ? sq / dof : 0.0);
-  result.covariance = placement_cov(result.placement, centroid, sigma_sq * normal_matrix.inverse(), with_scale);
   return result;
 }
 
