@@ -1,137 +1,35 @@
 #include "clients/robot/servosila_bridge.h"
 
-#include <arpa/inet.h>
-#include <netdb.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <cerrno>
-#include <charconv>
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
-#include <map>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <span>
-#include <sstream>
 #include <stdexcept>
 #include <thread>
 #include <vector>
 
+#include "clients/robot/servosila_bridge_internal.h"
 #include "clients/robot/servosila_protocol.h"
-#include "clients/wmctl/http_client.h"
 
 namespace wm::robot {
+using namespace internal;
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-void require(bool condition, const std::string& message) {
-  if (!condition) throw std::invalid_argument("Bridge: " + message);
-}
-
-bool positive_finite(double v) { return std::isfinite(v) && v > 0.0; }
-
-Clock::duration to_duration(double seconds) {
-  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
-}
 
 double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 bool is_zero(const AxisCommand& axes) { return axes.drive == 0 && axes.turn == 0; }
-
-/// Logs the first occurrence of each kind of problem, then at most one line per interval, saying how many were
-/// left out in between.
-class RateLimitedLog {
- public:
-  RateLimitedLog(std::function<void(const std::string&)> sink, double interval_s)
-      : sink_(std::move(sink)), interval_(to_duration(interval_s)) {}
-
-  void always(const std::string& message) const { sink_(message); }
-
-  void limited(const std::string& kind, const std::string& message, Clock::time_point now) {
-    Entry& e = entries_[kind];
-    if (e.logged && now - e.last < interval_) {
-      ++e.suppressed;
-      return;
-    }
-    std::string line = message;
-    if (e.suppressed > 0) line += " (" + std::to_string(e.suppressed) + " more like it not logged)";
-    e = Entry{true, now, 0};
-    sink_(line);
-  }
-
- private:
-  struct Entry {
-    bool logged = false;
-    Clock::time_point last;
-    std::uint64_t suppressed = 0;
-  };
-  std::function<void(const std::string&)> sink_;
-  Clock::duration interval_;
-  std::map<std::string, Entry> entries_;
-};
-
-struct Endpoint {
-  sockaddr_storage address{};
-  socklen_t length = 0;
-};
-
-Endpoint resolve(const std::string& host, std::uint16_t port) {
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_DGRAM;
-  addrinfo* found = nullptr;
-  const int rc = ::getaddrinfo(host.c_str(), std::to_string(port).c_str(), &hints, &found);
-  if (rc != 0 || found == nullptr) {
-    throw std::runtime_error("cannot resolve robot host '" + host + "': " + ::gai_strerror(rc));
-  }
-  Endpoint e;
-  std::memcpy(&e.address, found->ai_addr, found->ai_addrlen);
-  e.length = found->ai_addrlen;
-  ::freeaddrinfo(found);
-  return e;
-}
-
-std::string to_string(const sockaddr_storage& a) {
-  std::array<char, INET6_ADDRSTRLEN> text{};
-  if (a.ss_family == AF_INET) {
-    const auto& in = reinterpret_cast<const sockaddr_in&>(a);
-    ::inet_ntop(AF_INET, &in.sin_addr, text.data(), text.size());
-    return std::string(text.data()) + ":" + std::to_string(ntohs(in.sin_port));
-  }
-  if (a.ss_family == AF_INET6) {
-    const auto& in6 = reinterpret_cast<const sockaddr_in6&>(a);
-    ::inet_ntop(AF_INET6, &in6.sin6_addr, text.data(), text.size());
-    return "[" + std::string(text.data()) + "]:" + std::to_string(ntohs(in6.sin6_port));
-  }
-  return "(address family " + std::to_string(a.ss_family) + ")";
-}
-
-bool same_peer(const sockaddr_storage& a, const sockaddr_storage& b, bool compare_port) {
-  if (a.ss_family != b.ss_family) return false;
-  if (a.ss_family == AF_INET) {
-    const auto& x = reinterpret_cast<const sockaddr_in&>(a);
-    const auto& y = reinterpret_cast<const sockaddr_in&>(b);
-    return x.sin_addr.s_addr == y.sin_addr.s_addr && (!compare_port || x.sin_port == y.sin_port);
-  }
-  if (a.ss_family == AF_INET6) {
-    const auto& x = reinterpret_cast<const sockaddr_in6&>(a);
-    const auto& y = reinterpret_cast<const sockaddr_in6&>(b);
-    return std::memcmp(&x.sin6_addr, &y.sin6_addr, sizeof x.sin6_addr) == 0 &&
-           (!compare_port || x.sin6_port == y.sin6_port);
-  }
-  return false;
-}
 
 const MotorRecord* find_motor(const TelemetryPacket& packet, std::uint8_t id) {
   for (const MotorRecord& m : packet.motors) {
@@ -140,140 +38,7 @@ const MotorRecord* find_motor(const TelemetryPacket& packet, std::uint8_t id) {
   return nullptr;
 }
 
-void validate(const BridgeOptions& o) {
-  require(!o.robot_host.empty(), "robot_host must not be empty");
-  require(o.robot_port != 0, "robot_port must not be 0");
-  require(positive_finite(o.control_period_s) && o.control_period_s <= 1.0,
-          "control_period_s must be in (0, 1] (the robot's own watchdog expects packets)");
-  require(positive_finite(o.watchdog_s), "watchdog_s must be finite and > 0");
-  require(std::isfinite(o.report_period_s) && o.report_period_s >= 0.0, "report_period_s must be finite and >= 0");
-  require(o.stop_burst_count >= 1 && o.stop_burst_count <= 100, "stop_burst_count must be in 1..100");
-  require(std::isfinite(o.stop_burst_duration_s) && o.stop_burst_duration_s >= 0.0 && o.stop_burst_duration_s <= 5.0,
-          "stop_burst_duration_s must be in [0, 5]");
-  require(std::isfinite(o.still_distance_m) && o.still_distance_m >= 0.0, "still_distance_m must be >= 0");
-  require(std::isfinite(o.still_rotation_rad) && o.still_rotation_rad >= 0.0, "still_rotation_rad must be >= 0");
-  require(positive_finite(o.log_interval_s), "log_interval_s must be finite and > 0");
-}
-
-std::function<void(const std::string&)> default_log() {
-  return [](const std::string& line) { std::fprintf(stderr, "wm-servosila: %s\n", line.c_str()); };
-}
-
 }  // namespace
-
-const char* to_string(OdometrySource source) {
-  switch (source) {
-    case OdometrySource::automatic:
-      return "automatic";
-    case OdometrySource::tracks:
-      return "tracks";
-    case OdometrySource::commanded:
-      return "commanded";
-  }
-  return "?";
-}
-
-std::string pose_report_json(const PoseReport& report) {
-  const OdometryPose& p = report.pose;
-  nlohmann::json cov = nlohmann::json::array();
-  for (int r = 0; r < 3; ++r) cov.push_back({p.covariance(r, 0), p.covariance(r, 1), p.covariance(r, 2)});
-  const nlohmann::json body = {{"x", p.x_m},
-                               {"y", p.y_m},
-                               {"theta", p.theta_rad},
-                               {"cov", std::move(cov)},
-                               {"stamp", report.stamp_unix_s},
-                               {"state", report.moving ? "moving" : "stopped"}};
-  return body.dump();
-}
-
-bool valid_robot_id(std::string_view id) {
-  if (id.empty() || id.size() > 128) return false;
-  return std::all_of(id.begin(), id.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' ||
-           c == ':' || c == '-';
-  });
-}
-
-struct HttpPoseSink::Impl {
-  client::HttpClient client;
-  std::string target;
-  std::string token;
-};
-
-HttpPoseSink::HttpPoseSink(const std::string& server_url, const std::string& robot_id, const std::string& token,
-                           std::chrono::seconds timeout) {
-  if (!valid_robot_id(robot_id)) {
-    throw std::invalid_argument("robot id '" + robot_id + "': expected 1 to 128 of A-Z a-z 0-9 . _ : -");
-  }
-  impl_ = std::make_unique<Impl>(
-      Impl{client::HttpClient(server_url, timeout), "/api/v1/robots/" + robot_id + "/pose", token});
-}
-
-HttpPoseSink::~HttpPoseSink() = default;
-
-void HttpPoseSink::publish(const PoseReport& report) {
-  const client::HttpResult r =
-      impl_->client.request("PUT", impl_->target, pose_report_json(report), "application/json", impl_->token);
-  if (r.status < 200 || r.status > 299) {
-    throw std::runtime_error("PUT " + impl_->target + ": HTTP " + std::to_string(r.status) + ": " +
-                             r.body.substr(0, 300));
-  }
-}
-
-HostPort parse_host_port(std::string_view text, std::uint16_t default_port) {
-  HostPort result;
-  std::string_view port_text;
-  if (!text.empty() && text.front() == '[') {
-    const std::size_t close = text.find(']');
-    if (close == std::string_view::npos) throw std::invalid_argument("'" + std::string(text) + "': missing ']'");
-    result.host = std::string(text.substr(1, close - 1));
-    const std::string_view rest = text.substr(close + 1);
-    if (!rest.empty()) {
-      if (rest.front() != ':') throw std::invalid_argument("'" + std::string(text) + "': expected ':' after ']'");
-      port_text = rest.substr(1);
-      if (port_text.empty()) throw std::invalid_argument("'" + std::string(text) + "': missing port");
-    }
-  } else {
-    const std::size_t colon = text.rfind(':');
-    if (colon != std::string_view::npos && text.find(':') != colon) {
-      result.host = std::string(text);  // a bare IPv6 address
-    } else if (colon != std::string_view::npos) {
-      result.host = std::string(text.substr(0, colon));
-      port_text = text.substr(colon + 1);
-      if (port_text.empty()) throw std::invalid_argument("'" + std::string(text) + "': missing port");
-    } else {
-      result.host = std::string(text);
-    }
-  }
-  if (result.host.empty()) throw std::invalid_argument("'" + std::string(text) + "': missing host");
-  result.port = default_port;
-  if (!port_text.empty()) {
-    unsigned value = 0;
-    const auto [end, ec] = std::from_chars(port_text.data(), port_text.data() + port_text.size(), value);
-    if (ec != std::errc() || end != port_text.data() + port_text.size() || value == 0 || value > 65535) {
-      throw std::invalid_argument("'" + std::string(text) + "': port must be 1..65535");
-    }
-    result.port = static_cast<std::uint16_t>(value);
-  }
-  return result;
-}
-
-std::string format_stats(const BridgeStats& s) {
-  std::ostringstream out;
-  out << "control_sent=" << s.control_sent << " stop_sent=" << s.stop_sent
-      << " control_send_errors=" << s.control_send_errors << " commands=" << s.commands
-      << " commands_rejected=" << s.commands_rejected << " commands_clamped=" << s.commands_clamped
-      << " commands_raised=" << s.commands_raised << " commands_ignored=" << s.commands_ignored
-      << " telemetry_received=" << s.telemetry_received << " foreign=" << s.foreign << " truncated=" << s.truncated
-      << " oversized=" << s.oversized << " unknown_frame_type=" << s.unknown_frame_type
-      << " unexpected_frame_type=" << s.unexpected_frame_type << " too_many_motors=" << s.too_many_motors
-      << " video_frames=" << s.video_frames << " odometry_advanced=" << s.odometry_advanced
-      << " odometry_stale=" << s.odometry_stale << " odometry_track_missing=" << s.odometry_track_missing
-      << " odometry_jumps=" << s.odometry_jumps << " odometry_restarts=" << s.odometry_restarts
-      << " watchdog_trips=" << s.watchdog_trips << " poses_published=" << s.poses_published
-      << " publish_errors=" << s.publish_errors;
-  return out.str();
-}
 
 struct Bridge::Impl {
   Impl(BridgeOptions o, std::shared_ptr<PoseSink> s)
