@@ -9,7 +9,7 @@ nlohmann::json laser_scan_body(const fusion::LaserScan& scan, const std::string&
   json ranges = json::array();
   for (const double r : scan.ranges_m) ranges.push_back(std::isfinite(r) ? json(r) : json(nullptr));
   return {{"sensor", "laser"},
-          {"source", source},
+          {"observer", source},
           {"stamp", stamp},
           {"pose", {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
           {"angle_min", scan.angle_min_rad},

@@ -27,7 +27,7 @@ void print_map(const json& m) {
   }
   for (const auto& e : m["elements"])
     std::cout << "  element " << std::left << std::setw(8) << e["id"].get<std::string>() << point(e["p0"]) << " -> "
-              << point(e["p1"]) << "  support " << e["support"] << ", source " << e["source"].get<std::string>()
+              << point(e["p1"]) << "  support " << e["support"] << ", origin " << e["origin"].get<std::string>()
               << "\n";
 }
 
@@ -52,7 +52,7 @@ int health(const Invocation& in) {
 
 int network(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/network")), [](const json& n) {
-    std::cout << "network " << n["source"].get<std::string>() << "\n";
+    std::cout << "network " << n["task_file"].get<std::string>() << "\n";
     for (const auto& e : n["executors"]) {
       std::cout << "executor " << e["name"].get<std::string>() << ": load " << std::fixed << std::setprecision(2)
                 << e["load"].get<double>() << ", components";
@@ -266,7 +266,7 @@ int robots(const Invocation& in) {
       } else {
         const auto& p = robot["pose"];
         std::cout << " at (" << fixed(p["x"].get<double>()) << ", " << fixed(p["y"].get<double>()) << ") θ "
-                  << fixed(p["theta"].get<double>()) << " from " << p["source"].get<std::string>();
+                  << fixed(p["theta"].get<double>()) << " from " << p["via"].get<std::string>();
       }
       std::cout << ", silent " << fixed(robot["silent_s"].get<double>()) << " s: ";
       for (const auto& [sensor, count] : robot["scans"].items()) std::cout << count << " " << sensor << " scans, ";

@@ -42,7 +42,7 @@ void print_history(const json& r) {
             << r["decisions"].size() << " decisions\n";
   for (const auto& d : r["decisions"]) {
     print_decision(d);
-    std::cout << "      observation " << d["observation"] << " by " << d["source"].get<std::string>() << " ("
+    std::cout << "      observation " << d["observation"] << " by " << d["observer"].get<std::string>() << " ("
               << d["origin"].get<std::string>() << ", sensor " << d["sensor"].get<std::string>() << ")";
     if (!d["mahalanobis_sq"].is_null()) std::cout << ", d2 " << d["mahalanobis_sq"].get<double>();
     std::cout << "\n";

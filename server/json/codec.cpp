@@ -80,20 +80,29 @@ nlohmann::ordered_json parse_ordered_json(std::string_view text) { return parse_
 
 std::optional<std::size_t> invalid_utf8_offset(std::string_view text) { return common::invalid_utf8_offset(text); }
 
+std::optional<std::string> observer_of(const json& doc) {
+  std::optional<std::string> observer;
+  for (const char* key : {"observer", "source"}) {
+    const auto it = doc.find(key);
+    if (it == doc.end()) continue;
+    if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
+      throw bad_request(key, "expected a non-empty string of at most 128 characters");
+    if (observer && *observer != it->get<std::string>())
+      throw bad_request("source", "\"source\" is the older name of \"observer\": give one, or both the same");
+    observer = it->get<std::string>();
+  }
+  return observer;
+}
+
 world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options,
                                     const PrimitiveLimits& limits) {
   const json doc = parse_json(body);
   if (!doc.is_object()) throw bad_request("", "expected an object with \"segments\"");
   for (const auto& [key, value] : doc.items())
-    if (key != "source" && key != "stamp" && key != "segments" && key != "sensor")
+    if (key != "observer" && key != "source" && key != "stamp" && key != "segments" && key != "sensor")
       throw bad_request(key, "unknown field");
   world::Observation observation;
-  observation.observer = "anonymous";
-  if (auto it = doc.find("source"); it != doc.end()) {
-    if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
-      throw bad_request("source", "expected a non-empty string of at most 128 characters");
-    observation.observer = it->get<std::string>();
-  }
+  observation.observer = observer_of(doc).value_or("anonymous");
   if (auto it = doc.find("sensor"); it != doc.end()) {
     // An atom the rules compare against (observation_sensor/1), e.g. laser or sonar.
     static const std::regex kSensor("[a-z][a-z0-9_]{0,31}");
@@ -176,22 +185,18 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
     throw bad_request("sensor", "expected \"laser\" or \"sonar\"");
   const bool laser = *sensor_it == "laser";
   static const std::vector<std::string> kLaserKeys = {
-      "sensor",    "source",    "stamp",       "pose",     "angle_min",         "angle_increment", "ranges",
-      "range_min", "range_max", "sigma_range", "pose_cov", "sigma_range_per_m", "usable_range"};
-  static const std::vector<std::string> kSonarKeys = {"sensor",    "source",      "stamp",      "pose",
-                                                      "angles",    "ranges",      "beam_width", "range_min",
-                                                      "range_max", "sigma_range", "pose_cov"};
+      "sensor", "observer",  "source",    "stamp",       "pose",     "angle_min",         "angle_increment",
+      "ranges", "range_min", "range_max", "sigma_range", "pose_cov", "sigma_range_per_m", "usable_range"};
+  static const std::vector<std::string> kSonarKeys = {"sensor",    "observer",  "source",      "stamp",
+                                                      "pose",      "angles",    "ranges",      "beam_width",
+                                                      "range_min", "range_max", "sigma_range", "pose_cov"};
   const auto& known = laser ? kLaserKeys : kSonarKeys;
   for (const auto& [key, value] : doc.items())
     if (std::find(known.begin(), known.end(), key) == known.end())
       throw bad_request(key, std::string("unknown field for a ") + (laser ? "laser" : "sonar") + " scan");
 
   ScanRequest request;
-  if (auto it = doc.find("source"); it != doc.end()) {
-    if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
-      throw bad_request("source", "expected a non-empty string of at most 128 characters");
-    request.observer = it->get<std::string>();
-  }
+  if (auto observer = observer_of(doc)) request.observer = std::move(*observer);
   if (auto it = doc.find("stamp"); it != doc.end()) request.stamp_s = finite_number(*it, "stamp", 1e12);
   const auto pose_it = doc.find("pose");
   if (pose_it == doc.end()) throw bad_request("pose", "missing field (the sensor pose in the world)");

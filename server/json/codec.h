@@ -3,6 +3,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <string>
 #include <string_view>
 #include <variant>
 
@@ -32,6 +33,11 @@ struct PrimitiveLimits {
   double max_abs_coordinate_m = 1.0e5;
   double min_length_m = 1.0e-3;
 };
+
+/// Who sent a request body: its "observer", or "source", the older name of the same field (still accepted); nullopt
+/// when it has neither. @throw CodecError when it is not a non-empty string of at most 128 characters, or when both
+/// are given and differ.
+std::optional<std::string> observer_of(const nlohmann::json& doc);
 
 /// Parses and validates POST /api/v1/primitives. @throw CodecError (bad_request) naming the bad field.
 world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options,

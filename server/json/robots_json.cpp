@@ -29,7 +29,8 @@ json pose_json(const service::RobotPose& pose) {
             {"theta", pose.theta},
             {"stamp", pose.stamp_s},
             {"received_at", pose.received_at_unix_s},
-            {"source", pose.source}};
+            {"via", pose.via},
+            {"source", pose.via}};  // the name before "via", kept for clients
   if (pose.cov) {
     json rows = json::array();
     for (int r = 0; r < 3; ++r) rows.push_back(json::array({(*pose.cov)(r, 0), (*pose.cov)(r, 1), (*pose.cov)(r, 2)}));

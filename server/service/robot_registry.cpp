@@ -54,7 +54,7 @@ std::optional<RobotState> RobotRegistry::on_scan(const std::string& id, const st
   const bool was_stopped = robot.stopped;
   robot.stopped = false;
   ++robot.scans[sensor];
-  pose.source = "scan:" + sensor;
+  pose.via = "scan:" + sensor;
   add_to_track(robot, pose);
   robot.pose = std::move(pose);
   return due(robot, was_stopped);
@@ -75,7 +75,7 @@ std::optional<RobotState> RobotRegistry::on_pose(const std::string& id, RobotPos
   const bool changed = robot.stopped != stopped;
   robot.stopped = stopped;
   ++robot.poses;
-  pose.source = "reported";
+  pose.via = "reported";
   add_to_track(robot, pose);
   robot.pose = std::move(pose);
   return due(robot, changed);

@@ -29,7 +29,7 @@ struct RobotPose {
   std::optional<Eigen::Matrix3d> cov;  // over (x, y, θ); nullopt when the robot did not give one
   double stamp_s = 0;                  // the robot's clock
   double received_at_unix_s = 0;       // the server's
-  std::string source;                  // "scan:laser", "scan:sonar" or "reported"
+  std::string via;                     // how the pose came: "scan:laser", "scan:sonar" or "reported"
 };
 
 enum class RobotStatus { alive, stale, stopped };

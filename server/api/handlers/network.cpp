@@ -37,7 +37,8 @@ Response get_network(const Call& call) {
                          {"busy_s", e.busy_s},
                          {"wall_s", e.wall_s},
                          {"load", e.wall_s > 0 ? e.busy_s / e.wall_s : 0.0}});
-  return json_response(call.request, {{"source", stats.source},
+  return json_response(call.request, {{"task_file", stats.source},
+                                      {"source", stats.source},  // the name before "task_file", kept for clients
                                       {"executors", executors},
                                       {"functions", functions},
                                       {"ports", ports},

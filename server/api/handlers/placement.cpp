@@ -8,6 +8,7 @@
 #include "server/api/api_error.h"
 #include "server/api/handlers.h"
 #include "server/api/response.h"
+#include "server/json/codec.h"
 
 namespace wm::api {
 namespace {
@@ -104,16 +105,14 @@ nlohmann::json hypothesis_json(const fusion::PlacementHypothesis& h) {
           {"scale", h.placement.scale}, {"score", h.score},     {"coverage", h.coverage}};
 }
 
-std::string observer_of(const nlohmann::json& doc) {
-  return doc.contains("source") ? string_field(doc, "source", 128) : std::string("client");
-}
+std::string observer_of(const nlohmann::json& doc) { return json_codec::observer_of(doc).value_or("client"); }
 
 }  // namespace
 
 Response post_floor_plan_place(const Call& call) {
   require_token(call.request, call.options);
   const auto doc = parse_json_object(call.request);
-  require_known_keys(doc, {"x", "y", "theta", "theta_deg", "scale", "cov", "source"});
+  require_known_keys(doc, {"x", "y", "theta", "theta_deg", "scale", "cov", "observer", "source"});
   world::PlacementChange change;
   change.placement = {number_field(doc, "x"), number_field(doc, "y"), heading_field(doc),
                       scale_value(number_field(doc, "scale", 1.0), "scale")};
@@ -130,7 +129,7 @@ Response post_floor_plan_place(const Call& call) {
 Response post_floor_plan_pairs(const Call& call) {
   require_token(call.request, call.options);
   const auto doc = parse_json_object(call.request);
-  require_known_keys(doc, {"pairs", "scale", "sigma", "apply", "source"});
+  require_known_keys(doc, {"pairs", "scale", "sigma", "apply", "observer", "source"});
   if (!doc.contains("pairs") || !doc["pairs"].is_array()) throw bad_request("pairs", "expected an array of pairs");
   if (doc["pairs"].size() > 10000) throw bad_request("pairs", "at most 10000 pairs");
   std::vector<fusion::PointPair> pairs;
@@ -170,7 +169,7 @@ Response post_floor_plan_align(const Call& call) {
   require_token(call.request, call.options);
   const auto doc = parse_json_object(call.request);
   require_known_keys(doc, {"max_translation_m", "max_rotation_deg", "scale", "apply", "apply_ambiguous", "min_score",
-                           "min_coverage", "redecide", "time_budget_ms", "source"});
+                           "min_coverage", "redecide", "time_budget_ms", "observer", "source"});
   service::AlignRequest request;
   auto& search = request.search;
   search.max_translation_m = number_field(doc, "max_translation_m", 10.0);

@@ -21,12 +21,12 @@ Response get_as_built_report(const Call& call) {
 
 namespace {
 
-/// Who decides: "source" of an optional JSON body ({"source": "alice"}), else "client".
+/// Who decides: "observer" (or the older "source") of an optional JSON body ({"observer": "alice"}), else "client".
 std::string decider(const Call& call) {
   if (call.request.body().empty()) return "client";
   const auto doc = parse_json_object(call.request);
-  require_known_keys(doc, {"source"});
-  return doc.contains("source") ? string_field(doc, "source", 128) : std::string("client");
+  require_known_keys(doc, {"observer", "source"});
+  return json_codec::observer_of(doc).value_or("client");
 }
 
 /// A change id as listed: "c" and 12 hex digits. Anything else cannot be listed: 404 without asking the writer.

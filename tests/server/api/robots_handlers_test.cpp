@@ -18,7 +18,8 @@ TEST_F(RobotsHandlersTest, AReportedPoseIsAnsweredListedAndShownAlive) {
   EXPECT_DOUBLE_EQ(robot["pose"]["x"].get<double>(), 1.5);
   EXPECT_DOUBLE_EQ(robot["pose"]["theta"].get<double>(), 0.25);
   EXPECT_DOUBLE_EQ(robot["pose"]["cov"][2][2].get<double>(), 0.001);
-  EXPECT_EQ(robot["pose"]["source"], "reported");
+  EXPECT_EQ(robot["pose"]["via"], "reported");
+  EXPECT_EQ(robot["pose"]["source"], "reported");  // the older name, still there
   EXPECT_EQ(robot["poses"], 1);
   EXPECT_EQ(robot["sensors"], nlohmann::json::array({"pose"}));
   EXPECT_EQ(world_.calls.back(), "put_robot_pose");

@@ -43,6 +43,24 @@ TEST(CodecTest, RefusalsNameTheField) {
   EXPECT_NE(refusal("{}").find("segments: missing"), std::string::npos);
 }
 
+// "observer" is the field's name; "source", its older name, is still accepted. Both at once must agree.
+TEST(CodecTest, TheObserverMayBeNamedObserverOrByItsOlderNameSource) {
+  const std::string segments = R"("segments": [{"p0": [1, 2], "p1": [4, 2]}])";
+  EXPECT_EQ(parse_primitives("{\"observer\": \"r1\", " + segments + "}", {}, {}).observer, "r1");
+  EXPECT_EQ(parse_primitives("{\"source\": \"r2\", " + segments + "}", {}, {}).observer, "r2");
+  EXPECT_EQ(parse_primitives("{\"observer\": \"r3\", \"source\": \"r3\", " + segments + "}", {}, {}).observer, "r3");
+  EXPECT_EQ(parse_primitives("{" + segments + "}", {}, {}).observer, "anonymous");
+  EXPECT_NE(refusal("{\"observer\": \"a\", \"source\": \"b\", " + segments + "}").find("older name"),
+            std::string::npos);
+  EXPECT_NE(refusal("{\"observer\": \"\", " + segments + "}").find("observer"), std::string::npos);
+  const std::string scan =
+      R"("sensor": "laser", "pose": {"x": 0, "y": 0, "theta": 0}, "angle_min": 0, "angle_increment": 0.1, "ranges": [1, 2],)"
+      R"("range_min": 0.1, "range_max": 30)";
+  EXPECT_EQ(parse_scan("{\"observer\": \"r4\", " + scan + "}", ScanLimits{}).observer, "r4");
+  EXPECT_EQ(parse_scan("{\"source\": \"r5\", " + scan + "}", ScanLimits{}).observer, "r5");
+  EXPECT_THROW(parse_scan("{\"observer\": \"a\", \"source\": \"b\", " + scan + "}", ScanLimits{}), CodecError);
+}
+
 TEST(CodecTest, ALaserScanMayStateItsUsableRangeAndRangeDependentSigma) {
   const std::string head =
       R"({"sensor": "laser", "pose": {"x": 0, "y": 0, "theta": 0}, "angle_min": 0, "angle_increment": 0.01, )"

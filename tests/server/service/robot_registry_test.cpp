@@ -41,7 +41,7 @@ TEST(RobotRegistryTest, TheTrackKeepsPosesApartAndOnlyTheNewest) {
   EXPECT_EQ(robot.track.size(), 10u);
   EXPECT_DOUBLE_EQ(robot.track.back().x, 100.0);
   EXPECT_DOUBLE_EQ(robot.pose->x, 100.0);
-  EXPECT_EQ(robot.pose->source, "scan:laser");
+  EXPECT_EQ(robot.pose->via, "scan:laser");
   registry.on_scan("r1", "laser", at(100.0, 0, 0.5, 500.0));  // turning on the spot counts too
   EXPECT_DOUBLE_EQ(registry.find("r1")->track.back().theta, 0.5);
 }
