@@ -173,7 +173,7 @@ int main(int argc, char** argv) {
     const double rb = reporter.rate(b);
     return rb > 0.0 ? reporter.rate(a) / rb : 0.0;
   };
-  std::printf("\nTargets (issue 3), scans/s ratios of this run:\n");
+  std::printf("\nTargets, scans/s ratios of this run:\n");
   for (const char* w : {"/2deg", "/thin"}) {
     const std::string bayes = std::string("bayes") + w, raw = std::string("raw_walk") + w, ds = std::string("ds") + w;
     std::printf("  %-6s Bayes / OctoMap  = %7.2f  (target >= 30)\n", w + 1, ratio(bayes.c_str(), "octomap"));

@@ -1,5 +1,5 @@
 // Cost of one primitive's update (match, decide, fuse, maintain: world::apply_observation) as the map grows:
-// 100, 1 000, 10 000 and 100 000 observed elements, and a 6 000-edge floor plan. Issue 12 asks for at most 2× from
+// 100, 1 000, 10 000 and 100 000 observed elements, and a 6 000-edge floor plan. The target is at most 2× from
 // the smallest map to the largest; the ratios to the 100-element map are printed after the table. Decisions come
 // from a C++ stand-in for the shipped rules (merge a matched element, confirm a matched edge, add otherwise), so
 // the figure is the world update without Prolog (rules_bench measures that).
