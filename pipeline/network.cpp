@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <set>
 #include <sstream>
@@ -171,7 +170,8 @@ std::string port_list(const std::vector<std::string>& ports) {
 
 }  // namespace
 
-Network::Network(const TaskSpec& spec, const Registry& registry) : source_(spec.source) {
+Network::Network(const TaskSpec& spec, const Registry& registry, FailureReport on_failure)
+    : source_(spec.source), on_failure_(std::move(on_failure)) {
   std::map<std::string, Node*> by_name;
   for (const auto& c : spec.components) {
     if (by_name.count(c.name)) throw NetworkError(fail(spec, "component '" + c.name + "' is declared twice"));
@@ -518,10 +518,10 @@ void Network::activate(Node& node, std::size_t function) {
   } catch (const std::exception& e) {
     // A function reports failures through its values (e.g. a request's answer); what escapes is a bug, logged.
     ++f.failures;
-    std::fprintf(stderr, "pipeline: %s.%s failed: %s\n", node.name.c_str(), f.spec.name.c_str(), e.what());
+    if (on_failure_) on_failure_(node.name, f.spec.name, e.what());
   } catch (...) {
     ++f.failures;
-    std::fprintf(stderr, "pipeline: %s.%s failed\n", node.name.c_str(), f.spec.name.c_str());
+    if (on_failure_) on_failure_(node.name, f.spec.name, "an exception that is not a std::exception");
   }
   const auto ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - begin).count();

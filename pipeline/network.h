@@ -20,6 +20,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <typeindex>
 #include <vector>
@@ -263,13 +264,18 @@ class Activation {
   std::vector<std::pair<std::string, std::any>> peeked_;
 };
 
+/// Told of each exception that escaped a function (a bug: functions report failures through their values): the
+/// component, the function and what the exception said. Called on the executor's thread; must not throw.
+using FailureReport = std::function<void(std::string_view component, std::string_view function, std::string_view what)>;
+
 /// A built network: its executors run from start() until stop(). Thread-safe.
 class Network {
  public:
   /// Builds and checks the network. @throw NetworkError ("<source>: <reason>") for an unknown component kind, a
   /// port type mismatch, two functions on one subset of ports, a tie without a relative priority, a port nobody
   /// writes, a component on no executor or on two, unknown names.
-  Network(const TaskSpec& spec, const Registry& registry);
+  /// `on_failure` (optional) hears of each failure that FunctionStats::failures counts.
+  Network(const TaskSpec& spec, const Registry& registry, FailureReport on_failure = {});
   ~Network();
   Network(const Network&) = delete;
   Network& operator=(const Network&) = delete;
@@ -306,6 +312,7 @@ class Network {
   void wake(internal::ExecutorState& executor);
 
   std::string source_;
+  FailureReport on_failure_;
   std::vector<std::unique_ptr<internal::Node>> nodes_;
   std::vector<std::unique_ptr<internal::ExecutorState>> executors_;
   std::atomic<std::uint64_t> pushes_{0};  // values pushed or taken anywhere

@@ -79,7 +79,12 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
   const auto spec = options_.network_file ? pipeline::read_task_file(options_.network_file->string())
                                           : pipeline::parse_task(default_network_yaml(), "<default network>");
-  network_ = std::make_unique<pipeline::Network>(spec, network_registry());
+  // A function that throws is a bug: counted in the network's stats, and reported here with what it said.
+  network_ = std::make_unique<pipeline::Network>(
+      spec, network_registry(), [this](std::string_view component, std::string_view function, std::string_view what) {
+        diagnostics_.report(common::Severity::error, "network",
+                            std::string(component) + "." + std::string(function) + " failed: " + std::string(what));
+      });
   network_->start();
   // The knowledge base mirrors the committed map; fill it before the first request is taken.
   run_command([this, &due_trim] {

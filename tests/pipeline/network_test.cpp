@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <future>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,38 @@ TEST(NetworkTest, FunctionsThatDependOnMorePortsGoFirst) {
   ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 2; }));
   network.stop();
   EXPECT_EQ(trace.copy(), (std::vector<std::string>{"both:1+2", "a_only:3"}));
+}
+
+// An exception that escapes a function is counted and told to the failure report with where it came from; the
+// network goes on with the next value.
+TEST(NetworkTest, AFunctionThatThrowsIsCountedAndReportedAndTheNetworkGoesOn) {
+  Trace trace;
+  Registry registry;
+  registry.add("fragile", [&](const Params&) {
+    auto c = std::make_unique<Component>();
+    c->input<int>("a", {PortPolicy::fifo, 16, true});
+    c->function("check", {"a"}, [&trace](Activation& x) {
+      const int a = x.take<int>("a");
+      if (a < 0) throw std::runtime_error("negative: " + std::to_string(a));
+      trace.add("ok:" + std::to_string(a));
+    });
+    return c;
+  });
+  std::mutex mutex;
+  std::vector<std::string> reports;
+  Network network(one("fragile"), registry,
+                  [&](std::string_view component, std::string_view function, std::string_view what) {
+                    std::lock_guard lock(mutex);
+                    reports.push_back(std::string(component) + "." + std::string(function) + ": " + std::string(what));
+                  });
+  for (const int a : {1, -2, 3}) network.inject("s", "a", a);
+  network.start();
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 2; }));
+  network.stop();
+  EXPECT_EQ(trace.copy(), (std::vector<std::string>{"ok:1", "ok:3"}));
+  EXPECT_EQ(network.stats().functions.at(0).failures, 1u);
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(reports, (std::vector<std::string>{"s.check: negative: -2"}));
 }
 
 TEST(NetworkTest, EachFunctionRunsOncePerCycle) {
