@@ -149,19 +149,35 @@ bool on_line(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen
   return true;
 }
 
-// Whether consecutive readings a, b (points pa, pb in the sensor frame) belong to different runs: farther apart than
-// max_gap_m, or than the adaptive breakpoint distance (Borges & Aldon 2004) r_a·sin Δφ / sin(λ − Δφ) + 3σ_r — the
+// Whether two returns `distance` apart could lie on one surface seen at an incidence of at least lambda: within the
+// adaptive breakpoint distance (Borges & Aldon 2004) r_a·sin Δφ / sin(λ − Δφ) + 3σ_r, the spacing of two returns
+// from a surface seen at incidence λ, plus the range noise.
+bool within_adaptive_distance(const RangeReading& a, const RangeReading& b, double distance, double lambda,
+                              const ScanLineOptions& options) {
+  const double dphi = std::abs(b.bearing_rad - a.bearing_rad);
+  if (dphi >= lambda) return false;
+  const double sigma_r = options.sigma_range_m + options.sigma_range_relative * std::max(a.range_m, b.range_m);
+  return distance <= a.range_m * std::sin(dphi) / std::sin(lambda - dphi) + 3.0 * sigma_r;
+}
+
+// Whether a gap always cuts a run: wider than max_gap_m, unless a far wall's returns may lie farther apart than
+// max_gap_m and still be one surface, when the spacing is what a surface seen at far_gap_lambda_rad or steeper gives
+// from that range.
+bool cuts_as_gap(const RangeReading& a, const RangeReading& b, double distance, const ScanLineOptions& options) {
+  if (distance <= options.max_gap_m) return false;
+  if (options.far_gap_lambda_rad <= 0 || std::max(a.range_m, b.range_m) > options.far_gap_max_range_m) return true;
+  return !within_adaptive_distance(a, b, distance, options.far_gap_lambda_rad, options);
+}
+
+// Whether consecutive readings a, b (points pa, pb in the sensor frame) may belong to different runs: farther apart
+// than max_gap_m, or than the adaptive breakpoint distance (Borges & Aldon 2004) r_a·sin Δφ / sin(λ − Δφ) + 3σ_r — the
 // spacing of two returns from a surface seen at incidence λ, plus the range noise.
 bool breaks_between(const RangeReading& a, const RangeReading& b, const Eigen::Vector2d& pa, const Eigen::Vector2d& pb,
                     const ScanLineOptions& options) {
   const double distance = (pb - pa).norm();
   if (distance > options.max_gap_m) return true;
   if (!options.adaptive_breakpoints) return false;
-  const double dphi = std::abs(b.bearing_rad - a.bearing_rad);
-  const double lambda = options.breakpoint_lambda_rad;
-  if (dphi >= lambda) return true;
-  const double sigma_r = options.sigma_range_m + options.sigma_range_relative * std::max(a.range_m, b.range_m);
-  return distance > a.range_m * std::sin(dphi) / std::sin(lambda - dphi) + 3.0 * sigma_r;
+  return !within_adaptive_distance(a, b, distance, options.breakpoint_lambda_rad, options);
 }
 
 void require(bool ok, const std::string& what) {
@@ -179,6 +195,10 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
   require(std::isfinite(options.merge_chi2) && options.merge_chi2 >= 0, "merge_chi2 must be finite and >= 0");
   require(options.sigma_range_m > 0 && std::isfinite(options.sigma_range_m), "sigma_range_m must be > 0");
   require(options.sigma_range_relative >= 0 && options.sigma_bearing_rad >= 0, "noise terms must be >= 0");
+  require(options.far_gap_lambda_rad >= 0 && options.far_gap_lambda_rad < std::numbers::pi / 2,
+          "far_gap_lambda_rad must be in [0, pi/2)");
+  require(std::isfinite(options.far_gap_max_range_m) && options.far_gap_max_range_m >= 0,
+          "far_gap_max_range_m must be finite and >= 0");
   require(options.breakpoint_lambda_rad > 0 && options.breakpoint_lambda_rad < std::numbers::pi / 2,
           "breakpoint_lambda_rad must be in (0, pi/2)");
   require(std::isfinite(options.breakpoint_isolation) && options.breakpoint_isolation >= 0,
@@ -220,7 +240,7 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
   };
   for (std::size_t i = 1; i <= points.size(); ++i) {
     if (i == points.size() ||
-        ((points[i] - points[i - 1]).norm() > options.max_gap_m ||
+        (cuts_as_gap(readings[i - 1], readings[i], (points[i] - points[i - 1]).norm(), options) ||
          (breaks_between(readings[i - 1], readings[i], points[i - 1], points[i], options) && isolated(i)))) {
       if (i > run_start) split(points, covs, {run_start, i}, options, pieces);
       run_start = i;
@@ -244,7 +264,7 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
       const auto& b = segments[k + 1];
       if (run_of[a.piece.first] != run_of[b.piece.last - 1]) continue;
       const double gap = (points[b.piece.first] - points[a.piece.last - 1]).norm();
-      if (gap > options.max_gap_m) continue;
+      if (cuts_as_gap(readings[a.piece.last - 1], readings[b.piece.first], gap, options)) continue;
       if (mahalanobis_squared(a.segment.line, b.segment.line) > options.merge_chi2) continue;
       const Piece joined{a.piece.first, std::max(a.piece.last, b.piece.last)};
       auto refit = fit_piece(points, covs, joined, options);

@@ -13,7 +13,16 @@ namespace wm::fusion {
 struct ScanLineOptions {
   std::size_t min_points = 6;  // fewer points in a piece as split: no segment (its fit may keep 4 after trimming)
   double min_length_m = 0.3;   // shorter: no segment
-  double max_gap_m = 0.25;     // consecutive points farther apart start a new segment
+  double max_gap_m = 0.25;     // consecutive points farther apart start a new segment, unless far_gap_lambda_rad...
+  /// ...says the gap is the spacing of a far surface: a gap over max_gap_m does not cut when both returns lie within
+  /// far_gap_max_range_m and the gap is within the adaptive distance below at incidence far_gap_lambda_rad [rad]
+  /// (0: max_gap_m always cuts). Far walls seen from 10–20 m by a 0.5° laser have returns 0.2–0.5 m apart: the truth
+  /// benchmark's recall rose from 0.764 to 0.861 (Barcelona) and 0.894 to 0.903 (GDC1) with precision kept; over the
+  /// 13 CARMEN logs recall rose by up to 0.040 (fhw) and the grid-backed precision fell by 0.010 at most (fhw). Beyond
+  /// 20 m the 1° logs' sparse returns are outdoor clutter: with no range limit freiburg-campus fell from 0.943 to
+  /// 0.773 and orebro from 0.974 to 0.894. A doorway is wider than such a gap from any range where it could be seen.
+  double far_gap_lambda_rad = 0.2618;  // 15°
+  double far_gap_max_range_m = 20.0;
   /// Adaptive breakpoint detector (Borges & Aldon, J. Intell. Robot. Syst. 39, 2004): consecutive points
   /// p_{n−1}, p_n also start a new segment when ‖p_n − p_{n−1}‖ > r_{n−1}·sin Δφ / sin(λ − Δφ) + 3σ_r, Δφ their
   /// bearing difference, σ_r the range noise. That distance is how far apart two returns from one surface seen at

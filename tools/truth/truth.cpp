@@ -194,7 +194,8 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
     std::vector<std::size_t> near;  // elements within 5 cm of the line, whatever their direction
     for (std::size_t i = 0; i < elements.size(); ++i)
       if (segment_distance(elements[i].p0, elements[i].p1, line.p0, line.p1) <= kOnLineM) near.push_back(i);
-    double seen = 0;
+    double seen = 0, missed = 0;
+    std::uint64_t missed_returns = 0;
     std::map<std::size_t, std::size_t> bins_per_element;
     for (std::size_t b = 0; b < cover[l].size(); ++b) {
       redundant += static_cast<double>(std::max<std::size_t>(1, cover[l][b].size()) - 1) * kBinM;
@@ -202,13 +203,19 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
       if (coverage.hits[l][b] == 0) continue;
       seen += kBinM;
       const Vec c = bin_centre(line.p0, line.p1, b);
-      for (const auto i : near)
-        if (point_segment_distance(c, elements[i].p0, elements[i].p1) <= kOnLineM) {
-          recalled += kBinM;
-          break;
-        }
+      const bool covered = std::any_of(near.begin(), near.end(), [&](std::size_t i) {
+        return point_segment_distance(c, elements[i].p0, elements[i].p1) <= kOnLineM;
+      });
+      recalled += covered ? kBinM : 0;
+      missed += covered ? 0 : kBinM;
+      missed_returns += covered ? 0 : coverage.hits[l][b];
     }
     score.seen_length_m += seen;
+    if (std::getenv("WM_TRUTH_VERBOSE") && missed > 0)
+      std::fprintf(stderr,
+                   "not recalled: %.2f of %.2f m seen of the %.2f m wall (%.2f, %.2f) to (%.2f, %.2f), %llu returns\n",
+                   missed, seen, (line.p1 - line.p0).norm(), line.p0.x(), line.p0.y(), line.p1.x(), line.p1.y(),
+                   static_cast<unsigned long long>(missed_returns));
     if (line.kind != LineKind::table && seen >= 2.0) {
       ++score.walls_seen_2m;
       for (const auto& [i, n] : bins_per_element) walls_elements += n >= 2 ? 1 : 0;

@@ -251,6 +251,40 @@ TEST(ScanLinesTest, TheBreakpointDetectorIsAnOption) {
   EXPECT_THROW(extract_scan_lines(readings, {0, 0, 0}, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
 }
 
+TEST(ScanLinesTest, AFarWallWhoseReturnsLieFartherApartThanTheGapIsStillOneSegment) {
+  // A 5 m wall 15–19 m away seen at 25–33° by a 0.5° laser: its returns lie 0.24–0.39 m apart, more than max_gap_m.
+  // A doorway of 0.9 m in a wall 3 m away is wider than any such spacing and still cuts.
+  const std::vector<Wall> walls = {{{12.5, 5}, {17.5, 5}}, {{-4, 3}, {-1.6, 3}}, {{-0.7, 3}, {2, 3}}};
+  ScanLineOptions options;
+  std::mt19937 rng(4);
+  const Pose2D pose{0, -3, 0};
+  const auto readings = scan(walls, pose, options, rng, 720);
+  const auto segments = extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options);
+  std::size_t far = 0, near = 0;
+  for (const auto& s : segments) {
+    if (lies_on(s, walls[0], 0.05)) {
+      ++far;
+      EXPECT_GT(s.length_m(), 4.0);
+    }
+    if (lies_on(s, walls[1], 0.03) || lies_on(s, walls[2], 0.03)) ++near;
+  }
+  EXPECT_EQ(far, 1u);
+  EXPECT_EQ(near, 2u);  // the doorway cut the near wall in two
+  EXPECT_EQ(segments.size(), 3u);
+
+  // max_gap_m alone, or the far wall beyond the range where far gaps join: it falls apart into points.
+  for (const auto& [lambda, max_range] : {std::pair{0.0, 20.0}, std::pair{0.2618, 10.0}}) {
+    options.far_gap_lambda_rad = lambda;
+    options.far_gap_max_range_m = max_range;
+    std::size_t far_without = 0;
+    for (const auto& s : extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options))
+      far_without += lies_on(s, walls[0], 0.05) ? 1 : 0;
+    EXPECT_EQ(far_without, 0u) << lambda << " " << max_range;
+  }
+  options.far_gap_lambda_rad = std::numbers::pi / 2;
+  EXPECT_THROW(extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
+}
+
 TEST(ScanLinesTest, BadInputIsRefused) {
   ScanLineOptions options;
   EXPECT_THROW(extract_scan_lines({{std::nan(""), 0.0}}, {0, 0, 0}, Eigen::Matrix3d::Zero(), options),
