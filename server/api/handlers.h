@@ -22,7 +22,7 @@ struct Call {
   const Target& target;      // the percent-decoded path and query parameters
   const std::string& param;  // what the route pattern's {placeholder} matched; empty when it has none
   const ApiOptions& options;
-  service::WorldPort& world;
+  const service::WorldPorts& world;  // the service's ports: map, ingest, plan, rules, grid, robots
   MapCache& map_cache;
   const shm::SharedMapExport* shm = nullptr;         // nullptr when wmd runs with --no-shm
   const common::Diagnostics* diagnostics = nullptr;  // nullptr: the health answer has no "diagnostics"

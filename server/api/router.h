@@ -17,7 +17,7 @@ namespace wm::api {
 /// What the handlers work on; built by main and passed down.
 struct Services {
   ApiOptions options;
-  service::WorldPort& world;
+  service::WorldPorts world;
   std::shared_ptr<MapCache> map_cache = std::make_shared<MapCache>();  // the map's bytes per version
   const shm::SharedMapExport* shm = nullptr;                           // the shared-memory export, when on
   const common::Diagnostics* diagnostics = nullptr;  // what the server reported (GET /api/v1/health counts it)

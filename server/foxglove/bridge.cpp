@@ -153,7 +153,7 @@ void Bridge::Core::follow_clients() {
     grid_published_ = ds_published_ = -1;
     elements_sent_.reset();
     plan_sent_.reset();
-    decision_cursor_ = world.snapshot()->last_decision_seq;
+    decision_cursor_ = world.map.snapshot()->last_decision_seq;
   } else if (!any && subscriber_) {
     hub.unsubscribe(subscriber_);
     subscriber_.reset();
@@ -211,7 +211,7 @@ void Bridge::Core::produce() {
 }
 // --- Bridge ---
 
-Bridge::Bridge(const FoxgloveOptions& options, service::WorldPort& world, events::EventHub& hub,
+Bridge::Bridge(const FoxgloveOptions& options, service::WorldPorts world, events::EventHub& hub,
                common::Diagnostics& diagnostics, ServerInfo info)
     : core_(std::make_shared<Core>(options, world, hub, diagnostics, std::move(info))) {
   core_->thread = std::thread([core = core_.get()] { core->run(); });

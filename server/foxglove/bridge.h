@@ -52,7 +52,7 @@ class Bridge {
  public:
   /// `world` and `hub` must outlive the bridge and every connection it made; `diagnostics` (what the bridge's thread
   /// could not send) must outlive the bridge.
-  Bridge(const FoxgloveOptions& options, service::WorldPort& world, events::EventHub& hub,
+  Bridge(const FoxgloveOptions& options, service::WorldPorts world, events::EventHub& hub,
          common::Diagnostics& diagnostics, ServerInfo info);
   ~Bridge();
   Bridge(const Bridge&) = delete;

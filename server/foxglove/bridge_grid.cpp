@@ -14,7 +14,7 @@ using internal::unix_ns_now;
 
 // Lists the tiles and reads those whose revision moved (and those never read).
 void Bridge::Core::refresh(TileCache& cache) {
-  const auto listing = world.grid_tiles();
+  const auto listing = world.grid.grid_tiles();
   if (listing.tile_size_cells != cache.tile_size || listing.resolution_m != cache.resolution_m) {
     cache.tiles.clear();
     cache.tile_size = listing.tile_size_cells;
@@ -25,12 +25,12 @@ void Bridge::Core::refresh(TileCache& cache) {
     auto& [revision, values] = cache.tiles[{t.tx, t.ty}];
     if (revision == t.revision && !values.empty()) continue;
     if (cache.layers.size() == 1) {
-      auto tile = world.grid_tile(cache.layers.front(), t.tx, t.ty);
+      auto tile = world.grid.grid_tile(cache.layers.front(), t.tx, t.ty);
       if (!tile) continue;
       revision = tile->revision;
       values = std::move(tile->values);
     } else {  // every layer of the tile under one lock: all of one revision; the DS ones follow Bayes in Layer order
-      auto tile = world.grid_tile_layers(t.tx, t.ty);
+      auto tile = world.grid.grid_tile_layers(t.tx, t.ty);
       if (!tile || tile->values.size() < 4 * cells) continue;
       revision = tile->revision;
       values.assign(tile->values.begin() + static_cast<std::ptrdiff_t>(cells), tile->values.end());

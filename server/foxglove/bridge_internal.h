@@ -140,11 +140,11 @@ struct Bridge::Core {
   using FoxgloveClient = internal::FoxgloveClient;
   using InitialRequest = internal::InitialRequest;
 
-  Core(const FoxgloveOptions& o, service::WorldPort& w, events::EventHub& h, common::Diagnostics& d, ServerInfo i)
+  Core(const FoxgloveOptions& o, service::WorldPorts w, events::EventHub& h, common::Diagnostics& d, ServerInfo i)
       : options(o), world(w), hub(h), diagnostics(d), info(std::move(i)), channels(internal::fixed_channels()) {}
 
   const FoxgloveOptions options;
-  service::WorldPort& world;
+  service::WorldPorts world;  // the map, grid and robots ports are what it reads
   events::EventHub& hub;
   common::Diagnostics& diagnostics;  // reported to from the bridge's thread only
   const ServerInfo info;

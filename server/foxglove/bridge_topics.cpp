@@ -40,13 +40,13 @@ void Bridge::Core::produce_scene(std::uint32_t channel) {
     sent.reset();  // a new subscriber starts from the whole scene anyway
     return;
   }
-  const auto now = world.snapshot();
+  const auto now = world.map.snapshot();
   if (!sent) {
     sent = now;
     return;
   }
   if (now->version == sent->version) return;
-  const auto removed = world.removed_since(sent->version, now->version);
+  const auto removed = world.map.removed_since(sent->version, now->version);
   const auto stamp = unix_ns_now();
   if (!removed) {  // the service no longer knows what went: the whole scene again
     sent = now;
@@ -61,7 +61,7 @@ void Bridge::Core::produce_scene(std::uint32_t channel) {
     deleted.assign(removed->elements.begin(), removed->elements.end());
   } else {
     for (const auto& object : now->objects)
-      if (object.updated_version > sent->version) upserts.push_back(object_entity(object, world.world_options()));
+      if (object.updated_version > sent->version) upserts.push_back(object_entity(object, world.map.world_options()));
     deleted.assign(removed->objects.begin(), removed->objects.end());
   }
   sent = now;
@@ -80,7 +80,7 @@ Payload Bridge::Core::full_scene(std::uint32_t channel) {
     entities.reserve(state->elements.size());
     for (const auto& [number, element] : state->elements) entities.push_back(element_entity(element));
   } else {
-    for (const auto& object : state->objects) entities.push_back(object_entity(object, world.world_options()));
+    for (const auto& object : state->objects) entities.push_back(object_entity(object, world.map.world_options()));
   }
   cache = {state->version, share(scene_update_message(entities, {}, true, unix_ns_now()))};
   return cache.second;
@@ -103,7 +103,7 @@ void Bridge::Core::produce_robots() {
   robots_dirty_ = false;
   std::vector<PlanarTransform> transforms;
   bool moved = false;
-  for (const auto& robot : world.robots()) {
+  for (const auto& robot : world.robots.robots()) {
     if (!robot.pose) continue;
     const auto& pose = *robot.pose;
     const auto channel = robot_channel(robot.id);  // advertised even before anyone subscribes to it
@@ -123,11 +123,11 @@ void Bridge::Core::produce_robots() {
 void Bridge::Core::produce_decisions() {
   decisions_dirty_ = false;
   if (!has_subscribers(kDecisionsChannel)) {
-    decision_cursor_ = world.snapshot()->last_decision_seq;
+    decision_cursor_ = world.map.snapshot()->last_decision_seq;
     return;
   }
   for (int page = 0; page < kDecisionPagesPerTurn; ++page) {
-    const auto rows = world.decisions(decision_cursor_, kDecisionPage, std::nullopt);
+    const auto rows = world.map.decisions(decision_cursor_, kDecisionPage, std::nullopt);
     for (const auto& d : rows) {
       const auto stamp = unix_ns_now();
       publish(kDecisionsChannel, share(log_message(d, stamp)), stamp);
@@ -163,13 +163,13 @@ void Bridge::Core::serve(const InitialRequest& request) {
       // from the same snapshot.
       auto& sent = request.channel == kElementsChannel ? elements_sent_ : plan_sent_;
       if (sent) produce_scene(request.channel);
-      if (!sent) sent = world.snapshot();
+      if (!sent) sent = world.map.snapshot();
       payloads.push_back(full_scene(request.channel));
       break;
     }
     case kTfChannel: {
       std::vector<PlanarTransform> all;
-      for (const auto& robot : world.robots())
+      for (const auto& robot : world.robots.robots())
         if (robot.pose)
           all.push_back({std::string(kMapFrame), robot_frame(robot.id), robot.pose->x, robot.pose->y, robot.pose->theta,
                          unix_ns(robot.pose->received_at_unix_s)});
@@ -180,17 +180,17 @@ void Bridge::Core::serve(const InitialRequest& request) {
       if (has_subscribers(kDecisionsChannel))
         produce_decisions();  // the others first, as for the scenes
       else
-        decision_cursor_ = world.snapshot()->last_decision_seq;
+        decision_cursor_ = world.map.snapshot()->last_decision_seq;
       const auto since =
           std::max<std::int64_t>(0, decision_cursor_ - static_cast<std::int64_t>(options.initial_decisions));
-      for (const auto& d : world.decisions(since, options.initial_decisions, std::nullopt))
+      for (const auto& d : world.map.decisions(since, options.initial_decisions, std::nullopt))
         if (d.seq <= decision_cursor_) payloads.push_back(share(log_message(d, stamp)));
       break;
     }
     default: {
       for (const auto& [id, channel] : robot_channels_)
         if (channel == request.channel)
-          if (const auto robot = world.robot(id); robot && robot->pose)
+          if (const auto robot = world.robots.robot(id); robot && robot->pose)
             payloads.push_back(share(pose_in_frame_message(robot->pose->x, robot->pose->y, robot->pose->theta,
                                                            unix_ns(robot->pose->received_at_unix_s))));
       break;

@@ -11,17 +11,17 @@ constexpr double kChi2Gate95 = 5.991;  // χ²(2 dof), 95 %
 
 }  // namespace
 
-MapQualityReport measure_map_quality(WorldPort& port, const MapQualityReportOptions& options) {
+MapQualityReport measure_map_quality(MapPort& map, const GridPort& grid, const MapQualityReportOptions& options) {
   MapQualityReport report;
-  const auto state = port.snapshot();
+  const auto state = map.snapshot();
   report.map_version = state->version;
 
   std::vector<fusion::LineSegment> elements;
   elements.reserve(state->elements.size());
   for (const auto& [number, element] : state->elements) elements.push_back(element.segment);
 
-  if (const auto bounds = port.grid_bounds()) {
-    const auto layer = port.grid_layer(fusion::OccupancyGrid::Layer::bayes_probability, *bounds);
+  if (const auto bounds = grid.grid_bounds()) {
+    const auto layer = grid.grid_layer(fusion::OccupancyGrid::Layer::bayes_probability, *bounds);
     report.grid_revision = layer.revision;
     report.map = fusion::map_quality(elements, *bounds, layer.values, options.map);
   } else {
@@ -34,7 +34,7 @@ MapQualityReport measure_map_quality(WorldPort& port, const MapQualityReportOpti
   const std::int64_t since =
       std::max<std::int64_t>(0, state->last_decision_seq - static_cast<std::int64_t>(options.calibration_window));
   std::size_t passed = 0;
-  for (const auto& d : port.decisions(since, options.calibration_window, std::nullopt)) {
+  for (const auto& d : map.decisions(since, options.calibration_window, std::nullopt)) {
     // Scan lines against observed elements only: a CAD edge's covariance is the drawing's, not something fused.
     if (d.origin != "scan" || !d.mahalanobis_sq || !d.matched_element || d.matched_object) continue;
     ++report.calibration_samples;

@@ -27,8 +27,8 @@ struct MapQualityReportOptions {
   std::size_t calibration_window = 20000;  // the last this many decisions are looked at
 };
 
-/// Scores the port's current map (elements only; CAD edges are the reference, not the product) against its Bayes
+/// Scores the current map (elements only; CAD edges are the reference, not the product) against its Bayes
 /// grid, and the calibration from the decision log. @throw storage::StorageError from the decision log.
-MapQualityReport measure_map_quality(WorldPort& port, const MapQualityReportOptions& options = {});
+MapQualityReport measure_map_quality(MapPort& map, const GridPort& grid, const MapQualityReportOptions& options = {});
 
 }  // namespace wm::service

@@ -1,9 +1,10 @@
 #pragma once
 
-// What the HTTP handlers may ask of the world-model service, and nothing more. The handlers (server/api/) see
-// only this class: no store, no knowledge base, no writer thread, no grid lock. WorldService implements it; the
-// handler tests implement it with a fake. It lives with the service (not the api) so that the dependency arrows
-// stay one-way (api → service → world, storage, rules) and the contract sits beside its implementation.
+// What the HTTP handlers, the Foxglove bridge and the shared-memory export may ask of the world-model service, and
+// nothing more: six ports (map, ingest, plan, rules, grid, robots) of under ten methods each. They see no store, no
+// knowledge base, no writer thread, no grid lock. WorldService implements all six (WorldPort); a test fakes only the
+// ports it uses. The ports live with the service (not the api) so that the dependency arrows stay one-way
+// (api → service → world, storage, rules) and the contract sits beside its implementation.
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -126,57 +127,19 @@ struct MapRemovals {
   std::set<std::string> objects;   // CAD object ids
 };
 
-/// The world-model service as the HTTP handlers see it. Every call is safe from any thread. Writes are applied
-/// whole or not at all, in arrival order, and return after they are committed; reads never wait for the writer.
-class WorldPort {
+// The world-model service as the HTTP handlers, the Foxglove bridge and the shared-memory export see it, in six
+// ports of one job each, so that a handler (and its test's fake) depends on what it uses. Every call is safe from
+// any thread. Writes are applied whole or not at all, in arrival order, and return after they are committed; reads
+// never wait for the writer.
+
+/// The committed map and its logs: snapshots, decisions, removals, the plan's evidence and the change list.
+class MapPort {
  public:
-  virtual ~WorldPort() = default;
+  virtual ~MapPort() = default;
 
   /// The committed world: an immutable snapshot, swapped after each applied request.
   virtual std::shared_ptr<const world::WorldState> snapshot() const = 0;
   virtual const world::WorldOptions& world_options() const = 0;
-
-  /// Applies one primitives request. `payload_json` is the request body, journaled as is. `request_id`
-  /// (Idempotency-Key, optional): a retry with the same id and the same body is answered as the first was
-  /// (replayed = true) without being applied again.
-  /// @throw Busy; RequestIdConflict for a known id with another body or from the scans endpoint;
-  ///        storage::StorageError; std::invalid_argument from the update (nothing applied in every case).
-  virtual PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
-                                            std::optional<std::string> request_id) = 0;
-  /// Journals a scan with the decisions on its extracted lines, then inserts it into the grids. `request_id`
-  /// as for post_primitives. @throw Busy, RequestIdConflict, storage::StorageError (nothing applied then).
-  virtual ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
-                                std::optional<std::string> request_id) = 0;
-  /// Replaces the floor plan; the observed elements stay. Returns the new map version.
-  /// @throw Busy, storage::StorageError, std::invalid_argument for bad geometry.
-  virtual std::int64_t load_floor_plan(apriori::FloorPlan plan) = 0;
-  /// Puts a placement of the plan in force (one logged `place` decision; objects keep their pose relative to the
-  /// drawing). `payload_json` is journaled. @throw Conflict without a plan, Busy, storage::StorageError.
-  virtual PlacementOutcome place_floor_plan(world::PlacementChange change, std::string payload_json) = 0;
-  /// Searches the placement that fits the grid best, and applies it when asked and it is sound.
-  /// @throw Conflict without a plan or with an empty grid, fusion::RegistrationError for bad bounds, Busy.
-  virtual AlignOutcome align_floor_plan(AlignRequest request) = 0;
-  /// Goes back to the placement before the one in force. @throw Conflict when the plan is as drawn.
-  virtual PlacementOutcome undo_placement(std::string observer) = 0;
-  /// Puts every observed element to the rules against the plan as placed now: elements the plan confirms go,
-  /// merges and rigid adjustments are applied; elements the rules would add again stay as they are.
-  virtual RedecideOutcome redecide_elements(std::string observer) = 0;
-  /// Sets (or, with nullopt, removes) the world frame's georeference. Returns the new map version.
-  virtual std::int64_t set_georeference(std::optional<apriori::Georeference> georeference) = 0;
-  /// Runs the grid line extractor on the Bayes layer and decides its segments like posted primitives.
-  /// nullopt when the grid is empty or yields no line. @throw Busy, storage::StorageError.
-  virtual std::optional<PrimitivesOutcome> extract_grid_lines() = 0;
-
-  virtual rules::RulesStatus rules_status() = 0;
-  /// Reloads the rule files atomically. @throw rules::RuleError ("file:line: message" lines; the previous rules
-  /// stay active), Busy.
-  virtual rules::RulesStatus reload_rules() = 0;
-  /// Read-only knowledge-base query. @throw rules::QueryError, Busy.
-  virtual rules::QueryResult query(const std::string& goal, std::size_t max_solutions) = 0;
-  /// Re-decides the last `count` logged segment decisions with `candidate` in place of the file of its name;
-  /// returns those whose action or rule would differ. Nothing is applied.
-  /// @throw rules::RuleError when the candidate does not load; std::invalid_argument for a bad name; Busy.
-  virtual DryRunOutcome dry_run(const rules::RuleText& candidate, std::size_t count) = 0;
 
   /// The decision log: decisions with seq > since_seq, in order, at most `limit`; only those about `element`
   /// (an element or edge id) when given. @throw storage::StorageError.
@@ -185,24 +148,6 @@ class WorldPort {
   /// Decisions about a CAD object or any of its edges ("table-1/2"), in order, at most `limit`.
   /// @throw storage::StorageError.
   virtual std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t limit) = 0;
-
-  /// The grid's cell size [m].
-  virtual double grid_resolution_m() const = 0;
-  /// The cells observed so far, nullopt while the grid is empty.
-  virtual std::optional<fusion::GridGeometry> grid_bounds() const = 0;
-  /// One layer over `region` (cells never observed are NaN), read under the grid's shared lock: never during an
-  /// insert, and a waiting insert goes first.
-  virtual GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const = 0;
-  /// Every touched tile with its revision, read under one lock.
-  virtual GridTiles grid_tiles() const = 0;
-  /// One tile of a layer with its revision, read under one lock; nullopt for a tile never touched.
-  virtual std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
-                                                  std::int64_t ty) const = 0;
-  /// Every layer of one tile, in Layer order (tile_size² values each, one after the other), read under one lock so
-  /// all four are of one revision; nullopt for a tile never touched.
-  virtual std::optional<GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const = 0;
-  /// The processing network the writes run on: components, ports, queue depths, activity.
-  virtual pipeline::NetworkStats network_stats() const = 0;
   /// What left the map after version `since` up to version `up_to` (a snapshot's), nullopt when the service no
   /// longer knows: `since` is older than the removals it keeps (the newest 100 000 ids) or than its start.
   virtual std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const = 0;
@@ -221,6 +166,53 @@ class WorldPort {
     evidence = plan_report();
     return world::list_changes(*state, evidence.get(), world::ChangeOptions{});
   }
+};
+
+/// What robots and clients post: primitives and scans, grid lines on request, and the network they run on.
+class IngestPort {
+ public:
+  virtual ~IngestPort() = default;
+
+  /// Applies one primitives request. `payload_json` is the request body, journaled as is. `request_id`
+  /// (Idempotency-Key, optional): a retry with the same id and the same body is answered as the first was
+  /// (replayed = true) without being applied again.
+  /// @throw Busy; RequestIdConflict for a known id with another body or from the scans endpoint;
+  ///        storage::StorageError; std::invalid_argument from the update (nothing applied in every case).
+  virtual PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
+                                            std::optional<std::string> request_id) = 0;
+  /// Journals a scan with the decisions on its extracted lines, then inserts it into the grids. `request_id`
+  /// as for post_primitives. @throw Busy, RequestIdConflict, storage::StorageError (nothing applied then).
+  virtual ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
+                                std::optional<std::string> request_id) = 0;
+  /// Runs the grid line extractor on the Bayes layer and decides its segments like posted primitives.
+  /// nullopt when the grid is empty or yields no line. @throw Busy, storage::StorageError.
+  virtual std::optional<PrimitivesOutcome> extract_grid_lines() = 0;
+  /// The processing network the writes run on: components, ports, queue depths, activity.
+  virtual pipeline::NetworkStats network_stats() const = 0;
+};
+
+/// The floor plan: loading, placement, alignment, re-deciding against it, georeference, and accepting changes.
+class PlanPort {
+ public:
+  virtual ~PlanPort() = default;
+
+  /// Replaces the floor plan; the observed elements stay. Returns the new map version.
+  /// @throw Busy, storage::StorageError, std::invalid_argument for bad geometry.
+  virtual std::int64_t load_floor_plan(apriori::FloorPlan plan) = 0;
+  /// Puts a placement of the plan in force (one logged `place` decision; objects keep their pose relative to the
+  /// drawing). `payload_json` is journaled. @throw Conflict without a plan, Busy, storage::StorageError.
+  virtual PlacementOutcome place_floor_plan(world::PlacementChange change, std::string payload_json) = 0;
+  /// Searches the placement that fits the grid best, and applies it when asked and it is sound.
+  /// @throw Conflict without a plan or with an empty grid, fusion::RegistrationError for bad bounds, Busy.
+  virtual AlignOutcome align_floor_plan(AlignRequest request) = 0;
+  /// Goes back to the placement before the one in force. @throw Conflict when the plan is as drawn.
+  virtual PlacementOutcome undo_placement(std::string observer) = 0;
+  /// Puts every observed element to the rules against the plan as placed now: elements the plan confirms go,
+  /// merges and rigid adjustments are applied; elements the rules would add again stay as they are.
+  virtual RedecideOutcome redecide_elements(std::string observer) = 0;
+  /// Sets (or, with nullopt, removes) the world frame's georeference. Returns the new map version.
+  virtual std::int64_t set_georeference(std::optional<apriori::Georeference> georeference) = 0;
+
   /// Accepts a listed change into the plan (a new version of the plan; the decision is logged) or rejects it (no
   /// longer listed; logged). @throw NotFound when `change_id` is not listed now; storage::StorageError.
   virtual ChangeOutcome decide_change(const std::string& change_id, bool accept, std::string observer) {
@@ -233,6 +225,51 @@ class WorldPort {
     (void)observer;
     throw Conflict("this service does not take changes");
   }
+};
+
+/// The knowledge base: its rule files, queries and dry runs.
+class RulesPort {
+ public:
+  virtual ~RulesPort() = default;
+
+  virtual rules::RulesStatus rules_status() = 0;
+  /// Reloads the rule files atomically. @throw rules::RuleError ("file:line: message" lines; the previous rules
+  /// stay active), Busy.
+  virtual rules::RulesStatus reload_rules() = 0;
+  /// Read-only knowledge-base query. @throw rules::QueryError, Busy.
+  virtual rules::QueryResult query(const std::string& goal, std::size_t max_solutions) = 0;
+  /// Re-decides the last `count` logged segment decisions with `candidate` in place of the file of its name;
+  /// returns those whose action or rule would differ. Nothing is applied.
+  /// @throw rules::RuleError when the candidate does not load; std::invalid_argument for a bad name; Busy.
+  virtual DryRunOutcome dry_run(const rules::RuleText& candidate, std::size_t count) = 0;
+};
+
+/// The occupancy grid: its cells, layers and tiles.
+class GridPort {
+ public:
+  virtual ~GridPort() = default;
+
+  /// The grid's cell size [m].
+  virtual double grid_resolution_m() const = 0;
+  /// The cells observed so far, nullopt while the grid is empty.
+  virtual std::optional<fusion::GridGeometry> grid_bounds() const = 0;
+  /// One layer over `region` (cells never observed are NaN), read under the grid's shared lock: never during an
+  /// insert, and a waiting insert goes first.
+  virtual GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const = 0;
+  /// Every touched tile with its revision, read under one lock.
+  virtual GridTiles grid_tiles() const = 0;
+  /// One tile of a layer with its revision, read under one lock; nullopt for a tile never touched.
+  virtual std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
+                                                  std::int64_t ty) const = 0;
+  /// Every layer of one tile, in Layer order (tile_size² values each, one after the other), read under one lock so
+  /// all four are of one revision; nullopt for a tile never touched.
+  virtual std::optional<GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const = 0;
+};
+
+/// The robots heard from.
+class RobotPort {
+ public:
+  virtual ~RobotPort() = default;
 
   /// The robots heard from (scans, primitives, reported poses), by id; restored from the journal at start.
   virtual std::vector<RobotState> robots() const = 0;
@@ -241,6 +278,29 @@ class WorldPort {
   /// @throw storage::StorageError (nothing applied then).
   virtual RobotState put_robot_pose(const std::string& id, RobotPose pose, bool stopped) = 0;
   virtual const RobotOptions& robot_options() const = 0;
+};
+
+/// The whole service: what wmd wires in (WorldService implements it).
+class WorldPort : public virtual MapPort,
+                  public virtual IngestPort,
+                  public virtual PlanPort,
+                  public virtual RulesPort,
+                  public virtual GridPort,
+                  public virtual RobotPort {};
+
+/// The six ports of one service, as the handlers get them.
+struct WorldPorts {
+  MapPort& map;
+  IngestPort& ingest;
+  PlanPort& plan;
+  RulesPort& rules;
+  GridPort& grid;
+  RobotPort& robots;
+
+  WorldPorts(WorldPort& world)  // NOLINT(google-explicit-constructor): every port of one service
+      : map(world), ingest(world), plan(world), rules(world), grid(world), robots(world) {}
+  WorldPorts(MapPort& m, IngestPort& i, PlanPort& p, RulesPort& r, GridPort& g, RobotPort& b)
+      : map(m), ingest(i), plan(p), rules(r), grid(g), robots(b) {}
 };
 
 }  // namespace wm::service

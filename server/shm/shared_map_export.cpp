@@ -166,10 +166,10 @@ class SharedMapExport::Segment {
   std::atomic<bool> lost_{false};
 };
 
-SharedMapExport::SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance,
+SharedMapExport::SharedMapExport(ExportSource world, ShmOptions options, std::string server_instance,
                                  common::Diagnostics& diagnostics)
     : world_(world), diagnostics_(diagnostics), options_(options), server_instance_(std::move(server_instance)) {
-  const auto tiles = world_.grid_tiles();
+  const auto tiles = world_.grid.grid_tiles();
   tile_size_cells_ = tiles.tile_size_cells;
   resolution_m_ = tiles.resolution_m;
   owner_start_ticks_ = process_stat(::getpid()).value_or(ProcessStat{}).start_ticks;
@@ -234,8 +234,8 @@ void SharedMapExport::sync() {
 }
 
 void SharedMapExport::sync_locked() {
-  const auto tiles = world_.grid_tiles();
-  const auto state = world_.snapshot();
+  const auto tiles = world_.grid.grid_tiles();
+  const auto state = world_.map.snapshot();
 
   // Another process of this user shrank the file or rewrote the header: a new segment takes its place, filled from
   // the world (nothing is copied from this one), and this one is retired with the new name where it still can be.
@@ -327,7 +327,7 @@ void SharedMapExport::sync_locked() {
       tiles_truncated = true;
       continue;
     }
-    const auto values = world_.grid_tile_layers(t.tx, t.ty);  // may be newer than t.revision: never older
+    const auto values = world_.grid.grid_tile_layers(t.tx, t.ty);  // may be newer than t.revision: never older
     if (!values) continue;
     if (fresh) slot = slots_.emplace(std::pair{t.tx, t.ty}, Slot{slots_.size(), 0}).first;
     auto& target = segment_->slot(slot->second.index);

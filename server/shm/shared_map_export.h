@@ -68,12 +68,21 @@ struct ShmStatus {
 /// old one is marked retired with the new name in it, then unlinked (mapped readers keep their memory). At
 /// destruction the segment is marked stopped and unlinked. At construction, segments left by dead wmd processes
 /// (no one holds their lock) are removed.
+/// What the export reads: the map's snapshot and the grid's tiles.
+struct ExportSource {
+  const service::MapPort& map;
+  const service::GridPort& grid;
+  ExportSource(const service::WorldPort& world)  // NOLINT(google-explicit-constructor): both ports of one service
+      : map(world), grid(world) {}
+  ExportSource(const service::MapPort& m, const service::GridPort& g) : map(m), grid(g) {}
+};
+
 class SharedMapExport {
  public:
   /// Removes stale segments, makes the segment, fills it once and starts the thread. Never throws for a segment
   /// that cannot be made: status() says why, each pass tries again, and `diagnostics` (where "shm", which must
   /// outlive this) counts each new failure and each segment replaced.
-  SharedMapExport(const service::WorldPort& world, ShmOptions options, std::string server_instance,
+  SharedMapExport(ExportSource world, ShmOptions options, std::string server_instance,
                   common::Diagnostics& diagnostics);
   ~SharedMapExport();
   SharedMapExport(const SharedMapExport&) = delete;
@@ -109,7 +118,7 @@ class SharedMapExport {
   void write_map(const std::vector<unsigned char>& records, std::int64_t version, std::uint64_t elements,
                  std::uint64_t objects, std::uint64_t edges);
 
-  const service::WorldPort& world_;
+  ExportSource world_;
   common::Diagnostics& diagnostics_;
   const ShmOptions options_;
   const std::string server_instance_;

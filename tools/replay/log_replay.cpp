@@ -47,7 +47,7 @@ LogReplayResult replay_log(const std::filesystem::path& log, const LogReplayOpti
     if (++result.scans == options.max_scans) break;
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  result.quality = service::measure_map_quality(world);
+  result.quality = service::measure_map_quality(world, world);
   if (on_service) on_service(world);
   return result;
 }

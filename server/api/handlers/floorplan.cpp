@@ -132,7 +132,7 @@ std::optional<apriori::ImportResult> import_body(const Call& call) {
 }  // namespace
 
 Response get_floor_plan(const Call& call) {
-  const auto snap = call.world.snapshot();
+  const auto snap = call.world.map.snapshot();
   apriori::FloorPlan plan{snap->plan_name, {}};
   for (const auto& o : snap->objects) plan.objects.push_back(*o.plan);
   // The plan as drawn, and where it sits in the world.
@@ -153,7 +153,7 @@ Response put_floor_plan(const Call& call) {
   for (const auto& o : plan.objects) edges += o.edges().size();
   const auto objects = plan.objects.size();
   const auto name = plan.name;
-  const auto version = call.world.load_floor_plan(std::move(plan));
+  const auto version = call.world.plan.load_floor_plan(std::move(plan));
   nlohmann::json answer = {{"name", name}, {"objects", objects}, {"edges", edges}, {"version", version}};
   if (imported) answer["report"] = json_codec::parse_json(apriori::to_json_text(imported->report));
   return json_response(call.request, answer);

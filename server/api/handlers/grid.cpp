@@ -34,13 +34,13 @@ Layer grid_layer(const std::string& name) {
 fusion::GridGeometry grid_region(const Call& call, std::int64_t max_cells) {
   const auto bbox = query_bbox(call.target);
   if (!bbox) {
-    const auto region = call.world.grid_bounds();
+    const auto region = call.world.grid.grid_bounds();
     if (!region) throw ApiError(404, "empty_grid", "no scan has reached the grid yet; POST /api/v1/scans first");
     if (region->width() * region->height() > max_cells)
       throw bad_request("bbox", "the grid has more than " + std::to_string(max_cells) + " cells; give a bbox");
     return *region;
   }
-  const double resolution = call.world.grid_resolution_m();
+  const double resolution = call.world.grid.grid_resolution_m();
   const double v[4] = {bbox->x0, bbox->y0, bbox->x1, bbox->y1};
   const auto x0 = static_cast<std::int64_t>(std::floor(v[0] / resolution));
   const auto y0 = static_cast<std::int64_t>(std::floor(v[1] / resolution));
@@ -54,7 +54,7 @@ fusion::GridGeometry grid_region(const Call& call, std::int64_t max_cells) {
 
 Response pgm_response(const Call& call, Layer layer) {
   const auto region = grid_region(call, kMaxImageCells);
-  const auto cells = call.world.grid_layer(layer, region);
+  const auto cells = call.world.grid.grid_layer(layer, region);
   return raw_response(call.request, formats::pgm_image(cells.values, region), "image/x-portable-graymap");
 }
 
@@ -86,7 +86,7 @@ Response get_grid(const Call& call) {
   if (format != "json" && format != "pgm") throw bad_request("format", "expected json or pgm");
   if (format == "pgm") return pgm_response(call, layer);
   const auto region = grid_region(call, kMaxJsonCells);
-  const auto cells = call.world.grid_layer(layer, region);
+  const auto cells = call.world.grid.grid_layer(layer, region);
   const nlohmann::json head = {{"layer", layer_name},
                                {"resolution", region.resolution_m()},
                                {"origin", nlohmann::json::array({region.origin_m().x(), region.origin_m().y()})},
@@ -102,7 +102,7 @@ Response get_grid(const Call& call) {
 }
 
 Response get_grid_tiles(const Call& call) {
-  const auto tiles = call.world.grid_tiles();
+  const auto tiles = call.world.grid.grid_tiles();
   nlohmann::json list = nlohmann::json::array();
   for (const auto& t : tiles.tiles) list.push_back({t.tx, t.ty, t.revision});
   return json_response(call.request,
@@ -134,7 +134,7 @@ Response get_grid_tile(const Call& call) {
   const std::string_view view(path);
   const auto tx = index(view.substr(first + 1, second - first - 1), "tx");
   const auto ty = index(view.substr(second + 1), "ty");
-  const auto tile = call.world.grid_tile(layer, tx, ty);
+  const auto tile = call.world.grid.grid_tile(layer, tx, ty);
   if (!tile)
     throw ApiError(404, "no_tile",
                    "tile (" + std::to_string(tx) + ", " + std::to_string(ty) +
@@ -157,7 +157,7 @@ Response get_grid_map_pgm(const Call& call) { return pgm_response(call, Layer::b
 
 Response post_grid_extract(const Call& call) {
   require_token(call.request, call.options);
-  const auto outcome = call.world.extract_grid_lines();
+  const auto outcome = call.world.ingest.extract_grid_lines();
   nlohmann::json answer = {{"segments", 0}, {"observation", nullptr}, {"decisions", nlohmann::json::array()}};
   if (outcome) {
     // One decision per segment (index >= 0); joins and end cuts the segments led to come with index -1.

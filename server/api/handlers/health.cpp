@@ -27,14 +27,14 @@ nlohmann::json diagnostics_json(const common::Diagnostics& diagnostics) {
 }  // namespace
 
 Response get_health(const Call& call) {
-  const auto snap = call.world.snapshot();
+  const auto snap = call.world.map.snapshot();
   nlohmann::json body{{"status", "ok"},
                       {"version", snap->version},
                       {"plan", snap->plan_name},
                       {"objects", snap->objects.size()},
                       {"elements", snap->elements.size()},
                       {"last_decision_seq", snap->last_decision_seq},
-                      {"rules", json_codec::rules_status_json(call.world.rules_status())}};
+                      {"rules", json_codec::rules_status_json(call.world.rules.rules_status())}};
   if (call.diagnostics) body["diagnostics"] = diagnostics_json(*call.diagnostics);
   return json_response(call.request, body);
 }

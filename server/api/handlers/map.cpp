@@ -40,8 +40,8 @@ Response map_delta(const Call& call, const std::shared_ptr<const world::WorldSta
   if (since > snap->version)
     throw ApiError(400, "bad_since",
                    "since=" + std::to_string(since) + " is after the map's version " + std::to_string(snap->version));
-  const auto& options = call.world.world_options();
-  auto& world = call.world;
+  const auto& options = call.world.map.world_options();
+  auto& world = call.world.map;
   const auto body = call.map_cache.delta(
       snap, since,
       [&options, &world, since, instance = call.map_cache.instance()](const world::WorldState& state) {
@@ -78,8 +78,8 @@ Response map_delta(const Call& call, const std::shared_ptr<const world::WorldSta
 }  // namespace
 
 Response get_map(const Call& call) {
-  const auto snap = call.world.snapshot();
-  const auto& options = call.world.world_options();
+  const auto snap = call.world.map.snapshot();
+  const auto& options = call.world.map.world_options();
   const auto format = call.target.param("format").value_or("json");
   if (format != "json" && format != "dxf" && format != "geojson")
     throw bad_request("format", "expected json, dxf or geojson");
@@ -103,7 +103,7 @@ Response get_map(const Call& call) {
                         content_type_of(format));
   }
   // The builder may run in the background (max-stale): it refers to nothing of this request.
-  auto& world = call.world;
+  auto& world = call.world.map;
   const auto body = call.map_cache.body(
       snap, format, content_type_of(format),
       [&options, format, instance = call.map_cache.instance(),
@@ -125,7 +125,7 @@ Response get_map(const Call& call) {
 
 Response get_map_quality(const Call& call) {
   const service::MapQualityReportOptions options;
-  const auto report = service::measure_map_quality(call.world, options);
+  const auto report = service::measure_map_quality(call.world.map, call.world.grid, options);
   const auto& q = report.map;
   const auto& m = options.map;
   nlohmann::json body{{"map_version", report.map_version},

@@ -5,7 +5,7 @@
 namespace wm::api {
 
 Response get_network(const Call& call) {
-  const auto stats = call.world.network_stats();
+  const auto stats = call.world.ingest.network_stats();
   nlohmann::json ports = nlohmann::json::array(), functions = nlohmann::json::array(),
                  executors = nlohmann::json::array();
   for (const auto& p : stats.ports)

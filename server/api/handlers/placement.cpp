@@ -123,7 +123,7 @@ Response post_floor_plan_place(const Call& call) {
   change.rule = "plan_placed";
   change.explanation = "placed by hand";
   change.observer = observer_of(doc);
-  return json_response(call.request, placement_outcome_json(call.world.place_floor_plan(change, doc.dump())));
+  return json_response(call.request, placement_outcome_json(call.world.plan.place_floor_plan(change, doc.dump())));
 }
 
 Response post_floor_plan_pairs(const Call& call) {
@@ -160,7 +160,7 @@ Response post_floor_plan_pairs(const Call& call) {
     change.explanation = std::to_string(pairs.size()) + " point pairs, rms " + std::to_string(placed.rms_m) + " m";
     change.observer = observer_of(doc);
     answer["applied"] = true;
-    answer.update(placement_outcome_json(call.world.place_floor_plan(change, doc.dump())));
+    answer.update(placement_outcome_json(call.world.plan.place_floor_plan(change, doc.dump())));
   }
   return json_response(call.request, answer);
 }
@@ -206,7 +206,7 @@ Response post_floor_plan_align(const Call& call) {
   if (request.min_coverage < 0 || request.min_coverage > 1)
     throw bad_request("min_coverage", "expected a number in [0, 1]");
   request.observer = observer_of(doc);
-  const auto outcome = call.world.align_floor_plan(request);
+  const auto outcome = call.world.plan.align_floor_plan(request);
   const auto& r = outcome.result;
   nlohmann::json answer = {
       {"verdict", outcome.verdict},
@@ -235,12 +235,12 @@ Response post_floor_plan_align(const Call& call) {
 
 Response post_floor_plan_undo(const Call& call) {
   require_token(call.request, call.options);
-  return json_response(call.request, placement_outcome_json(call.world.undo_placement("client")));
+  return json_response(call.request, placement_outcome_json(call.world.plan.undo_placement("client")));
 }
 
 Response post_floor_plan_redecide(const Call& call) {
   require_token(call.request, call.options);
-  return json_response(call.request, redecide_json(call.world.redecide_elements("client")));
+  return json_response(call.request, redecide_json(call.world.plan.redecide_elements("client")));
 }
 
 Response put_georeference(const Call& call) {
@@ -254,13 +254,13 @@ Response put_georeference(const Call& call) {
   } catch (const std::invalid_argument& e) {
     throw bad_request("", e.what());
   }
-  const auto version = call.world.set_georeference(g);
+  const auto version = call.world.plan.set_georeference(g);
   return json_response(call.request, {{"version", version}, {"georeference", json_codec::georeference_json(g)}});
 }
 
 Response delete_georeference(const Call& call) {
   require_token(call.request, call.options);
-  const auto version = call.world.set_georeference(std::nullopt);
+  const auto version = call.world.plan.set_georeference(std::nullopt);
   return json_response(call.request, {{"version", version}, {"georeference", nullptr}});
 }
 

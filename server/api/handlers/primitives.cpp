@@ -10,9 +10,9 @@ Response post_primitives(const Call& call) {
   require_token(call.request, call.options);
   require_json_body(call.request);
   auto observation =
-      json_codec::parse_primitives(call.request.body(), call.world.world_options(), call.options.primitive_limits);
+      json_codec::parse_primitives(call.request.body(), call.world.map.world_options(), call.options.primitive_limits);
   const auto outcome =
-      call.world.post_primitives(std::move(observation), call.request.body(), request_id(call.request));
+      call.world.ingest.post_primitives(std::move(observation), call.request.body(), request_id(call.request));
   auto response = json_response(call.request, {{"seq", outcome.seq},
                                                {"version", outcome.version},
                                                {"decisions", json_codec::decisions_json(outcome.decisions)}});

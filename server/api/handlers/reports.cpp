@@ -13,8 +13,8 @@
 namespace wm::api {
 
 Response get_as_built_report(const Call& call) {
-  const auto snap = call.world.snapshot();
-  const auto evidence = call.world.plan_report();
+  const auto snap = call.world.map.snapshot();
+  const auto evidence = call.world.map.plan_report();
   return json_response(call.request,
                        json_codec::as_built_json(*snap, world::as_built_report(*snap, evidence.get()), evidence.get()));
 }
@@ -49,25 +49,25 @@ nlohmann::json outcome_json(const service::ChangeOutcome& outcome) {
 Response get_changes(const Call& call) {
   std::shared_ptr<const world::WorldState> snap;
   std::shared_ptr<const world::PlanReport> evidence;
-  const auto changes = call.world.changes(snap, evidence);
+  const auto changes = call.world.map.changes(snap, evidence);
   return json_response(call.request, json_codec::changes_json(*snap, *evidence, changes));
 }
 
 Response post_change_accept(const Call& call) {
   require_token(call.request, call.options);
   require_change_id(call.param);
-  return json_response(call.request, outcome_json(call.world.decide_change(call.param, true, decider(call))));
+  return json_response(call.request, outcome_json(call.world.plan.decide_change(call.param, true, decider(call))));
 }
 
 Response post_change_reject(const Call& call) {
   require_token(call.request, call.options);
   require_change_id(call.param);
-  return json_response(call.request, outcome_json(call.world.decide_change(call.param, false, decider(call))));
+  return json_response(call.request, outcome_json(call.world.plan.decide_change(call.param, false, decider(call))));
 }
 
 Response post_changes_undo(const Call& call) {
   require_token(call.request, call.options);
-  return json_response(call.request, outcome_json(call.world.undo_change(decider(call))));
+  return json_response(call.request, outcome_json(call.world.plan.undo_change(decider(call))));
 }
 
 }  // namespace wm::api

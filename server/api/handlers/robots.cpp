@@ -16,7 +16,7 @@ double now_unix_s() {
 }
 
 nlohmann::json with_status(const Call& call, const service::RobotState& robot, double now) {
-  const service::RobotRegistry rules(call.world.robot_options());  // only for its status thresholds
+  const service::RobotRegistry rules(call.world.robots.robot_options());  // only for its status thresholds
   return json_codec::robot_json(robot, service::to_string(rules.status(robot, now)), now);
 }
 
@@ -30,8 +30,8 @@ const std::string& robot_id(const Call& call) {
 Response get_robots(const Call& call) {
   const double now = now_unix_s();
   nlohmann::json list = nlohmann::json::array();
-  for (const auto& robot : call.world.robots()) list.push_back(with_status(call, robot, now));
-  const auto& options = call.world.robot_options();
+  for (const auto& robot : call.world.robots.robots()) list.push_back(with_status(call, robot, now));
+  const auto& options = call.world.robots.robot_options();
   return json_response(call.request, {{"robots", std::move(list)},
                                       {"alive_s", options.alive_s},
                                       {"status",
@@ -40,7 +40,7 @@ Response get_robots(const Call& call) {
 }
 
 Response get_robot(const Call& call) {
-  const auto robot = call.world.robot(robot_id(call));
+  const auto robot = call.world.robots.robot(robot_id(call));
   if (!robot)
     throw ApiError(404, "unknown_robot",
                    "no scan, primitives or pose came from '" + call.param + "'; GET /api/v1/robots lists the robots");
@@ -52,7 +52,7 @@ Response put_robot_pose(const Call& call) {
   require_json_body(call.request);
   const auto& id = robot_id(call);
   auto reported = json_codec::parse_reported_pose(call.request.body());
-  const auto robot = call.world.put_robot_pose(id, std::move(reported.pose), reported.stopped);
+  const auto robot = call.world.robots.put_robot_pose(id, std::move(reported.pose), reported.stopped);
   return json_response(call.request, with_status(call, robot, now_unix_s()));
 }
 

@@ -7,12 +7,12 @@
 namespace wm::api {
 
 Response get_rules(const Call& call) {
-  return json_response(call.request, json_codec::rules_status_json(call.world.rules_status()));
+  return json_response(call.request, json_codec::rules_status_json(call.world.rules.rules_status()));
 }
 
 Response post_rules_reload(const Call& call) {
   require_token(call.request, call.options);
-  return json_response(call.request, json_codec::rules_status_json(call.world.reload_rules()));
+  return json_response(call.request, json_codec::rules_status_json(call.world.rules.reload_rules()));
 }
 
 Response post_rules_dry_run(const Call& call) {
@@ -28,7 +28,7 @@ Response post_rules_dry_run(const Call& call) {
   require_known_keys(doc, {"file", "text", "last"});
   const rules::RuleText candidate{string_field(doc, "file", 255), string_field(doc, "text", 4u << 20)};
   const std::size_t last = count_field(doc, "last", 1000, 100000);
-  const auto outcome = call.world.dry_run(candidate, last);
+  const auto outcome = call.world.rules.dry_run(candidate, last);
   nlohmann::json changes = nlohmann::json::array();
   for (const auto& c : outcome.changes)
     changes.push_back(

@@ -10,7 +10,7 @@ Response post_scan(const Call& call) {
   require_token(call.request, call.options);
   require_json_body(call.request);
   auto scan = json_codec::parse_scan(call.request.body(), call.options.scan_limits);
-  const auto outcome = call.world.post_scan(std::move(scan), call.request.body(), request_id(call.request));
+  const auto outcome = call.world.ingest.post_scan(std::move(scan), call.request.body(), request_id(call.request));
   nlohmann::json answer = {{"seq", outcome.seq}, {"grid_revision", outcome.grid_revision}, {"lines", nullptr}};
   if (const auto& lines = outcome.lines) {
     answer["lines"] = {{"observation", lines->seq},

@@ -1,13 +1,15 @@
 #pragma once
 
-// A WorldPort for handler tests: a world state the test sets, canned answers, the calls it received, and an
-// exception to throw from the next call when the test wants one. No thread, no store, no Prolog.
+// Fakes of the service's ports for handler tests: one class per port, each the size of its port, sharing one
+// FakeLedger (the world state the test sets, the calls received, an exception to throw from the next call), and
+// FakeWorldPort, all six at once, for tests that go through the whole router. No thread, no store, no Prolog.
 #include <algorithm>
 #include <chrono>
 #include <exception>
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fusion/grid/occupancy_grid.h"
@@ -15,11 +17,13 @@
 
 namespace wm::testing {
 
-class FakeWorldPort : public service::WorldPort {
+/// What the fakes share: the world state, the calls in order, and the failure to throw next.
+class FakeLedger {
  public:
-  FakeWorldPort() : state_(std::make_shared<world::WorldState>()) {}
+  FakeLedger() : state_(std::make_shared<world::WorldState>()) {}
+  FakeLedger(const FakeLedger&) = delete;  // shared by the fakes of one service: never copied or moved
+  FakeLedger& operator=(const FakeLedger&) = delete;
 
-  // --- what the test sets up ---
   /// Replaces the world with `plan` loaded as drawn (version 1).
   void load_plan(const apriori::FloorPlan& plan) {
     auto update = world::apply_floor_plan(world::WorldState{}, plan, options_);
@@ -28,32 +32,109 @@ class FakeWorldPort : public service::WorldPort {
   world::WorldState& state() { return *state_; }
   /// The next call of any port method throws this (then it is cleared).
   void fail_next(std::exception_ptr failure) { failure_ = std::move(failure); }
-  std::vector<world::DecisionRecord> logged;  // what decisions() and object_decisions() answer
-  rules::QueryResult query_answer;
-  service::DryRunOutcome dry_run_answer;
-  bool replay = false;                        // posts answer as replays
-  std::optional<fusion::OccupancyGrid> grid;  // nullopt: an empty grid of 0.05 m cells
-
-  // --- what the handlers did ---
   std::vector<std::string> calls;  // method names, in order
-  std::optional<world::Observation> last_observation;
-  std::optional<json_codec::ScanRequest> last_scan;
-  std::optional<apriori::FloorPlan> last_plan;
-  std::optional<std::string> last_request_id;
-  std::string last_payload;
-  std::optional<std::string> last_element_filter;
-  std::string last_goal;
-  std::optional<rules::RuleText> last_candidate;
-  std::optional<world::PlacementChange> last_placement;
-  std::optional<service::AlignRequest> last_align;
-  service::AlignOutcome align_answer;
-  std::shared_ptr<world::PlanReport> plan_report_answer = std::make_shared<world::PlanReport>();
-  std::optional<std::pair<std::string, bool>> last_change;  // (id, accept) of the last decide_change
-  std::string last_decider;
+  std::string last_payload;        // the body journaled by the last post or placement
 
-  // --- WorldPort ---
+  static world::DecisionRecord decision(rules::Action action, const std::string& element) {
+    world::DecisionRecord d;
+    d.seq = 1;
+    d.action = action;
+    d.rule = "test_rule";
+    d.element = element;
+    return d;
+  }
+
+ protected:
+  void enter(const std::string& name) {
+    calls.push_back(name);
+    if (failure_) std::rethrow_exception(std::exchange(failure_, nullptr));
+  }
+
+  world::WorldOptions options_;
+  std::shared_ptr<world::WorldState> state_;
+
+ private:
+  std::exception_ptr failure_;
+};
+
+/// The map: the ledger's state, a decision log the test fills, the plan report it sets.
+class FakeMap : public virtual service::MapPort, public virtual FakeLedger {
+ public:
+  std::vector<world::DecisionRecord> logged;  // what decisions() and object_decisions() answer
+  std::optional<std::string> last_element_filter;
+  std::shared_ptr<world::PlanReport> plan_report_answer = std::make_shared<world::PlanReport>();
+
   std::shared_ptr<const world::WorldState> snapshot() const override { return state_; }
   const world::WorldOptions& world_options() const override { return options_; }
+  std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
+                                               const std::optional<std::string>& element) override {
+    enter("decisions");
+    last_element_filter = element;
+    std::vector<world::DecisionRecord> rows;
+    for (const auto& d : logged)
+      if (d.seq > since_seq && rows.size() < limit && (!element || d.element == element)) rows.push_back(d);
+    return rows;
+  }
+  std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t) override {
+    enter("object_decisions");
+    std::vector<world::DecisionRecord> rows;
+    for (const auto& d : logged)
+      if (d.object == object_id) rows.push_back(d);
+    return rows;
+  }
+  std::optional<service::MapRemovals> removed_since(std::int64_t since, std::int64_t) const override {
+    if (since < 0) return std::nullopt;
+    return service::MapRemovals{};
+  }
+
+  std::shared_ptr<const world::PlanReport> plan_report() const override { return plan_report_answer; }
+};
+
+/// The grid: an empty grid of 0.05 m cells unless the test sets one.
+class FakeGrid : public virtual service::GridPort, public virtual FakeLedger {
+ public:
+  std::optional<fusion::OccupancyGrid> grid;
+
+  double grid_resolution_m() const override { return the_grid().resolution_m(); }
+  std::optional<fusion::GridGeometry> grid_bounds() const override { return the_grid().bounds(); }
+  service::GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer,
+                                      const fusion::GridGeometry& region) const override {
+    return {the_grid().export_layer(layer, region), 4};
+  }
+  service::GridTiles grid_tiles() const override {
+    service::GridTiles result{the_grid().tile_size_cells(), the_grid().resolution_m(), 4, {}};
+    for (const auto& [index, revision] : the_grid().tile_revisions())
+      result.tiles.push_back({index.x, index.y, revision});
+    return result;
+  }
+  std::optional<service::GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
+                                                   std::int64_t ty) const override {
+    const auto revision = the_grid().tile_revision({tx, ty});
+    if (revision == 0) return std::nullopt;
+    return service::GridTileValues{the_grid().export_layer(layer, the_grid().tiles_geometry({tx, ty}, {tx, ty})),
+                                   revision};
+  }
+  std::optional<service::GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override {
+    const auto revision = the_grid().tile_revision({tx, ty});
+    if (revision == 0) return std::nullopt;
+    return service::GridTileValues{the_grid().export_tile_layers({tx, ty}), revision};
+  }
+
+ protected:
+  const fusion::OccupancyGrid& the_grid() const { return grid ? *grid : empty_grid_; }
+
+ private:
+  fusion::OccupancyGrid empty_grid_{fusion::GridOptions{}};
+};
+
+/// Posts answered with canned decisions; what was posted is kept.
+class FakeIngest : public virtual service::IngestPort, public virtual FakeLedger {
+ public:
+  bool replay = false;          // posts answer as replays
+  bool grid_has_lines = false;  // extract_grid_lines finds a line
+  std::optional<world::Observation> last_observation;
+  std::optional<json_codec::ScanRequest> last_scan;
+  std::optional<std::string> last_request_id;
 
   service::PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
                                              std::optional<std::string> request_id) override {
@@ -71,6 +152,34 @@ class FakeWorldPort : public service::WorldPort {
     last_request_id = std::move(request_id);
     return {4, 4, service::PrimitivesOutcome{8, 5, {decision(rules::Action::merge, "e2")}, replay}, replay};
   }
+  std::optional<service::PrimitivesOutcome> extract_grid_lines() override {
+    enter("extract_grid_lines");
+    if (!grid_has_lines) return std::nullopt;
+    return service::PrimitivesOutcome{11, 6, {decision(rules::Action::add, "e3")}, false};
+  }
+  pipeline::NetworkStats network_stats() const override {
+    pipeline::NetworkStats stats;
+    stats.source = "fake.yaml";
+    stats.ports.push_back({"matcher", "laser", "scan", pipeline::PortPolicy::fifo, 256, 3, 7, 100, 0, 2});
+    stats.functions.push_back({"matcher", "laser", {"laser"}, {}, 0, 97, 0, 0.5, 0.01});
+    stats.executors.push_back({"world", {"matcher"}, 120, 0.5, 2.0});
+    stats.connections.push_back("matcher.decided -> store.in");
+    return stats;
+  }
+};
+
+/// The plan's writes: loads, placements, changes accepted and rejected.
+class FakePlan : public virtual service::PlanPort, public virtual FakeLedger {
+ public:
+  std::optional<apriori::FloorPlan> last_plan;
+  std::optional<world::PlacementChange> last_placement;
+  std::optional<service::AlignRequest> last_align;
+  service::AlignOutcome align_answer;
+  std::optional<std::pair<std::string, bool>> last_change;  // (id, accept) of the last decide_change
+  std::string last_decider;
+  /// The changes decide_change may take (FakeWorldPort lists the map's).
+  std::function<std::vector<world::Change>()> listed_changes = [] { return std::vector<world::Change>{}; };
+
   std::int64_t load_floor_plan(apriori::FloorPlan plan) override {
     enter("load_floor_plan");
     last_plan = std::move(plan);
@@ -102,11 +211,30 @@ class FakeWorldPort : public service::WorldPort {
     state_->georeference = georeference;
     return ++state_->version;
   }
-  std::optional<service::PrimitivesOutcome> extract_grid_lines() override {
-    enter("extract_grid_lines");
-    if (!grid) return std::nullopt;
-    return service::PrimitivesOutcome{11, 6, {decision(rules::Action::add, "e3")}, false};
+  service::ChangeOutcome decide_change(const std::string& change_id, bool accept, std::string observer) override {
+    enter("decide_change");
+    const auto listed = listed_changes();
+    if (std::none_of(listed.begin(), listed.end(), [&](const world::Change& c) { return c.id == change_id; }))
+      throw service::NotFound("no change '" + change_id + "' is listed now");
+    last_change = {change_id, accept};
+    last_decider = observer;
+    return {state_->version + 1, decision(accept ? rules::Action::accept : rules::Action::reject, ""), change_id, {}};
   }
+  service::ChangeOutcome undo_change(std::string observer) override {
+    enter("undo_change");
+    last_decider = observer;
+    return {state_->version + 1, decision(rules::Action::undo, ""), "c000000000000", {}};
+  }
+};
+
+/// The knowledge base's answers, set by the test.
+class FakeRules : public virtual service::RulesPort, public virtual FakeLedger {
+ public:
+  rules::QueryResult query_answer;
+  service::DryRunOutcome dry_run_answer;
+  std::string last_goal;
+  std::optional<rules::RuleText> last_candidate;
+
   rules::RulesStatus rules_status() override {
     enter("rules_status");
     return {{{"/srv/wm/prolog/world_model.pl", "abc", 1}}, "", 1};
@@ -125,63 +253,13 @@ class FakeWorldPort : public service::WorldPort {
     last_candidate = candidate;
     return dry_run_answer;
   }
-  std::vector<world::DecisionRecord> decisions(std::int64_t since_seq, std::size_t limit,
-                                               const std::optional<std::string>& element) override {
-    enter("decisions");
-    last_element_filter = element;
-    std::vector<world::DecisionRecord> rows;
-    for (const auto& d : logged)
-      if (d.seq > since_seq && rows.size() < limit && (!element || d.element == element)) rows.push_back(d);
-    return rows;
-  }
-  std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t) override {
-    enter("object_decisions");
-    std::vector<world::DecisionRecord> rows;
-    for (const auto& d : logged)
-      if (d.object == object_id) rows.push_back(d);
-    return rows;
-  }
-  double grid_resolution_m() const override { return the_grid().resolution_m(); }
-  std::optional<fusion::GridGeometry> grid_bounds() const override { return the_grid().bounds(); }
-  service::GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer,
-                                      const fusion::GridGeometry& region) const override {
-    return {the_grid().export_layer(layer, region), 4};
-  }
-  service::GridTiles grid_tiles() const override {
-    service::GridTiles result{the_grid().tile_size_cells(), the_grid().resolution_m(), 4, {}};
-    for (const auto& [index, revision] : the_grid().tile_revisions())
-      result.tiles.push_back({index.x, index.y, revision});
-    return result;
-  }
-  std::optional<service::GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
-                                                   std::int64_t ty) const override {
-    const auto revision = the_grid().tile_revision({tx, ty});
-    if (revision == 0) return std::nullopt;
-    return service::GridTileValues{the_grid().export_layer(layer, the_grid().tiles_geometry({tx, ty}, {tx, ty})),
-                                   revision};
-  }
-  std::optional<service::GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override {
-    const auto revision = the_grid().tile_revision({tx, ty});
-    if (revision == 0) return std::nullopt;
-    return service::GridTileValues{the_grid().export_tile_layers({tx, ty}), revision};
-  }
-  std::shared_ptr<const world::PlanReport> plan_report() const override { return plan_report_answer; }
-  service::ChangeOutcome decide_change(const std::string& change_id, bool accept, std::string observer) override {
-    enter("decide_change");
-    std::shared_ptr<const world::WorldState> state;
-    std::shared_ptr<const world::PlanReport> evidence;
-    const auto listed = changes(state, evidence);
-    if (std::none_of(listed.begin(), listed.end(), [&](const world::Change& c) { return c.id == change_id; }))
-      throw service::NotFound("no change '" + change_id + "' is listed now");
-    last_change = {change_id, accept};
-    last_decider = observer;
-    return {state_->version + 1, decision(accept ? rules::Action::accept : rules::Action::reject, ""), change_id, {}};
-  }
-  service::ChangeOutcome undo_change(std::string observer) override {
-    enter("undo_change");
-    last_decider = observer;
-    return {state_->version + 1, decision(rules::Action::undo, ""), "c000000000000", {}};
-  }
+};
+
+/// The robots: a real registry.
+class FakeRobots : public virtual service::RobotPort, public virtual FakeLedger {
+ public:
+  service::RobotRegistry registry;  // what the robots routes read and write
+
   std::vector<service::RobotState> robots() const override { return registry.list(); }
   std::optional<service::RobotState> robot(const std::string& id) const override { return registry.find(id); }
   service::RobotState put_robot_pose(const std::string& id, service::RobotPose pose, bool stopped) override {
@@ -192,41 +270,28 @@ class FakeWorldPort : public service::WorldPort {
     return *registry.find(id);
   }
   const service::RobotOptions& robot_options() const override { return registry.options(); }
-  service::RobotRegistry registry;  // what the robots routes read and write
-  pipeline::NetworkStats network_stats() const override {
-    pipeline::NetworkStats stats;
-    stats.source = "fake.yaml";
-    stats.ports.push_back({"matcher", "laser", "scan", pipeline::PortPolicy::fifo, 256, 3, 7, 100, 0, 2});
-    stats.functions.push_back({"matcher", "laser", {"laser"}, {}, 0, 97, 0, 0.5, 0.01});
-    stats.executors.push_back({"world", {"matcher"}, 120, 0.5, 2.0});
-    stats.connections.push_back("matcher.decided -> store.in");
-    return stats;
-  }
-  std::optional<service::MapRemovals> removed_since(std::int64_t since, std::int64_t) const override {
-    if (since < 0) return std::nullopt;
-    return service::MapRemovals{};
-  }
+};
 
-  static world::DecisionRecord decision(rules::Action action, const std::string& element) {
-    world::DecisionRecord d;
-    d.seq = 1;
-    d.action = action;
-    d.rule = "test_rule";
-    d.element = element;
-    return d;
+/// All six ports at once, as the router sees the service.
+class FakeWorldPort : public service::WorldPort,
+                      public FakeMap,
+                      public FakeGrid,
+                      public FakeIngest,
+                      public FakePlan,
+                      public FakeRules,
+                      public FakeRobots {
+ public:
+  FakeWorldPort() {
+    listed_changes = [this] {
+      std::shared_ptr<const world::WorldState> state;
+      std::shared_ptr<const world::PlanReport> evidence;
+      return changes(state, evidence);
+    };
   }
-
- private:
-  void enter(const std::string& name) {
-    calls.push_back(name);
-    if (failure_) std::rethrow_exception(std::exchange(failure_, nullptr));
+  std::optional<service::PrimitivesOutcome> extract_grid_lines() override {
+    grid_has_lines = grid.has_value();
+    return FakeIngest::extract_grid_lines();
   }
-  const fusion::OccupancyGrid& the_grid() const { return grid ? *grid : empty_grid_; }
-
-  world::WorldOptions options_;
-  std::shared_ptr<world::WorldState> state_;
-  std::exception_ptr failure_;
-  fusion::OccupancyGrid empty_grid_{fusion::GridOptions{}};
 };
 
 }  // namespace wm::testing

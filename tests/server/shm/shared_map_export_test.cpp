@@ -33,7 +33,7 @@ using namespace std::chrono_literals;
 
 /// Tiles of T² cells whose every value tells the tile's revision and the layer: cell value = 4·revision + layer, so
 /// a copy mixing two revisions (or two layers) shows at once. Thread-safe, like the real service.
-class CountingGridPort : public FakeWorldPort {
+class CountingGridPort : public FakeMap, public FakeGrid {  // the two ports the export reads
  public:
   static constexpr std::int64_t kTile = 16;
 
@@ -77,7 +77,7 @@ TEST(SharedMapExportTest, ReadersNeverSeeATornTileWhileTheWriterHammersTheSlots)
   CountingGridPort port;
   for (int i = 0; i < 8; ++i) port.bump(i, -i);
   common::Diagnostics diagnostics("", nullptr);
-  shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
+  shm::SharedMapExport exporter(shm::ExportSource{port, port}, fast(), "test-run", diagnostics);
   const auto name = exporter.status().name;
 
   std::atomic<bool> done{false};
@@ -123,7 +123,7 @@ TEST(SharedMapExportTest, GrowsIntoALargerSegmentAndTheOldOneNamesIt) {
   CountingGridPort port;
   port.bump(0, 0);
   common::Diagnostics diagnostics("", nullptr);
-  shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
+  shm::SharedMapExport exporter(shm::ExportSource{port, port}, fast(), "test-run", diagnostics);
   const auto first = exporter.status();
   ASSERT_TRUE(first.available) << first.error;
   reader::Reader old_segment(first.name);
@@ -153,7 +153,7 @@ TEST(SharedMapExportTest, GrowsIntoALargerSegmentAndTheOldOneNamesIt) {
 TEST(SharedMapExportTest, ASizeCapLeavesTilesOutAndSaysSo) {
   CountingGridPort port;
   common::Diagnostics diagnostics("", nullptr);
-  shm::SharedMapExport exporter(port, fast(std::uint64_t{1} << 20), "test-run",
+  shm::SharedMapExport exporter(shm::ExportSource{port, port}, fast(std::uint64_t{1} << 20), "test-run",
                                 diagnostics);  // 1 MB: about 180 slots of 16²
   for (std::int64_t i = 0; i < 1000; ++i) port.bump(i, 0);
   exporter.sync();
@@ -174,7 +174,8 @@ TEST(SharedMapExportTest, AStopMarksTheSegmentStoppedAndRemovesItsName) {
   CountingGridPort port;
   port.bump(1, 1);
   common::Diagnostics diagnostics("", nullptr);
-  std::optional<shm::SharedMapExport> exporter(std::in_place, port, fast(), "test-run", diagnostics);
+  std::optional<shm::SharedMapExport> exporter(std::in_place, shm::ExportSource{port, port}, fast(), "test-run",
+                                               diagnostics);
   const auto name = exporter->status().name;
   ASSERT_TRUE(segment_exists(name));
   reader::Reader segment(name);
@@ -197,7 +198,7 @@ TEST(SharedMapExportTest, TheMapRecordsAreThePlanAsPlacedAndTheElements) {
   port.state().elements.put(e);
   port.state().version = 5;
   common::Diagnostics diagnostics("", nullptr);
-  shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
+  shm::SharedMapExport exporter(shm::ExportSource{port, port}, fast(), "test-run", diagnostics);
   reader::Reader segment(exporter.status().name);
   const auto map = segment.read_map();
   EXPECT_EQ(map.version, 5);
@@ -262,7 +263,8 @@ TEST(SharedMapExportTest, SegmentsNoServerHoldsGoAndOthersStay) {
   const auto left_before_start = leave_segment(12345, /*locked=*/false);
   CountingGridPort port;
   common::Diagnostics diagnostics("", nullptr);
-  std::optional<shm::SharedMapExport> alive(std::in_place, port, fast(), "test-run", diagnostics);
+  std::optional<shm::SharedMapExport> alive(std::in_place, shm::ExportSource{port, port}, fast(), "test-run",
+                                            diagnostics);
   EXPECT_FALSE(segment_exists(left_before_start->name)) << "a starting exporter removes what dead servers left";
   const auto own = alive->status().name;
   const auto unlocked = leave_segment(::getpid(), false);  // names a live pid, but no process holds its lock
@@ -381,7 +383,7 @@ TEST(SharedMapExportTest, ALayoutRewrittenInTheHeaderIsNeitherUsedNorLeftForRead
           CountingGridPort port;
           for (int i = 0; i < 4; ++i) port.bump(i, 0);
           common::Diagnostics diagnostics("", nullptr);
-          shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
+          shm::SharedMapExport exporter(shm::ExportSource{port, port}, fast(), "test-run", diagnostics);
           const auto before = exporter.status();
           {
             SameUser other(before.name);
@@ -419,7 +421,7 @@ TEST(SharedMapExportTest, ATruncatedSegmentIsReplacedAndTheExporterLivesOn) {
           CountingGridPort port;
           for (int i = 0; i < 4; ++i) port.bump(i, 0);
           common::Diagnostics diagnostics("", nullptr);
-          shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
+          shm::SharedMapExport exporter(shm::ExportSource{port, port}, fast(), "test-run", diagnostics);
           for (const std::size_t keep : {std::size_t{0}, std::size_t{4096}, std::size_t{8192}}) {
             const auto before = exporter.status().name;
             SameUser(before).truncate(keep);
@@ -456,7 +458,7 @@ TEST(SharedMapExportTest, TruncationsRacingTheCopiesNeverKillTheExporter) {
           CountingGridPort port;
           for (int i = 0; i < 64; ++i) port.bump(i, 0);
           common::Diagnostics diagnostics("", nullptr);
-          shm::SharedMapExport exporter(port, fast(), "test-run", diagnostics);
+          shm::SharedMapExport exporter(shm::ExportSource{port, port}, fast(), "test-run", diagnostics);
           std::atomic<bool> done{false};
           std::atomic<int> cuts{0};
           std::thread other([&] {
