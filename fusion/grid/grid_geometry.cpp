@@ -39,6 +39,41 @@ Eigen::Vector2d GridGeometry::center_of(CellIndex c) const {
   return origin_m_ + resolution_m_ * Eigen::Vector2d(static_cast<double>(c.x) + 0.5, static_cast<double>(c.y) + 0.5);
 }
 
+namespace {
+
+std::int64_t checked_index(double f, const char* what) {
+  // The negated comparison also rejects NaN.
+  if (!(std::abs(f) <= kMaxIndex)) throw std::out_of_range(std::string(what) + ": point is not finite or too far");
+  return static_cast<std::int64_t>(f);
+}
+
+void require_resolution(double resolution_m, const char* what) {
+  if (!(resolution_m > 0.0) || !std::isfinite(resolution_m))
+    throw std::invalid_argument(std::string(what) + ": resolution_m must be finite and > 0");
+}
+
+}  // namespace
+
+GridGeometry CellRange::geometry(double resolution_m) const {
+  return GridGeometry({static_cast<double>(first.x) * resolution_m, static_cast<double>(first.y) * resolution_m},
+                      resolution_m, width(), height());
+}
+
+CellIndex cell_at(const Eigen::Vector2d& p, double resolution_m) {
+  require_resolution(resolution_m, "cell_at");
+  return {checked_index(std::floor(p.x() / resolution_m), "cell_at"),
+          checked_index(std::floor(p.y() / resolution_m), "cell_at")};
+}
+
+CellRange covering(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi, double resolution_m) {
+  require_resolution(resolution_m, "covering");
+  if (!(lo.x() <= hi.x() && lo.y() <= hi.y())) throw std::invalid_argument("covering: lo must be <= hi");
+  return {{checked_index(std::floor(lo.x() / resolution_m), "covering"),
+           checked_index(std::floor(lo.y() / resolution_m), "covering")},
+          {checked_index(std::ceil(hi.x() / resolution_m), "covering"),
+           checked_index(std::ceil(hi.y() / resolution_m), "covering")}};
+}
+
 bool GridGeometry::contains(CellIndex c) const { return c.x >= 0 && c.x < width_ && c.y >= 0 && c.y < height_; }
 
 }  // namespace wm::fusion

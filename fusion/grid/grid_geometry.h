@@ -1,6 +1,8 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
+#include <compare>
 #include <cstdint>
 
 namespace wm::fusion {
@@ -11,6 +13,33 @@ struct CellIndex {
   std::int64_t y = 0;
   bool operator==(const CellIndex&) const = default;
 };
+
+/// Index of a square tile of T × T cells: tile (x, y) holds cells [x·T, (x+1)·T) × [y·T, (y+1)·T).
+struct TileIndex {
+  std::int64_t x = 0;
+  std::int64_t y = 0;
+  auto operator<=>(const TileIndex&) const = default;
+};
+
+/// A cell as its tile and its place in the tile.
+struct TileCell {
+  TileIndex tile;
+  std::int64_t x = 0;  // [0, T)
+  std::int64_t y = 0;  // [0, T)
+};
+
+/// The tile of `tile_size` cells a side holding cell c, by floor division (cell −1 lies in tile −1, at T − 1).
+/// tile_size > 0.
+inline TileCell tile_of(CellIndex c, std::int64_t tile_size) {
+  const auto floor_div = [](std::int64_t a, std::int64_t b) { return a / b - (a % b != 0 && (a < 0) != (b < 0)); };
+  const TileIndex t{floor_div(c.x, tile_size), floor_div(c.y, tile_size)};
+  return {t, c.x - t.x * tile_size, c.y - t.y * tile_size};
+}
+
+/// Max pooling into a coarse cell: the largest known value pooled into it wins; NaN (unknown) never does.
+inline void pool_max(float& cell, float value) {
+  if (!std::isnan(value) && (std::isnan(cell) || value > cell)) cell = value;
+}
 
 /// The extent of a finite raster, modelled on Cartographer's MapLimits but in the ROS map_server convention (so
 /// exported grids load there unchanged): origin = world position [m] of the lower-left corner of cell (0, 0),
@@ -46,5 +75,24 @@ class GridGeometry {
   std::int64_t width_;
   std::int64_t height_;
 };
+
+/// Cells [first, end) of the lattice with cell (0, 0)'s lower-left corner at the world origin.
+struct CellRange {
+  CellIndex first;
+  CellIndex end;
+  std::int64_t width() const { return end.x - first.x; }
+  std::int64_t height() const { return end.y - first.y; }
+  /// As a raster of `resolution_m` cells. @throw std::invalid_argument when empty or beyond GridGeometry's limits.
+  GridGeometry geometry(double resolution_m) const;
+};
+
+/// The cell of that lattice (cells of `resolution_m`) holding p, as GridGeometry::cell_of with the origin at (0, 0).
+/// @throw std::out_of_range for a non-finite p or one whose index does not fit in ±2^52 cells;
+///        std::invalid_argument for a resolution that is not > 0.
+CellIndex cell_at(const Eigen::Vector2d& p, double resolution_m);
+
+/// The cells of that lattice covering the box [lo, hi] [m], snapped outwards (a corner on a cell border takes no cell
+/// beyond it). @throw as cell_at, and std::invalid_argument when lo is not <= hi.
+CellRange covering(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi, double resolution_m);
 
 }  // namespace wm::fusion

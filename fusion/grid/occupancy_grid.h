@@ -18,13 +18,6 @@ namespace internal {
 struct PreparedBeam;
 }  // namespace internal
 
-/// Index of a square tile of tile_size_cells² cells: tile (x, y) holds cells [x·T, (x+1)·T) × [y·T, (y+1)·T).
-struct TileIndex {
-  std::int64_t x = 0;
-  std::int64_t y = 0;
-  auto operator<=>(const TileIndex&) const = default;
-};
-
 struct GridOptions {
   double resolution_m = 0.05;         // cell size [m], [0.001, 100]
   std::int64_t tile_size_cells = 64;  // tile side [cells], a power of two in [4, 1024]

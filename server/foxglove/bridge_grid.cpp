@@ -41,8 +41,6 @@ void Bridge::Core::refresh(TileCache& cache) {
 
 namespace {
 
-std::int64_t floor_div(std::int64_t a, std::int64_t b) { return a / b - ((a % b != 0) && ((a < 0) != (b < 0))); }
-
 // Rows [y0, y1) of `region` (whose cells are the grid's own) from a tile cache, one field per layer; cells of no
 // tile are NaN.
 template <typename Tiles>
@@ -57,11 +55,10 @@ std::vector<GridField> assemble(const Tiles& tiles, std::int64_t tile_size, std:
   for (std::size_t l = 0; l < layer_count; ++l)
     fields.push_back({names[l], std::vector<float>(static_cast<std::size_t>(w * (y1 - y0)), std::nanf(""))});
   for (std::int64_t y = y0; y < y1; ++y) {
-    const std::int64_t cy = cy0 + y, ty = floor_div(cy, t), iy = cy - ty * t;
     for (std::int64_t x = 0; x < w;) {
-      const std::int64_t cx = cx0 + x, tx = floor_div(cx, t), ix = cx - tx * t;
+      const auto [tile, ix, iy] = fusion::tile_of({cx0 + x, cy0 + y}, t);
       const std::int64_t run = std::min(t - ix, w - x);  // cells of this row in this tile
-      if (const auto it = tiles.find({tx, ty}); it != tiles.end() && !it->second.second.empty()) {
+      if (const auto it = tiles.find({tile.x, tile.y}); it != tiles.end() && !it->second.second.empty()) {
         const auto& values = it->second.second;
         for (std::size_t l = 0; l < layer_count; ++l) {
           const auto from = values.begin() + static_cast<std::ptrdiff_t>(l * t * t + iy * t + ix);
@@ -117,11 +114,8 @@ std::optional<Bridge::Core::GridCache> Bridge::Core::build_grid(std::uint32_t ch
         for (std::int64_t iy = 0; iy < t; ++iy) {
           const std::int64_t row = ((gy0 + iy) / k) * cw;
           const float* in = values.data() + l * static_cast<std::size_t>(t * t) + static_cast<std::size_t>(iy * t);
-          for (std::int64_t ix = 0; ix < t; ++ix) {
-            const float v = in[ix];
-            float& cell = out[static_cast<std::size_t>(row + (gx0 + ix) / k)];
-            if (!std::isnan(v) && (std::isnan(cell) || v > cell)) cell = v;
-          }
+          for (std::int64_t ix = 0; ix < t; ++ix)
+            fusion::pool_max(out[static_cast<std::size_t>(row + (gx0 + ix) / k)], in[ix]);
         }
       }
     }

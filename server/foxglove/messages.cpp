@@ -129,9 +129,8 @@ std::pair<fusion::GridGeometry, std::vector<GridField>> coarsened(const fusion::
     std::vector<float> out(static_cast<std::size_t>(cw * ch), std::nanf(""));
     for (std::int64_t y = 0; y < h; ++y)
       for (std::int64_t x = 0; x < w; ++x) {
-        const float v = field.values[static_cast<std::size_t>(y * w + x)];
-        float& cell = out[static_cast<std::size_t>((y / k) * cw + x / k)];
-        if (!std::isnan(v) && (std::isnan(cell) || v > cell)) cell = v;
+        fusion::pool_max(out[static_cast<std::size_t>((y / k) * cw + x / k)],
+                         field.values[static_cast<std::size_t>(y * w + x)]);
       }
     field.values = std::move(out);
   }

@@ -32,8 +32,7 @@ world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, doubl
   return [&cells, resolution, occupied, free](const Eigen::Vector2d& point, const Eigen::Vector2d& normal) {
     const auto log_odds = [&](double cells_across) {
       const Eigen::Vector2d p = point + cells_across * resolution * normal;
-      return cells.log_odds({static_cast<std::int64_t>(std::floor(p.x() / resolution)),
-                             static_cast<std::int64_t>(std::floor(p.y() / resolution))});
+      return cells.log_odds(fusion::cell_at(p, resolution));
     };
     bool all_free = true;
     for (const double t : {0.0, -0.5, 0.5, -1.0, 1.0}) {

@@ -242,8 +242,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const wor
       const double occupied_log_odds = std::log(0.65 / 0.35);
       fusion::OccupancyGrid::CellReader cells(grid);  // the samples of an element lie in a few tiles
       const world::GridProbe probe = [&](const Eigen::Vector2d& point) {
-        const auto cx = static_cast<std::int64_t>(std::floor(point.x() / resolution));
-        const auto cy = static_cast<std::int64_t>(std::floor(point.y() / resolution));
+        const auto [cx, cy] = fusion::cell_at(point, resolution);
         bool seen_any = false;
         for (std::int64_t dy = -1; dy <= 1; ++dy)
           for (std::int64_t dx = -1; dx <= 1; ++dx) {

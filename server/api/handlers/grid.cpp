@@ -41,15 +41,10 @@ fusion::GridGeometry grid_region(const Call& call, std::int64_t max_cells) {
     return *region;
   }
   const double resolution = call.world.grid.grid_resolution_m();
-  const double v[4] = {bbox->x0, bbox->y0, bbox->x1, bbox->y1};
-  const auto x0 = static_cast<std::int64_t>(std::floor(v[0] / resolution));
-  const auto y0 = static_cast<std::int64_t>(std::floor(v[1] / resolution));
-  const auto x1 = static_cast<std::int64_t>(std::ceil(v[2] / resolution));
-  const auto y1 = static_cast<std::int64_t>(std::ceil(v[3] / resolution));
-  if ((x1 - x0) * (y1 - y0) > max_cells)
+  const auto cells = fusion::covering({bbox->x0, bbox->y0}, {bbox->x1, bbox->y1}, resolution);
+  if (cells.width() * cells.height() > max_cells)
     throw bad_request("bbox", "more than " + std::to_string(max_cells) + " cells; ask for a smaller box");
-  return fusion::GridGeometry({static_cast<double>(x0) * resolution, static_cast<double>(y0) * resolution}, resolution,
-                              x1 - x0, y1 - y0);
+  return cells.geometry(resolution);
 }
 
 Response pgm_response(const Call& call, Layer layer) {
