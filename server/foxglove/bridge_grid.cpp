@@ -39,40 +39,6 @@ void Bridge::Core::refresh(TileCache& cache) {
   cache.revision = listing.revision;
 }
 
-namespace {
-
-// Rows [y0, y1) of `region` (whose cells are the grid's own) from a tile cache, one field per layer; cells of no
-// tile are NaN.
-template <typename Tiles>
-std::vector<GridField> assemble(const Tiles& tiles, std::int64_t tile_size, std::size_t layer_count,
-                                const std::vector<std::string>& names, const fusion::GridGeometry& region,
-                                std::int64_t y0, std::int64_t y1) {
-  const double r = region.resolution_m();
-  const auto cx0 = static_cast<std::int64_t>(std::llround(region.origin_m().x() / r));
-  const auto cy0 = static_cast<std::int64_t>(std::llround(region.origin_m().y() / r));
-  const std::int64_t w = region.width(), t = tile_size;
-  std::vector<GridField> fields;
-  for (std::size_t l = 0; l < layer_count; ++l)
-    fields.push_back({names[l], std::vector<float>(static_cast<std::size_t>(w * (y1 - y0)), std::nanf(""))});
-  for (std::int64_t y = y0; y < y1; ++y) {
-    for (std::int64_t x = 0; x < w;) {
-      const auto [tile, ix, iy] = fusion::tile_of({cx0 + x, cy0 + y}, t);
-      const std::int64_t run = std::min(t - ix, w - x);  // cells of this row in this tile
-      if (const auto it = tiles.find({tile.x, tile.y}); it != tiles.end() && !it->second.second.empty()) {
-        const auto& values = it->second.second;
-        for (std::size_t l = 0; l < layer_count; ++l) {
-          const auto from = values.begin() + static_cast<std::ptrdiff_t>(l * t * t + iy * t + ix);
-          std::copy(from, from + run, fields[l].values.begin() + static_cast<std::ptrdiff_t>((y - y0) * w + x));
-        }
-      }
-      x += run;
-    }
-  }
-  return fields;
-}
-
-}  // namespace
-
 std::optional<Bridge::Core::GridCache> Bridge::Core::build_grid(std::uint32_t channel) {
   auto& cache = channel == kGridChannel ? bayes_tiles_ : ds_tiles_;
   const std::vector<std::string> names = channel == kGridChannel
@@ -94,33 +60,28 @@ std::optional<Bridge::Core::GridCache> Bridge::Core::build_grid(std::uint32_t ch
                                     cache.resolution_m, (tx1 - tx0 + 1) * cache.tile_size,
                                     (ty1 - ty0 + 1) * cache.tile_size);
   const auto k = coarsening_factor(region.width(), region.height(), options.max_grid_cells);
+  // Pooled tile by tile straight into the grid sent (k = 1: each cell its own value; k > 1: the largest known value
+  // of its k × k block, as coarsened() does), so the cost follows the tiles observed, not their bounding box, which
+  // two scans kilometres apart make 10^12 cells.
+  const std::int64_t cw = (region.width() + k - 1) / k, ch = (region.height() + k - 1) / k, t = cache.tile_size;
   std::vector<GridField> fields;
-  fusion::GridGeometry sent = region;
-  if (k == 1) {
-    fields = assemble(cache.tiles, cache.tile_size, names.size(), names, region, 0, region.height());
-  } else {
-    // Pooled tile by tile straight into the coarse grid (each cell the largest known value of its k × k block, as
-    // coarsened() does): the cost follows the tiles observed, not their bounding box, which two scans kilometres
-    // apart make 10^12 cells.
-    const std::int64_t cw = (region.width() + k - 1) / k, ch = (region.height() + k - 1) / k, t = cache.tile_size;
-    for (const auto& name : names)
-      fields.push_back({name, std::vector<float>(static_cast<std::size_t>(cw * ch), std::nanf(""))});
-    for (const auto& [index, tile] : cache.tiles) {
-      const auto& values = tile.second;
-      if (values.size() < names.size() * static_cast<std::size_t>(t * t)) continue;
-      const std::int64_t gx0 = (index.first - tx0) * t, gy0 = (index.second - ty0) * t;
-      for (std::size_t l = 0; l < names.size(); ++l) {
-        auto& out = fields[l].values;
-        for (std::int64_t iy = 0; iy < t; ++iy) {
-          const std::int64_t row = ((gy0 + iy) / k) * cw;
-          const float* in = values.data() + l * static_cast<std::size_t>(t * t) + static_cast<std::size_t>(iy * t);
-          for (std::int64_t ix = 0; ix < t; ++ix)
-            fusion::pool_max(out[static_cast<std::size_t>(row + (gx0 + ix) / k)], in[ix]);
-        }
+  for (const auto& name : names)
+    fields.push_back({name, std::vector<float>(static_cast<std::size_t>(cw * ch), std::nanf(""))});
+  for (const auto& [index, tile] : cache.tiles) {
+    const auto& values = tile.second;
+    if (values.size() < names.size() * static_cast<std::size_t>(t * t)) continue;
+    const std::int64_t gx0 = (index.first - tx0) * t, gy0 = (index.second - ty0) * t;
+    for (std::size_t l = 0; l < names.size(); ++l) {
+      auto& out = fields[l].values;
+      for (std::int64_t iy = 0; iy < t; ++iy) {
+        const std::int64_t row = ((gy0 + iy) / k) * cw;
+        const float* in = values.data() + l * static_cast<std::size_t>(t * t) + static_cast<std::size_t>(iy * t);
+        for (std::int64_t ix = 0; ix < t; ++ix)
+          fusion::pool_max(out[static_cast<std::size_t>(row + (gx0 + ix) / k)], in[ix]);
       }
     }
-    sent = fusion::GridGeometry(region.origin_m(), region.resolution_m() * static_cast<double>(k), cw, ch);
   }
+  const fusion::GridGeometry sent(region.origin_m(), region.resolution_m() * static_cast<double>(k), cw, ch);
   auto payload = share(grid_message(sent, fields, unix_ns_now()));
   ++grid_messages;
   if (channel == kGridChannel) last_grid_bytes = payload->size();

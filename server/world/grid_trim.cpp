@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <vector>
 
+#include "server/world/update_internal.h"
+
 namespace wm::world {
 
 GridTrimResult trim_to_grid(const WorldState& current, const Box& region, const GridProbe& probe,
@@ -57,37 +59,16 @@ GridTrimResult trim_to_grid(const WorldState& current, const Box& region, const 
       state.last_observation_seq = observation_seq;
       bumped = true;
     }
-    Element trimmed = element;
-    trimmed.segment.t0_m = t0;
-    trimmed.segment.t1_m = t1;
-    trimmed.updated_version = state.version;
-
-    DecisionRecord record;
-    record.seq = ++state.last_decision_seq;
-    record.observation_seq = observation_seq;
-    record.index = -1;  // not about a segment of a request
-    record.action = rules::Action::trim;
-    record.rule = "grid_trimmed";
+    fusion::LineSegment kept = segment;
+    kept.t0_m = t0;
+    kept.t1_m = t1;
     char text[256];
     std::snprintf(text, sizeof text,
                   "the grid sees through %.3f m of element %s's ends (no occupied cell within one cell): "
                   "cut from %.3f m to %.3f m",
                   cut, element.id().c_str(), length, t1 - t0);
-    record.explanation = text;
-    record.element = element.id();
-    record.observer = observer;
-    record.origin = "grid";
-    record.sensor = "grid";
-    record.p0 = trimmed.segment.p0();
-    record.p1 = trimmed.segment.p1();
-    record.rho_m = segment.line.rho_m;
-    record.phi_rad = segment.line.phi_rad;
-    record.observed_cov = segment.line.cov;
-    record.before = {a.x(), a.y(), b.x(), b.y()};
-    record.after = {record.p0.x(), record.p0.y(), record.p1.x(), record.p1.y()};
-    result.decisions.push_back(std::move(record));
-    result.changed_elements.insert(number);
-    state.elements.put(std::move(trimmed));
+    update_internal::trim_element(result, number, kept, "grid_trimmed", text,
+                                  {observation_seq, observer, "grid", "grid", std::nullopt});
   }
   return trim_result;
 }

@@ -100,6 +100,34 @@ DecisionRecord& remove_element(UpdateResult& result, std::int64_t number, std::s
   return result.decisions.back();
 }
 
+DecisionRecord& trim_element(UpdateResult& result, std::int64_t number, const fusion::LineSegment& kept,
+                             std::string rule, std::string explanation, const TrimSource& source) {
+  WorldState& state = result.state;
+  Element trimmed = state.elements.at(number);
+  const Eigen::Vector2d a = trimmed.segment.p0(), b = trimmed.segment.p1();
+  trimmed.segment = kept;
+  trimmed.updated_version = state.version;
+  if (source.at_unix_s) trimmed.updated_at_unix_s = *source.at_unix_s;
+  DecisionRecord record;
+  record.seq = ++state.last_decision_seq;
+  record.observation_seq = source.observation_seq;
+  record.index = -1;  // not about a segment of a request
+  record.action = rules::Action::trim;
+  record.rule = std::move(rule);
+  record.explanation = std::move(explanation);
+  record.element = trimmed.id();
+  record.observer = source.observer;
+  record.origin = source.origin;
+  record.sensor = source.sensor;
+  record_observed(record, kept);
+  record.before = {a.x(), a.y(), b.x(), b.y()};
+  record.after = {record.p0.x(), record.p0.y(), record.p1.x(), record.p1.y()};
+  result.decisions.push_back(std::move(record));
+  result.changed_elements.insert(number);
+  state.elements.put(std::move(trimmed));
+  return result.decisions.back();
+}
+
 void make_fallback(DecisionRecord& record, std::string_view answered, const std::string& why) {
   record.explanation = "fallback (" + why + "); rules said " + std::string(answered) + " by " + record.rule;
   record.action = rules::Action::add;

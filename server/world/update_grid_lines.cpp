@@ -94,35 +94,15 @@ void cut_at_grid_surfaces(UpdateResult& result, const std::set<std::int64_t>& su
       } else {
         continue;
       }
-      Element trimmed = element;
-      trimmed.segment = cut;
-      trimmed.updated_version = state.version;
-      trimmed.updated_at_unix_s = observation.received_at_unix_s;
-
-      DecisionRecord record;
-      record.seq = ++state.last_decision_seq;
-      record.observation_seq = observation_seq;
-      record.index = -1;  // not about a segment of the request
-      record.action = rules::Action::trim;
-      record.rule = "grid_crossing_trimmed";
       char text[256];
       std::snprintf(text, sizeof text,
                     "element %s ran %.3f m past element %s, a surface the grid line extractor saw: cut from %.3f m "
                     "to %.3f m",
                     element.id().c_str(), s.length_m() - cut.length_m(), wall_id.c_str(), s.length_m(), cut.length_m());
-      record.explanation = text;
-      record.element = element.id();
+      auto& record = trim_element(result, number, cut, "grid_crossing_trimmed", text,
+                                  {observation_seq, observation.observer, observation.origin, observation.sensor,
+                                   observation.received_at_unix_s});
       record.matched_element = wall_id;
-      record.observer = observation.observer;
-      record.origin = observation.origin;
-      record.sensor = observation.sensor;
-      record_observed(record, cut);
-      const Eigen::Vector2d a = s.p0(), b = s.p1();
-      record.before = {a.x(), a.y(), b.x(), b.y()};
-      record.after = {record.p0.x(), record.p0.y(), record.p1.x(), record.p1.y()};
-      result.decisions.push_back(std::move(record));
-      result.changed_elements.insert(number);
-      state.elements.put(std::move(trimmed));
     }
   }
 }

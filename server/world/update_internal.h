@@ -80,6 +80,19 @@ void record_observed(DecisionRecord& record, const fusion::LineSegment& segment)
 DecisionRecord& remove_element(UpdateResult& result, std::int64_t number, std::string rule, std::string explanation,
                                const std::string& observer, std::int64_t observation_seq);
 
+// Who cut an element and when: the observation a trim decision belongs to.
+struct TrimSource {
+  std::int64_t observation_seq = 0;
+  std::string observer, origin, sensor;
+  std::optional<double> at_unix_s;  // the element's updated_at_unix_s, when the cut comes with a received request
+};
+
+// Cuts element `number` (in result.state, whose version is already the new one) to the extent `kept` of its own
+// line, with a trim decision of `rule` (before/after: the old and new endpoints [x0, y0, x1, y1]), and returns that
+// decision (the last of result.decisions) for the caller to add to.
+DecisionRecord& trim_element(UpdateResult& result, std::int64_t number, const fusion::LineSegment& kept,
+                             std::string rule, std::string explanation, const TrimSource& source);
+
 // The element's line after it took in more views: the Kalman update gives the covariance (floored, see
 // WorldOptions::fusion) and the extent; the line itself is the best fit of everything the element was built from.
 // The views' own scatter across the line (the pose error they do not share) floors the offset uncertainty at the
