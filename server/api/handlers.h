@@ -4,6 +4,8 @@
 // (request, its decoded target, the path parameter, the options and the service port) to a response: no sockets,
 // no store, no Prolog. A refusal is thrown (ApiError, or a module's own error) and becomes JSON in http_error().
 // Which handler answers which method and path is said once, in the route table (server/api/routes.cpp).
+#include <memory>
+#include <optional>
 #include <string>
 
 #include "common/diagnostics.h"
@@ -26,13 +28,13 @@ struct Call {
   MapCache& map_cache;
   const shm::SharedMapExport* shm = nullptr;         // nullptr when wmd runs with --no-shm
   const common::Diagnostics* diagnostics = nullptr;  // nullptr: the health answer has no "diagnostics"
-  /// Run on an I/O thread (routes marked at_once): answer from what is ready or throw NotAtOnce; a body of bytes
-  /// kept elsewhere goes to *shared_body, not into the response.
-  bool at_once = false;
-  std::shared_ptr<const std::string>* shared_body = nullptr;  // set when at_once
 };
 
 using Handler = Response (*)(const Call&);
+/// A route's answer on an I/O thread, from what is ready only (no waiting, no heavy work): nullopt when it is not,
+/// and the request then goes to its lane's handler as usual. A body of bytes kept elsewhere goes to `shared_body`,
+/// not into the response.
+using AtOnceHandler = std::optional<Response> (*)(const Call&, std::shared_ptr<const std::string>& shared_body);
 
 // handlers/health.cpp, index.cpp
 Response get_health(const Call& call);
@@ -51,6 +53,7 @@ Response put_georeference(const Call& call);          // PUT /api/v1/floorplan/g
 Response delete_georeference(const Call& call);
 // handlers/map.cpp
 Response get_map(const Call& call);
+std::optional<Response> get_map_at_once(const Call& call, std::shared_ptr<const std::string>& shared_body);
 Response get_map_quality(const Call& call);  // GET /api/v1/map/quality
 // handlers/objects.cpp: CAD objects, observed elements and their decision histories
 Response get_objects(const Call& call);

@@ -70,8 +70,11 @@ bool accepts_gzip(const Request& request) {
   return gzip && !refused;
 }
 
-Response tagged_response(const Request& request, const std::shared_ptr<const MapBody>& shared, const std::string& tag,
-                         bool may_gzip, std::shared_ptr<const std::string>* share_into) {
+namespace {
+
+// tagged_response, and with `share_into` its at-once form (nullopt: a gzip form not made yet).
+std::optional<Response> tagged(const Request& request, const std::shared_ptr<const MapBody>& shared,
+                               const std::string& tag, bool may_gzip, std::shared_ptr<const std::string>* share_into) {
   const MapBody& body = *shared;
   const std::string identity = "\"" + tag + "\"", gzip_tag = "\"" + tag + "-gzip\"";
   // Small bodies are not worth a compression step.
@@ -90,7 +93,7 @@ Response tagged_response(const Request& request, const std::shared_ptr<const Map
   std::shared_ptr<const std::string> bytes(shared, &body.bytes);  // shares the cached body's ownership
   if (gzip) {
     bytes = share_into ? MapCache::gzip_if_made(body) : MapCache::gzip_of(body);
-    if (!bytes) throw NotAtOnce{};
+    if (!bytes) return std::nullopt;
     res.set(http::field::content_encoding, "gzip");
   }
   if (share_into) {
@@ -101,6 +104,19 @@ Response tagged_response(const Request& request, const std::shared_ptr<const Map
   res.body() = *bytes;
   res.prepare_payload();
   return res;
+}
+
+}  // namespace
+
+Response tagged_response(const Request& request, const std::shared_ptr<const MapBody>& body, const std::string& tag,
+                         bool may_gzip) {
+  return *tagged(request, body, tag, may_gzip, nullptr);  // gzip_of makes the form it lacks: never nullopt
+}
+
+std::optional<Response> tagged_response_at_once(const Request& request, const std::shared_ptr<const MapBody>& body,
+                                                const std::string& tag,
+                                                std::shared_ptr<const std::string>& shared_body) {
+  return tagged(request, body, tag, /*may_gzip=*/true, &shared_body);
 }
 
 Response for_request_method(const Request& request, Response response) {

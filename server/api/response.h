@@ -25,15 +25,15 @@ Response raw_response(const Request& request, std::string body, const std::strin
 /// "<tag>-gzip", as RFC 9110 wants a coding to have its own tag), and Cache-Control: no-cache (a copy may be kept
 /// but must be revalidated: the map changes at any time).
 /// `may_gzip` false: never compressed (binary tiles, made for each request, would be compressed again each time).
-/// Thrown by a handler run with Call::at_once when it cannot answer without waiting or heavy work (a body not
-/// built, a gzip form not made): the request then goes to a handler thread as usual.
-struct NotAtOnce {};
-
-/// `share_into` (an answer made on the I/O thread): throw NotAtOnce rather than compress on this thread, and hand
-/// the body's bytes out there instead of copying them into the response (which then carries the headers, its
-/// Content-Length included).
 Response tagged_response(const Request& request, const std::shared_ptr<const MapBody>& body, const std::string& tag,
-                         bool may_gzip = true, std::shared_ptr<const std::string>* share_into = nullptr);
+                         bool may_gzip = true);
+
+/// The same answer made on an I/O thread: nullopt when it needs a gzip form not made yet (compressing is not for that
+/// thread); otherwise the body's bytes are handed out in `shared_body` instead of being copied into the response
+/// (which then carries the headers, its Content-Length included).
+std::optional<Response> tagged_response_at_once(const Request& request, const std::shared_ptr<const MapBody>& body,
+                                                const std::string& tag,
+                                                std::shared_ptr<const std::string>& shared_body);
 
 /// Whether Accept-Encoding allows gzip (named or "*", with a q-value above 0).
 bool accepts_gzip(const Request& request);

@@ -18,21 +18,27 @@ std::string_view target_of(const Request& request) {
   return {target.data(), target.size()};
 }
 
-// `shared_body`: run at once (on the I/O thread), a cached body handed out there; nullptr: on a handler thread.
-Response dispatch(const Request& request, Services& services,
-                  std::shared_ptr<const std::string>* shared_body = nullptr) {
-  const bool at_once = shared_body != nullptr;
+// The checks every request passes before its route's handler: Host, and Origin for anything but GET/HEAD.
+void require_allowed_sender(const Request& request, const Services& services) {
   require_allowed_host(request, services.options);
   // Browsers send simple cross-site POSTs (a form, text/plain) without asking first: whatever changes state
   // must come from our own pages or an allowed origin.
   if (request.method() != http::verb::get && request.method() != http::verb::head)
     require_allowed_origin(request, services.options);
+}
+
+Call call_of(const Request& request, const Target& target, const RouteMatch& match, const Services& services) {
+  return Call{request,        target,
+              match.param,    services.options,
+              services.world, *services.map_cache,
+              services.shm,   services.diagnostics};
+}
+
+Response dispatch(const Request& request, Services& services) {
+  require_allowed_sender(request, services);
   const Target target = parse_target(target_of(request));
-  if (const auto match = find_route(request.method(), target.path)) {
-    if (at_once && !match->route->at_once) throw NotAtOnce{};
-    return match->route->handler(Call{request, target, match->param, services.options, services.world,
-                                      *services.map_cache, services.shm, services.diagnostics, at_once, shared_body});
-  }
+  if (const auto match = find_route(request.method(), target.path))
+    return match->route->handler(call_of(request, target, *match, services));
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
   auto response =
@@ -76,15 +82,20 @@ std::string_view websocket_subprotocol(const Request& request) {
 }
 
 std::optional<SharedResponse> answer_at_once(const Request& request, Services& services) {
-  const auto target = target_of(request);
-  const auto match = find_route(request.method(), target.substr(0, target.find('?')));
+  const auto raw = target_of(request);
+  const auto match = find_route(request.method(), raw.substr(0, raw.find('?')));
   if (!match || !match->route->at_once) return std::nullopt;  // the common case: one table lookup, nothing else
+  // A path with escapes may decode to another route (or another placeholder's text): that one goes to its lane,
+  // where the decoded path is looked up. Without them the decoded path is the raw one, and `match` stands.
+  if (raw.substr(0, raw.find('?')).find_first_of("%+") != std::string_view::npos) return std::nullopt;
   std::shared_ptr<const std::string> shared;
   Response response;
   try {
-    response = for_request_method(request, dispatch(request, services, &shared));
-  } catch (const NotAtOnce&) {
-    return std::nullopt;
+    require_allowed_sender(request, services);
+    const Target target = parse_target(raw);
+    auto answer = match->route->at_once(call_of(request, target, *match, services), shared);
+    if (!answer) return std::nullopt;
+    response = for_request_method(request, std::move(*answer));
   } catch (...) {  // a refused Host, a bad parameter: answered at once, as on a handler thread
     shared.reset();
     const auto failure = http_error(std::current_exception());

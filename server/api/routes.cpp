@@ -27,7 +27,7 @@ constexpr std::array kRoutes{
     Route{verb::put, "/api/v1/floorplan/georeference", put_georeference, Lane::write},
     Route{verb::delete_, "/api/v1/floorplan/georeference", delete_georeference, Lane::write},
     Route{verb::get, "/api/v1/map", get_map, Lane::read, "?format=json|dxf|geojson&bbox=x0,y0,x1,y1&since=V", false,
-          /*at_once=*/true},
+          get_map_at_once},
     Route{verb::get, "/api/v1/map/quality", get_map_quality, Lane::read},
     Route{verb::get, "/api/v1/report/as-built", get_as_built_report, Lane::read},
     Route{verb::get, "/api/v1/changes", get_changes, Lane::read},
@@ -59,7 +59,7 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1/robots/{id}", get_robot, Lane::read},
     Route{verb::get, "/api/v1/events", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true},
     // Foxglove's protocol, outside /api/v1: it is versioned by its subprotocol, not by this API's version.
-    Route{verb::get, "/foxglove", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true, false,
+    Route{verb::get, "/foxglove", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true, nullptr,
           "foxglove.websocket.v1"},
     Route{verb::get, "/web/{path}", get_static, Lane::read},
 };

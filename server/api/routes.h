@@ -25,9 +25,9 @@ struct Route {
   std::string_view query = {};
   /// A WebSocket route: an upgrade request is taken over by the transport; `handler` answers a plain GET.
   bool websocket = false;
-  /// Tried first on the I/O thread with Call::at_once (answers from bytes already made: no queue, no lower CPU
-  /// priority), and queued on `lane` only when the handler throws NotAtOnce.
-  bool at_once = false;
+  /// Tried first on the I/O thread (answers from bytes already made: no queue, no lower CPU priority); the request
+  /// is queued on `lane` only when it answers nullopt. nullptr: always queued.
+  AtOnceHandler at_once = nullptr;
   /// For a WebSocket route: the subprotocol it speaks, which an upgrade must offer (Sec-WebSocket-Protocol); empty:
   /// none (the events stream).
   std::string_view subprotocol = {};

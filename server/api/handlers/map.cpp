@@ -36,7 +36,9 @@ std::string content_type_of(const std::string& format) {
 
 // GET /api/v1/map?since=V: what changed after version V. Elements and objects whose updated_version is newer come
 // whole (upserts); ids that left the map are listed; the plan, placement and georeference always come.
-Response map_delta(const Call& call, const std::shared_ptr<const world::WorldState>& snap, std::int64_t since) {
+// `shared_body` non-null: on an I/O thread (get_map_at_once), nullopt when the body is not made yet.
+std::optional<Response> map_delta(const Call& call, const std::shared_ptr<const world::WorldState>& snap,
+                                  std::int64_t since, std::shared_ptr<const std::string>* shared_body) {
   if (since > snap->version)
     throw ApiError(400, "bad_since",
                    "since=" + std::to_string(since) + " is after the map's version " + std::to_string(snap->version));
@@ -66,18 +68,17 @@ Response map_delta(const Call& call, const std::shared_ptr<const world::WorldSta
                              {"removed", {{"elements", removed->elements}, {"objects", removed->objects}}}};
         return delta.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
       },
-      call.at_once);
-  if (!body) throw NotAtOnce{};
+      shared_body != nullptr);
+  if (!body) return std::nullopt;
   // A poller that holds the newest version asks the same question again and again: 304 until something changes.
-  return tagged_response(
-      call.request, body,
-      call.map_cache.instance() + "-v" + std::to_string(body->version) + "-since" + std::to_string(since),
-      /*may_gzip=*/true, call.shared_body);
+  const auto tag = call.map_cache.instance() + "-v" + std::to_string(body->version) + "-since" + std::to_string(since);
+  if (shared_body) return tagged_response_at_once(call.request, body, tag, *shared_body);
+  return tagged_response(call.request, body, tag);
 }
 
-}  // namespace
-
-Response get_map(const Call& call) {
+// GET /api/v1/map on a handler thread (`shared_body` nullptr: always an answer) or on an I/O thread (nullopt when
+// it would have to wait or build).
+std::optional<Response> map_answer(const Call& call, std::shared_ptr<const std::string>* shared_body) {
   const auto snap = call.world.map.snapshot();
   const auto& options = call.world.map.world_options();
   const auto format = call.target.param("format").value_or("json");
@@ -87,10 +88,11 @@ Response get_map(const Call& call) {
   if (call.target.param("since")) {
     if (format != "json") throw bad_request("since", "deltas come as JSON only (format=json)");
     if (bbox) throw bad_request("since", "a delta covers the whole map: leave out bbox");
-    return map_delta(call, snap, query_int(call.target, "since", 0, 0, std::numeric_limits<std::int64_t>::max()));
+    return map_delta(call, snap, query_int(call.target, "since", 0, 0, std::numeric_limits<std::int64_t>::max()),
+                     shared_body);
   }
   if (bbox) {
-    if (call.at_once) throw NotAtOnce{};
+    if (shared_body) return std::nullopt;
     // A window is cut for each request (its bytes depend on the box); the whole map is made once per version.
     const auto excerpt = world::map_excerpt(*snap, world::Box{bbox->x0, bbox->y0, bbox->x1, bbox->y1});
     if (format == "json") {
@@ -111,16 +113,27 @@ Response get_map(const Call& call) {
         if (format == "json") return writer.write(state, options, instance);
         return map_text(state, options, format, std::nullopt, instance);
       },
-      accepted_staleness(call.request), [&world] { return world.snapshot(); }, call.at_once);
-  if (!body) throw NotAtOnce{};
-  auto response = tagged_response(call.request, body, call.map_cache.instance() + "-v" + std::to_string(body->version),
-                                  /*may_gzip=*/true, call.shared_body);
+      accepted_staleness(call.request), [&world] { return world.snapshot(); }, shared_body != nullptr);
+  if (!body) return std::nullopt;
+  const auto tag = call.map_cache.instance() + "-v" + std::to_string(body->version);
+  auto answer = shared_body ? tagged_response_at_once(call.request, body, tag, *shared_body)
+                            : std::optional<Response>(tagged_response(call.request, body, tag));
+  if (!answer) return std::nullopt;
+  auto& response = *answer;
   if (body->version < snap->version) {
     // An older map than the newest, as the client allowed: how old, in whole seconds (RFC 9111 5.1).
     const auto age = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::steady_clock::now() - body->taken);
     response.set(boost::beast::http::field::age, std::to_string(age.count()));
   }
-  return response;
+  return answer;
+}
+
+}  // namespace
+
+Response get_map(const Call& call) { return *map_answer(call, nullptr); }
+
+std::optional<Response> get_map_at_once(const Call& call, std::shared_ptr<const std::string>& shared_body) {
+  return map_answer(call, &shared_body);
 }
 
 Response get_map_quality(const Call& call) {

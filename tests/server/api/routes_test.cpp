@@ -233,6 +233,11 @@ TEST_F(RouteTableTest, TheMapIsAnsweredAtOnceFromBytesAlreadyMadeAndQueuedOtherw
   // Windows are cut per request, and no other route runs on the I/O thread; a bad parameter is answered there.
   EXPECT_FALSE(api::answer_at_once(make_request(http::verb::get, "/api/v1/map?bbox=0,0,1,1"), services));
   EXPECT_FALSE(api::answer_at_once(make_request(http::verb::get, "/api/v1/elements"), services));
+  // A path with escapes goes to its lane, where it is decoded and looked up again (here: the same map).
+  const auto escaped = make_request(http::verb::get, "/api/v1/m%61p");
+  EXPECT_FALSE(api::answer_at_once(escaped, services));
+  EXPECT_EQ(api::handler_lane(escaped), api::Lane::read);
+  EXPECT_EQ(status_of(api::handle_request(escaped, services)), 200);
   const auto bad = api::answer_at_once(make_request(http::verb::get, "/api/v1/map?since=soon"), services);
   ASSERT_TRUE(bad);
   EXPECT_EQ(bad->result_int(), 400u);
