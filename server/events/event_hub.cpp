@@ -5,15 +5,15 @@
 
 namespace wm::events {
 
-std::vector<std::string> EventHub::Subscriber::take() {
+std::vector<Event> EventHub::Subscriber::take() {
   std::lock_guard lock(mutex_);
-  std::vector<std::string> events(std::make_move_iterator(queue_.begin()), std::make_move_iterator(queue_.end()));
+  std::vector<Event> events(std::make_move_iterator(queue_.begin()), std::make_move_iterator(queue_.end()));
   queue_.clear();
   overflowed_ = false;
   return events;
 }
 
-void EventHub::Subscriber::push(const std::string& event) {
+void EventHub::Subscriber::push(EventKind kind, const std::string& json) {
   {
     std::lock_guard lock(mutex_);
     if (overflowed_) {
@@ -23,10 +23,11 @@ void EventHub::Subscriber::push(const std::string& event) {
     if (queue_.size() >= capacity_) {
       dropped_.fetch_add(queue_.size() + 1);
       queue_.clear();
-      queue_.push_back(R"({"type":"resync","reason":"this client fell behind; re-read the map from the REST API"})");
+      queue_.push_back({EventKind::resync,
+                        R"({"type":"resync","reason":"this client fell behind; re-read the map from the REST API"})"});
       overflowed_ = true;
     } else {
-      queue_.push_back(event);
+      queue_.push_back({kind, json});
     }
   }
   wake_();
@@ -44,7 +45,7 @@ void EventHub::unsubscribe(const std::shared_ptr<Subscriber>& subscriber) {
   subscribers_.erase(std::remove(subscribers_.begin(), subscribers_.end(), subscriber), subscribers_.end());
 }
 
-void EventHub::publish(const std::string& event_json) {
+void EventHub::publish(EventKind kind, const std::string& event_json) {
   if (event_json.size() < 2 || event_json.front() != '{' || event_json.back() != '}')
     throw std::invalid_argument("EventHub::publish: expected a JSON object text");
   std::vector<std::shared_ptr<Subscriber>> targets;
@@ -55,7 +56,7 @@ void EventHub::publish(const std::string& event_json) {
     targets = subscribers_;
     const std::string stamped =
         "{\"seq\":" + std::to_string(seq) + (event_json.size() > 2 ? "," : "") + event_json.substr(1);
-    for (const auto& s : targets) s->push(stamped);
+    for (const auto& s : targets) s->push(kind, stamped);
   }
 }
 

@@ -11,6 +11,26 @@
 
 namespace wm::events {
 
+/// What an event says changed, so that a subscriber in the process (the Foxglove bridge) acts on it without parsing
+/// the JSON that WebSocket clients get.
+enum class EventKind {
+  scan,          // a scan went into the grid (its returns, the robot's pose)
+  update,        // a commit changed the map (elements, objects, decisions)
+  floorplan,     // a plan was loaded
+  placement,     // the plan was moved
+  georeference,  // the world frame's georeference changed
+  rules,         // the rule files were reloaded (the map did not change)
+  robot,         // a robot's pose or status
+  change,        // a change was accepted, rejected or undone
+  resync,        // this subscriber fell behind and lost events: everything is stale
+};
+
+/// One event as a subscriber gets it: its kind, and its JSON text with "seq" spliced in.
+struct Event {
+  EventKind kind;
+  std::string json;
+};
+
 /// Fan-out of events (JSON texts) to live subscribers, e.g. the web viewer's WebSockets.
 /// publish() never blocks on a subscriber: each has a bounded queue, and one that falls behind loses its
 /// queue and gets a single {"type":"resync"} event instead, after which it re-reads the REST API. So a
@@ -20,19 +40,19 @@ class EventHub {
   class Subscriber {
    public:
     /// Everything queued since the last call, oldest first.
-    std::vector<std::string> take();
+    std::vector<Event> take();
     /// Events dropped for this subscriber so far (each overflow replaces the queue by one resync).
     std::uint64_t dropped() const { return dropped_.load(); }
 
    private:
     friend class EventHub;
     Subscriber(std::size_t capacity, std::function<void()> wake) : capacity_(capacity), wake_(std::move(wake)) {}
-    void push(const std::string& event);
+    void push(EventKind kind, const std::string& json);
 
     const std::size_t capacity_;
     const std::function<void()> wake_;
     std::mutex mutex_;
-    std::deque<std::string> queue_;
+    std::deque<Event> queue_;
     bool overflowed_ = false;
     std::atomic<std::uint64_t> dropped_{0};
   };
@@ -44,7 +64,8 @@ class EventHub {
   void unsubscribe(const std::shared_ptr<Subscriber>& subscriber);
   /// Stamps the event with the hub's next sequence number ("seq", so pages can see gaps) and queues it for
   /// every subscriber. `event_json` must be a JSON object text without "seq"; it is spliced in.
-  void publish(const std::string& event_json);
+  /// @throw std::invalid_argument when it is not a JSON object text.
+  void publish(EventKind kind, const std::string& event_json);
   std::size_t subscriber_count() const;
   std::uint64_t last_seq() const { return seq_.load(); }
 

@@ -161,20 +161,27 @@ void Bridge::Core::follow_clients() {
 }
 
 void Bridge::Core::take_events() {
-  for (const auto& text : subscriber_->take()) {
-    // Events only say what changed; the messages are made from the world itself, so a parse error is no loss.
-    const auto event = nlohmann::json::parse(text, nullptr, false);
-    const std::string type = event.is_object() ? event.value("type", "") : "";
-    if (type == "scan") {
-      grid_dirty_ = robots_dirty_ = true;
-    } else if (type == "robot") {
-      robots_dirty_ = true;
-    } else if (type == "rules") {
-      // the rules changed, not the map
-    } else {  // update, floorplan, placement, georeference; resync (the hub dropped events for us): everything
-      elements_dirty_ = plan_dirty_ = decisions_dirty_ = true;
-      if (type != "update" && type != "floorplan" && type != "placement" && type != "georeference")
+  // Events only say what changed; the messages are made from the world itself.
+  for (const auto& event : subscriber_->take()) {
+    switch (event.kind) {
+      case events::EventKind::scan:
         grid_dirty_ = robots_dirty_ = true;
+        break;
+      case events::EventKind::robot:
+        robots_dirty_ = true;
+        break;
+      case events::EventKind::rules:  // the rules changed, not the map
+        break;
+      case events::EventKind::update:
+      case events::EventKind::floorplan:
+      case events::EventKind::placement:
+      case events::EventKind::georeference:
+        elements_dirty_ = plan_dirty_ = decisions_dirty_ = true;
+        break;
+      case events::EventKind::change:
+      case events::EventKind::resync:  // the hub dropped events for us: everything
+        elements_dirty_ = plan_dirty_ = decisions_dirty_ = grid_dirty_ = robots_dirty_ = true;
+        break;
     }
   }
 }

@@ -155,7 +155,7 @@ class EventSession : public std::enable_shared_from_this<EventSession> {
 
   void pump() {
     if (writing_ || stopped_) return;
-    for (auto& event : subscriber_->take()) outbox_.push_back(std::move(event));
+    for (auto& event : subscriber_->take()) outbox_.push_back(std::move(event.json));
     write_next();
   }
 

@@ -11,6 +11,7 @@
 
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
+#include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
 #include "server/world/plan_edit.h"
 
@@ -118,10 +119,10 @@ WorldService::~WorldService() {
   reader_.reset();
 }
 
-void WorldService::emit(const nlohmann::json& event) {
+void WorldService::emit(events::EventKind kind, const nlohmann::json& event) {
   if (!events_) return;
   try {
-    events_->publish(event.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+    events_->publish(kind, event.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   } catch (const std::exception& e) {
     diagnostics_.report(common::Severity::warning, "events", std::string("event not published: ") + e.what());
   }
@@ -187,16 +188,7 @@ void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int
         return std::pair{s.sensor_pose, fusion::scan_returns(s, kMaxEventPoints)};
       },
       scan.scan);
-  nlohmann::json returns = nlohmann::json::array();
-  for (const auto& p : points) returns.push_back({std::round(p.x() * 1000) / 1000, std::round(p.y() * 1000) / 1000});
-  emit({{"type", "scan"},
-        {"scan_seq", seq},
-        {"observer", scan.observer},
-        {"sensor", scan.sensor()},
-        {"pose", {{"x", pose.x_m}, {"y", pose.y_m}, {"theta", pose.theta_rad}}},
-        {"grid_revision", seq},
-        {"bbox", {changed.min().x(), changed.min().y(), changed.max().x(), changed.max().y()}},
-        {"points", returns}});
+  emit(events::EventKind::scan, json_codec::scan_event(seq, scan.observer, scan.sensor(), pose, changed, points));
 }
 
 std::shared_ptr<const world::PlanReport> WorldService::plan_report() const { return plan_checks_.report(); }
@@ -392,28 +384,12 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
                           "decision " + std::to_string(d.seq) + " fell back to add: " + d.explanation);
   }
   PrimitivesOutcome outcome{seq, update.state.version, update.decisions, false};
-  std::vector<std::string> removed;  // ids, in element order
-  for (auto number : update.removed_elements) removed.push_back(world::element_id(number));
-  if (events_ && events_->subscriber_count() > 0) {
-    nlohmann::json decisions = nlohmann::json::array(), elements = nlohmann::json::array(),
-                   objects = nlohmann::json::array();
-    for (const auto& d : update.decisions) decisions.push_back(json_codec::decision_json(d));
-    for (auto number : update.changed_elements)
-      elements.push_back(json_codec::element_json(update.state.elements.at(number)));
-    for (auto index : update.changed_objects)
-      objects.push_back(json_codec::object_json(update.state.objects.at(index), options_.world));
-    emit({{"type", "update"},
-          {"observation", seq},
-          {"version", update.state.version},
-          {"origin", observation.origin},
-          {"decisions", decisions},
-          {"elements", elements},
-          {"removed", removed},
-          {"removed_objects", removed_objects},
-          {"objects", objects}});
-  }
-  published_.publish(std::move(update.state),
-                     MapRemovals{{removed.begin(), removed.end()}, std::move(removed_objects)});
+  if (events_ && events_->subscriber_count() > 0)
+    emit(events::EventKind::update,
+         json_codec::update_event(seq, observation.origin, update, removed_objects, options_.world));
+  std::set<std::string> removed;
+  for (auto number : update.removed_elements) removed.insert(world::element_id(number));
+  published_.publish(std::move(update.state), MapRemovals{std::move(removed), std::move(removed_objects)});
   // Committed and published: the request is answered as applied whatever happens here.
   try {
     engine_.add_decisions(logged, options_.decision_facts_kept);
@@ -436,7 +412,7 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
     published_.publish(std::move(update.state), std::move(removed));
     engine_.set_floor_plan(new_facts);
     plan_checks_.refresh(*snapshot(), std::nullopt);
-    emit({{"type", "floorplan"}, {"version", version}, {"name", plan.name}, {"objects", plan.objects.size()}});
+    emit(events::EventKind::floorplan, json_codec::floorplan_event(version, plan.name, plan.objects.size()));
     return version;
   });
 }
@@ -448,10 +424,10 @@ rules::RulesStatus WorldService::reload_rules() {
     try {
       auto status = engine_.reload();
       plan_checks_.refresh(*snapshot(), std::nullopt, true);  // the new rules' verdicts on the same evidence
-      emit({{"type", "rules"}, {"status", json_codec::rules_status_json(status)}});
+      emit(events::EventKind::rules, json_codec::rules_event(status));
       return status;
     } catch (const rules::RuleError&) {
-      emit({{"type", "rules"}, {"status", json_codec::rules_status_json(engine_.status())}});
+      emit(events::EventKind::rules, json_codec::rules_event(engine_.status()));
       throw;
     }
   });
@@ -563,7 +539,7 @@ void WorldService::restore_robots() {
 void WorldService::emit_robot(const std::optional<RobotState>& robot) {
   if (!robot) return;
   const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-  emit({{"type", "robot"}, {"robot", json_codec::robot_json(*robot, to_string(robots_.status(*robot, now)), now)}});
+  emit(events::EventKind::robot, json_codec::robot_event(*robot, to_string(robots_.status(*robot, now)), now));
 }
 
 RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {

@@ -223,7 +223,7 @@ class WorldService final : public WorldPort {
   std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
   /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
   void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
-  void emit(const nlohmann::json& event);
+  void emit(events::EventKind kind, const nlohmann::json& event);
 
   // The processing network (world_service_network.cpp).
   struct Decided;

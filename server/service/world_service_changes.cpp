@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
 #include "server/service/world_service.h"
 #include "server/world/plan_edit.h"
@@ -60,10 +61,8 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
     } else {
       plan_checks_.reject(change_id);
     }
-    emit({{"type", "change"},
-          {"change", change_id},
-          {"verdict", accept ? "accepted" : "rejected"},
-          {"version", outcome.version}});
+    emit(events::EventKind::change,
+         json_codec::change_event(change_id, accept ? "accepted" : "rejected", outcome.version));
     return outcome;
   });
 }
@@ -95,7 +94,7 @@ ChangeOutcome WorldService::undo_change(std::string observer) {
     } else {
       plan_checks_.unreject(last.change_id);
     }
-    emit({{"type", "change"}, {"change", last.change_id}, {"verdict", "undone"}, {"version", outcome.version}});
+    emit(events::EventKind::change, json_codec::change_event(last.change_id, "undone", outcome.version));
     return outcome;
   });
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
 #include "server/service/world_service.h"
 
@@ -52,11 +53,8 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
   // The rules see the edges where the plan now is, before the next request is decided.
   engine_.set_floor_plan(object_facts(*snapshot(), options_.world));
   plan_checks_.refresh(*snapshot(), std::nullopt);
-  emit({{"type", "placement"},
-        {"version", outcome.version},
-        {"placement", json_codec::placement_json(placement, snapshot()->placement_cov)},
-        {"rule", decision.rule},
-        {"explanation", decision.explanation}});
+  emit(events::EventKind::placement,
+       json_codec::placement_event(outcome.version, placement, snapshot()->placement_cov, decision));
   return {outcome.version, decision};
 }
 
@@ -223,7 +221,7 @@ std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference>
     store_.commit_georeference(state);
     const auto version = state.version;
     published_.publish(std::move(state));
-    emit({{"type", "georeference"}, {"version", version}});
+    emit(events::EventKind::georeference, json_codec::georeference_event(version));
     return version;
   });
 }

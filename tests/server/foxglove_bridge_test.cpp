@@ -208,7 +208,7 @@ class FoxgloveBridgeTest : public ::testing::Test {
     return std::make_unique<Bridge>(options_, world_, hub_, diagnostics_,
                                     ServerInfo{"wmd test", "run-1", {{"api", "/api/v1"}}});
   }
-  void publish(const char* type) { hub_.publish(json({{"type", type}}).dump()); }
+  void publish(events::EventKind kind) { hub_.publish(kind, "{}"); }
 
   FoxgloveOptions options_;
   LiveWorld world_;
@@ -274,7 +274,7 @@ TEST_F(FoxgloveBridgeTest, ASubscriberGetsTheWholeSceneAtOnceThenOnlyWhatChanged
   next.elements.erase(1);
   next.elements.put(element(3, 3.0, next.version));
   world_.set(next, {"e1"});
-  publish("update");
+  publish(events::EventKind::update);
   frames = client.take_until([](const auto& f) { return count_for(f, 10) >= 1; });
   ASSERT_EQ(count_for(frames, 10), 1u);
   const auto* change = last_for(frames, 10);
@@ -310,7 +310,7 @@ TEST_F(FoxgloveBridgeTest, TheGridIsItsCellsAndALaterGridReplacesOneStillQueued)
   const auto built = bridge->stats().grid_messages;
   for (int i = 1; i <= 3; ++i) {
     world_.insert(scan_at(0.5 * i));
-    publish("scan");
+    publish(events::EventKind::scan);
     const auto deadline = std::chrono::steady_clock::now() + 5s;
     while (bridge->stats().grid_messages < built + static_cast<std::uint64_t>(i) &&
            std::chrono::steady_clock::now() < deadline)
@@ -341,7 +341,7 @@ TEST_F(FoxgloveBridgeTest, OnlyTheTilesThatChangedAreReadAgain) {
   EXPECT_EQ(static_cast<std::size_t>(world_.tile_reads.load()), before.size()) << "each tile read once";
   const int first = world_.tile_reads.load();
   world_.insert(scan_at(40));
-  publish("scan");
+  publish(events::EventKind::scan);
   client.take_until([](const auto& f) { return count_for(f, 1) >= 1; });
   const auto after = revisions();
   std::size_t changed = 0;
@@ -365,7 +365,7 @@ TEST_F(FoxgloveBridgeTest, AClientThatFallsBehindLosesItsQueueAndGetsTheCurrentS
   // Twenty decisions, one event each, while the client reads nothing: more than five changes queued.
   for (int seq = 4; seq <= 23; ++seq) {
     world_.log(decision(seq));
-    publish("update");
+    publish(events::EventKind::update);
     std::this_thread::sleep_for(2ms);
   }
   const auto deadline = std::chrono::steady_clock::now() + 5s;
@@ -396,7 +396,7 @@ TEST_F(FoxgloveBridgeTest, EachRobotGetsAPoseChannelAndATransform) {
   Connection client(bridge->connect());
   client.take_until([](const auto& f) { return f.size() >= 2; });
   world_.registry.on_pose("r1", {1.5, -2.0, 0.75, std::nullopt, 10.0, 1'700'000'000.25, "reported"}, false);
-  publish("robot");
+  publish(events::EventKind::robot);
   auto frames = client.take_until([](const auto& f) { return !f.empty(); });
   ASSERT_EQ(frames.size(), 1u);
   EXPECT_EQ(frames[0].text["op"], "advertise");
@@ -424,7 +424,7 @@ TEST_F(FoxgloveBridgeTest, EachRobotGetsAPoseChannelAndATransform) {
 
   // It moves: a new pose, a new tree of transforms.
   world_.registry.on_pose("r1", {2.5, -2.0, 0.75, std::nullopt, 11.0, 1'700'000'001.0, "reported"}, false);
-  publish("robot");
+  publish(events::EventKind::robot);
   frames = client.take_until([](const auto& f) { return count_for(f, 1) >= 1 && count_for(f, 2) >= 1; });
   EXPECT_EQ(last_for(frames, 1)->payload["pose"]["position"]["x"], 2.5);
   EXPECT_EQ(last_for(frames, 2)->payload["transforms"][0]["translation"]["x"], 2.5);
@@ -438,7 +438,7 @@ TEST_F(FoxgloveBridgeTest, UnsubscribingStopsTheMessagesAndBadRequestsAreAnswere
   client.take_until([](const auto& f) { return count_for(f, 4) >= 1; });
   client.send({{"op", "unsubscribe"}, {"subscriptionIds", {4, 99}}});
   world_.log(decision(2));
-  publish("update");
+  publish(events::EventKind::update);
   std::this_thread::sleep_for(50ms);
   auto frames = client.take();
   EXPECT_EQ(count_for(frames, 4), 0u);
