@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "bench/support/ratio_reporter.h"
-#include "clients/logs/carmen_log_reader.h"
 #include "fusion/grid/internal/beam_walk.h"
 #include "fusion/grid/occupancy_grid.h"
+#include "logs/carmen_log_reader.h"
 
 namespace {
 

@@ -40,8 +40,8 @@
 
 #include "bench/support/ratio_reporter.h"
 #include "bench/support/wmd_child.h"
-#include "clients/logs/carmen_log_reader.h"
-#include "clients/logs/scan_body.h"
+#include "logs/carmen_log_reader.h"
+#include "logs/scan_body.h"
 
 namespace {
 

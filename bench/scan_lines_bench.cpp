@@ -8,9 +8,9 @@
 #include <vector>
 
 #include "bench/support/ratio_reporter.h"
-#include "clients/logs/carmen_log_reader.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/lines/scan_lines.h"
+#include "logs/carmen_log_reader.h"
 
 namespace {
 

@@ -17,7 +17,7 @@
 
 #include "bench/support/ratio_reporter.h"
 #include "bench/support/wmd_child.h"
-#include "clients/shm/worldmodel_shm.h"
+#include "wire/shm/worldmodel_shm.h"
 
 namespace {
 

@@ -8,8 +8,8 @@
 #include <filesystem>
 #include <string>
 
-#include "clients/logs/carmen_log_reader.h"
 #include "fuzz/fuzz_support.h"
+#include "logs/carmen_log_reader.h"
 
 namespace {
 

@@ -11,9 +11,9 @@
 #include <string>
 #include <thread>
 
-#include "clients/logs/carmen_log_reader.h"
-#include "clients/logs/scan_body.h"
 #include "clients/wmctl/commands.h"
+#include "logs/carmen_log_reader.h"
+#include "logs/scan_body.h"
 
 namespace wm::wmctl {
 namespace {

@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "clients/shm/worldmodel_shm.h"
 #include "clients/wmctl/commands.h"
+#include "wire/shm/worldmodel_shm.h"
 
 namespace wm::wmctl {
 namespace {

@@ -18,8 +18,8 @@
 #include <regex>
 #include <sstream>
 
-#include "clients/shm/worldmodel_shm.h"
 #include "server/shm/sigbus_guard.h"
+#include "wire/shm/worldmodel_shm.h"
 
 namespace wm::shm {
 namespace {

@@ -56,7 +56,7 @@ struct ShmStatus {
 };
 
 /// Keeps the grid layers and the vector map in a POSIX shared-memory segment (Boost.Interprocess) for processes on
-/// the same machine, which read them without HTTP or JSON (clients/shm/worldmodel_shm.h holds the layout and a
+/// the same machine, which read them without HTTP or JSON (wire/shm/worldmodel_shm.h holds the layout and a
 /// reader; docs/shm.md the protocol).
 ///
 /// A thread of its own polls the service every `period` (or nine times its last pass, whichever is longer): the tiles

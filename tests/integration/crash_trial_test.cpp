@@ -24,8 +24,8 @@
 #include <thread>
 #include <vector>
 
-#include "clients/logs/carmen_log_reader.h"
 #include "e2e_fixture.h"
+#include "logs/carmen_log_reader.h"
 
 namespace wm::testing {
 namespace {

@@ -7,8 +7,8 @@
 #include <sstream>
 #include <unordered_map>
 
-#include "clients/logs/carmen_log_reader.h"
 #include "e2e_fixture.h"
+#include "logs/carmen_log_reader.h"
 
 namespace wm::testing {
 namespace {

@@ -2,8 +2,8 @@
 // come back after a restart.
 #include <cmath>
 
-#include "clients/logs/carmen_log_reader.h"
 #include "e2e_fixture.h"
+#include "logs/carmen_log_reader.h"
 
 namespace wm::testing {
 namespace {

@@ -9,8 +9,8 @@
 #include <future>
 #include <thread>
 
-#include "clients/shm/worldmodel_shm.h"
 #include "e2e_fixture.h"
+#include "wire/shm/worldmodel_shm.h"
 
 namespace wm::testing {
 namespace {

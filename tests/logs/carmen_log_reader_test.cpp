@@ -1,4 +1,4 @@
-#include "clients/logs/carmen_log_reader.h"
+#include "logs/carmen_log_reader.h"
 
 #include <gtest/gtest.h>
 #include <zlib.h>

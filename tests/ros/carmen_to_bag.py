@@ -10,7 +10,7 @@ What goes into the bag, as a robot's driver and localiser would publish it:
               bridge must then be unable to place
   /tf_static  base_link -> laser (the log's robot_frontlaser_offset ahead along x), latched
 
-The log's beams follow the project's CARMEN reader (clients/logs/carmen_log_reader.h): n readings over a 180°
+The log's beams follow the project's CARMEN reader (logs/carmen_log_reader.h): n readings over a 180°
 fan from -90° (even n: steps of pi/n; odd n: pi/(n - 1)); FLASER gives no maximum range, so range_max is 50 m
 (the reader's default: the 81.83 m "no return" codes of the Intel log are beyond it) and range_min 0.02 m.
 

@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <chrono>
 
-#include "clients/logs/carmen_log_reader.h"
-#include "clients/logs/scan_body.h"
 #include "common/diagnostics.h"
+#include "logs/carmen_log_reader.h"
+#include "logs/scan_body.h"
 #include "rules/engine.h"
 #include "server/storage/store.h"
 

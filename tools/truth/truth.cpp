@@ -12,8 +12,8 @@
 #include <sstream>
 #include <tuple>
 
-#include "clients/logs/scan_body.h"
 #include "common/diagnostics.h"
+#include "logs/scan_body.h"
 #include "rules/engine.h"
 #include "server/storage/store.h"
 

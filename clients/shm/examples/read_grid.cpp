@@ -21,7 +21,7 @@
 #include <string>
 #include <thread>
 
-#include "clients/shm/worldmodel_shm.h"
+#include "wire/shm/worldmodel_shm.h"
 
 namespace {
 

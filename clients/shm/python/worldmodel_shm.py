@@ -1,6 +1,6 @@
 """Reader for wmd's shared-memory export of the occupancy grid and the vector map.
 
-The layout is defined by clients/shm/worldmodel_shm.h (the single source of truth) and tabled in docs/shm.md; this
+The layout is defined by wire/shm/worldmodel_shm.h (the single source of truth) and tabled in docs/shm.md; this
 module reads the same bytes with the standard library (mmap, struct). When numpy can be imported, tile and layer
 reads return numpy float32 arrays; otherwise array('f'). Set WM_SHM_NO_NUMPY=1 to force the fallback.
 
@@ -23,7 +23,7 @@ mid-write). This is sound from Python on x86-64 only:
 - x86-64 does not reorder loads with other loads (TSO), and CPython performs the first load, the copy and the second
   load in separate C calls that the compiler cannot interleave, so the copy happens between the two loads.
 On weakly ordered CPUs (ARM, POWER) CPython emits no fence between them and the copy may be observed out of order
-with the counters: use the C++ reader (clients/shm/worldmodel_shm.h) there.
+with the counters: use the C++ reader (wire/shm/worldmodel_shm.h) there.
 """
 
 from __future__ import annotations

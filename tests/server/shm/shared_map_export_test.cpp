@@ -21,9 +21,9 @@
 #include <mutex>
 #include <thread>
 
-#include "clients/shm/worldmodel_shm.h"
 #include "tests/server/api/fake_world_port.h"
 #include "tests/support/lab_plan.h"
+#include "wire/shm/worldmodel_shm.h"
 
 namespace wm::testing {
 namespace {

@@ -4,7 +4,7 @@ import zlib from 'node:zlib';
 
 /**
  * "No return" in the CARMEN logs is written as the sensor's maximum (81.83–81.91 m in intel, 50 m in others);
- * readings at or above this are sent as null (no reading), as clients/logs' reader does [m].
+ * readings at or above this are sent as null (no reading), as logs' reader does [m].
  */
 export const kNoReturnM = 50.0;
 

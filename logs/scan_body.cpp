@@ -1,4 +1,4 @@
-#include "clients/logs/scan_body.h"
+#include "logs/scan_body.h"
 
 #include <cmath>
 
