@@ -62,12 +62,15 @@ class Option:
     help: str
 
 
+OBSERVER_DEFAULT = "ros-robot"
+
 OPTIONS = (
     Option("server", str, "http://127.0.0.1:8080", "wmd's base URL"),
     Option("token", str, "", "wmd's --token: sent as 'Authorization: Bearer TOKEN' (empty: none)"),
     Option("scan_topic", str, "scan", "sensor_msgs/LaserScan topic to post"),
     Option("map_frame", str, "map", "tf frame of wmd's world: scans are placed in it, grids and markers are in it"),
-    Option("source", str, "ros-robot", "robot id sent as the scans' source (1-128 of A-Z a-z 0-9 . _ : -)"),
+    Option("observer", str, OBSERVER_DEFAULT, "robot id sent as the scans' observer (1-128 of A-Z a-z 0-9 . _ : -)"),
+    Option("source", str, "", "the old name of observer, still read (both given and different: refused)"),
     Option("tf_wait", float, 0.5, "wall seconds a scan waits for its transform before it is skipped"),
     Option("tf_max_gap", float, 0.5,
            "a scan is placed only if every moving transform on its chain has a /tf sample within this many "
@@ -129,6 +132,11 @@ def resolve_settings(cli: argparse.Namespace) -> dict[str, Any]:
             value = rospy.get_param("~" + option.name, option.default)
             value = _parse_bool(value) if option.kind is bool else option.kind(value)
         settings[option.name] = value
+    if settings["source"]:
+        if settings["observer"] not in (OBSERVER_DEFAULT, settings["source"]):
+            raise ValueError(f"observer {settings['observer']!r} and its old name source {settings['source']!r} "
+                             "differ: give one")
+        settings["observer"] = settings["source"]
     for name in ("tf_queue_size", "buffer_size", "poll_period", "grid_max_rate", "http_timeout", "retry_initial"):
         if not settings[name] > 0:
             raise ValueError(f"{name} must be positive, not {settings[name]}")
@@ -299,7 +307,7 @@ def scan_body(scan: LaserScan, pose: tuple[float, float, float, bool], settings:
     if mirrored:  # beam i at heading theta - a_i: the same fan, listed from the other end
         ranges.reverse()
         angle_min = -(angle_min + (len(ranges) - 1) * float(scan.angle_increment))
-    body = {"sensor": "laser", "source": settings["source"], "stamp": scan.header.stamp.to_sec(),
+    body = {"sensor": "laser", "observer": settings["observer"], "stamp": scan.header.stamp.to_sec(),
             "pose": {"x": x, "y": y, "theta": theta}, "angle_min": angle_min,
             "angle_increment": float(scan.angle_increment), "ranges": ranges,
             "range_min": float(scan.range_min), "range_max": float(scan.range_max)}
@@ -451,7 +459,7 @@ class ScanPlacer:
                                   head.scan.header.stamp.to_sec(), why)
                 continue
             self._count += 1
-            key = f"{self._run_id}-{self._s['source']}-{self._count}"
+            key = f"{self._run_id}-{self._s['observer']}-{self._count}"
             self._deliver(key, json.dumps(scan_body(head.scan, pose, self._s), allow_nan=False).encode())
             self._counters.add("scans_placed")
 
@@ -735,7 +743,8 @@ class WorldPublisher:
                 for edge in obj.get("edges", []):
                     lines[("plan", category)].append((edge["p0"], edge["p1"]))
             for element in self._elements.values():
-                category = element.get("source") if element.get("source") in ELEMENT_COLOURS else "other"
+                origin = element.get("origin", element.get("source"))  # "source": its name before wmd said "origin"
+                category = origin if origin in ELEMENT_COLOURS else "other"
                 lines[("elements", category)].append((element["p0"], element["p1"]))
         stamp = rospy.Time.now()
         markers = MarkerArray()
@@ -761,7 +770,7 @@ class WorldPublisher:
             for d in answer.get("decisions", []):
                 target = d.get("element") or d.get("object") or "-"
                 rospy.loginfo("decision %d: %s %s (rule %s, %s)", d["seq"], d.get("action"), target, d.get("rule"),
-                              d.get("source") or d.get("observer") or "-")
+                              d.get("observer") or d.get("source") or "-")
                 self._counters.add("decisions_logged")
             with self._lock:
                 self._decision_seq = max(self._decision_seq, int(answer.get("next", self._decision_seq)))
@@ -795,7 +804,7 @@ class Bridge:
         self._world.start()
         self._status_thread.start()
         rospy.loginfo("%s: %s -> %s as source %r, scans placed in frame %s", NODE_NAME, self._s["scan_topic"],
-                      self._s["server"], self._s["source"], self._s["map_frame"])
+                      self._s["server"], self._s["observer"], self._s["map_frame"])
 
     def status(self) -> dict:
         status = self.counters.snapshot()

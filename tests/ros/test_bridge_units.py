@@ -85,8 +85,8 @@ class ConversionTest(unittest.TestCase):
 
     def test_scan_body(self):
         scan = make_scan([1.0, math.nan, math.inf, -math.inf, 2.5])
-        body = bridge.scan_body(scan, (1.0, 2.0, 0.1, False), dict(SETTINGS, source="r1", sigma_range=0.02))
-        self.assertEqual(body, {"sensor": "laser", "source": "r1", "stamp": 12.5,
+        body = bridge.scan_body(scan, (1.0, 2.0, 0.1, False), dict(SETTINGS, observer="r1", sigma_range=0.02))
+        self.assertEqual(body, {"sensor": "laser", "observer": "r1", "stamp": 12.5,
                                 "pose": {"x": 1.0, "y": 2.0, "theta": 0.1}, "angle_min": scan.angle_min,
                                 "angle_increment": scan.angle_increment, "ranges": [1.0, None, None, None, 2.5],
                                 "range_min": scan.range_min, "range_max": 8.0, "sigma_range": 0.02})
@@ -102,6 +102,14 @@ class ConversionTest(unittest.TestCase):
         queue = collections.deque()
         dropped = [bridge.push_bounded(queue, i, 1) for i in range(3)]
         self.assertEqual((list(queue), dropped), ([0], [False, True, True]))
+
+    def test_the_old_name_source_still_names_the_observer(self):
+        settings = dict(SETTINGS)
+        self.assertEqual(settings["observer"], "ros-robot")
+        cli = bridge.parse_command_line(["--source", "r7"])
+        self.assertEqual((cli.source, cli.observer), ("r7", None))
+        both = bridge.parse_command_line(["--source", "r7", "--observer", "r8"])
+        self.assertEqual((both.source, both.observer), ("r7", "r8"))
 
     def test_command_line(self):
         cli = bridge.parse_command_line(["--server", "http://h:1", "--log-decisions", "false", "--buffer-size", "7"])

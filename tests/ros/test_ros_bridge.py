@@ -268,7 +268,7 @@ class Scenario:
 
         self.bridge = self.spawn("bridge", [
             "/usr/bin/roslaunch", "--wait", "worldmodel_ros", "bridge.launch", f"server:={self.wmd.url}",
-            f"source:={SOURCE}", f"tf_max_gap:={TF_MAX_GAP}", f"tf_wait:={TF_WAIT}", "poll_period:=0.2",
+            f"observer:={SOURCE}", f"tf_max_gap:={TF_MAX_GAP}", f"tf_wait:={TF_WAIT}", "poll_period:=0.2",
             "grid_max_rate:=2"])
         wait_until(lambda: self.bridge_status().get("server_instance") == self.instance_before, 30,
                    "the bridge to reach wmd")
