@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
     // Before the HTTP server, which hands it to handlers, and after the world it reads.
     std::optional<shm::SharedMapExport> shared_memory;
     if (cfg.shm.enabled) {
-      shared_memory.emplace(world, cfg.shm, services.map_cache->instance(), diagnostics);
+      shared_memory.emplace(world, cfg.shm, services.map_cache->instance(), diagnostics, &events);
       services.shm = &*shared_memory;
       const auto status = shared_memory->status();
       if (status.available)

@@ -85,7 +85,7 @@ std::string usage() {
          "  --no-shm               do not export the grid and the map to shared memory (GET /api/v1/shm)\n"
          "  --shm-max-mb N         largest shared memory segment [MB] (default 1024; never more than half of\n"
          "                         /dev/shm's free space)\n"
-         "  --shm-period-ms N      copy changes into shared memory every N ms (default 20)\n"
+         "  --shm-period-ms N      copy changes into shared memory at most every N ms (default 20)\n"
          "  --foxglove-queue-kb N  changes (scene updates, decisions) a Foxglove client may have queued [KiB]; past\n"
          "                         them it falls behind and is sent the current state when it reads (default 32768)\n"
          "  --foxglove-max-clients N  Foxglove clients served at once; one more is refused (default 32)\n"

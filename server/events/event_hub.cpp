@@ -33,8 +33,8 @@ void EventHub::Subscriber::push(EventKind kind, const std::string& json) {
   wake_();
 }
 
-std::shared_ptr<EventHub::Subscriber> EventHub::subscribe(std::function<void()> wake) {
-  auto subscriber = std::shared_ptr<Subscriber>(new Subscriber(capacity_, std::move(wake)));
+std::shared_ptr<EventHub::Subscriber> EventHub::subscribe(std::function<void()> wake, bool wants_json) {
+  auto subscriber = std::shared_ptr<Subscriber>(new Subscriber(capacity_, std::move(wake), wants_json));
   std::lock_guard lock(mutex_);
   subscribers_.push_back(subscriber);
   return subscriber;
@@ -63,6 +63,12 @@ void EventHub::publish(EventKind kind, const std::string& event_json) {
 std::size_t EventHub::subscriber_count() const {
   std::lock_guard lock(mutex_);
   return subscribers_.size();
+}
+
+std::size_t EventHub::json_subscriber_count() const {
+  std::lock_guard lock(mutex_);
+  return static_cast<std::size_t>(
+      std::count_if(subscribers_.begin(), subscribers_.end(), [](const auto& s) { return s->wants_json_; }));
 }
 
 }  // namespace wm::events

@@ -46,11 +46,13 @@ class EventHub {
 
    private:
     friend class EventHub;
-    Subscriber(std::size_t capacity, std::function<void()> wake) : capacity_(capacity), wake_(std::move(wake)) {}
+    Subscriber(std::size_t capacity, std::function<void()> wake, bool wants_json)
+        : capacity_(capacity), wake_(std::move(wake)), wants_json_(wants_json) {}
     void push(EventKind kind, const std::string& json);
 
     const std::size_t capacity_;
     const std::function<void()> wake_;
+    const bool wants_json_;
     std::mutex mutex_;
     std::deque<Event> queue_;
     bool overflowed_ = false;
@@ -59,14 +61,18 @@ class EventHub {
 
   explicit EventHub(std::size_t queue_capacity = 1024) : capacity_(queue_capacity) {}
 
-  /// `wake` is called (on the publishing thread, must not block) when events were queued.
-  std::shared_ptr<Subscriber> subscribe(std::function<void()> wake);
+  /// `wake` is called (on the publishing thread, must not block) when events were queued. A subscriber that does
+  /// not want the JSON (one in the process that acts on the kind alone) may get "{}" with the seq only: a publisher
+  /// builds the JSON only when json_subscriber_count() says someone reads it.
+  std::shared_ptr<Subscriber> subscribe(std::function<void()> wake, bool wants_json = true);
   void unsubscribe(const std::shared_ptr<Subscriber>& subscriber);
   /// Stamps the event with the hub's next sequence number ("seq", so pages can see gaps) and queues it for
   /// every subscriber. `event_json` must be a JSON object text without "seq"; it is spliced in.
   /// @throw std::invalid_argument when it is not a JSON object text.
   void publish(EventKind kind, const std::string& event_json);
   std::size_t subscriber_count() const;
+  /// Subscribers that read the events' JSON (the WebSocket clients).
+  std::size_t json_subscriber_count() const;
   std::uint64_t last_seq() const { return seq_.load(); }
 
  private:

@@ -140,13 +140,15 @@ void Bridge::Core::publish(std::uint32_t channel, const Payload& payload, std::u
 void Bridge::Core::follow_clients() {
   const bool any = !live_clients().empty();
   if (any && !subscriber_) {
-    subscriber_ = hub.subscribe([this] {
-      {
-        std::lock_guard lock(wake_mutex);
-        events_pending = true;
-      }
-      wake_cv.notify_one();
-    });
+    subscriber_ = hub.subscribe(
+        [this] {
+          {
+            std::lock_guard lock(wake_mutex);
+            events_pending = true;
+          }
+          wake_cv.notify_one();
+        },
+        /*wants_json=*/false);  // the kinds say what changed; the messages are made from the world
     // Whatever happened while nobody listened: everything is stale.
     grid_dirty_ = elements_dirty_ = plan_dirty_ = robots_dirty_ = decisions_dirty_ = true;
     grid_cache_ = ds_cache_ = {};

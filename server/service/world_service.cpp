@@ -119,10 +119,13 @@ WorldService::~WorldService() {
   reader_.reset();
 }
 
-void WorldService::emit(events::EventKind kind, const nlohmann::json& event) {
-  if (!events_) return;
+void WorldService::emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json) {
+  if (!events_ || events_->subscriber_count() == 0) return;
   try {
-    events_->publish(kind, event.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
+    // The JSON only for those who read it (WebSocket clients); the bridge and the export act on the kind.
+    events_->publish(kind, events_->json_subscriber_count() == 0
+                               ? std::string("{}")
+                               : make_json().dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   } catch (const std::exception& e) {
     diagnostics_.report(common::Severity::warning, "events", std::string("event not published: ") + e.what());
   }
@@ -180,15 +183,16 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
 }
 
 void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq) {
-  if (!events_ || events_->subscriber_count() == 0) return;
-  constexpr std::size_t kMaxEventPoints = 360;
-  const auto changed = grid_.changed_region(scan, 2 * grid_.resolution_m());
-  const auto [pose, points] = std::visit(
-      [&](const auto& s) {
-        return std::pair{s.sensor_pose, fusion::scan_returns(s, kMaxEventPoints)};
-      },
-      scan.scan);
-  emit(events::EventKind::scan, json_codec::scan_event(seq, scan.observer, scan.sensor(), pose, changed, points));
+  emit(events::EventKind::scan, [&] {
+    constexpr std::size_t kMaxEventPoints = 360;
+    const auto changed = grid_.changed_region(scan, 2 * grid_.resolution_m());
+    const auto [pose, points] = std::visit(
+        [&](const auto& s) {
+          return std::pair{s.sensor_pose, fusion::scan_returns(s, kMaxEventPoints)};
+        },
+        scan.scan);
+    return json_codec::scan_event(seq, scan.observer, scan.sensor(), pose, changed, points);
+  });
 }
 
 std::shared_ptr<const world::PlanReport> WorldService::plan_report() const { return plan_checks_.report(); }
@@ -384,9 +388,8 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
                           "decision " + std::to_string(d.seq) + " fell back to add: " + d.explanation);
   }
   PrimitivesOutcome outcome{seq, update.state.version, update.decisions, false};
-  if (events_ && events_->subscriber_count() > 0)
-    emit(events::EventKind::update,
-         json_codec::update_event(seq, observation.origin, update, removed_objects, options_.world));
+  emit(events::EventKind::update,
+       [&] { return json_codec::update_event(seq, observation.origin, update, removed_objects, options_.world); });
   std::set<std::string> removed;
   for (auto number : update.removed_elements) removed.insert(world::element_id(number));
   published_.publish(std::move(update.state), MapRemovals{std::move(removed), std::move(removed_objects)});
@@ -412,7 +415,8 @@ std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
     published_.publish(std::move(update.state), std::move(removed));
     engine_.set_floor_plan(new_facts);
     plan_checks_.refresh(*snapshot(), std::nullopt);
-    emit(events::EventKind::floorplan, json_codec::floorplan_event(version, plan.name, plan.objects.size()));
+    emit(events::EventKind::floorplan,
+         [&] { return json_codec::floorplan_event(version, plan.name, plan.objects.size()); });
     return version;
   });
 }
@@ -424,10 +428,10 @@ rules::RulesStatus WorldService::reload_rules() {
     try {
       auto status = engine_.reload();
       plan_checks_.refresh(*snapshot(), std::nullopt, true);  // the new rules' verdicts on the same evidence
-      emit(events::EventKind::rules, json_codec::rules_event(status));
+      emit(events::EventKind::rules, [&] { return json_codec::rules_event(status); });
       return status;
     } catch (const rules::RuleError&) {
-      emit(events::EventKind::rules, json_codec::rules_event(engine_.status()));
+      emit(events::EventKind::rules, [&] { return json_codec::rules_event(engine_.status()); });
       throw;
     }
   });
@@ -539,7 +543,8 @@ void WorldService::restore_robots() {
 void WorldService::emit_robot(const std::optional<RobotState>& robot) {
   if (!robot) return;
   const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-  emit(events::EventKind::robot, json_codec::robot_event(*robot, to_string(robots_.status(*robot, now)), now));
+  emit(events::EventKind::robot,
+       [&] { return json_codec::robot_event(*robot, to_string(robots_.status(*robot, now)), now); });
 }
 
 RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {

@@ -223,7 +223,8 @@ class WorldService final : public WorldPort {
   std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
   /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
   void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
-  void emit(events::EventKind kind, const nlohmann::json& event);
+  /// Publishes an event of `kind` when anyone listens; its JSON is made only when someone reads it.
+  void emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json);
 
   // The processing network (world_service_network.cpp).
   struct Decided;

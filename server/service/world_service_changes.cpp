@@ -62,7 +62,7 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
       plan_checks_.reject(change_id);
     }
     emit(events::EventKind::change,
-         json_codec::change_event(change_id, accept ? "accepted" : "rejected", outcome.version));
+         [&] { return json_codec::change_event(change_id, accept ? "accepted" : "rejected", outcome.version); });
     return outcome;
   });
 }
@@ -94,7 +94,8 @@ ChangeOutcome WorldService::undo_change(std::string observer) {
     } else {
       plan_checks_.unreject(last.change_id);
     }
-    emit(events::EventKind::change, json_codec::change_event(last.change_id, "undone", outcome.version));
+    emit(events::EventKind::change,
+         [&] { return json_codec::change_event(last.change_id, "undone", outcome.version); });
     return outcome;
   });
 }

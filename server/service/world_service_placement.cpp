@@ -54,7 +54,7 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
   engine_.set_floor_plan(object_facts(*snapshot(), options_.world));
   plan_checks_.refresh(*snapshot(), std::nullopt);
   emit(events::EventKind::placement,
-       json_codec::placement_event(outcome.version, placement, snapshot()->placement_cov, decision));
+       [&] { return json_codec::placement_event(outcome.version, placement, snapshot()->placement_cov, decision); });
   return {outcome.version, decision};
 }
 
@@ -221,7 +221,7 @@ std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference>
     store_.commit_georeference(state);
     const auto version = state.version;
     published_.publish(std::move(state));
-    emit(events::EventKind::georeference, json_codec::georeference_event(version));
+    emit(events::EventKind::georeference, [&] { return json_codec::georeference_event(version); });
     return version;
   });
 }

@@ -167,8 +167,12 @@ class SharedMapExport::Segment {
 };
 
 SharedMapExport::SharedMapExport(ExportSource world, ShmOptions options, std::string server_instance,
-                                 common::Diagnostics& diagnostics)
-    : world_(world), diagnostics_(diagnostics), options_(options), server_instance_(std::move(server_instance)) {
+                                 common::Diagnostics& diagnostics, events::EventHub* events)
+    : world_(world),
+      diagnostics_(diagnostics),
+      options_(options),
+      server_instance_(std::move(server_instance)),
+      events_(events) {
   const auto tiles = world_.grid.grid_tiles();
   tile_size_cells_ = tiles.tile_size_cells;
   resolution_m_ = tiles.resolution_m;
@@ -176,6 +180,17 @@ SharedMapExport::SharedMapExport(ExportSource world, ShmOptions options, std::st
   for (const auto& name : remove_stale_segments())
     diagnostics_.report(common::Severity::info, "shm",
                         "removed shared memory " + name + " left by a server that is gone");
+  // Subscribed before the first pass: nothing that happens after it goes unseen.
+  if (events_)
+    subscriber_ = events_->subscribe(
+        [this] {
+          {
+            std::lock_guard lock(wake_mutex_);
+            changed_ = true;
+          }
+          wake_.notify_one();
+        },
+        /*wants_json=*/false);
   sync();
   try {
     thread_ = std::thread([this] { run(); });
@@ -186,6 +201,7 @@ SharedMapExport::SharedMapExport(ExportSource world, ShmOptions options, std::st
 }
 
 SharedMapExport::~SharedMapExport() {
+  if (subscriber_) events_->unsubscribe(subscriber_);  // not under wake_mutex_: the hub's wake takes it
   {
     std::lock_guard lock(wake_mutex_);
     stopping_ = true;
@@ -210,7 +226,13 @@ void SharedMapExport::run() {
   std::unique_lock lock(wake_mutex_);
   auto pause = std::chrono::duration_cast<std::chrono::steady_clock::duration>(options_.period);
   while (!wake_.wait_for(lock, pause, [this] { return stopping_; })) {
+    if (subscriber_) {
+      wake_.wait_for(lock, options_.idle_period, [this] { return stopping_ || changed_; });
+      if (stopping_) break;
+      changed_ = false;
+    }
     lock.unlock();
+    if (subscriber_) subscriber_->take();  // any event is reason enough to look; its kind does not matter here
     const auto start = std::chrono::steady_clock::now();
     sync();
     pause = std::max<std::chrono::steady_clock::duration>(options_.period,

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/diagnostics.h"
+#include "server/events/event_hub.h"
 #include "server/service/world_port.h"
 
 namespace wm::shm {
@@ -23,6 +24,8 @@ struct ShmOptions {
   /// (plus the copy), while the copies take less than a tenth of it; under heavier ingest the pause grows to nine
   /// times the last pass, so the export never takes more than a tenth of a core from ingest. [1 ms, 10 s]
   std::chrono::milliseconds period{20};
+  /// With the event hub, a pass this long after the last at the latest, should an event ever be missed.
+  std::chrono::milliseconds idle_period{1000};
   /// The segment never grows past this, nor past half of /dev/shm's free space when it is made (containers often
   /// give /dev/shm 64 MB). What does not fit is left out and flagged (truncated).
   std::uint64_t max_bytes = std::uint64_t{1} << 30;
@@ -59,7 +62,8 @@ struct ShmStatus {
 /// the same machine, which read them without HTTP or JSON (wire/shm/worldmodel_shm.h holds the layout and a
 /// reader; docs/shm.md the protocol).
 ///
-/// A thread of its own polls the service every `period` (or nine times its last pass, whichever is longer): the tiles
+/// A thread of its own looks at the service every `period` (or nine times its last pass, whichever is longer; with the
+/// event hub only once something changed): the tiles
 /// whose revision changed are copied in (each under its slot's sequence counter, a seqlock), and so is the map when its
 /// version changed. Ingest never waits for it beyond the grid's shared lock for one tile's copy, and never for a
 /// reader.
@@ -82,8 +86,11 @@ class SharedMapExport {
   /// Removes stale segments, makes the segment, fills it once and starts the thread. Never throws for a segment
   /// that cannot be made: status() says why, each pass tries again, and `diagnostics` (where "shm", which must
   /// outlive this) counts each new failure and each segment replaced.
-  SharedMapExport(ExportSource world, ShmOptions options, std::string server_instance,
-                  common::Diagnostics& diagnostics);
+  /// With `events` (which must outlive this), a pass runs only after an event (a scan in the grid, a commit, a
+  /// plan moved), at most every `period`, and at the latest `idle_period` after the last one: an idle server
+  /// costs next to nothing. Without, every `period`.
+  SharedMapExport(ExportSource world, ShmOptions options, std::string server_instance, common::Diagnostics& diagnostics,
+                  events::EventHub* events = nullptr);
   ~SharedMapExport();
   SharedMapExport(const SharedMapExport&) = delete;
   SharedMapExport& operator=(const SharedMapExport&) = delete;
@@ -142,6 +149,9 @@ class SharedMapExport {
   std::mutex wake_mutex_;
   std::condition_variable wake_;
   bool stopping_ = false;
+  bool changed_ = false;  // an event came since the last pass (with a hub)
+  events::EventHub* events_ = nullptr;
+  std::shared_ptr<events::EventHub::Subscriber> subscriber_;
   std::thread thread_;
 };
 

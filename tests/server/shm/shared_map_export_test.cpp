@@ -119,6 +119,32 @@ TEST(SharedMapExportTest, ReadersNeverSeeATornTileWhileTheWriterHammersTheSlots)
   EXPECT_EQ(backwards.load(), 0u);
 }
 
+// With the event hub the export looks only when told (an idle server costs nothing), and at once when it is.
+TEST(SharedMapExportTest, WithTheEventHubAPassRunsAfterAnEventNotOnAClock) {
+  CountingGridPort port;
+  port.bump(0, 0);
+  common::Diagnostics diagnostics("", nullptr);
+  events::EventHub hub;
+  auto options = fast();
+  options.idle_period = 2s;
+  shm::SharedMapExport exporter(shm::ExportSource{port, port}, options, "test-run", diagnostics, &hub);
+  EXPECT_EQ(hub.subscriber_count(), 1u);
+  EXPECT_EQ(hub.json_subscriber_count(), 0u) << "the export needs no JSON: none is made for it";
+  const auto wait_for_revision = [&](std::uint64_t revision, std::chrono::milliseconds limit) {
+    const auto until = std::chrono::steady_clock::now() + limit;
+    while (exporter.status().grid_revision < revision && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(1ms);
+    return exporter.status().grid_revision >= revision;
+  };
+  ASSERT_TRUE(wait_for_revision(1, 2s));
+  port.bump(1, 1);  // the grid changed, but nobody said so: no pass for now (period 1 ms)
+  EXPECT_FALSE(wait_for_revision(2, 300ms));
+  hub.publish(events::EventKind::scan, "{}");
+  EXPECT_TRUE(wait_for_revision(2, 200ms));
+  port.bump(2, 2);  // an event that is never published: the idle pass still finds it
+  EXPECT_TRUE(wait_for_revision(3, 5s));
+}
+
 TEST(SharedMapExportTest, GrowsIntoALargerSegmentAndTheOldOneNamesIt) {
   CountingGridPort port;
   port.bump(0, 0);
