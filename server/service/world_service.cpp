@@ -37,7 +37,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
       store_(store),
       engine_(engine),
       diagnostics_(diagnostics),
-      events_(events),
+      event_log_(events, diagnostics),
       published_(store.load(options.world)),
       grid_(GridStoreOptions{options.grid, options.grid_flush_interval, options.beam_crossings}, store, diagnostics),
       plan_checks_(PlanChecksOptions{options.plan_evidence, options.changes}, grid_, engine, diagnostics,
@@ -119,18 +119,6 @@ WorldService::~WorldService() {
   reader_.reset();
 }
 
-void WorldService::emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json) {
-  if (!events_ || events_->subscriber_count() == 0) return;
-  try {
-    // The JSON only for those who read it (WebSocket clients); the bridge and the export act on the kind.
-    events_->publish(kind, events_->json_subscriber_count() == 0
-                               ? std::string("{}")
-                               : make_json().dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
-  } catch (const std::exception& e) {
-    diagnostics_.report(common::Severity::warning, "events", std::string("event not published: ") + e.what());
-  }
-}
-
 std::optional<storage::RequestRecord> WorldService::known_request(const std::string& request_id, std::string_view kind,
                                                                   std::int64_t hash) {
   auto record = store_.find_request(request_id);
@@ -182,8 +170,8 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   return prepare_update(std::move(observation));
 }
 
-void WorldService::emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq) {
-  emit(events::EventKind::scan, [&] {
+void WorldService::add_scan_event(EventLog::Commit& live, const json_codec::ScanRequest& scan, std::int64_t seq) {
+  live.add(events::EventKind::scan, [&] {
     constexpr std::size_t kMaxEventPoints = 360;
     const auto changed = grid_.changed_region(scan, 2 * grid_.resolution_m());
     const auto [pose, points] = std::visit(
@@ -221,7 +209,8 @@ void WorldService::trim_now(std::int64_t scan_seq, const world::Box& region) {
     if (!p) return;
     const auto payload = trim_payload(scan_seq);
     commit_prepared(*p, [&] { store_.commit_observation(p->update, p->observation, payload); });
-    finish_update(std::move(*p));
+    auto live = event_log_.begin();
+    finish_update(std::move(*p), live);
   } catch (const std::exception& e) {
     diagnostics_.report(common::Severity::error, "grid_trim",
                         "the grid trim of scan " + std::to_string(scan_seq) + " was not applied: " + e.what());
@@ -316,7 +305,8 @@ std::optional<MapRemovals> WorldService::removed_since(std::int64_t since, std::
 PrimitivesOutcome WorldService::apply_on_writer(world::Observation observation, const std::string& payload) {
   auto prepared = prepare_update(std::move(observation));
   commit_prepared(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload); });
-  return finish_update(std::move(prepared));
+  auto live = event_log_.begin();
+  return finish_update(std::move(prepared), live);
 }
 
 WorldService::PreparedUpdate WorldService::own_observation(std::shared_ptr<const world::WorldState> base,
@@ -376,7 +366,8 @@ void WorldService::commit_prepared(const PreparedUpdate& prepared, const std::fu
   }
 }
 
-PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<std::string> removed_objects) {
+PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, EventLog::Commit& live,
+                                              std::set<std::string> removed_objects) {
   auto& update = prepared.update;
   const auto& observation = prepared.observation;
   const auto seq = prepared.seq;
@@ -388,8 +379,8 @@ PrimitivesOutcome WorldService::finish_update(PreparedUpdate prepared, std::set<
                           "decision " + std::to_string(d.seq) + " fell back to add: " + d.explanation);
   }
   PrimitivesOutcome outcome{seq, update.state.version, update.decisions, false};
-  emit(events::EventKind::update,
-       [&] { return json_codec::update_event(seq, observation.origin, update, removed_objects, options_.world); });
+  live.add(events::EventKind::update,
+           [&] { return json_codec::update_event(seq, observation.origin, update, removed_objects, options_.world); });
   std::set<std::string> removed;
   for (auto number : update.removed_elements) removed.insert(world::element_id(number));
   published_.publish(std::move(update.state), MapRemovals{std::move(removed), std::move(removed_objects)});
@@ -540,18 +531,19 @@ void WorldService::restore_robots() {
   }
 }
 
-void WorldService::emit_robot(const std::optional<RobotState>& robot) {
+void WorldService::add_robot_event(EventLog::Commit& live, const std::optional<RobotState>& robot) {
   if (!robot) return;
   const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-  emit(events::EventKind::robot,
-       [&] { return json_codec::robot_event(*robot, to_string(robots_.status(*robot, now)), now); });
+  live.add(events::EventKind::robot,
+           [&] { return json_codec::robot_event(*robot, to_string(robots_.status(*robot, now)), now); });
 }
 
 RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {
   pose.received_at_unix_s = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
   store_.commit_robot_pose({id, pose.x, pose.y, pose.theta, pose.cov, pose.stamp_s, pose.received_at_unix_s,
                             stopped ? "stopped" : "moving"});
-  emit_robot(robots_.on_pose(id, pose, stopped));
+  auto live = event_log_.begin();  // not a map commit: its place is when it is heard
+  add_robot_event(live, robots_.on_pose(id, pose, stopped));
   return *robots_.find(id);
 }
 

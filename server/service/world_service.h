@@ -26,6 +26,7 @@
 #include "server/events/event_hub.h"
 #include "server/json/codec.h"
 #include "server/json/robots_json.h"
+#include "server/service/event_log.h"
 #include "server/service/grid_store.h"
 #include "server/service/plan_checks.h"
 #include "server/service/prolog_worker.h"
@@ -187,7 +188,8 @@ class WorldService final : public WorldPort {
   void on_rules_changed();
   /// The robots as the journal left them (at start).
   void restore_robots();
-  void emit_robot(const std::optional<RobotState>& robot);
+  /// Adds a robot's new pose or status to the commit (`live`; nothing when `robot` is nullopt: no event due).
+  void add_robot_event(EventLog::Commit& live, const std::optional<RobotState>& robot);
   /// An observation decided and applied in memory (the rules' facts already follow it), not yet committed.
   struct PreparedUpdate {
     std::shared_ptr<const world::WorldState> base;  // the state it was decided against
@@ -202,8 +204,9 @@ class WorldService final : public WorldPort {
                                         std::string origin, std::string sensor);
   /// Runs `commit`; if it throws, puts the rules' facts back to the committed map and rethrows.
   void commit_prepared(const PreparedUpdate& prepared, const std::function<void()>& commit);
-  /// After the commit: publishes the new state, tells the rules and live clients.
-  PrimitivesOutcome finish_update(PreparedUpdate prepared, std::set<std::string> removed_objects = {});
+  /// After the commit: publishes the new state, tells the rules, and adds the update event to the commit (`live`).
+  PrimitivesOutcome finish_update(PreparedUpdate prepared, EventLog::Commit& live,
+                                  std::set<std::string> removed_objects = {});
   PrimitivesOutcome apply_on_writer(world::Observation observation, const std::string& payload);
   static std::int64_t body_hash(std::string_view body);
   /// The stored record of `request_id` when it was used before (nullopt: apply the request).
@@ -221,10 +224,13 @@ class WorldService final : public WorldPort {
   /// The lines of a laser scan, extracted and decided against the committed map (nothing stored yet); nullopt
   /// for a sonar scan, with scan lines off, or when no line is found.
   std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
-  /// The live "scan" event: the robot's pose, where its beams returned and the grid region that changed.
-  void emit_scan_event(const json_codec::ScanRequest& scan, std::int64_t seq);
-  /// Publishes an event of `kind` when anyone listens; its JSON is made only when someone reads it.
-  void emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json);
+  /// Adds the live "scan" event to its commit (`live`): the robot's pose, where its beams returned and the grid
+  /// region that changed.
+  void add_scan_event(EventLog::Commit& live, const json_codec::ScanRequest& scan, std::int64_t seq);
+  /// Publishes an event of `kind` as a commit of its own (when anyone listens; its JSON only when someone reads it).
+  void emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json) {
+    event_log_.publish(kind, make_json);
+  }
 
   // The processing network (world_service_network.cpp).
   struct Decided;
@@ -286,7 +292,7 @@ class WorldService final : public WorldPort {
   storage::Store& store_;
   rules::Engine& engine_;
   common::Diagnostics& diagnostics_;
-  events::EventHub* events_;
+  EventLog event_log_;  // the commits' live events, in commit order
 
   RobotRegistry robots_;
   SnapshotLog published_;                  // the committed map, what each version removed

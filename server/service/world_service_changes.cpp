@@ -54,15 +54,16 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
     commit_prepared(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, record); });
     outcome.decision = p.update.decisions.at(0);
     auto removed = world::removed_objects(*state, p.update.state);
-    outcome.version = finish_update(std::move(p), std::move(removed)).version;
+    auto live = event_log_.begin();
+    outcome.version = finish_update(std::move(p), live, std::move(removed)).version;
     if (accept) {
       sync_all_facts(engine_, *snapshot(), options_.world);
       plan_checks_.refresh(*snapshot(), std::nullopt);
     } else {
       plan_checks_.reject(change_id);
     }
-    emit(events::EventKind::change,
-         [&] { return json_codec::change_event(change_id, accept ? "accepted" : "rejected", outcome.version); });
+    live.add(events::EventKind::change,
+             [&] { return json_codec::change_event(change_id, accept ? "accepted" : "rejected", outcome.version); });
     return outcome;
   });
 }
@@ -87,15 +88,16 @@ ChangeOutcome WorldService::undo_change(std::string observer) {
     outcome.change_id = last.change_id;
     outcome.decision = p.update.decisions.at(0);
     auto removed = world::removed_objects(*state, p.update.state);
-    outcome.version = finish_update(std::move(p), std::move(removed)).version;
+    auto live = event_log_.begin();
+    outcome.version = finish_update(std::move(p), live, std::move(removed)).version;
     if (plan) {
       sync_all_facts(engine_, *snapshot(), options_.world);
       plan_checks_.refresh(*snapshot(), std::nullopt);
     } else {
       plan_checks_.unreject(last.change_id);
     }
-    emit(events::EventKind::change,
-         [&] { return json_codec::change_event(last.change_id, "undone", outcome.version); });
+    live.add(events::EventKind::change,
+             [&] { return json_codec::change_event(last.change_id, "undone", outcome.version); });
     return outcome;
   });
 }

@@ -68,6 +68,18 @@ struct PrimitivesJob {
   std::shared_ptr<void> hold;                // a request answered only after this one is applied (or dropped)
 };
 using ScanJobPtr = std::shared_ptr<ScanJob>;
+
+// Where a committed scan says its robot is (received now).
+RobotPose robot_pose_of(const json_codec::ScanRequest& scan) {
+  const auto sensor_pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
+  return RobotPose{sensor_pose.x_m,
+                   sensor_pose.y_m,
+                   sensor_pose.theta_rad,
+                   scan.pose_cov.isZero() ? std::nullopt : std::optional<Eigen::Matrix3d>(scan.pose_cov),
+                   scan.stamp_s,
+                   now_unix_s(),
+                   ""};
+}
 using PrimitivesJobPtr = std::shared_ptr<PrimitivesJob>;
 using Command = std::shared_ptr<std::function<void()>>;
 struct GridTick {
@@ -90,10 +102,11 @@ struct WorldService::Decided {
   std::exception_ptr error;         // the commit failed
 };
 
-// A committed scan on its way into the grids.
+// A committed scan on its way into the grids, with its commit's live events (the scan event goes last).
 struct WorldService::GridScan {
   ScanJobPtr job;
   std::int64_t seq = 0;
+  EventLog::Commit live;
 };
 
 std::string default_network_yaml() {
@@ -233,15 +246,6 @@ ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string pa
   if (!accepts_scans(sensor))
     throw std::invalid_argument("the processing network (" + network_->source() + ") does not process " + sensor +
                                 " scans");
-  const auto sensor_pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
-  RobotPose pose{sensor_pose.x_m,
-                 sensor_pose.y_m,
-                 sensor_pose.theta_rad,
-                 scan.pose_cov.isZero() ? std::nullopt : std::optional<Eigen::Matrix3d>(scan.pose_cov),
-                 scan.stamp_s,
-                 0,
-                 ""};
-  const std::string observer = scan.observer;
   auto job = std::make_shared<ScanJob>(
       ScanJob{std::move(scan), std::move(payload_json), std::move(request_id), std::make_shared<ScanTicket>()});
   auto future = job->ticket->future();
@@ -250,18 +254,11 @@ ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string pa
   } catch (const pipeline::QueueFull& e) {
     throw Busy(std::string("the world model's scan queue is full; retry later (") + e.what() + ")");
   }
-  auto outcome = future.get();
-  if (!outcome.replayed) {  // committed: the robot is where this scan was taken
-    pose.received_at_unix_s =
-        std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-    emit_robot(robots_.on_scan(observer, sensor, std::move(pose)));
-  }
-  return outcome;
+  return future.get();
 }
 
 PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
                                                 std::optional<std::string> request_id) {
-  const std::string observer = observation.observer;
   auto job = std::make_shared<PrimitivesJob>(PrimitivesJob{std::move(observation), std::move(payload_json),
                                                            std::move(request_id), std::make_shared<PrimitivesTicket>(),
                                                            nullptr});
@@ -271,11 +268,7 @@ PrimitivesOutcome WorldService::post_primitives(world::Observation observation, 
   } catch (const pipeline::QueueFull& e) {
     throw Busy(std::string("the world model's primitives queue is full; retry later (") + e.what() + ")");
   }
-  auto outcome = future.get();
-  if (!outcome.replayed)
-    emit_robot(robots_.on_primitives(
-        observer, std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count()));
-  return outcome;
+  return future.get();
 }
 
 bool WorldService::accepts_scans(const std::string& sensor) const { return network_->consumes("matcher", sensor); }
@@ -454,16 +447,25 @@ void WorldService::finish_committed(pipeline::Activation& a) {
                               ") was not stored");
     return;
   }
+  // The commit's events: its update, the robot heard from, and (a scan, on the grid thread) the grid region.
+  auto live = event_log_.begin();
+  const std::string observer = d->update ? d->update->observation.observer : std::string();
   std::optional<PrimitivesOutcome> lines;
-  if (d->update) lines = finish_update(std::move(*d->update));
+  if (d->update) lines = finish_update(std::move(*d->update), live);
   if (!d->scan) {
-    if (d->primitives && d->primitives->ticket) d->primitives->ticket->succeed(std::move(*lines));
+    if (d->primitives && d->primitives->ticket) {
+      add_robot_event(live, robots_.on_primitives(observer, now_unix_s()));
+      d->primitives->ticket->succeed(std::move(*lines));
+    }
     return;
   }
   committed_scan_seq_ = d->scan_seq;
+  const auto& scan = d->scan->scan;
+  add_robot_event(live, robots_.on_scan(scan.observer, scan.sensor(), robot_pose_of(scan)));
   d->scan->ticket->succeed(ScanOutcome{d->scan_seq, d->scan_seq, std::move(lines), false});
-  const bool laser = std::holds_alternative<fusion::LaserScan>(d->scan->scan.scan);
-  a.emit(laser ? "laser_scans" : "sonar_scans", std::make_shared<GridScan>(GridScan{std::move(d->scan), d->scan_seq}));
+  const bool laser = std::holds_alternative<fusion::LaserScan>(scan.scan);
+  a.emit(laser ? "laser_scans" : "sonar_scans",
+         std::make_shared<GridScan>(GridScan{std::move(d->scan), d->scan_seq, std::move(live)}));
 }
 
 void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every) {
@@ -489,7 +491,8 @@ void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool s
         std::string("grid flush failed (the journal has every scan; retried at the next flush): ") + e.what());
   }
   for (const auto& s : scans) {
-    emit_scan_event(s->job->scan, s->seq);
+    add_scan_event(s->live, s->job->scan, s->seq);
+    s->live.close();
     if (extract_every > 0 && s->seq % extract_every == 0) a.emit("extract", GridTick{s->seq, s->job->ticket});
     if (options_.grid_trim_every == 0) continue;
     try {

@@ -49,12 +49,14 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
   commit_prepared(p, [&] { store_.commit_placement({p.update, p.observation, payload}, undo); });
   const auto decision = p.update.decisions.at(0);
   const auto placement = p.update.state.placement;
-  auto outcome = finish_update(std::move(p));
+  auto live = event_log_.begin();
+  auto outcome = finish_update(std::move(p), live);
   // The rules see the edges where the plan now is, before the next request is decided.
   engine_.set_floor_plan(object_facts(*snapshot(), options_.world));
   plan_checks_.refresh(*snapshot(), std::nullopt);
-  emit(events::EventKind::placement,
-       [&] { return json_codec::placement_event(outcome.version, placement, snapshot()->placement_cov, decision); });
+  live.add(events::EventKind::placement, [&] {
+    return json_codec::placement_event(outcome.version, placement, snapshot()->placement_cov, decision);
+  });
   return {outcome.version, decision};
 }
 
@@ -205,7 +207,8 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
   p.update = std::move(total);
   const std::string payload = "{\"redecide\": " + std::to_string(outcome.elements) + "}";
   commit_prepared(p, [&] { store_.commit_observation(p.update, p.observation, payload); });
-  auto done = finish_update(std::move(p));
+  auto live = event_log_.begin();
+  auto done = finish_update(std::move(p), live);
   sync_all_facts(engine_, *snapshot(), options_.world);
   outcome.version = done.version;
   outcome.decisions = std::move(done.decisions);

@@ -287,7 +287,7 @@ TEST_F(GridTest, EventsArriveInOrderAndASlowClientDoesNotBlockIngest) {
   post_scan(room_scan(3, 3, 0.0));
   std::uint64_t last_seq = update["seq"];
   bool saw_scan = false;
-  for (int i = 0; i < 3 && !saw_scan; ++i) {
+  for (int i = 0; i < 6 && !saw_scan; ++i) {  // before it: a robot heard from, the scan lines' update
     const auto e = client.next();
     EXPECT_GT(e["seq"].get<std::uint64_t>(), last_seq);
     last_seq = e["seq"];

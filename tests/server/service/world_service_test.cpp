@@ -7,6 +7,9 @@
 
 #include <chrono>
 #include <fstream>
+#include <map>
+#include <mutex>
+#include <numbers>
 #include <sstream>
 #include <thread>
 
@@ -36,6 +39,30 @@ void sql(const std::filesystem::path& path, const char* statement) {
   sqlite3_free(error);
   sqlite3_close(db);
   ASSERT_EQ(rc, SQLITE_OK) << message;
+}
+
+// A 720-beam laser scan from (x, y) inside the room [0, 10] × [0, 8] m, every beam ending on its walls.
+json_codec::ScanRequest room_scan(double x, double y, std::string observer) {
+  fusion::LaserScan scan;
+  scan.sensor_pose = {x, y, 0};
+  scan.angle_min_rad = -std::numbers::pi;
+  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
+  scan.range_min_m = 0.05;
+  scan.range_max_m = 30;
+  for (int i = 0; i < 720; ++i) {
+    const double bearing = scan.angle_min_rad + i * scan.angle_increment_rad;
+    const double c = std::cos(bearing), s = std::sin(bearing);
+    double range = 1e9;
+    if (c > 1e-9) range = std::min(range, (10 - x) / c);
+    if (c < -1e-9) range = std::min(range, -x / c);
+    if (s > 1e-9) range = std::min(range, (8 - y) / s);
+    if (s < -1e-9) range = std::min(range, -y / s);
+    scan.ranges_m.push_back(range);
+  }
+  json_codec::ScanRequest request;
+  request.observer = std::move(observer);
+  request.scan = scan;
+  return request;
 }
 
 std::int64_t element_facts(WorldService& world) {
@@ -71,6 +98,70 @@ TEST(WorldServiceTest, AFailedCommitLeavesTheMapAndTheRulesAsCommittedAndTheNext
   EXPECT_EQ(outcome.decisions[0].element, std::optional<std::string>("e2"));
   EXPECT_EQ(outcome.version, version + 1);
   EXPECT_EQ(element_facts(world), 2);
+}
+
+// A scan's commit has events from two threads' work (its lines' update on the writer, its grid region on the grid
+// thread); with three robots posting at once, the next commit's update is ready before the grid has the scan. Live
+// clients must still see each commit whole and in commit order, published by one thread.
+TEST(WorldServiceTest, EachCommitsEventsComeTogetherFromOneThreadAndInCommitOrder) {
+  testing::TempDir dir;
+  storage::Store store({(dir.path() / "world.db").string(), false});
+  rules::Engine engine(rules::EngineOptions{WM_SOURCE_DIR "/rules/prolog"});
+  common::Diagnostics diagnostics("", nullptr);
+  events::EventHub hub(1 << 16);
+  WorldService world(ServiceOptions{}, store, engine, diagnostics, &hub);
+  std::mutex mutex;
+  std::vector<std::thread::id> publisher;  // of each event, in hub order
+  const auto subscriber = hub.subscribe([&] {
+    std::lock_guard lock(mutex);
+    publisher.push_back(std::this_thread::get_id());
+  });
+  std::map<std::int64_t, std::int64_t> scan_of_observation;  // a scan's lines, observed as this observation
+  std::vector<std::thread> robots;
+  for (int r = 0; r < 3; ++r) {
+    robots.emplace_back([&, r] {
+      for (int i = 0; i < 40; ++i) {
+        const auto outcome =
+            world.post_scan(room_scan(2 + 0.15 * i, 2 + 2 * r, "robot-" + std::to_string(r)), "{}", std::nullopt);
+        std::lock_guard lock(mutex);
+        if (outcome.lines) scan_of_observation[outcome.lines->seq] = outcome.seq;
+      }
+    });
+  }
+  for (auto& robot : robots) robot.join();
+  const auto events = subscriber->take();
+  std::lock_guard lock(mutex);
+  ASSERT_EQ(publisher.size(), events.size());
+  ASSERT_GE(scan_of_observation.size(), 100u);
+  std::int64_t last_scan = 0, last_observation = 0;
+  std::size_t scans = 0, checked = 0;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const auto event = nlohmann::json::parse(events[i].json);
+    const auto type = event.at("type").get<std::string>();
+    if (type == "scan") {
+      EXPECT_GT(event.at("scan_seq").get<std::int64_t>(), last_scan) << "event " << i;
+      last_scan = event.at("scan_seq").get<std::int64_t>();
+      ++scans;
+    }
+    if (type != "update") continue;
+    const auto observation = event.at("observation").get<std::int64_t>();
+    EXPECT_GT(observation, last_observation) << "event " << i;
+    last_observation = observation;
+    const auto of_scan = scan_of_observation.find(observation);
+    if (of_scan == scan_of_observation.end()) continue;  // a grid trim
+    // The rest of the scan's commit: the robot heard from (maybe), then the scan's grid event, nothing between.
+    std::size_t k = i + 1;
+    while (k < events.size() && events[k].kind == events::EventKind::robot) ++k;
+    ASSERT_LT(k, events.size());
+    const auto next = nlohmann::json::parse(events[k].json);
+    ASSERT_EQ(next.at("type"), "scan") << "the update of scan " << of_scan->second << " is followed by a "
+                                       << next.at("type") << " event";
+    EXPECT_EQ(next.at("scan_seq").get<std::int64_t>(), of_scan->second);
+    for (std::size_t j = i; j <= k; ++j) EXPECT_EQ(publisher[j], publisher[i]) << "scan " << of_scan->second;
+    ++checked;
+  }
+  EXPECT_EQ(scans, 120u);
+  EXPECT_EQ(checked, scan_of_observation.size());
 }
 
 // The watcher's reloads run on its own thread, where no caller hears of a failure: they go to the diagnostics.
