@@ -176,7 +176,7 @@ double required_number(const json& doc, const std::string& key, double limit, co
 
 }  // namespace
 
-ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
+world::ScanObservation parse_scan(std::string_view body, const ScanLimits& limits) {
   const json doc = parse_json(body);
   if (!doc.is_object()) throw bad_request("", "expected a scan object");
   const auto sensor_it = doc.find("sensor");
@@ -195,7 +195,7 @@ ScanRequest parse_scan(std::string_view body, const ScanLimits& limits) {
     if (std::find(known.begin(), known.end(), key) == known.end())
       throw bad_request(key, std::string("unknown field for a ") + (laser ? "laser" : "sonar") + " scan");
 
-  ScanRequest request;
+  world::ScanObservation request;
   if (auto observer = observer_of(doc)) request.observer = std::move(*observer);
   if (auto it = doc.find("stamp"); it != doc.end()) request.stamp_s = finite_number(*it, "stamp", 1e12);
   const auto pose_it = doc.find("pose");

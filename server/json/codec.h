@@ -9,6 +9,7 @@
 
 #include "fusion/grid/scan.h"
 #include "server/json/codec_error.h"
+#include "server/world/scan_observation.h"
 #include "server/world/update.h"
 
 namespace wm::json_codec {
@@ -43,24 +44,16 @@ std::optional<std::string> observer_of(const nlohmann::json& doc);
 world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options,
                                     const PrimitiveLimits& limits);
 
-/// A posted scan (POST /api/v1/scans): the robot, its clock, and a laser or a sonar scan.
-struct ScanRequest {
-  std::string observer = "anonymous";
-  double stamp_s = 0.0;
-  std::variant<fusion::LaserScan, fusion::SonarScan> scan;
-  Eigen::Matrix3d pose_cov = Eigen::Matrix3d::Zero();  // of the sensor pose (x, y, θ); zero when not given
-  const char* sensor() const { return std::holds_alternative<fusion::LaserScan>(scan) ? "laser" : "sonar"; }
-};
-
 struct ScanLimits {
   std::size_t max_beams = 10000;
   double max_range_m = 1000.0;
   double max_abs_coordinate_m = 1.0e5;
 };
 
-/// Parses and validates POST /api/v1/scans. A range may be null (no reading); NaN-like and out-of-range
-/// readings are kept and ignored per beam by the grid. @throw CodecError (bad_request) naming the bad field.
-ScanRequest parse_scan(std::string_view body, const ScanLimits& limits);
+/// Parses and validates POST /api/v1/scans into the world model's scan. A range may be null (no reading); NaN-like and
+/// out-of-range readings are kept and ignored per beam by the grid. @throw CodecError (bad_request) naming the bad
+/// field.
+world::ScanObservation parse_scan(std::string_view body, const ScanLimits& limits);
 
 nlohmann::json object_json(const world::ObjectState& object, const world::WorldOptions& options);
 nlohmann::json element_json(const world::Element& element);

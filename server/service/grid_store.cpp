@@ -67,7 +67,7 @@ GridStore::GridStore(const GridStoreOptions& options, storage::Store& store, com
     edge_beams_[{row.object_id, static_cast<std::size_t>(row.edge)}] = std::move(row.beams);
 }
 
-void GridStore::insert(const json_codec::ScanRequest& scan, std::int64_t seq, const world::WorldState& state) {
+void GridStore::insert(const world::ScanObservation& scan, std::int64_t seq, const world::WorldState& state) {
   std::exception_ptr refused;
   {
     std::unique_lock lock(mutex_);
@@ -88,7 +88,7 @@ void GridStore::insert(const json_codec::ScanRequest& scan, std::int64_t seq, co
   if (refused) std::rethrow_exception(refused);
 }
 
-void GridStore::count_edge_beams(const json_codec::ScanRequest& scan, const world::WorldState& state) {
+void GridStore::count_edge_beams(const world::ScanObservation& scan, const world::WorldState& state) {
   const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
   if (!laser || state.objects.empty()) return;
   try {
@@ -208,7 +208,7 @@ std::optional<fusion::ProbabilityRaster> GridStore::probability_raster() const {
   return read([](const fusion::OccupancyGrid& grid) { return fusion::probability_raster(grid); });
 }
 
-Eigen::AlignedBox2d GridStore::changed_region(const json_codec::ScanRequest& scan, double pad_m) const {
+Eigen::AlignedBox2d GridStore::changed_region(const world::ScanObservation& scan, double pad_m) const {
   const auto& sensor = options_.grid.sensor;
   // The grid changed around the pose and along every beam, up to its return or the grid's usable range; wide
   // beams (a sonar cone, the laser's 2°) reach beyond their axis.

@@ -18,11 +18,11 @@
 #include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
-#include "server/json/codec.h"
 #include "server/service/world_port.h"
 #include "server/service/writer_preferring_mutex.h"
 #include "server/storage/store.h"
 #include "server/world/plan_evidence.h"
+#include "server/world/scan_observation.h"
 #include "server/world/world_state.h"
 
 namespace wm::service {
@@ -53,7 +53,7 @@ class GridStore {
   /// predecessors are all in) and counts its beams at the edges of `state`'s objects near it. The scan is counted
   /// in the sequence even when the grid refuses it. @throw std::exception from the grid (a scan the HTTP boundary
   /// should have refused).
-  void insert(const json_codec::ScanRequest& scan, std::int64_t seq, const world::WorldState& state);
+  void insert(const world::ScanObservation& scan, std::int64_t seq, const world::WorldState& state);
   /// Whether every scan up to the last inserted one is in (no gap left by an out-of-order insert).
   bool complete() const { return inserted_ahead_.empty(); }
   /// Writes the changed tiles and beam counts through last_scan_seq(), at most once per flush_interval unless
@@ -84,7 +84,7 @@ class GridStore {
   std::optional<fusion::ProbabilityRaster> probability_raster() const;
   /// Where a scan changes the grid (its footprint up to its usable range, beam widths included), padded by pad_m.
   /// @throw std::exception from the scan geometry.
-  Eigen::AlignedBox2d changed_region(const json_codec::ScanRequest& scan, double pad_m) const;
+  Eigen::AlignedBox2d changed_region(const world::ScanObservation& scan, double pad_m) const;
 
   /// The grid's evidence on the plan edges of `state` in `region` (every edge when nullopt) that anything observed,
   /// with the beams counted at each edge and at each stretch seen through; `revision` is set to the grid revision
@@ -94,7 +94,7 @@ class GridStore {
                                                  world::PlanEvidenceOptions options, std::int64_t& revision) const;
 
  private:
-  void count_edge_beams(const json_codec::ScanRequest& scan, const world::WorldState& state);
+  void count_edge_beams(const world::ScanObservation& scan, const world::WorldState& state);
   /// The counts of edge k of `object` where it stands now, nullptr when none (beams_mutex_ held).
   const fusion::SegmentBeams* edge_beams(const world::ObjectState& object, std::size_t k) const;
 

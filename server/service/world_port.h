@@ -19,11 +19,11 @@
 #include "fusion/registration/plan_registration.h"
 #include "pipeline/network.h"
 #include "rules/types.h"
-#include "server/json/codec.h"
 #include "server/service/robot_registry.h"
 #include "server/service/service_errors.h"
 #include "server/world/changes.h"
 #include "server/world/plan_evidence.h"
+#include "server/world/scan_observation.h"
 #include "server/world/update.h"
 
 namespace wm::service {
@@ -182,7 +182,7 @@ class IngestPort {
                                             std::optional<std::string> request_id) = 0;
   /// Journals a scan with the decisions on its extracted lines, then inserts it into the grids. `request_id`
   /// as for post_primitives. @throw Busy, RequestIdConflict, storage::StorageError (nothing applied then).
-  virtual ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
+  virtual ScanOutcome post_scan(world::ScanObservation scan, std::string payload_json,
                                 std::optional<std::string> request_id) = 0;
   /// Runs the grid line extractor on the Bayes layer and decides its segments like posted primitives.
   /// nullopt when the grid is empty or yields no line. @throw Busy, storage::StorageError.

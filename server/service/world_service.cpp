@@ -143,7 +143,7 @@ std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::
   return outcome;
 }
 
-std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(const json_codec::ScanRequest& scan) {
+std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(const world::ScanObservation& scan) {
   const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
   if (!options_.extract_scan_lines || !laser) return std::nullopt;
   std::vector<fusion::RangeReading> readings;
@@ -170,7 +170,7 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   return prepare_update(std::move(observation));
 }
 
-void WorldService::add_scan_event(EventLog::Commit& live, const json_codec::ScanRequest& scan, std::int64_t seq) {
+void WorldService::add_scan_event(EventLog::Commit& live, const world::ScanObservation& scan, std::int64_t seq) {
   live.add(events::EventKind::scan, [&] {
     constexpr std::size_t kMaxEventPoints = 360;
     const auto changed = grid_.changed_region(scan, 2 * grid_.resolution_m());
@@ -193,7 +193,7 @@ std::shared_ptr<const world::PlanReport> WorldService::refresh_plan_report() {
   return plan_report();
 }
 
-void WorldService::add_to_trim_region(const json_codec::ScanRequest& scan) {
+void WorldService::add_to_trim_region(const world::ScanObservation& scan) {
   // A cell more than the event's region: the trim probes a 3×3 neighbourhood.
   const auto box = grid_.changed_region(scan, 3 * grid_.resolution_m());
   const world::Box seen{box.min().x(), box.min().y(), box.max().x(), box.max().y()};

@@ -125,7 +125,7 @@ class WorldService final : public WorldPort {
   /// lazily: the journal is the grid's source of truth and is replayed past the last flush at start).
   /// `request_id` as for post_primitives. @throw Busy, storage::StorageError (nothing applied then),
   /// RequestIdConflict.
-  ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
+  ScanOutcome post_scan(world::ScanObservation scan, std::string payload_json,
                         std::optional<std::string> request_id) override;
   /// Replaces the floor plan (store and knowledge base facts). Returns the new map version.
   std::int64_t load_floor_plan(apriori::FloorPlan plan) override;
@@ -223,10 +223,10 @@ class WorldService final : public WorldPort {
   std::optional<ScanOutcome> replayed_scan(const std::optional<std::string>& request_id, std::int64_t body_hash);
   /// The lines of a laser scan, extracted and decided against the committed map (nothing stored yet); nullopt
   /// for a sonar scan, with scan lines off, or when no line is found.
-  std::optional<PreparedUpdate> prepare_scan_lines(const json_codec::ScanRequest& scan);
+  std::optional<PreparedUpdate> prepare_scan_lines(const world::ScanObservation& scan);
   /// Adds the live "scan" event to its commit (`live`): the robot's pose, where its beams returned and the grid
   /// region that changed.
-  void add_scan_event(EventLog::Commit& live, const json_codec::ScanRequest& scan, std::int64_t seq);
+  void add_scan_event(EventLog::Commit& live, const world::ScanObservation& scan, std::int64_t seq);
   /// Publishes an event of `kind` as a commit of its own (when anyone listens; its JSON only when someone reads it).
   void emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json) {
     event_log_.publish(kind, make_json);
@@ -274,7 +274,7 @@ class WorldService final : public WorldPort {
     return "{\"grid_revision\": " + std::to_string(scan_seq) + "}";
   }
   /// Grows the trim region by what scan `scan` could see. @throw from the scan geometry.
-  void add_to_trim_region(const json_codec::ScanRequest& scan);
+  void add_to_trim_region(const world::ScanObservation& scan);
   void decide_trim(pipeline::Activation& a);
   /// After a failed group commit: what was decided on top of it is dropped, the rules go back to the committed map.
   void resync_after_failure();

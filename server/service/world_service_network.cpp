@@ -55,7 +55,7 @@ using ScanTicket = Ticket<ScanOutcome>;
 using PrimitivesTicket = Ticket<PrimitivesOutcome>;
 
 struct ScanJob {
-  json_codec::ScanRequest scan;
+  world::ScanObservation scan;
   std::string payload;
   std::optional<std::string> request_id;
   std::shared_ptr<ScanTicket> ticket;
@@ -70,7 +70,7 @@ struct PrimitivesJob {
 using ScanJobPtr = std::shared_ptr<ScanJob>;
 
 // Where a committed scan says its robot is (received now).
-RobotPose robot_pose_of(const json_codec::ScanRequest& scan) {
+RobotPose robot_pose_of(const world::ScanObservation& scan) {
   const auto sensor_pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
   return RobotPose{sensor_pose.x_m,
                    sensor_pose.y_m,
@@ -240,7 +240,7 @@ void WorldService::submit_command(std::function<void()> job) {
   }
 }
 
-ScanOutcome WorldService::post_scan(json_codec::ScanRequest scan, std::string payload_json,
+ScanOutcome WorldService::post_scan(world::ScanObservation scan, std::string payload_json,
                                     std::optional<std::string> request_id) {
   const std::string sensor = scan.sensor();
   if (!accepts_scans(sensor))

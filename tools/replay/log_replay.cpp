@@ -36,7 +36,7 @@ LogReplayResult replay_log(const std::filesystem::path& log, const LogReplayOpti
   std::size_t index = 0;
   while (auto scan = reader.next()) {
     if (index++ % std::max<std::size_t>(1, options.every) != 0) continue;
-    json_codec::ScanRequest request;
+    world::ScanObservation request;
     request.observer = observer;
     request.stamp_s = scan->timestamp_s;
     request.pose_cov = pose_cov;

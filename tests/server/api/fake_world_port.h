@@ -133,7 +133,7 @@ class FakeIngest : public virtual service::IngestPort, public virtual FakeLedger
   bool replay = false;          // posts answer as replays
   bool grid_has_lines = false;  // extract_grid_lines finds a line
   std::optional<world::Observation> last_observation;
-  std::optional<json_codec::ScanRequest> last_scan;
+  std::optional<world::ScanObservation> last_scan;
   std::optional<std::string> last_request_id;
 
   service::PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
@@ -144,7 +144,7 @@ class FakeIngest : public virtual service::IngestPort, public virtual FakeLedger
     last_request_id = std::move(request_id);
     return {7, 3, {decision(rules::Action::add, "e1")}, replay};
   }
-  service::ScanOutcome post_scan(json_codec::ScanRequest scan, std::string payload_json,
+  service::ScanOutcome post_scan(world::ScanObservation scan, std::string payload_json,
                                  std::optional<std::string> request_id) override {
     enter("post_scan");
     last_scan = std::move(scan);

@@ -18,7 +18,7 @@ class PlanChecksTest : public ::testing::Test {
         engine_(rules::EngineOptions{WM_SOURCE_DIR "/rules/prolog"}) {
     sync_all_facts(engine_, state_, world::WorldOptions{});
   }
-  void drive(const json_codec::ScanRequest& scan, int times) {
+  void drive(const world::ScanObservation& scan, int times) {
     for (int i = 0; i < times; ++i) grid_.insert(scan, ++seq_, state_);
   }
 

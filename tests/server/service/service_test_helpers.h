@@ -8,7 +8,7 @@
 namespace wm::service {
 
 // A 360° laser scan of 720 beams from (x, 0), every beam returning at `range`.
-inline json_codec::ScanRequest ring_scan(double x, double range) {
+inline world::ScanObservation ring_scan(double x, double range) {
   fusion::LaserScan scan;
   scan.sensor_pose = {x, 0, 0};
   scan.angle_min_rad = -std::numbers::pi;
@@ -16,7 +16,7 @@ inline json_codec::ScanRequest ring_scan(double x, double range) {
   scan.ranges_m.assign(720, range);
   scan.range_min_m = 0.05;
   scan.range_max_m = 30;
-  json_codec::ScanRequest request;
+  world::ScanObservation request;
   request.observer = "test";
   request.scan = scan;
   return request;
@@ -38,7 +38,7 @@ inline world::WorldState wall_state(double shift_m = 0) {
 }
 
 // As ring_scan, but the beams that meet the wall of wall_state() (x = 2, y in [−1, 1]) return on it.
-inline json_codec::ScanRequest scan_of_standing_wall() {
+inline world::ScanObservation scan_of_standing_wall() {
   auto request = ring_scan(0, 5.0);
   auto& scan = std::get<fusion::LaserScan>(request.scan);
   for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {

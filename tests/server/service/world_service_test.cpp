@@ -42,7 +42,7 @@ void sql(const std::filesystem::path& path, const char* statement) {
 }
 
 // A 720-beam laser scan from (x, y) inside the room [0, 10] × [0, 8] m, every beam ending on its walls.
-json_codec::ScanRequest room_scan(double x, double y, std::string observer) {
+world::ScanObservation room_scan(double x, double y, std::string observer) {
   fusion::LaserScan scan;
   scan.sensor_pose = {x, y, 0};
   scan.angle_min_rad = -std::numbers::pi;
@@ -59,7 +59,7 @@ json_codec::ScanRequest room_scan(double x, double y, std::string observer) {
     if (s < -1e-9) range = std::min(range, -y / s);
     scan.ranges_m.push_back(range);
   }
-  json_codec::ScanRequest request;
+  world::ScanObservation request;
   request.observer = std::move(observer);
   request.scan = scan;
   return request;
