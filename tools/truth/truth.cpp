@@ -131,7 +131,7 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
     if (plan) world.load_floor_plan(*plan);
     double stamp = 0;
     for (const auto& scan : scans) {
-      json_codec::ScanRequest request;
+      world::ScanObservation request;
       request.observer = "truth";
       request.stamp_s = stamp;
       request.pose_cov = pose_cov;
@@ -290,7 +290,13 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
         double wall_through = 0, wall_reported = 0;
         std::string unreported;  // the seen-through bins no verdict covers, as [from, to) m along the wall
         for (std::size_t b = 0; b < bins.size(); ++b) {
-          const bool seen = bins[b] >= kMinBeamsThrough;
+          // Beside a surface that still stands (another face of the same wall, a frame left in place) the wall's
+          // cells are that surface's: no grid can tell the demolished line from it there, whatever the beams did.
+          const Vec centre = bin_centre(walls[w].p0, walls[w].p1, b);
+          const bool beside_standing = std::any_of(world.lines.begin(), world.lines.end(), [&](const TrueLine& line) {
+            return point_segment_distance(centre, line.p0, line.p1) < kMinDepthBeyondM;
+          });
+          const bool seen = bins[b] >= kMinBeamsThrough && !beside_standing;
           wall_through += seen ? kBinM : 0;
           wall_reported += seen && missing[w][b] ? kBinM : 0;
           if (seen && !missing[w][b])
