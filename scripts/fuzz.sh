@@ -15,7 +15,7 @@ cd "$(dirname "$0")/.."
 root=$PWD
 seconds=${1:-60}
 shift || true
-all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
 harnesses=("$@")
 [ ${#harnesses[@]} -eq 0 ] && harnesses=("${all[@]}")
 build=${WM_SANITIZE_BUILD_DIR:-build/sanitize}

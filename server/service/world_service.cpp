@@ -27,6 +27,17 @@ std::set<std::string> rejected_changes(storage::Store& store) {
 
 }  // namespace
 
+namespace {
+
+// A journaled scan; rows stored before the journal kept scans in binary form hold the request body instead.
+// @throw json_codec::CodecError for such a body this build does not read.
+world::ScanObservation scan_of(const storage::JournaledScan& record) {
+  if (record.scan) return *record.scan;
+  return json_codec::parse_scan(record.legacy_json, json_codec::ScanLimits{});
+}
+
+}  // namespace
+
 double now_unix_s() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
@@ -47,7 +58,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
   // revision, to the last journaled scan.
   for (const auto& record : store_.scans_after(grid_.flushed_scan_seq()))
-    grid_.insert(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}), record.seq, *snapshot());
+    grid_.insert(scan_of(record), record.seq, *snapshot());
   const std::int64_t last_scan_seq = grid_.last_scan_seq();
   if (last_scan_seq != store_.last_scan_seq())
     throw storage::StorageError("the scan journal ends at " + std::to_string(store_.last_scan_seq()) +
@@ -65,7 +76,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
     if (due) since = last_scan_seq - every;
     for (const auto& record : store_.scans_after(since)) {
       try {
-        add_to_trim_region(json_codec::parse_scan(record.payload, json_codec::ScanLimits{}));
+        add_to_trim_region(scan_of(record));
       } catch (const std::exception& e) {
         diagnostics_.report(common::Severity::warning, "grid_trim",
                             "scan " + std::to_string(record.seq) + " left out of the grid trim: " + e.what());
@@ -503,9 +514,9 @@ void WorldService::restore_robots() {
     robot.first_seen_unix_s = journal.first_seen;
     robot.last_seen_unix_s = journal.last_seen;
     std::optional<RobotPose> from_scan;
-    if (journal.last_scan_payload) {
+    if (journal.last_scan) {
       try {
-        const auto scan = json_codec::parse_scan(*journal.last_scan_payload, json_codec::ScanLimits{});
+        const auto scan = scan_of(*journal.last_scan);
         const auto pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
         from_scan = RobotPose{pose.x_m,
                               pose.y_m,

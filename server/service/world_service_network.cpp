@@ -403,8 +403,7 @@ void WorldService::commit_group(pipeline::Activation& a) {
       for (const auto& d : valid) {
         storage::Store::BatchEntry entry;
         if (d->scan) {
-          scans.push_back(storage::ScanEntry{d->scan_seq, d->scan->scan.observer, d->scan->scan.sensor(),
-                                             d->scan->scan.stamp_s, d->scan->payload});
+          scans.push_back(storage::ScanEntry{d->scan_seq, &d->scan->scan});
           entry.scan = scans.back();
           if (d->update)
             entry.observation.emplace(

@@ -104,6 +104,12 @@ CREATE TABLE edge_beams(object TEXT NOT NULL, edge INTEGER NOT NULL, x0 REAL NOT
     R"sql(
 ALTER TABLE elements ADD COLUMN facing REAL;
 )sql",
+    // v10: a scan is journaled in its binary form (scan_record.h: what the grid takes, bit for bit), not as the
+    // request body it came in; payload is '' for such rows. Rows stored before keep their JSON body (scan NULL),
+    // which start-up still reads.
+    R"sql(
+ALTER TABLE scans ADD COLUMN scan BLOB;
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);

@@ -11,6 +11,7 @@
 #include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "server/storage/sqlite.h"
+#include "server/world/scan_observation.h"
 #include "server/world/update.h"
 
 namespace wm::storage {
@@ -45,13 +46,18 @@ struct StoredPlacement {
   std::int64_t decision_seq = 0;
 };
 
-/// One scan for the journal: its request body is what is replayed into the grid at start.
+/// One scan for the journal, kept in its binary form (scan_record.h): what is replayed into the grid at start.
 struct ScanEntry {
   std::int64_t seq = 0;  // = the grid revision it brings the grid to (one more than the last journaled scan)
-  std::string_view observer;
-  std::string_view sensor;
-  double stamp_s = 0;
-  std::string_view payload;
+  const world::ScanObservation* scan = nullptr;  // not null; must outlive the commit
+};
+
+/// A journaled scan as start-up reads it: the scan, or for a row stored before scans were kept in binary form, the
+/// JSON request body it came in (the caller parses that with the wire codec).
+struct JournaledScan {
+  std::int64_t seq = 0;
+  std::optional<world::ScanObservation> scan;
+  std::string legacy_json;  // only when scan is nullopt
 };
 
 /// An observation and what applying it changed, to be written together.
@@ -69,7 +75,7 @@ class Store {
   /// Opens or creates the file and migrates it. @throw StorageError (also for a file newer than this build).
   explicit Store(const StoreOptions& options);
 
-  static constexpr int kSchemaVersion = 9;
+  static constexpr int kSchemaVersion = 10;
   int schema_version();
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
@@ -147,17 +153,14 @@ class Store {
     std::int64_t primitives = 0;
     std::int64_t poses = 0;
     double first_seen = 0, last_seen = 0;
-    std::optional<std::string> last_scan_payload;
+    std::optional<JournaledScan> last_scan;  // nullopt also when its row is damaged: the robot comes back without it
     double last_scan_received_at = 0;
     std::vector<RobotPoseEntry> poses_newest_first;
   };
   std::vector<RobotJournal> robot_journal(std::size_t track_points);
-  struct ScanRecord {
-    std::int64_t seq = 0;
-    std::string payload;
-  };
   /// Journaled scans with seq > after, in order (replayed at start past the last grid flush).
-  std::vector<ScanRecord> scans_after(std::int64_t after);
+  /// @throw StorageError naming the scan when a stored scan is damaged.
+  std::vector<JournaledScan> scans_after(std::int64_t after);
 
   /// The grid as last flushed: tiles and the last scan they include.
   /// The beams counted at one plan edge (fusion::SegmentBeams, where the edge lay when counted).

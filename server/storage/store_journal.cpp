@@ -2,6 +2,7 @@
 #include <map>
 #include <string>
 
+#include "server/storage/scan_record.h"
 #include "server/storage/store.h"
 #include "server/storage/store_internal.h"
 
@@ -14,6 +15,27 @@ using internal::now_unix_s;
 using internal::query_int;
 using internal::read_matrix;
 using internal::run;
+
+namespace {
+
+// A journal row (seq, observer, stamp, scan, payload) as start-up reads it. @throw StorageError for a damaged scan.
+JournaledScan journaled_scan(const Statement& s) {
+  JournaledScan record;
+  record.seq = s.column_int(0);
+  if (s.column_bytes(3) > 0) {
+    try {
+      record.scan = decode_scan(std::string_view(static_cast<const char*>(s.column_blob(3)), s.column_bytes(3)),
+                                s.column_text(1), s.column_double(2));
+    } catch (const StorageError& e) {
+      throw StorageError("scan " + std::to_string(record.seq) + " of the journal is damaged: " + e.what());
+    }
+  } else {
+    record.legacy_json = s.column_text(4);
+  }
+  return record;
+}
+
+}  // namespace
 
 void Store::write_request(const RequestRecord& r) {
   run(writer_,
@@ -67,14 +89,17 @@ void Store::commit_batch(const std::vector<BatchEntry>& entries) {
 void Store::write_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines) {
   if (lines) write_observation(*lines);
   Statement s(writer_,
-              "INSERT INTO scans(seq, observer, sensor, stamp, received_at, payload, lines_seq) "
-              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)");
-  s.bind(1, scan.seq).bind(2, scan.observer).bind(3, scan.sensor).bind(4, scan.stamp_s).bind(5, now_unix_s());
-  s.bind(6, scan.payload);
+              "INSERT INTO scans(seq, observer, sensor, stamp, received_at, payload, lines_seq, scan) "
+              "VALUES (?1, ?2, ?3, ?4, ?5, '', ?6, ?7)");
+  const auto& observation = *scan.scan;
+  const auto blob = encode_scan(observation);
+  s.bind(1, scan.seq).bind(2, std::string_view(observation.observer)).bind(3, std::string_view(observation.sensor()));
+  s.bind(4, observation.stamp_s).bind(5, now_unix_s());
+  s.bind_blob(7, blob.data(), blob.size());
   if (lines)
-    s.bind(7, lines->update.state.last_observation_seq);
+    s.bind(6, lines->update.state.last_observation_seq);
   else
-    s.bind_null(7);
+    s.bind_null(6);
   s.run();
 }
 
@@ -138,11 +163,17 @@ std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) 
   }
   for (auto& [id, r] : robots) {
     if (!r.scans.empty()) {
-      Statement s(writer_, "SELECT payload, received_at FROM scans WHERE observer = ?1 ORDER BY seq DESC LIMIT 1");
+      Statement s(writer_,
+                  "SELECT seq, observer, stamp, scan, payload, received_at FROM scans WHERE observer = ?1 "
+                  "ORDER BY seq DESC LIMIT 1");
       s.bind(1, std::string_view(id));
       if (s.step()) {
-        r.last_scan_payload = s.column_text(0);
-        r.last_scan_received_at = s.column_double(1);
+        try {
+          r.last_scan = journaled_scan(s);
+        } catch (const StorageError&) {
+          // A damaged row: the robot comes back without its scan pose (the grid's replay says which row).
+        }
+        r.last_scan_received_at = s.column_double(5);
       }
     }
     Statement s(writer_,
@@ -175,12 +206,12 @@ bool Store::has_observation(const std::string& observer, const std::string& payl
   return s.step();
 }
 
-std::vector<Store::ScanRecord> Store::scans_after(std::int64_t after) {
+std::vector<JournaledScan> Store::scans_after(std::int64_t after) {
   std::lock_guard lock(writer_mutex_);
-  Statement s(writer_, "SELECT seq, payload FROM scans WHERE seq > ?1 ORDER BY seq");
+  Statement s(writer_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq > ?1 ORDER BY seq");
   s.bind(1, after);
-  std::vector<ScanRecord> result;
-  while (s.step()) result.push_back({s.column_int(0), s.column_text(1)});
+  std::vector<JournaledScan> result;
+  while (s.step()) result.push_back(journaled_scan(s));
   return result;
 }
 

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <limits>
+
 #include "support/temp_dir.h"
 
 namespace wm::storage {
@@ -124,6 +126,22 @@ TEST(StoreTest, FailedCommitLeavesNothingBehind) {
   EXPECT_EQ(store.decisions(0, 10).size(), 1u);
 }
 
+// A small laser scan by robot "r" at `stamp_s`.
+world::ScanObservation laser_scan(double stamp_s) {
+  fusion::LaserScan laser;
+  laser.sensor_pose = {1.5, -2.25, 0.3};
+  laser.angle_min_rad = -1.0;
+  laser.angle_increment_rad = 0.01;
+  laser.ranges_m = {1.0, 2.0, std::numeric_limits<double>::infinity(), 0.1 + 0.2};
+  laser.range_max_m = 30;
+  world::ScanObservation scan;
+  scan.observer = "r";
+  scan.stamp_s = stamp_s;
+  scan.scan = laser;
+  scan.pose_cov = Eigen::Matrix3d::Identity() * 1e-4;
+  return scan;
+}
+
 RequestRecord request(const std::string& id, std::int64_t seq) {
   return RequestRecord{id, "primitives", 42, seq, seq, 0, std::nullopt};
 }
@@ -134,11 +152,16 @@ TEST(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
   const auto lines = add_element(world::WorldState{}, 1);
   const world::Observation observation{"r", "scan", "laser", 0, 0, {}};
   const RequestRecord record{"scan-1", "scan", -7, 1, lines.state.version, 1, 1};
-  store.commit_scan({1, "r", "laser", 2.5, R"({"ranges": []})"}, ObservationEntry{lines, observation, R"({"scan": 1})"},
-                    record);
+  const auto scan = laser_scan(2.5);
+  store.commit_scan({1, &scan}, ObservationEntry{lines, observation, R"({"scan": 1})"}, record);
   EXPECT_EQ(store.last_scan_seq(), 1);
-  ASSERT_EQ(store.scans_after(0).size(), 1u);
-  EXPECT_EQ(store.scans_after(0)[0].payload, R"({"ranges": []})");
+  const auto journal = store.scans_after(0);
+  ASSERT_EQ(journal.size(), 1u);
+  ASSERT_TRUE(journal[0].scan);
+  EXPECT_EQ(journal[0].scan->observer, "r");
+  EXPECT_EQ(journal[0].scan->stamp_s, 2.5);
+  EXPECT_EQ(std::get<fusion::LaserScan>(journal[0].scan->scan).ranges_m,
+            std::get<fusion::LaserScan>(scan.scan).ranges_m);
   EXPECT_EQ(store.observation_decisions(1).size(), 1u);
   EXPECT_EQ(store.scans_missing_line_decisions(), 0);
   const auto found = store.find_request("scan-1");
@@ -148,7 +171,8 @@ TEST(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
   EXPECT_EQ(found->lines_seq, 1);
   EXPECT_EQ(found->version, lines.state.version);
   // A scan without lines.
-  store.commit_scan({2, "r", "laser", 3.0, "{}"}, std::nullopt);
+  const auto second = laser_scan(3.0);
+  store.commit_scan({2, &second}, std::nullopt);
   EXPECT_EQ(store.last_scan_seq(), 2);
   EXPECT_FALSE(store.find_request("scan-2"));
 }
@@ -161,7 +185,8 @@ TEST(StoreTest, AScanWhoseLinesFailToCommitLeavesNoJournalEntry) {
   // Lines with the observation sequence already taken: the line write fails, so the scan must not stay.
   const auto clash = add_element(first.state, 1);
   const world::Observation observation{"r", "scan", "laser", 0, 0, {}};
-  EXPECT_THROW(store.commit_scan({1, "r", "laser", 0, "{}"}, ObservationEntry{clash, observation, R"({"scan": 1})"},
+  const auto scan = laser_scan(0);
+  EXPECT_THROW(store.commit_scan({1, &scan}, ObservationEntry{clash, observation, R"({"scan": 1})"},
                                  RequestRecord{"s", "scan", 1, 1, 2, 1, 1}),
                StorageError);
   EXPECT_EQ(store.last_scan_seq(), 0);
@@ -216,6 +241,7 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   // Back to schema 3 as version 3 wrote it: scan 1 with lines (observation 2), scan 2 without.
   const char* v3 = R"sql(
     DROP INDEX decisions_by_observation; DROP TABLE requests; ALTER TABLE scans DROP COLUMN lines_seq;
+    ALTER TABLE scans DROP COLUMN scan;
     ALTER TABLE elements DROP COLUMN moments; ALTER TABLE elements DROP COLUMN facing; DROP TABLE placements;
     DROP TABLE georeference;
     DROP TABLE robot_poses; DROP INDEX scans_by_observer; DROP TABLE plan_changes; DROP TABLE edge_beams;
@@ -237,6 +263,11 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   sqlite3_close(db);
   // Observation 2 has no decision: the one way a scan can be half applied, from a file written before schema 4.
   EXPECT_EQ(store.scans_missing_line_decisions(), 1);
+  // Scans journaled before schema 10 keep the request body they came in, which start-up parses.
+  const auto journal = store.scans_after(0);
+  ASSERT_EQ(journal.size(), 2u);
+  EXPECT_FALSE(journal[0].scan);
+  EXPECT_EQ(journal[0].legacy_json, "{}");
 }
 
 TEST(StoreTest, RefusesADatabaseFromANewerVersion) {
