@@ -41,6 +41,7 @@ options_for() {
     fuzz_rmf) echo "-max_len=4096 -dict=fuzz/dict/yaml.dict" ;;
     fuzz_carmen) echo "-max_len=8192 -dict=fuzz/dict/carmen.dict" ;;
     fuzz_servosila) echo "-max_len=512" ;;  # datagrams of 57 and 275 bytes, and anything else
+    fuzz_scan_record) echo "-max_len=4096" ;;  # records of 161 bytes and more (8 per reading)
     fuzz_foxglove) echo "-max_len=1024 -dict=fuzz/dict/json.dict" ;;  # a client's subscribe/unsubscribe texts
     # SWI-Prolog interrupts a goal at its time limit with SIGUSR2, which libFuzzer would take as "stop". Its
     # handler allocates, so a signal that lands while libFuzzer's per-input leak check has stopped the world

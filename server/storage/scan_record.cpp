@@ -17,7 +17,9 @@ constexpr std::uint8_t kLaser = 1, kSonar = 2;
 
 class Writer {
  public:
-  void bytes(const void* data, std::size_t n) { out_.append(static_cast<const char*>(data), n); }
+  void bytes(const void* data, std::size_t n) {
+    if (n > 0) out_.append(static_cast<const char*>(data), n);  // an empty vector's data() may be null
+  }
   void f64(double v) { bytes(&v, sizeof v); }
   void u32(std::uint32_t v) { bytes(&v, sizeof v); }
   void u8(std::uint8_t v) { bytes(&v, sizeof v); }
@@ -32,6 +34,7 @@ class Reader {
  public:
   explicit Reader(std::string_view in) : in_(in) {}
   void bytes(void* data, std::size_t n) {
+    if (n == 0) return;  // an empty vector's data() may be null, which memcpy must not get
     if (n > in_.size() - at_) throw StorageError("stored scan: truncated (" + std::to_string(in_.size()) + " bytes)");
     std::memcpy(data, in_.data() + at_, n);
     at_ += n;

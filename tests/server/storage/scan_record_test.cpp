@@ -86,6 +86,17 @@ TEST(ScanRecordTest, ASonarScanComesBackBitForBit) {
   EXPECT_STREQ(back.sensor(), "sonar");
 }
 
+// No readings at all (a sensor that saw nothing): nothing is copied from or to an empty vector's null data().
+TEST(ScanRecordTest, AScanWithoutReadingsComesBackEmpty) {
+  auto empty_laser = laser();
+  std::get<fusion::LaserScan>(empty_laser.scan).ranges_m.clear();
+  auto empty_sonar = sonar();
+  std::get<fusion::SonarScan>(empty_sonar.scan).ranges_m.clear();
+  std::get<fusion::SonarScan>(empty_sonar.scan).angles_rad.clear();
+  EXPECT_TRUE(std::get<fusion::LaserScan>(decode_scan(encode_scan(empty_laser), "r", 0).scan).ranges_m.empty());
+  EXPECT_TRUE(std::get<fusion::SonarScan>(decode_scan(encode_scan(empty_sonar), "r", 0).scan).angles_rad.empty());
+}
+
 // Every cut, every single byte changed to each of a few values, and bytes added: a value or a StorageError.
 TEST(ScanRecordTest, EveryTruncationOrChangedByteIsAStorageErrorOrAValidScan) {
   for (const auto& scan : {laser(), sonar()}) {
