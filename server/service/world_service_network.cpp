@@ -1,5 +1,19 @@
 // The world service's processing network: the component kinds (matcher, store, grid, grid_lines), the default task
 // file, and the matcher's commands.
+//
+// A scan's path, in the order of this file:
+//   1. post_scan (an HTTP write thread): the scan and its ticket go into the matcher's queue; the thread waits on the
+//      ticket's future.
+//   2. decide_scan (matcher): a retried request id is answered from the store; else the scan's lines are extracted
+//      and decided against the head map (the last one decided, committed or not), which they become.
+//   3. commit_group (store): everything decided since the last group commits in one transaction (scan journal, lines,
+//      decisions, request ids); a failure marks the group's epoch failed.
+//   4. finish_committed (matcher, in commit order): the new map is published and the rules told; the commit's live
+//      events begin (its update, the robot heard from); the ticket holds the answer; after a failure, what was decided
+//      on top of it is dropped (resync_after_failure).
+//   5. insert_grid_scans (grid): the scan goes into both grids; its grid event closes the commit's events; every
+//      grid_trim_every scans a trim tick goes back to the matcher (decide_trim), and the scan's answer leaves when the
+//      last stage holding its ticket lets go of it.
 #include <cmath>
 #include <future>
 
