@@ -27,7 +27,7 @@ bool same_place(const fusion::SegmentBeams& counted, const fusion::LineSegment& 
 /// 3 cells across (the surface stands a little off its drawing, or the pose error blurs it): no evidence either way
 /// of a missing wall. Seen through: all of them seen and free, and nothing occupied across. Unknown otherwise.
 world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, double resolution) {
-  const double occupied = std::log(0.65 / 0.35);
+  const double occupied = kOccupiedLogOdds;
   const double free = std::log(0.25 / 0.75);
   return [&cells, resolution, occupied, free](const Eigen::Vector2d& point, const Eigen::Vector2d& normal) {
     const auto log_odds = [&](double cells_across) {
@@ -47,6 +47,20 @@ world::EdgeProbe grid_edge_probe(fusion::OccupancyGrid::CellReader& cells, doubl
 }
 
 }  // namespace
+
+world::GridProbe grid_element_probe(fusion::OccupancyGrid::CellReader& cells, double resolution) {
+  return [&cells, resolution](const Eigen::Vector2d& point) {
+    const auto [cx, cy] = fusion::cell_at(point, resolution);
+    bool seen_any = false;
+    for (std::int64_t dy = -1; dy <= 1; ++dy)
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        const double l = cells.log_odds({cx + dx, cy + dy});
+        if (l > kOccupiedLogOdds) return world::GridEvidence::backed;
+        seen_any = seen_any || l != 0.0;
+      }
+    return seen_any ? world::GridEvidence::contrary : world::GridEvidence::unknown;
+  };
+}
 
 GridStore::GridStore(const GridStoreOptions& options, storage::Store& store, common::Diagnostics& diagnostics)
     : options_(options), store_(store), diagnostics_(diagnostics) {

@@ -21,11 +21,20 @@
 #include "server/service/world_port.h"
 #include "server/service/writer_preferring_mutex.h"
 #include "server/storage/store.h"
+#include "server/world/grid_trim.h"
 #include "server/world/plan_evidence.h"
 #include "server/world/scan_observation.h"
 #include "server/world/world_state.h"
 
 namespace wm::service {
+
+/// A cell is occupied at P > 0.65 (the map-quality definition of an occupied cell): log-odds above ln(0.65 / 0.35).
+inline constexpr double kOccupiedLogOdds = 0.61903920840622351;
+
+/// What the grid says of a point of an element (world::GridProbe, for the grid trim): backed when a cell within one
+/// cell of it is occupied, contrary when those cells were seen and none is, unknown when none was seen. `cells` must
+/// outlive the probe and be used under the grid's lock.
+world::GridProbe grid_element_probe(fusion::OccupancyGrid::CellReader& cells, double resolution);
 
 struct GridStoreOptions {
   fusion::GridOptions grid;  // a stored grid's resolution and tile size win over these

@@ -234,20 +234,8 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_trim(const wor
     std::vector<world::GridShares> checked;
     grid_.read([&](const fusion::OccupancyGrid& grid) {
       const double resolution = grid.resolution_m();
-      // P > 0.65, the map-quality definition of an occupied cell, is log-odds > ln(0.65 / 0.35).
-      const double occupied_log_odds = std::log(0.65 / 0.35);
       fusion::OccupancyGrid::CellReader cells(grid);  // the samples of an element lie in a few tiles
-      const world::GridProbe probe = [&](const Eigen::Vector2d& point) {
-        const auto [cx, cy] = fusion::cell_at(point, resolution);
-        bool seen_any = false;
-        for (std::int64_t dy = -1; dy <= 1; ++dy)
-          for (std::int64_t dx = -1; dx <= 1; ++dx) {
-            const double l = cells.log_odds({cx + dx, cy + dy});
-            if (l > occupied_log_odds) return world::GridEvidence::backed;
-            seen_any = seen_any || l != 0.0;
-          }
-        return seen_any ? world::GridEvidence::contrary : world::GridEvidence::unknown;
-      };
+      const auto probe = grid_element_probe(cells, resolution);
       auto trim = options_.grid_trim;
       trim.step_m = resolution;
       auto trimmed = world::trim_to_grid(*p.base, region, probe, p.seq, p.observation.observer, trim);

@@ -165,3 +165,24 @@ TEST(GridStoreTest, ChangedRegionCoversTheScanUpToItsReturns) {
 
 }  // namespace
 }  // namespace wm::service
+
+namespace wm::service {
+namespace {
+
+// The grid trim's probe of an element: a wall the laser hit several times is backed on it (and within a cell of it),
+// free space the beams crossed is contrary, and what no beam reached is unknown. Occupied is P > 0.65.
+TEST(GridStoreTest, TheElementProbeTellsBackedFromSeenFreeFromUnknown) {
+  EXPECT_DOUBLE_EQ(kOccupiedLogOdds, std::log(0.65 / 0.35));
+  fusion::OccupancyGrid grid(fusion::GridOptions{});
+  const auto scan = std::get<fusion::LaserScan>(ring_scan(0, 3.0).scan);  // a circle of returns 3 m around (0, 0)
+  for (int i = 0; i < 5; ++i) grid.insert(scan);
+  fusion::OccupancyGrid::CellReader cells(grid);
+  const auto probe = grid_element_probe(cells, grid.resolution_m());
+  EXPECT_EQ(probe({3.0, 0.0}), world::GridEvidence::backed);
+  EXPECT_EQ(probe({3.04, 0.0}), world::GridEvidence::backed);  // within a cell
+  EXPECT_EQ(probe({1.5, 0.0}), world::GridEvidence::contrary);
+  EXPECT_EQ(probe({10.0, 10.0}), world::GridEvidence::unknown);
+}
+
+}  // namespace
+}  // namespace wm::service
