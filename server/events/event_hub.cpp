@@ -65,6 +65,14 @@ std::size_t EventHub::subscriber_count() const {
   return subscribers_.size();
 }
 
+EventHub::Listeners EventHub::listeners() const {
+  std::lock_guard lock(mutex_);
+  Listeners l;
+  l.subscribers = subscribers_.size();
+  for (const auto& s : subscribers_) l.json_subscribers += s->wants_json_ ? 1 : 0;
+  return l;
+}
+
 std::size_t EventHub::json_subscriber_count() const {
   std::lock_guard lock(mutex_);
   return static_cast<std::size_t>(

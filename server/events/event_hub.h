@@ -71,6 +71,12 @@ class EventHub {
   /// @throw std::invalid_argument when it is not a JSON object text.
   void publish(EventKind kind, const std::string& event_json);
   std::size_t subscriber_count() const;
+  /// Both counts as of one instant, under one lock (what a publisher asks before it makes an event).
+  struct Listeners {
+    std::size_t subscribers = 0;
+    std::size_t json_subscribers = 0;
+  };
+  Listeners listeners() const;
   /// Subscribers that read the events' JSON (the WebSocket clients).
   std::size_t json_subscriber_count() const;
   std::uint64_t last_seq() const { return seq_.load(); }

@@ -17,7 +17,7 @@ void EventLog::Commit::add(events::EventKind kind, const std::function<nlohmann:
   if (!log_) return;
   try {
     // The JSON only for those who read it (WebSocket clients); the bridge and the export act on the kind.
-    place_->events.emplace_back(kind, log_->hub_->json_subscriber_count() == 0
+    place_->events.emplace_back(kind, !place_->wants_json
                                           ? std::string("{}")
                                           : make_json().dump(-1, ' ', false, nlohmann::json::error_handler_t::replace));
   } catch (const std::exception& e) {
@@ -32,8 +32,11 @@ void EventLog::Commit::close() {
 }
 
 EventLog::Commit EventLog::begin() {
-  if (!hub_ || hub_->subscriber_count() == 0) return {};
+  if (!hub_) return {};
+  const auto listeners = hub_->listeners();
+  if (listeners.subscribers == 0) return {};
   auto place = std::make_shared<Place>();
+  place->wants_json = listeners.json_subscribers > 0;
   std::lock_guard lock(mutex_);
   places_.push_back(place);
   return Commit(this, std::move(place));

@@ -34,8 +34,8 @@ class EventLog {
     Commit& operator=(const Commit&) = delete;
     ~Commit() { close(); }
 
-    /// Adds an event. `make_json` runs now, and only when a subscriber reads the JSON (else the event is "{}" with
-    /// its kind); an exception from it is reported and the event left out.
+    /// Adds an event. `make_json` runs now, and only when a subscriber read the JSON as the commit began (else the
+    /// event is "{}" with its kind); an exception from it is reported and the event left out.
     void add(events::EventKind kind, const std::function<nlohmann::json()>& make_json);
     /// Done: its events go out as soon as every commit before it is closed. Closing twice does nothing.
     void close();
@@ -62,7 +62,8 @@ class EventLog {
  private:
   struct Place {
     std::vector<std::pair<events::EventKind, std::string>> events;  // written only by its Commit, until closed
-    bool closed = false;                                            // under mutex_
+    bool wants_json = false;  // a subscriber read JSON when the commit began: its events' JSON is made
+    bool closed = false;      // under mutex_
   };
   void close(const std::shared_ptr<Place>& place);
 
