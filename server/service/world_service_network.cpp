@@ -20,6 +20,7 @@
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
 #include "server/service/knowledge_facts.h"
+#include "server/service/ticket.h"
 #include "server/service/world_service.h"
 
 namespace wm::service {
@@ -36,34 +37,6 @@ std::int64_t WorldService::body_hash(std::string_view body) {
 }
 
 namespace {
-
-// Answers a waiting request when the last stage that holds it lets go: with its outcome, its error, or (dropped when
-// the server stops) Busy.
-template <typename Outcome>
-class Ticket {
- public:
-  Ticket() = default;
-  Ticket(const Ticket&) = delete;
-  Ticket& operator=(const Ticket&) = delete;
-  ~Ticket() {
-    if (error_)
-      promise_.set_exception(error_);
-    else if (outcome_)
-      promise_.set_value(std::move(*outcome_));
-    else
-      promise_.set_exception(std::make_exception_ptr(
-          Busy("the server stopped while the request was on its way; it may have been applied (a retry with the "
-               "same request id is answered, not applied twice)")));
-  }
-  std::future<Outcome> future() { return promise_.get_future(); }
-  void succeed(Outcome outcome) { outcome_ = std::move(outcome); }
-  void fail(std::exception_ptr error) { error_ = std::move(error); }
-
- private:
-  std::promise<Outcome> promise_;
-  std::optional<Outcome> outcome_;
-  std::exception_ptr error_;
-};
 
 using ScanTicket = Ticket<ScanOutcome>;
 using PrimitivesTicket = Ticket<PrimitivesOutcome>;
