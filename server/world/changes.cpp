@@ -1,8 +1,10 @@
 #include "server/world/changes.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 namespace wm::world {
 namespace {
@@ -11,6 +13,22 @@ std::string centimetres(double metres) {
   char text[32];
   std::snprintf(text, sizeof text, "%.2f", metres);
   return text;
+}
+
+// The box around every edge of the plan as placed, grown by `margin`; nullopt without a plan or with no limit.
+std::optional<Eigen::AlignedBox2d> plan_footprint(const WorldState& state, double margin) {
+  if (margin < 0 || state.objects.empty()) return std::nullopt;
+  Eigen::AlignedBox2d box;
+  for (const auto& object : state.objects)
+    for (std::size_t k = 0; k < object.body.edges().size(); ++k) {
+      const auto edge = object.body.world_edge(k, Eigen::Matrix2d::Zero());
+      box.extend(edge.p0());
+      box.extend(edge.p1());
+    }
+  if (box.isEmpty()) return std::nullopt;
+  box.min().array() -= margin;
+  box.max().array() += margin;
+  return box;
 }
 
 }  // namespace
@@ -95,9 +113,12 @@ std::vector<Change> list_changes(const WorldState& state, const PlanReport* evid
     change.explanation = text;
     changes.push_back(std::move(change));
   }
+  const auto footprint = plan_footprint(state, options.plan_margin_m);
   for (const auto* element : report.not_in_plan) {
     const double length = element->segment.length_m();
     if (length < options.min_new_wall_length_m || element->support < options.min_new_wall_support) continue;
+    if (footprint && !footprint->contains(element->segment.p0()) && !footprint->contains(element->segment.p1()))
+      continue;  // beyond the building the plan draws
     Change change;
     change.kind = ChangeKind::new_wall;
     change.element_id = element->id();

@@ -28,6 +28,11 @@ struct ChangeOptions {
   /// A rigid adjustment is a move to report only beyond this and beyond 2 σ of its pose [m], [rad].
   double min_move_m = 0.02;
   double min_turn_rad = 0.0087;
+  /// A new wall is a change of this building only where the plan draws the building: with an end within the box
+  /// around the plan's edges (as placed) grown by this much [m]. What robots map beyond it (a car park, the next
+  /// building, a log replayed elsewhere) stays in the map but is not listed. Without a plan every element qualifies. <
+  /// 0: no limit.
+  double plan_margin_m = 10.0;
 };
 
 struct Change {
