@@ -13,9 +13,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
+# Every harness (scripts/test.sh builds this list: `bash scripts/fuzz.sh --list`).
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
+if [ "${1:-}" = --list ]; then
+  echo "${all[@]}"
+  exit 0
+fi
 seconds=${1:-60}
 shift || true
-all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
 harnesses=("$@")
 [ ${#harnesses[@]} -eq 0 ] && harnesses=("${all[@]}")
 build=${WM_SANITIZE_BUILD_DIR:-build/sanitize}

@@ -65,8 +65,10 @@ source tests/sanitizer/env.sh
 phase "sanitizer build (clang)"
 cmake -S . -B build/sanitize -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_SANITIZE=ON \
   -DWM_FUZZ=ON -DWM_WERROR=OFF "${launcher[@]}" >/dev/null
+# The harnesses are the ones scripts/fuzz.sh runs (one list, there).
+read -r -a harnesses <<< "$(bash scripts/fuzz.sh --list)"
 cmake --build build/sanitize -j"$jobs" --target wmd wmctl apriori_tests logs_tests rules_tests server_tests integration_tests \
-  fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text
+  "${harnesses[@]}"
 
 phase "sanitizer tests"
 # Test binaries that were not built register as <name>_NOT_BUILT. Also left out: the accept back-off test, which
