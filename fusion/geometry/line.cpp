@@ -5,6 +5,7 @@
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "fusion/geometry/angle.h"
 #include "fusion/internal/line_algebra.h"
@@ -68,6 +69,15 @@ LineFeature transform_line(const LineFeature& local, const Pose2D& pose, const E
   // Line and pose errors are independent, so their first-order contributions add (docs/fusion.md §4).
   const Eigen::Matrix2d cov = w.d_line * local.cov * w.d_line.transpose() + w.d_pose * pose_cov * w.d_pose.transpose();
   return LineFeature{w.rho_m, w.phi_rad, cov}.normalized();
+}
+
+LineSegment transform_segment(const LineSegment& local, const Pose2D& pose, const Eigen::Matrix3d& pose_cov) {
+  LineSegment world;
+  world.line = transform_line(local.line, pose, pose_cov);
+  world.t0_m = world.line.coordinate_along(pose.transform_point(local.p0()));
+  world.t1_m = world.line.coordinate_along(pose.transform_point(local.p1()));
+  if (world.t0_m > world.t1_m) std::swap(world.t0_m, world.t1_m);
+  return world;
 }
 
 }  // namespace wm::fusion

@@ -55,4 +55,8 @@ struct LineSegment {
 /// @throw std::invalid_argument for non-finite input.
 LineFeature transform_line(const LineFeature& local, const Pose2D& pose, const Eigen::Matrix3d& pose_cov);
 
+/// A segment given in a local frame, in the world frame: its line as transform_line places it, its extent from the
+/// transformed ends. @throw std::invalid_argument for non-finite input.
+LineSegment transform_segment(const LineSegment& local, const Pose2D& pose, const Eigen::Matrix3d& pose_cov);
+
 }  // namespace wm::fusion

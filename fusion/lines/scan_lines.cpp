@@ -276,19 +276,10 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
     }
   }
 
-  // Into the world frame: the line with covariance propagation, the extent from the transformed endpoints.
+  // Into the world frame.
   std::vector<LineSegment> world;
   world.reserve(segments.size());
-  for (const auto& local : segments) {
-    LineSegment w;
-    w.line = transform_line(local.segment.line, sensor_pose, pose_cov);
-    const Eigen::Vector2d e0 = sensor_pose.transform_point(local.segment.p0());
-    const Eigen::Vector2d e1 = sensor_pose.transform_point(local.segment.p1());
-    w.t0_m = w.line.coordinate_along(e0);
-    w.t1_m = w.line.coordinate_along(e1);
-    if (w.t0_m > w.t1_m) std::swap(w.t0_m, w.t1_m);
-    world.push_back(w);
-  }
+  for (const auto& local : segments) world.push_back(transform_segment(local.segment, sensor_pose, pose_cov));
   return world;
 }
 

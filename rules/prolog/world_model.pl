@@ -208,9 +208,9 @@ edge_verdict(Object, Edge, partly_missing(S0, S1), wall_partly_missing, Explanat
     solid_wall(Object),
     \+ wall_seen_through(Object, Edge, _, _, _),
     edge_seen_through(Object, Edge, S0, S1, Beams),
-    Beams >= 3,
-    edge(Object, Edge, _, _, Length),
     Stretch is S1 - S0,
+    crossed_along(Beams, Stretch),
+    edge(Object, Edge, _, _, Length),
     format(string(Explanation),
            "wall ~w (edge ~w, ~2f m): the laser saw through it from ~2f m to ~2f m of its length \c
             (~2f m, free cells where it is drawn, nothing occupied within 3 grid cells across), ~w beams \c
@@ -227,6 +227,14 @@ beams(Object, Edge, Through, Ended) :-
 
 solid_wall(Object) :- attribute(Object, solid).
 
+%   Enough beams crossed a stretch to have crossed it all along: at least 3, and one per 15 cm (three
+%   cells) on average. Its free cells alone may come from beams running along the line; a standing
+%   wall seen at a grazing angle with a poor pose lets a few beams slip across it near an end, and
+%   they cross it at a few points, not over a metre or more.
+crossed_along(Beams, Stretch) :-
+    Beams >= 3,
+    Beams >= Stretch / 0.15.
+
 wall_seen_through(Object, Edge, Backed, SeenThrough, Observed) :-
     solid_wall(Object),
     edge_evidence(Object, Edge, Backed, SeenThrough, Observed),
@@ -242,7 +250,7 @@ wall_seen_through(Object, Edge, Backed, SeenThrough, Observed) :-
     %   seen far off with a poor pose smears its returns over many cells (the grid then backs none of
     %   them), but its beams still end on it.
     beams(Object, Edge, Through, Ended),
-    Through >= 3,
+    crossed_along(Through, SeenThrough * Length),
     Through >= 5 * Ended.
 
 %   A not_deformable object (a table) none of whose edges the grid backs, while it has seen through

@@ -75,6 +75,7 @@ std::string usage() {
          "rules\n"
          "                         prune what it backs nowhere (default 10; 0: never)\n"
          "  --no-scan-lines        laser scans update the grids only, without the scan line extractor\n"
+         "  --no-scan-alignment    laser scans keep the posted pose (not aligned to the map's lines first)\n"
          "  --layer-mapping FILE   DXF layer/block mapping (JSON) for uploads that bring none (default: built in)\n"
          "  --web DIR              the web viewer's files (default: the shipped clients/web; '' disables)\n"
          "  --no-watch-rules       do not reload the rules when their files change (POST /api/v1/rules/reload still "
@@ -116,6 +117,10 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     }
     if (flag == "--no-scan-lines") {
       c.service.extract_scan_lines = false;
+      continue;
+    }
+    if (flag == "--no-scan-alignment") {
+      c.service.align_scans = false;
       continue;
     }
     if (flag == "--no-shm") {

@@ -44,11 +44,22 @@ struct PrimitivesOutcome {
   bool replayed = false;  // the answer of an earlier request with the same request id; nothing applied now
 };
 
+/// Where the server placed a laser scan: the sensor pose posted, and the one its lines and beams took (the same
+/// unless the scan was aligned to the map's lines).
+struct ScanPlacement {
+  fusion::Pose2D posted;
+  fusion::Pose2D placed;
+  bool aligned() const {
+    return placed.x_m != posted.x_m || placed.y_m != posted.y_m || placed.theta_rad != posted.theta_rad;
+  }
+};
+
 struct ScanOutcome {
   std::int64_t seq = 0;                    // journal sequence of the scan
   std::int64_t grid_revision = 0;          // scans ever inserted into the grid (this one included); = seq
   std::optional<PrimitivesOutcome> lines;  // the decisions on the lines extracted from it, if any
   bool replayed = false;                   // as for PrimitivesOutcome
+  std::optional<ScanPlacement> placement;  // a laser scan's, when scan lines are extracted
 };
 
 /// One re-decided observation of a dry run whose decision differs.

@@ -14,6 +14,7 @@
 #include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
 #include "server/world/plan_edit.h"
+#include "server/world/scan_alignment.h"
 
 namespace wm::service {
 namespace {
@@ -142,20 +143,28 @@ std::optional<storage::RequestRecord> WorldService::known_request(const std::str
   return record;
 }
 
-std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::string>& request_id,
-                                                       std::int64_t hash) {
+std::optional<ScanOutcome> WorldService::replayed_scan(const std::optional<std::string>& request_id, std::int64_t hash,
+                                                       const world::ScanObservation& retried) {
   if (!request_id) return std::nullopt;
   const auto known = known_request(*request_id, "scan", hash);
   if (!known) return std::nullopt;
-  ScanOutcome outcome{known->seq, known->grid_revision, std::nullopt, true};
+  ScanOutcome outcome{known->seq, known->grid_revision, std::nullopt, true, std::nullopt};
   if (known->lines_seq)
     outcome.lines =
         PrimitivesOutcome{*known->lines_seq, known->version, store_.observation_decisions(*known->lines_seq), true};
+  // The retry posts the same bytes, so the same pose; the journal holds where the first one was placed.
+  const auto* posted = std::get_if<fusion::LaserScan>(&retried.scan);
+  if (options_.extract_scan_lines && posted) {
+    if (const auto journaled = store_.scan(known->seq); journaled && journaled->scan)
+      if (const auto* placed = std::get_if<fusion::LaserScan>(&journaled->scan->scan))
+        outcome.placement = ScanPlacement{posted->sensor_pose, placed->sensor_pose};
+  }
   return outcome;
 }
 
-std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(const world::ScanObservation& scan) {
-  const auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
+std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(world::ScanObservation& scan,
+                                                                             std::optional<ScanPlacement>& placement) {
+  auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
   if (!options_.extract_scan_lines || !laser) return std::nullopt;
   std::vector<fusion::RangeReading> readings;
   for (std::size_t i = 0; i < laser->ranges_m.size(); ++i) {
@@ -164,11 +173,21 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
     if (std::isfinite(r) && r >= laser->range_min_m && r < laser->range_max_m && r > 0)
       readings.push_back({r, fusion::beam_bearing_rad(*laser, i)});
   }
+  placement = ScanPlacement{laser->sensor_pose, laser->sensor_pose};
   auto line_options = options_.scan_lines;
   line_options.sigma_range_m = laser->sigma_range_m;
   line_options.sigma_range_relative = laser->sigma_range_per_m;
-  const auto segments = fusion::extract_scan_lines(readings, laser->sensor_pose, scan.pose_cov, line_options);
-  if (segments.empty()) return std::nullopt;
+  // In the sensor's own frame first (the sensor's noise only), so that they can place the sensor.
+  const auto local = fusion::extract_scan_lines(readings, fusion::Pose2D{}, Eigen::Matrix3d::Zero(), line_options);
+  if (local.empty()) return std::nullopt;
+  if (options_.align_scans) {
+    const auto alignment =
+        world::align_to_map(*head_, local, laser->sensor_pose, scan.pose_cov, options_.world, options_.scan_alignment);
+    if (alignment.aligned) {
+      placement->placed = alignment.pose;
+      laser->sensor_pose = alignment.pose;
+    }
+  }
   world::Observation observation;
   observation.observer = scan.observer;
   observation.origin = "scan";
@@ -176,8 +195,10 @@ std::optional<WorldService::PreparedUpdate> WorldService::prepare_scan_lines(con
   observation.stamp_s = scan.stamp_s;
   // Which face of each wall the laser saw: the two faces of a thin wall are kept apart by it.
   const Eigen::Vector2d viewpoint(laser->sensor_pose.x_m, laser->sensor_pose.y_m);
-  for (const auto& segment : segments)
-    observation.segments.push_back({segment, world::facing_toward(segment, viewpoint)});
+  for (const auto& segment : local) {
+    const auto placed = fusion::transform_segment(segment, laser->sensor_pose, scan.pose_cov);
+    observation.segments.push_back({placed, world::facing_toward(placed, viewpoint)});
+  }
   return prepare_update(std::move(observation));
 }
 

@@ -21,6 +21,7 @@
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
 #include "fusion/lines/scan_lines.h"
+#include "fusion/registration/scan_alignment.h"
 #include "pipeline/network.h"
 #include "rules/engine.h"
 #include "server/events/event_hub.h"
@@ -58,6 +59,13 @@ struct ServiceOptions {
   /// (origin "scan", sensor "laser").
   bool extract_scan_lines = true;
   fusion::ScanLineOptions scan_lines;
+  /// A laser scan posted with a pose covariance is first aligned to the map's lines (fusion::align_scan_lines): its
+  /// lines, its grid beams, its journal entry and its robot take the corrected pose. They keep the posted covariance:
+  /// the lines are fused into the very elements they were aligned to, and a covariance narrowed by those elements
+  /// would count what they know twice (on the CARMEN logs the narrowed one left more elements per wall and a worse
+  /// calibration).
+  bool align_scans = true;
+  fusion::ScanAlignmentOptions scan_alignment;
   /// Run the grid line extractor (thinning + Hough) every this many scans (0: only on request), and its settings.
   std::size_t grid_extract_every = 0;
   fusion::GridLineOptions grid_lines;
@@ -220,10 +228,13 @@ class WorldService final : public WorldPort {
 
   // The steps of post_scan, in order, on the writer thread.
   /// The first answer to a scan retried with its request id; nullopt: apply it. @throw RequestIdConflict.
-  std::optional<ScanOutcome> replayed_scan(const std::optional<std::string>& request_id, std::int64_t body_hash);
-  /// The lines of a laser scan, extracted and decided against the committed map (nothing stored yet); nullopt
-  /// for a sonar scan, with scan lines off, or when no line is found.
-  std::optional<PreparedUpdate> prepare_scan_lines(const world::ScanObservation& scan);
+  std::optional<ScanOutcome> replayed_scan(const std::optional<std::string>& request_id, std::int64_t body_hash,
+                                           const world::ScanObservation& retried);
+  /// The lines of a laser scan, extracted and decided against the head map (nothing stored yet); nullopt for a
+  /// sonar scan, with scan lines off, or when no line is found. A scan aligned to the map (align_scans) leaves with
+  /// its corrected sensor pose; `placement` says where it was placed.
+  std::optional<PreparedUpdate> prepare_scan_lines(world::ScanObservation& scan,
+                                                   std::optional<ScanPlacement>& placement);
   /// Adds the live "scan" event to its commit (`live`): the robot's pose, where its beams returned and the grid
   /// region that changed.
   void add_scan_event(EventLog::Commit& live, const world::ScanObservation& scan, std::int64_t seq);

@@ -83,7 +83,8 @@ struct WorldService::Decided {
   std::int64_t scan_seq = 0;
   PrimitivesJobPtr primitives;  // ... or posted primitives (neither: the server's own observation, a grid trim)
   std::optional<PreparedUpdate> update;
-  std::shared_ptr<void> hold;  // a request answered only after this one is applied (or failed)
+  std::optional<ScanPlacement> placement;  // a laser scan's, as its lines were extracted
+  std::shared_ptr<void> hold;              // a request answered only after this one is applied (or failed)
   std::optional<storage::RequestRecord> request;
   std::string observation_payload;  // a scan's lines: {"scan": seq}
   std::exception_ptr error;         // the commit failed
@@ -287,7 +288,7 @@ void WorldService::decide_scan(pipeline::Activation& a, const std::string& port)
     if (job->request_id) {
       if (pending_request_ids_.count(*job->request_id))
         throw Busy("request id '" + *job->request_id + "' is being applied; retry to get its answer");
-      if (auto replayed = replayed_scan(job->request_id, hash)) {
+      if (auto replayed = replayed_scan(job->request_id, hash, job->scan)) {
         job->ticket->succeed(std::move(*replayed));
         return;
       }
@@ -295,7 +296,7 @@ void WorldService::decide_scan(pipeline::Activation& a, const std::string& port)
     auto d = std::make_shared<Decided>();
     d->epoch = epoch_;
     d->scan_seq = next_scan_seq_ + 1;
-    d->update = prepare_scan_lines(job->scan);
+    d->update = prepare_scan_lines(job->scan, d->placement);
     d->observation_payload = "{\"scan\": " + std::to_string(d->scan_seq) + "}";
     if (job->request_id) {
       d->request = storage::RequestRecord{*job->request_id,
@@ -448,7 +449,7 @@ void WorldService::finish_committed(pipeline::Activation& a) {
   committed_scan_seq_ = d->scan_seq;
   const auto& scan = d->scan->scan;
   add_robot_event(live, robots_.on_scan(scan.observer, scan.sensor(), robot_pose_of(scan)));
-  d->scan->ticket->succeed(ScanOutcome{d->scan_seq, d->scan_seq, std::move(lines), false});
+  d->scan->ticket->succeed(ScanOutcome{d->scan_seq, d->scan_seq, std::move(lines), false, d->placement});
   const bool laser = std::holds_alternative<fusion::LaserScan>(scan.scan);
   a.emit(laser ? "laser_scans" : "sonar_scans",
          std::make_shared<GridScan>(GridScan{std::move(d->scan), d->scan_seq, std::move(live)}));

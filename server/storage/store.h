@@ -161,6 +161,8 @@ class Store {
   /// Journaled scans with seq > after, in order (replayed at start past the last grid flush).
   /// @throw StorageError naming the scan when a stored scan is damaged.
   std::vector<JournaledScan> scans_after(std::int64_t after);
+  /// The journaled scan of `seq`; nullopt when there is none. @throw StorageError when it is damaged.
+  std::optional<JournaledScan> scan(std::int64_t seq);
 
   /// The grid as last flushed: tiles and the last scan they include.
   /// The beams counted at one plan edge (fusion::SegmentBeams, where the edge lay when counted).

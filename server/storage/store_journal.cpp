@@ -215,6 +215,14 @@ std::vector<JournaledScan> Store::scans_after(std::int64_t after) {
   return result;
 }
 
+std::optional<JournaledScan> Store::scan(std::int64_t seq) {
+  std::lock_guard lock(reader_mutex_);
+  Statement s(reader_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq = ?1");
+  s.bind(1, seq);
+  if (!s.step()) return std::nullopt;
+  return journaled_scan(s);
+}
+
 std::int64_t Store::scans_missing_line_decisions() {
   std::lock_guard lock(reader_mutex_);
   return query_int(reader_,

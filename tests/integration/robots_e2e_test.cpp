@@ -23,9 +23,10 @@ TEST_F(RobotsTest, ARobotIsWhereItsLastScanWasAndWhereItSaysAndComesBackAfterARe
   EXPECT_EQ(robot["status"], "alive");
   EXPECT_EQ(robot["scans"]["laser"], scans);
   EXPECT_EQ(robot["pose"]["source"], "scan:laser");
-  EXPECT_NEAR(robot["pose"]["x"].get<double>(), last.x_m, 1e-9);
-  EXPECT_NEAR(robot["pose"]["y"].get<double>(), last.y_m, 1e-9);
-  EXPECT_NEAR(robot["pose"]["theta"].get<double>(), last.theta_rad, 1e-9);
+  // Where the last scan was placed: its posted pose, aligned to the map's lines by a few cm and a fraction of a degree.
+  EXPECT_NEAR(robot["pose"]["x"].get<double>(), last.x_m, 0.10);
+  EXPECT_NEAR(robot["pose"]["y"].get<double>(), last.y_m, 0.10);
+  EXPECT_NEAR(robot["pose"]["theta"].get<double>(), last.theta_rad, 0.02);
   EXPECT_EQ(robot["pose"]["cov"][0][0], 0.03 * 0.03) << "wmctl replay's pose sigma";
   EXPECT_GT(robot["track"].size(), 1u);
   const auto listed_by_wmctl = run_command(wmctl(server_->url(), "robots"));

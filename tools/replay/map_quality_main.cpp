@@ -18,9 +18,10 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: wm-map-quality [--every K] [--rules DIR] [--pose-sigma XY,THETA] [--plan FILE] "
-                 "[--grid-trim-every N] LOG...\n"
+                 "[--grid-trim-every N] [--no-scan-alignment] LOG...\n"
                  "  --plan: a floor plan (JSON, or an AMRL *.vectormap.json) loaded before each replay\n"
-                 "  --grid-trim-every: as wmd's (default 10; 0: elements are not trimmed to the grid)\n");
+                 "  --grid-trim-every: as wmd's (default 10; 0: elements are not trimmed to the grid)\n"
+                 "  --no-scan-alignment: as wmd's (scans keep their posted poses)\n");
     return 2;
   }
   wm::replay::LogReplayOptions options;
@@ -36,6 +37,10 @@ int main(int argc, char** argv) {
     }
     if (arg == "--grid-trim-every" && i + 1 < argc) {
       options.service.grid_trim_every = static_cast<std::size_t>(std::stoul(argv[++i]));
+      continue;
+    }
+    if (arg == "--no-scan-alignment") {
+      options.service.align_scans = false;
       continue;
     }
     if (arg == "--pose-sigma" && i + 1 < argc) {

@@ -14,9 +14,11 @@ namespace {
 const char* kUsage =
     "usage: wm-truth [--building gdc1|ahg2|rmf-office|barcelona|all] [--pose-noise low|high|both] [--seed N]\n"
     "                [--max-route M] [--step M] [--fov 360|270] [--demolished N] [--partitions N] [--people N]\n"
-    "                [--table DX,DY,DTHETA_DEG|removed] [--no-plan] [--data DIR] [--rules DIR]\n"
-    "  --max-route  drive only the first M metres of each route (default: all)\n"
-    "  --no-plan    only the mapping figures (one replay per row instead of two)\n";
+    "                [--table DX,DY,DTHETA_DEG|removed] [--no-plan] [--no-scan-alignment] [--data DIR]\n"
+    "                [--rules DIR]\n"
+    "  --max-route          drive only the first M metres of each route (default: all)\n"
+    "  --no-plan            only the mapping figures (one replay per row instead of two)\n"
+    "  --no-scan-alignment  the server keeps each scan's posted pose (wmd --no-scan-alignment), for comparison\n";
 
 }  // namespace
 
@@ -32,6 +34,10 @@ int main(int argc, char** argv) {
       const std::string flag = argv[i];
       if (flag == "--no-plan") {
         options.with_plan = false;
+        continue;
+      }
+      if (flag == "--no-scan-alignment") {
+        options.service.align_scans = false;
         continue;
       }
       if (i + 1 >= argc) throw std::invalid_argument(flag + " needs a value");

@@ -49,20 +49,32 @@ std::vector<std::vector<std::vector<std::size_t>>> covering(const std::vector<Pi
                                                             const std::vector<TrueLine>& lines) {
   std::vector<std::vector<std::vector<std::size_t>>> cover(lines.size());
   for (std::size_t l = 0; l < lines.size(); ++l) cover[l].resize(bins_of((lines[l].p1 - lines[l].p0).norm()));
-  for (std::size_t i = 0; i < elements.size(); ++i)
-    for (std::size_t l = 0; l < lines.size(); ++l) {
-      if (!on_line(elements[i], lines[l])) continue;
-      const Vec d = lines[l].p1 - lines[l].p0;
-      const double length = d.norm();
-      for (std::size_t k = 0; k < elements[i].samples(); ++k) {
-        const Vec p = elements[i].sample(k);
-        if (point_segment_distance(p, lines[l].p0, lines[l].p1) > kOnLineM) continue;
-        const double u = d.dot(p - lines[l].p0) / length;
-        if (u < 0 || u > length) continue;
-        auto& ids = cover[l][std::min(cover[l].size() - 1, static_cast<std::size_t>(u / kBinM))];
-        if (std::find(ids.begin(), ids.end(), i) == ids.end()) ids.push_back(i);
+  // A sample covers the nearest true line it lies on: the element on one face of a wall 4 cm thick lies within 5 cm of
+  // the other face too, and covers only its own.
+  for (std::size_t i = 0; i < elements.size(); ++i) {
+    std::vector<std::size_t> on;
+    for (std::size_t l = 0; l < lines.size(); ++l)
+      if (on_line(elements[i], lines[l])) on.push_back(l);
+    for (std::size_t k = 0; k < elements[i].samples(); ++k) {
+      const Vec p = elements[i].sample(k);
+      std::size_t nearest = lines.size();
+      double nearest_m = kOnLineM;
+      for (const auto l : on) {
+        const double d = point_segment_distance(p, lines[l].p0, lines[l].p1);
+        if (d <= nearest_m) {
+          nearest_m = d;
+          nearest = l;
+        }
       }
+      if (nearest == lines.size()) continue;
+      const Vec d = lines[nearest].p1 - lines[nearest].p0;
+      const double length = d.norm();
+      const double u = d.dot(p - lines[nearest].p0) / length;
+      if (u < 0 || u > length) continue;
+      auto& ids = cover[nearest][std::min(cover[nearest].size() - 1, static_cast<std::size_t>(u / kBinM))];
+      if (std::find(ids.begin(), ids.end(), i) == ids.end()) ids.push_back(i);
     }
+  }
   return cover;
 }
 
@@ -194,11 +206,12 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
     std::vector<std::size_t> near;  // elements within 5 cm of the line, whatever their direction
     for (std::size_t i = 0; i < elements.size(); ++i)
       if (segment_distance(elements[i].p0, elements[i].p1, line.p0, line.p1) <= kOnLineM) near.push_back(i);
-    double seen = 0, missed = 0;
+    double seen = 0, missed = 0, doubled = 0;
     std::uint64_t missed_returns = 0;
     std::map<std::size_t, std::size_t> bins_per_element;
     for (std::size_t b = 0; b < cover[l].size(); ++b) {
       redundant += static_cast<double>(std::max<std::size_t>(1, cover[l][b].size()) - 1) * kBinM;
+      doubled += static_cast<double>(std::max<std::size_t>(1, cover[l][b].size()) - 1) * kBinM;
       for (const auto i : cover[l][b]) ++bins_per_element[i];
       if (coverage.hits[l][b] == 0) continue;
       seen += kBinM;
@@ -211,6 +224,9 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
       missed_returns += covered ? 0 : coverage.hits[l][b];
     }
     score.seen_length_m += seen;
+    if (std::getenv("WM_TRUTH_VERBOSE") && doubled > 0)
+      std::fprintf(stderr, "covered twice: %.2f m of the %.2f m wall (%.2f, %.2f) to (%.2f, %.2f)\n", doubled,
+                   (line.p1 - line.p0).norm(), line.p0.x(), line.p0.y(), line.p1.x(), line.p1.y());
     if (std::getenv("WM_TRUTH_VERBOSE") && missed > 0)
       std::fprintf(stderr,
                    "not recalled: %.2f of %.2f m seen of the %.2f m wall (%.2f, %.2f) to (%.2f, %.2f), %llu returns\n",

@@ -17,6 +17,16 @@ Response post_scan(const Call& call) {
                        {"version", lines->version},
                        {"decisions", json_codec::decisions_json(lines->decisions)}};
   }
+  if (const auto& placement = outcome.placement) {
+    // Where the lines and beams were placed: a robot may take the aligned pose back into its localisation.
+    answer["pose"] = {{"x", placement->placed.x_m},
+                      {"y", placement->placed.y_m},
+                      {"theta", placement->placed.theta_rad},
+                      {"dx", placement->placed.x_m - placement->posted.x_m},
+                      {"dy", placement->placed.y_m - placement->posted.y_m},
+                      {"dtheta", placement->placed.theta_rad - placement->posted.theta_rad},
+                      {"aligned", placement->aligned()}};
+  }
   auto response = json_response(call.request, answer);
   if (outcome.replayed) response.set("Idempotent-Replayed", "true");
   return response;

@@ -150,7 +150,9 @@ class FakeIngest : public virtual service::IngestPort, public virtual FakeLedger
     last_scan = std::move(scan);
     last_payload = std::move(payload_json);
     last_request_id = std::move(request_id);
-    return {4, 4, service::PrimitivesOutcome{8, 5, {decision(rules::Action::merge, "e2")}, replay}, replay};
+    // Placed 2 cm east and 0.01 rad turned from where it was posted.
+    return {4, 4, service::PrimitivesOutcome{8, 5, {decision(rules::Action::merge, "e2")}, replay}, replay,
+            service::ScanPlacement{{1.0, 2.0, 0.5}, {1.02, 2.0, 0.51}}};
   }
   std::optional<service::PrimitivesOutcome> extract_grid_lines() override {
     enter("extract_grid_lines");

@@ -104,6 +104,11 @@ TEST_F(WriteHandlersTest, ScansAreParsedAndAnsweredWithTheirLines) {
   EXPECT_EQ(body["grid_revision"], 4);
   EXPECT_EQ(body["lines"]["observation"], 8);
   EXPECT_EQ(body["lines"]["decisions"][0]["action"], "merge");
+  EXPECT_EQ(body["pose"]["x"], 1.02);
+  EXPECT_NEAR(body["pose"]["dx"].get<double>(), 0.02, 1e-12);
+  EXPECT_EQ(body["pose"]["dy"], 0.0);
+  EXPECT_NEAR(body["pose"]["dtheta"].get<double>(), 0.01, 1e-12);
+  EXPECT_EQ(body["pose"]["aligned"], true);
   EXPECT_EQ(std::string(world_.last_scan->sensor()), "laser");
   EXPECT_EQ(status_of(send(verb::post, "/api/v1/scans", R"({"sensor": "radar"})")), 400);
   EXPECT_EQ(status_of(send(verb::post, "/api/v1/scans", kScan, "text/plain")), 415);
