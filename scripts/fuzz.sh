@@ -14,7 +14,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 # Every harness (scripts/test.sh builds this list: `bash scripts/fuzz.sh --list`).
-all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_scan_alignment fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
 if [ "${1:-}" = --list ]; then
   echo "${all[@]}"
   exit 0
@@ -47,6 +47,7 @@ options_for() {
     fuzz_carmen) echo "-max_len=8192 -dict=fuzz/dict/carmen.dict" ;;
     fuzz_servosila) echo "-max_len=512" ;;  # datagrams of 57 and 275 bytes, and anything else
     fuzz_scan_record) echo "-max_len=4096" ;;  # records of 161 bytes and more (8 per reading)
+    fuzz_scan_alignment) echo "-max_len=8192" ;;  # 9 doubles, then 56 bytes per line: up to 144 lines
     fuzz_foxglove) echo "-max_len=1024 -dict=fuzz/dict/json.dict" ;;  # a client's subscribe/unsubscribe texts
     # SWI-Prolog interrupts a goal at its time limit with SIGUSR2, which libFuzzer would take as "stop". Its
     # handler allocates, so a signal that lands while libFuzzer's per-input leak check has stopped the world

@@ -130,6 +130,9 @@ ScanAlignment align_scan_lines(const std::vector<LineSegment>& local, const Pose
   require(posted_cov.isApprox(posted_cov.transpose(), 1e-9) || posted_cov.isZero(), "the covariance is not symmetric");
   ScanAlignment result{posted_pose, posted_cov, 0, false};
   if (posted_cov.isZero()) return result;  // an exact pose
+  if (std::max(posted_cov(0, 0), posted_cov(1, 1)) > options.max_posted_sigma_m * options.max_posted_sigma_m ||
+      posted_cov(2, 2) > options.max_posted_sigma_rad * options.max_posted_sigma_rad)
+    return result;  // a guess
   const Eigen::SelfAdjointEigenSolver<Matrix3> eigen(posted_cov);
   require(eigen.eigenvalues().minCoeff() >= -1e-12 * std::max(1.0, eigen.eigenvalues().maxCoeff()),
           "the covariance is not positive semi-definite");

@@ -35,6 +35,10 @@ struct ScanAlignmentOptions {
   /// At least this many pairs, or nothing moves. Parallel pairs are enough: a corridor's walls fix the pose across
   /// it and the heading, and the posted pose keeps its place along it (the prior).
   std::size_t min_pairs = 2;
+  /// A pose posted with a σ above these is a guess, not an estimate to correct: the nearest lines would as likely be
+  /// the wrong ones, and the search would reach across the whole map. It is left as posted [m], [rad].
+  double max_posted_sigma_m = 0.5;
+  double max_posted_sigma_rad = 0.1745;  // 10°
   /// Gauss-Newton passes (each re-pairs with the pose so far).
   int iterations = 4;
   /// The correction is refused when it lies farther than this from the posted pose under its covariance (χ², 3
@@ -55,8 +59,8 @@ struct ScanAlignment {
 /// SPmodel), with the posted pose and covariance as prior. `local` are the scan's segments in the sensor's own
 /// frame, their covariance the sensor's noise only; `references` are the map's lines in the world frame. Each pass
 /// pairs every long enough scan line with the one map line it passes the χ² gate against (ambiguous ones left
-/// out), and the pose moves by the Gauss-Newton step of prior plus pairs. A pose posted with zero covariance is
-/// taken as exact and returned unchanged.
+/// out), and the pose moves by the Gauss-Newton step of prior, map and pairs. A pose posted with zero covariance is
+/// taken as exact, one with a σ over the options' limits as a guess: both are returned unchanged.
 /// @throw std::invalid_argument for a non-finite pose or covariance, or one that is not symmetric positive
 /// semi-definite.
 ScanAlignment align_scan_lines(const std::vector<LineSegment>& local, const Pose2D& posted_pose,

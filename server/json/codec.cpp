@@ -1,5 +1,6 @@
 #include "server/json/codec.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -215,6 +216,11 @@ world::ScanObservation parse_scan(std::string_view body, const ScanLimits& limit
     }
     if (!request.pose_cov.isApprox(request.pose_cov.transpose(), 1e-12) || request.pose_cov.diagonal().minCoeff() < 0)
       throw bad_request("pose_cov", "not a symmetric covariance");
+    // A covariance is positive semi-definite: one that is not would weigh the pose negatively where the scan is
+    // aligned to the map, and spread its lines' covariance into a negative variance.
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(request.pose_cov);
+    if (eigen.eigenvalues().minCoeff() < -1e-9 * std::max(1e-300, eigen.eigenvalues().cwiseAbs().maxCoeff()))
+      throw bad_request("pose_cov", "not positive semi-definite (a correlation above 1)");
   }
   const double range_min =
       doc.contains("range_min") ? finite_number(doc["range_min"], "range_min", limits.max_range_m) : 0.0;

@@ -111,7 +111,7 @@ TEST(ScanAlignmentTest, ACorridorFixesThePoseAcrossItAndTheHeadingButNotAlongIt)
   EXPECT_NEAR(result.cov(0, 0), 0.03 * 0.03, 1e-5);
 }
 
-TEST(ScanAlignmentTest, AnExactPoseOrOneWithoutEnoughLinesStaysAsPosted) {
+TEST(ScanAlignmentTest, AnExactPoseAGuessOrOneWithoutEnoughLinesStaysAsPosted) {
   const auto walls = room();
   const Pose2D truth{3.0, 2.0, 0.3};
   const auto local = scan_lines_from(walls, truth);
@@ -119,6 +119,10 @@ TEST(ScanAlignmentTest, AnExactPoseOrOneWithoutEnoughLinesStaysAsPosted) {
   const auto exact = align_scan_lines(local, posted, Eigen::Matrix3d::Zero(), references_of(walls));
   EXPECT_FALSE(exact.aligned);
   EXPECT_EQ(exact.pose.x_m, posted.x_m);
+
+  const auto guess = align_scan_lines(local, posted, pose_cov(0.6, 0.5 * kDeg), references_of(walls));
+  EXPECT_FALSE(guess.aligned) << "σ 0.6 m: a guess, not an estimate to correct";
+  EXPECT_FALSE(align_scan_lines(local, posted, pose_cov(0.03, 11 * kDeg), references_of(walls)).aligned);
 
   const auto no_map = align_scan_lines(local, posted, pose_cov(0.03, 0.5 * kDeg), {});
   EXPECT_FALSE(no_map.aligned);

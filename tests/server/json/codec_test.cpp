@@ -83,6 +83,29 @@ TEST(CodecTest, ALaserScanMayStateItsUsableRangeAndRangeDependentSigma) {
   }
 }
 
+TEST(CodecTest, AScansPoseCovarianceMustBeOne) {
+  const std::string head =
+      R"({"sensor": "laser", "pose": {"x": 0, "y": 0, "theta": 0}, "angle_min": 0, "angle_increment": 0.01, )"
+      R"("ranges": [3.0, 2.0], "range_max": 80, "pose_cov": )";
+  const auto scan = parse_scan(head + "[[9e-4, 1e-4, 0], [1e-4, 9e-4, 0], [0, 0, 7.6e-5]]}", ScanLimits{});
+  EXPECT_EQ(scan.pose_cov(0, 1), 1e-4);
+  EXPECT_TRUE(parse_scan(head + "[[0, 0, 0], [0, 0, 0], [0, 0, 0]]}", ScanLimits{}).pose_cov.isZero());
+  EXPECT_EQ(parse_scan(head + "[[1, 1, 0], [1, 1, 0], [0, 0, 1]]}", ScanLimits{}).pose_cov(0, 1), 1.0)
+      << "x and y fully correlated: singular, still a covariance";
+  for (const std::string bad :
+       {"[[1, 2, 0], [2, 1, 0], [0, 0, 1]]}", "[[1, 0.5, 0], [0.4, 1, 0], [0, 0, 1]]}",
+        "[[-1, 0, 0], [0, 1, 0], [0, 0, 1]]}", "[[1e-4, 0, 0.01], [0, 1e-4, 0], [0.01, 0, 1e-4]]}", "[[1, 0], [0, 1]]}",
+        "[[1, 0, 0], [0, 1, 0], [0, 0, 1e7]]}"}) {
+    try {
+      parse_scan(head + bad, ScanLimits{});
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const CodecError& e) {
+      EXPECT_EQ(e.kind(), CodecError::Kind::bad_request) << bad;
+      EXPECT_NE(std::string(e.what()).find("pose_cov"), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(CodecTest, TooManySegmentsAreRefused) {
   PrimitiveLimits limits;
   limits.max_segments = 1;
