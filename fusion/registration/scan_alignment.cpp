@@ -21,8 +21,8 @@ using Matrix6 = Eigen::Matrix<double, 6, 6>;
 struct Pair {
   Eigen::Vector2d residual;
   Matrix23 jacobian;
-  Eigen::Matrix2d noise;          // of the scan line and the map line, as if independent: for the gate
-  Eigen::Matrix2d sensor_noise;   // of the scan line alone
+  Eigen::Matrix2d noise;            // of the scan line and the map line, as if independent: for the gate
+  Eigen::Matrix2d sensor_noise;     // of the scan line alone
   double reference_offset_var = 0;  // the map line's variance across it, between the pair's ends [m²]
   double reference_angle_var = 0;   // and of its direction [rad²]
 };
@@ -75,15 +75,37 @@ double chi2(const Pair& pair, const Matrix3& pose_cov) {
   return pair.residual.dot(s.ldlt().solve(pair.residual));
 }
 
+// An axis-aligned box [lo, hi] [m].
+struct Box {
+  Eigen::Vector2d lo, hi;
+  bool overlaps(const Box& other) const {
+    return (lo.array() <= other.hi.array()).all() && (other.lo.array() <= hi.array()).all();
+  }
+};
+
+Box box_of(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double margin) {
+  return {a.cwiseMin(b).array() - margin, a.cwiseMax(b).array() + margin};
+}
+
 // The one reference each long enough scan line lies on at `pose` (spread `cov`), unambiguous pairs only.
 std::vector<Pair> pair_lines(const std::vector<LineSegment>& local, const Pose2D& pose, const Matrix3& cov,
-                             const std::vector<AlignmentReference>& references, const ScanAlignmentOptions& options) {
+                             const std::vector<AlignmentReference>& references, const std::vector<Box>& reference_boxes,
+                             const ScanAlignmentOptions& options) {
   std::vector<Pair> pairs;
+  // A scan line's ends move by at most a few σ of the pose: map lines outside that reach are not looked at (the χ²
+  // gate would refuse them; the box test is cheaper than the gate).
+  const double sigma_xy = std::sqrt(std::max({cov(0, 0), cov(1, 1), 0.0}));
+  const double sigma_theta = std::sqrt(std::max(cov(2, 2), 0.0));
   for (const auto& segment : local) {
     if (segment.length_m() < options.min_segment_length_m) continue;
+    const double range = std::max(segment.p0().norm(), segment.p1().norm());
+    const Box reach = box_of(pose.transform_point(segment.p0()), pose.transform_point(segment.p1()),
+                             5 * (sigma_xy + range * sigma_theta) + 0.05);
     std::optional<Pair> best, second;
     double best_chi2 = std::numeric_limits<double>::infinity(), second_chi2 = best_chi2;
-    for (const auto& reference : references) {
+    for (std::size_t r = 0; r < references.size(); ++r) {
+      if (!reach.overlaps(reference_boxes[r])) continue;
+      const auto& reference = references[r];
       auto pair = linearise(segment, pose, reference, options.min_overlap_share);
       if (!pair) continue;
       const double c = chi2(*pair, cov);
@@ -148,13 +170,17 @@ ScanAlignment align_scan_lines(const std::vector<LineSegment>& local, const Pose
   Matrix6 cov = Matrix6::Zero();
   cov.topLeftCorner<3, 3>() = posted_cov;
   std::size_t pairs_used = 0;
+  std::vector<Box> reference_boxes;
+  reference_boxes.reserve(references.size());
+  for (const auto& reference : references)
+    reference_boxes.push_back(box_of(reference.segment.p0(), reference.segment.p1(), 0.0));
   for (int pass = 0; pass < options.iterations; ++pass) {
     // Pairs are made where the scan lies against the map: the pose less the map's error.
     const Vector3 relative = state.head<3>() - state.tail<3>();
-    const Matrix3 relative_cov = cov.topLeftCorner<3, 3>() + cov.bottomRightCorner<3, 3>() - cov.topRightCorner<3, 3>() -
-                                 cov.bottomLeftCorner<3, 3>();
+    const Matrix3 relative_cov = cov.topLeftCorner<3, 3>() + cov.bottomRightCorner<3, 3>() -
+                                 cov.topRightCorner<3, 3>() - cov.bottomLeftCorner<3, 3>();
     const auto pairs = pair_lines(local, Pose2D{relative(0), relative(1), relative(2)},
-                                  pass == 0 ? posted_cov : relative_cov, references, options);
+                                  pass == 0 ? posted_cov : relative_cov, references, reference_boxes, options);
     if (pairs.size() < options.min_pairs) return result;
     std::vector<double> offset_vars, angle_vars;
     for (const auto& pair : pairs) {
@@ -178,10 +204,15 @@ ScanAlignment align_scan_lines(const std::vector<LineSegment>& local, const Pose
       gradient += jacobian.transpose() * weight * pair.residual;
     }
     const Eigen::LDLT<Matrix6> solver(information);
-    state -= solver.solve(gradient);
+    const Vector6 step = solver.solve(gradient);
+    state -= step;
     cov = solver.solve(Matrix6::Identity());
     cov = 0.5 * (cov + cov.transpose());
     pairs_used = pairs.size();
+    // Converged: a step of under 0.1 mm and 1 µrad would pair the same lines again.
+    if (step.head<2>().norm() < 1e-4 && step.segment<2>(3).norm() < 1e-4 && std::abs(step(2)) < 1e-6 &&
+        std::abs(step(5)) < 1e-6)
+      break;
   }
   const Vector3 step = state.head<3>() - posted;
   if (!(step.dot(prior_information * step) <= options.max_correction_chi2)) return result;
