@@ -26,6 +26,10 @@ void validate(const LaserScan& scan) {
   if (!std::isfinite(scan.angle_min_rad) || !std::isfinite(scan.angle_increment_rad)) {
     throw std::invalid_argument("validate(LaserScan): angle_min_rad and angle_increment_rad must be finite");
   }
+  if (!(scan.sigma_range_per_m >= 0 && std::isfinite(scan.sigma_range_per_m)))
+    throw std::invalid_argument("validate(LaserScan): sigma_range_per_m must be >= 0 and finite");
+  if (!(scan.usable_range_m >= 0 && std::isfinite(scan.usable_range_m)))
+    throw std::invalid_argument("validate(LaserScan): usable_range_m must be >= 0 and finite (0: the grid's own)");
 }
 
 void validate(const SonarScan& scan) {

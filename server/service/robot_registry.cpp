@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <variant>
 
 namespace wm::service {
 
@@ -46,6 +47,17 @@ std::optional<RobotState> RobotRegistry::due(RobotState& robot, bool status_chan
   if (!status_changed && last > 0 && now - last < options_.event_interval_s) return std::nullopt;
   last = now;
   return robot;
+}
+
+RobotPose scan_pose(const world::ScanObservation& scan, double received_at_unix_s) {
+  const auto pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
+  return RobotPose{pose.x_m,
+                   pose.y_m,
+                   pose.theta_rad,
+                   scan.pose_cov.isZero() ? std::nullopt : std::optional<Eigen::Matrix3d>(scan.pose_cov),
+                   scan.stamp_s,
+                   received_at_unix_s,
+                   std::string("scan:") + scan.sensor()};
 }
 
 std::optional<RobotState> RobotRegistry::on_scan(const std::string& id, const std::string& sensor, RobotPose pose) {

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "server/world/scan_observation.h"
+
 namespace wm::service {
 
 struct RobotOptions {
@@ -31,6 +33,9 @@ struct RobotPose {
   double received_at_unix_s = 0;       // the server's
   std::string via;                     // how the pose came: "scan:laser", "scan:sonar" or "reported"
 };
+
+/// Where a scan says its robot is: the scan's sensor pose and covariance, "scan:<sensor>".
+RobotPose scan_pose(const world::ScanObservation& scan, double received_at_unix_s);
 
 enum class RobotStatus { alive, stale, stopped };
 const char* to_string(RobotStatus status);

@@ -32,9 +32,23 @@ namespace {
 
 // A journaled scan; rows stored before the journal kept scans in binary form hold the request body instead.
 // @throw json_codec::CodecError for such a body this build does not read.
-world::ScanObservation scan_of(const storage::JournaledScan& record) {
-  if (record.scan) return *record.scan;
+world::ScanObservation scan_of(storage::JournaledScan&& record) {
+  if (record.scan) return std::move(*record.scan);
   return json_codec::parse_scan(record.legacy_json, json_codec::ScanLimits{});
+}
+
+// Calls `visit(seq, scan record)` for every journaled scan past `after`, in order, reading a page at a time.
+template <typename Visit>
+void for_each_scan_after(storage::Store& store, std::int64_t after, Visit visit) {
+  constexpr std::size_t kPage = 256;
+  for (;;) {
+    auto page = store.scans_after(after, kPage);
+    for (auto& record : page) {
+      after = record.seq;
+      visit(record.seq, std::move(record));
+    }
+    if (page.size() < kPage) return;
+  }
 }
 
 }  // namespace
@@ -58,8 +72,9 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
   // The journal is the grid's source of truth: a scan is journaled (with its line decisions) before it
   // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
   // revision, to the last journaled scan.
-  for (const auto& record : store_.scans_after(grid_.flushed_scan_seq()))
-    grid_.insert(scan_of(record), record.seq, *snapshot());
+  for_each_scan_after(store_, grid_.flushed_scan_seq(), [this](std::int64_t seq, storage::JournaledScan&& record) {
+    grid_.insert(scan_of(std::move(record)), seq, *snapshot());
+  });
   const std::int64_t last_scan_seq = grid_.last_scan_seq();
   if (last_scan_seq != store_.last_scan_seq())
     throw storage::StorageError("the scan journal ends at " + std::to_string(store_.last_scan_seq()) +
@@ -75,14 +90,14 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
     auto since = last_scan_seq - last_scan_seq % every;
     const bool due = last_scan_seq % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq));
     if (due) since = last_scan_seq - every;
-    for (const auto& record : store_.scans_after(since)) {
+    for_each_scan_after(store_, since, [this](std::int64_t seq, storage::JournaledScan&& record) {
       try {
-        add_to_trim_region(scan_of(record));
+        add_to_trim_region(scan_of(std::move(record)));
       } catch (const std::exception& e) {
         diagnostics_.report(common::Severity::warning, "grid_trim",
-                            "scan " + std::to_string(record.seq) + " left out of the grid trim: " + e.what());
+                            "scan " + std::to_string(seq) + " left out of the grid trim: " + e.what());
       }
-    }
+    });
     if (due && trim_region_) {
       due_trim.emplace(last_scan_seq, *trim_region_);
       trim_region_.reset();
@@ -525,15 +540,7 @@ void WorldService::restore_robots() {
     std::optional<RobotPose> from_scan;
     if (journal.last_scan) {
       try {
-        const auto scan = scan_of(*journal.last_scan);
-        const auto pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
-        from_scan = RobotPose{pose.x_m,
-                              pose.y_m,
-                              pose.theta_rad,
-                              scan.pose_cov.isZero() ? std::nullopt : std::optional<Eigen::Matrix3d>(scan.pose_cov),
-                              scan.stamp_s,
-                              journal.last_scan_received_at,
-                              std::string("scan:") + scan.sensor()};
+        from_scan = scan_pose(scan_of(std::move(*journal.last_scan)), journal.last_scan_received_at);
       } catch (const std::exception&) {
         // A payload this build no longer reads: the robot comes back without its scan pose.
       }

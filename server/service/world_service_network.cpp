@@ -56,17 +56,6 @@ struct PrimitivesJob {
 };
 using ScanJobPtr = std::shared_ptr<ScanJob>;
 
-// Where a committed scan says its robot is (received now).
-RobotPose robot_pose_of(const world::ScanObservation& scan) {
-  const auto sensor_pose = std::visit([](const auto& s) { return s.sensor_pose; }, scan.scan);
-  return RobotPose{sensor_pose.x_m,
-                   sensor_pose.y_m,
-                   sensor_pose.theta_rad,
-                   scan.pose_cov.isZero() ? std::nullopt : std::optional<Eigen::Matrix3d>(scan.pose_cov),
-                   scan.stamp_s,
-                   now_unix_s(),
-                   ""};
-}
 using PrimitivesJobPtr = std::shared_ptr<PrimitivesJob>;
 using Command = std::shared_ptr<std::function<void()>>;
 struct GridTick {
@@ -448,7 +437,7 @@ void WorldService::finish_committed(pipeline::Activation& a) {
   }
   committed_scan_seq_ = d->scan_seq;
   const auto& scan = d->scan->scan;
-  add_robot_event(live, robots_.on_scan(scan.observer, scan.sensor(), robot_pose_of(scan)));
+  add_robot_event(live, robots_.on_scan(scan.observer, scan.sensor(), scan_pose(scan, now_unix_s())));
   d->scan->ticket->succeed(ScanOutcome{d->scan_seq, d->scan_seq, std::move(lines), false, d->placement});
   const bool laser = std::holds_alternative<fusion::LaserScan>(scan.scan);
   a.emit(laser ? "laser_scans" : "sonar_scans",

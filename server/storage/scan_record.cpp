@@ -142,9 +142,6 @@ world::ScanObservation decode_scan(std::string_view blob, std::string observer, 
       laser.ranges_m = r.f64s(r.count());
       r.expect_end();
       fusion::validate(laser);
-      if (!(laser.sigma_range_per_m >= 0 && std::isfinite(laser.sigma_range_per_m)) ||
-          !(laser.usable_range_m >= 0 && std::isfinite(laser.usable_range_m)))
-        throw StorageError("stored scan: the range σ per metre or the usable range is negative or not finite");
       scan.scan = std::move(laser);
     } else if (kind == kSonar) {
       fusion::SonarScan sonar;

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -158,9 +159,11 @@ class Store {
     std::vector<RobotPoseEntry> poses_newest_first;
   };
   std::vector<RobotJournal> robot_journal(std::size_t track_points);
-  /// Journaled scans with seq > after, in order (replayed at start past the last grid flush).
+  /// Journaled scans with seq > after, in order, at most `limit` of them (replayed at start past the last grid flush,
+  /// a page at a time, so that a long unflushed journal is never in memory at once).
   /// @throw StorageError naming the scan when a stored scan is damaged.
-  std::vector<JournaledScan> scans_after(std::int64_t after);
+  std::vector<JournaledScan> scans_after(std::int64_t after,
+                                         std::size_t limit = std::numeric_limits<std::int64_t>::max());
   /// The journaled scan of `seq`; nullopt when there is none. @throw StorageError when it is damaged.
   std::optional<JournaledScan> scan(std::int64_t seq);
 

@@ -206,10 +206,11 @@ bool Store::has_observation(const std::string& observer, const std::string& payl
   return s.step();
 }
 
-std::vector<JournaledScan> Store::scans_after(std::int64_t after) {
+std::vector<JournaledScan> Store::scans_after(std::int64_t after, std::size_t limit) {
   std::lock_guard lock(writer_mutex_);
-  Statement s(writer_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq > ?1 ORDER BY seq");
+  Statement s(writer_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq > ?1 ORDER BY seq LIMIT ?2");
   s.bind(1, after);
+  s.bind(2, static_cast<std::int64_t>(std::min<std::size_t>(limit, std::numeric_limits<std::int64_t>::max())));
   std::vector<JournaledScan> result;
   while (s.step()) result.push_back(journaled_scan(s));
   return result;

@@ -52,6 +52,12 @@ TEST(ScanTest, RejectsInconsistentLaserScans) {
                std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.range_min_m = -0.1; })), std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_m = -0.01; })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_per_m = -0.001; })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_per_m = nan; })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.usable_range_m = -1; })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.usable_range_m = std::numeric_limits<double>::infinity(); })),
+               std::invalid_argument);
+  EXPECT_NO_THROW(validate(bad([&](LaserScan& s) { s.usable_range_m = 0; })));  // 0: the grid's own
 }
 
 TEST(ScanTest, RejectsInconsistentSonarScans) {

@@ -17,8 +17,8 @@ namespace {
 constexpr double kDeg = std::numbers::pi / 180;
 
 // The lines of the map (world frame), known to σ across their middle and in direction (default: a surveyed plan).
-std::vector<AlignmentReference> references_of(const std::vector<raycast::PlanLine>& walls, double sigma_offset_m = 0.001,
-                                              double sigma_angle_rad = 0.01 * kDeg) {
+std::vector<AlignmentReference> references_of(const std::vector<raycast::PlanLine>& walls,
+                                              double sigma_offset_m = 0.001, double sigma_angle_rad = 0.01 * kDeg) {
   std::vector<AlignmentReference> references;
   for (const auto& wall : walls) {
     const auto shape = LineSegment::from_points(wall.p0, wall.p1, Eigen::Matrix2d::Identity());

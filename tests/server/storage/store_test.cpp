@@ -175,6 +175,21 @@ TEST(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
   store.commit_scan({2, &second}, std::nullopt);
   EXPECT_EQ(store.last_scan_seq(), 2);
   EXPECT_FALSE(store.find_request("scan-2"));
+  // Read a page at a time, and one by its number.
+  const auto third = laser_scan(3.5);
+  store.commit_scan({3, &third}, std::nullopt);
+  const auto page = store.scans_after(0, 2);
+  ASSERT_EQ(page.size(), 2u);
+  EXPECT_EQ(page[0].seq, 1);
+  EXPECT_EQ(page[1].seq, 2);
+  const auto rest = store.scans_after(page.back().seq, 2);
+  ASSERT_EQ(rest.size(), 1u);
+  EXPECT_EQ(rest[0].seq, 3);
+  EXPECT_TRUE(store.scans_after(3, 2).empty());
+  const auto by_number = store.scan(2);
+  ASSERT_TRUE(by_number && by_number->scan);
+  EXPECT_EQ(by_number->scan->stamp_s, 3.0);
+  EXPECT_FALSE(store.scan(4));
 }
 
 TEST(StoreTest, AScanWhoseLinesFailToCommitLeavesNoJournalEntry) {
