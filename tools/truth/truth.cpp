@@ -97,7 +97,11 @@ double people_elements(const std::vector<Piece>& elements, const BuiltWorld& wor
       bool on_truth = false;
       for (const auto& line : world.lines)
         on_truth = on_truth || point_segment_distance(p, line.p0, line.p1) <= kOnLineM;
-      if (!on_truth) length += each;
+      if (on_truth) continue;
+      length += each;
+      if (std::getenv("WM_TRUTH_VERBOSE"))
+        std::fprintf(stderr, "by a person's track: (%.2f, %.2f) of the %.2f m element (%.2f, %.2f) to (%.2f, %.2f)\n",
+                     p.x(), p.y(), e.length(), e.p0.x(), e.p0.y(), e.p1.x(), e.p1.y());
     }
   }
   return length;
@@ -282,6 +286,10 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
               object && *v.edge < object->body.edges().size()) {
             const auto edge = object->body.world_edge(*v.edge, Eigen::Matrix2d::Zero());
             const auto& wall = walls[it->second];
+            if (std::getenv("WM_TRUTH_DEBUG"))
+              std::fprintf(stderr, "DBG %s edge (%.3f,%.3f)-(%.3f,%.3f) wall (%.3f,%.3f)-(%.3f,%.3f) s %.2f %.2f\n",
+                           v.object_id.c_str(), edge.p0().x(), edge.p0().y(), edge.p1().x(), edge.p1().y(), wall.p0.x(),
+                           wall.p0.y(), wall.p1.x(), wall.p1.y(), s0, s1);
             if ((edge.p0() - wall.p0).norm() > (edge.p0() - wall.p1).norm()) {
               const double length = (wall.p1 - wall.p0).norm();
               std::tie(s0, s1) = std::pair{length - s1, length - s0};

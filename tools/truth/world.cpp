@@ -183,6 +183,19 @@ BuiltWorld build_world(const Building& building, const Edits& edits, unsigned se
         apart = apart && segment_distance(walls[v].p0, walls[v].p1, walls[w].p0, walls[w].p1) >= 1.0;
     if (!apart) continue;
     auto group = twins_of(w);
+    // A wall whose other face runs on past it (a longer face, only partly across from this one) is not taken away:
+    // that edit would leave the wall standing a few cm behind where it is drawn, a thinner wall, not a missing one.
+    const Vec d = (walls[w].p1 - walls[w].p0).normalized(), n(-d.y(), d.x());
+    const double length = (walls[w].p1 - walls[w].p0).norm();
+    bool half_a_wall = false;
+    for (std::size_t v = 0; v < walls.size() && !half_a_wall; ++v) {
+      if (std::find(group.begin(), group.end(), static_cast<int>(v)) != group.end()) continue;
+      if (direction_difference(d, walls[v].p1 - walls[v].p0) > 3 * kDeg) continue;
+      if (std::abs(n.dot((walls[v].p0 + walls[v].p1) / 2 - walls[w].p0)) > 0.35) continue;
+      const double t0 = d.dot(walls[v].p0 - walls[w].p0), t1 = d.dot(walls[v].p1 - walls[w].p0);
+      half_a_wall = std::min(length, std::max(t0, t1)) - std::max(0.0, std::min(t0, t1)) >= 0.3;
+    }
+    if (half_a_wall) continue;
     for (const int v : group) removed[v] = 1;
     world.demolished.push_back(std::move(group));
   }
