@@ -177,6 +177,17 @@ double required_number(const json& doc, const std::string& key, double limit, co
 
 }  // namespace
 
+void require_pose_covariance(const Eigen::Matrix3d& cov, const std::string& field) {
+  const double scale = std::max(1e-300, cov.cwiseAbs().maxCoeff());
+  if ((cov - cov.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) throw bad_request(field, "not symmetric");
+  if (cov.diagonal().minCoeff() < 0) throw bad_request(field, "a variance is negative");
+  // One that is not positive semi-definite would weigh the pose negatively where a scan is aligned to the map, and
+  // spread a line's covariance into a negative variance.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(cov);
+  if (eigen.eigenvalues().minCoeff() < -1e-9 * scale)
+    throw bad_request(field, "not positive semi-definite (a correlation above 1)");
+}
+
 world::ScanObservation parse_scan(std::string_view body, const ScanLimits& limits) {
   const json doc = parse_json(body);
   if (!doc.is_object()) throw bad_request("", "expected a scan object");
@@ -214,13 +225,7 @@ world::ScanObservation parse_scan(std::string_view body, const ScanLimits& limit
       for (int c = 0; c < 3; ++c)
         request.pose_cov(r, c) = finite_number((*it)[r][c], item(item("pose_cov", r), c), 1e6);
     }
-    if (!request.pose_cov.isApprox(request.pose_cov.transpose(), 1e-12) || request.pose_cov.diagonal().minCoeff() < 0)
-      throw bad_request("pose_cov", "not a symmetric covariance");
-    // A covariance is positive semi-definite: one that is not would weigh the pose negatively where the scan is
-    // aligned to the map, and spread its lines' covariance into a negative variance.
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(request.pose_cov);
-    if (eigen.eigenvalues().minCoeff() < -1e-9 * std::max(1e-300, eigen.eigenvalues().cwiseAbs().maxCoeff()))
-      throw bad_request("pose_cov", "not positive semi-definite (a correlation above 1)");
+    require_pose_covariance(request.pose_cov, "pose_cov");
   }
   const double range_min =
       doc.contains("range_min") ? finite_number(doc["range_min"], "range_min", limits.max_range_m) : 0.0;

@@ -40,6 +40,10 @@ struct PrimitiveLimits {
 /// are given and differ.
 std::optional<std::string> observer_of(const nlohmann::json& doc);
 
+/// Checks a pose covariance over (x, y, θ) a client sent as `field`. @throw CodecError (bad_request naming `field`)
+/// unless it is symmetric, its variances are not negative and it is positive semi-definite.
+void require_pose_covariance(const Eigen::Matrix3d& cov, const std::string& field);
+
 /// Parses and validates POST /api/v1/primitives. @throw CodecError (bad_request) naming the bad field.
 world::Observation parse_primitives(std::string_view body, const world::WorldOptions& options,
                                     const PrimitiveLimits& limits);

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "apriori/import/json_limits.h"
+#include "server/json/codec.h"
 #include "server/json/codec_error.h"
 
 namespace wm::json_codec {
@@ -95,9 +96,7 @@ ReportedPose parse_reported_pose(std::string_view text) {
         m(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = v.get<double>();
       }
     }
-    const double scale = std::max(1e-12, m.cwiseAbs().maxCoeff());
-    if ((m - m.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) throw bad_request("cov", "not symmetric");
-    if (m(0, 0) < 0 || m(1, 1) < 0 || m(2, 2) < 0) throw bad_request("cov", "a variance is negative");
+    json_codec::require_pose_covariance(m, "cov");
     pose.cov = m;
   }
   if (body.contains("state")) {

@@ -43,6 +43,7 @@ TEST_F(RobotsHandlersTest, BadPosesAndIdsAreRefusedWithTheReasonAndChangeNothing
       {R"({"x": 1e6, "y": 0, "theta": 0})", "x: absurd value"},
       {R"({"x": 0, "y": 0, "theta": 0, "cov": [[1, 2, 0], [0, 1, 0], [0, 0, 1]]})", "cov: not symmetric"},
       {R"({"x": 0, "y": 0, "theta": 0, "cov": [[-1, 0, 0], [0, 1, 0], [0, 0, 1]]})", "cov: a variance is negative"},
+      {R"({"x": 0, "y": 0, "theta": 0, "cov": [[1, 2, 0], [2, 1, 0], [0, 0, 1]]})", "cov: not positive semi-definite"},
       {R"({"x": 0, "y": 0, "theta": 0, "cov": [[1, 0], [0, 1]]})", "cov: expected a 3×3"},
       {R"({"x": 0, "y": 0, "theta": 0, "state": "flying"})", "state: expected"},
       {R"({"x": 0, "y": 0, "theta": 0, "speed": 1})", "speed: unknown field"},
