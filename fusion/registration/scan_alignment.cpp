@@ -100,7 +100,7 @@ std::vector<Pair> pair_lines(const std::vector<LineSegment>& local, const Pose2D
     if (segment.length_m() < options.min_segment_length_m) continue;
     const double range = std::max(segment.p0().norm(), segment.p1().norm());
     const Box reach = box_of(pose.transform_point(segment.p0()), pose.transform_point(segment.p1()),
-                             5 * (sigma_xy + range * sigma_theta) + 0.05);
+                             alignment_reach_m(sigma_xy, sigma_theta, range));
     std::optional<Pair> best, second;
     double best_chi2 = std::numeric_limits<double>::infinity(), second_chi2 = best_chi2;
     for (std::size_t r = 0; r < references.size(); ++r) {
@@ -179,8 +179,8 @@ ScanAlignment align_scan_lines(const std::vector<LineSegment>& local, const Pose
     const Vector3 relative = state.head<3>() - state.tail<3>();
     const Matrix3 relative_cov = cov.topLeftCorner<3, 3>() + cov.bottomRightCorner<3, 3>() -
                                  cov.topRightCorner<3, 3>() - cov.bottomLeftCorner<3, 3>();
-    const auto pairs = pair_lines(local, Pose2D{relative(0), relative(1), relative(2)},
-                                  pass == 0 ? posted_cov : relative_cov, references, reference_boxes, options);
+    const auto pairs = pair_lines(local, Pose2D{relative(0), relative(1), relative(2)}, relative_cov, references,
+                                  reference_boxes, options);
     if (pairs.size() < options.min_pairs) return result;
     std::vector<double> offset_vars, angle_vars;
     for (const auto& pair : pairs) {
@@ -217,6 +217,10 @@ ScanAlignment align_scan_lines(const std::vector<LineSegment>& local, const Pose
   const Vector3 step = state.head<3>() - posted;
   if (!(step.dot(prior_information * step) <= options.max_correction_chi2)) return result;
   return {Pose2D{state(0), state(1), state(2)}, cov.topLeftCorner<3, 3>(), pairs_used, true};
+}
+
+double alignment_reach_m(double sigma_xy_m, double sigma_theta_rad, double range_m) {
+  return 5 * (sigma_xy_m + range_m * sigma_theta_rad) + 0.05;
 }
 
 }  // namespace wm::fusion

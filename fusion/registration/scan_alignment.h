@@ -67,4 +67,10 @@ ScanAlignment align_scan_lines(const std::vector<LineSegment>& local, const Pose
                                const Eigen::Matrix3d& posted_cov, const std::vector<AlignmentReference>& references,
                                const ScanAlignmentOptions& options = {});
 
+/// How far [m] the alignment looks for a map line around a point `range_m` from the sensor, for a pose with σ
+/// `sigma_xy_m` in position and `sigma_theta_rad` in heading: 5 σ of what the pose moves that point by, plus 5 cm
+/// (the pair gate, χ² 13.8 with 2 degrees of freedom, is 3.7 σ). Callers that gather the map lines use it too, so
+/// that both look equally far.
+double alignment_reach_m(double sigma_xy_m, double sigma_theta_rad, double range_m);
+
 }  // namespace wm::fusion

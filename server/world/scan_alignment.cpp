@@ -8,13 +8,13 @@ namespace wm::world {
 fusion::ScanAlignment align_to_map(const WorldState& state, const std::vector<fusion::LineSegment>& local,
                                    const fusion::Pose2D& posted_pose, const Eigen::Matrix3d& posted_cov,
                                    const WorldOptions& world_options, const fusion::ScanAlignmentOptions& options) {
-  // Within reach: the farthest line end, plus what a pose 4 σ off could shift it by (the pair gate, χ² 13.8 with 2
-  // degrees of freedom, is 3.7 σ).
-  double reach_m = 0;
-  for (const auto& segment : local) reach_m = std::max({reach_m, segment.p0().norm(), segment.p1().norm()});
+  // Within reach: the farthest line end, plus as far as the alignment looks around it (a pose posted as a guess
+  // is not aligned; its σ, capped, bounds what is gathered).
+  double range_m = 0;
+  for (const auto& segment : local) range_m = std::max({range_m, segment.p0().norm(), segment.p1().norm()});
   const double sigma_xy = std::min(std::sqrt(std::max(posted_cov(0, 0), posted_cov(1, 1))), options.max_posted_sigma_m);
   const double sigma_theta = std::min(std::sqrt(std::max(posted_cov(2, 2), 0.0)), options.max_posted_sigma_rad);
-  reach_m += 4 * (sigma_xy + reach_m * sigma_theta);
+  const double reach_m = range_m + fusion::alignment_reach_m(sigma_xy, sigma_theta, range_m);
   const Box near{posted_pose.x_m - reach_m, posted_pose.y_m - reach_m, posted_pose.x_m + reach_m,
                  posted_pose.y_m + reach_m};
 
