@@ -116,11 +116,11 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       continue;
     }
     if (flag == "--no-scan-lines") {
-      c.service.extract_scan_lines = false;
+      c.service.ingest.extract_scan_lines = false;
       continue;
     }
     if (flag == "--no-scan-alignment") {
-      c.service.align_scans = false;
+      c.service.ingest.align_scans = false;
       continue;
     }
     if (flag == "--no-shm") {
@@ -187,27 +187,28 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     } else if (flag == "--gate-chi2")
       throw ConfigError("--gate-chi2: matching no longer uses a χ² gate on (ρ, φ); use --gate-sigmas N");
     else if (flag == "--gate-sigmas")
-      c.service.world.match.gate_sigmas = parse_number<double>(flag, value, 0.5, 10.0);
+      c.service.map.world.match.gate_sigmas = parse_number<double>(flag, value, 0.5, 10.0);
     else if (flag == "--max-gap")
-      c.service.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
+      c.service.map.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
     else if (flag == "--rule-inferences")
       c.rules.inference_limit = parse_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
     else if (flag == "--rule-time-limit")
       c.rules.time_limit_s = parse_number<double>(flag, value, 0.001, 60.0);
     else if (flag == "--grid-flush-ms")
-      c.service.grid_flush_interval = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 0, 86'400'000));
+      c.service.grids.flush_interval =
+          std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 0, 86'400'000));
     else if (flag == "--network")
-      c.service.network_file = std::filesystem::path(value);
+      c.service.ingest.network_file = std::filesystem::path(value);
     else if (flag == "--write-threads")
       c.http.write_threads = parse_number<int>(flag, value, 1, 1024);
     else if (flag == "--grid-extract-every")
-      c.service.grid_extract_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
+      c.service.ingest.grid_extract_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-trim-every")
-      c.service.grid_trim_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
+      c.service.ingest.grid_trim_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-resolution")
-      c.service.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
+      c.service.grids.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
     else if (flag == "--usable-range")
-      c.service.grid.sensor.max_usable_range_m = parse_number<double>(flag, value, 0.1, 1000.0);
+      c.service.grids.grid.sensor.max_usable_range_m = parse_number<double>(flag, value, 0.1, 1000.0);
     else if (flag == "--shm-max-mb")
       c.shm.max_bytes = parse_number<std::uint64_t>(flag, value, 1, 1'048'576) << 20;
     else if (flag == "--shm-period-ms")

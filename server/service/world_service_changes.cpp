@@ -42,8 +42,8 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
                               " (" + change->key + ", confidence " +
                               std::to_string(std::lround(change->confidence * 100)) + " %): " + change->explanation;
     if (!added.empty()) explanation += "; drawn as object " + added;
-    auto p = own_observation(state, std::move(observer), "plan", "none");
-    p.update = world::apply_plan_edit(*state, plan ? *plan : before, options_.world, remove, p.seq,
+    auto p = MapWriter::own_observation(state, std::move(observer), "plan", "none");
+    p.update = world::apply_plan_edit(*state, plan ? *plan : before, options_.map.world, remove, p.seq,
                                       accept ? rules::Action::accept : rules::Action::reject,
                                       accept ? "change_accepted" : "change_rejected", explanation,
                                       p.observation.observer, subject);
@@ -51,13 +51,13 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
         nlohmann::json{{"change", change_id}, {"verdict", accept ? "accepted" : "rejected"}}.dump();
     storage::Store::PlanChangeRecord record{change_id, accept ? "accepted" : "rejected",
                                             accept ? std::optional(before) : std::nullopt, 0};
-    commit_prepared(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, record); });
+    writer_.commit(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, record); });
     outcome.decision = p.update.decisions.at(0);
     auto removed = world::removed_objects(*state, p.update.state);
     auto live = event_log_.begin();
-    outcome.version = finish_update(std::move(p), live, std::move(removed)).version;
+    outcome.version = writer_.finish(std::move(p), live, std::move(removed)).version;
     if (accept) {
-      sync_all_facts(engine_, *snapshot(), options_.world);
+      sync_all_facts(engine_, *snapshot(), options_.map.world);
       plan_checks_.refresh(*snapshot(), std::nullopt);
     } else {
       plan_checks_.reject(change_id);
@@ -76,22 +76,22 @@ ChangeOutcome WorldService::undo_change(std::string observer) {
     const auto state = snapshot();
     std::optional<apriori::FloorPlan> plan;
     if (last.verdict == "accepted" && last.plan_before) plan = last.plan_before;
-    auto p = own_observation(state, std::move(observer), "plan", "none");
+    auto p = MapWriter::own_observation(state, std::move(observer), "plan", "none");
     const std::string explanation = "undo of decision " + std::to_string(last.decision_seq) + ": change " +
                                     last.change_id + " is no longer " + last.verdict +
                                     (plan ? "; the plan is back as it was before it" : "; it is listed again");
-    p.update = world::apply_plan_edit(*state, plan ? *plan : world::current_plan(*state), options_.world, {}, p.seq,
+    p.update = world::apply_plan_edit(*state, plan ? *plan : world::current_plan(*state), options_.map.world, {}, p.seq,
                                       rules::Action::undo, "change_undone", explanation, p.observation.observer, "");
     const std::string payload = nlohmann::json{{"undo", last.decision_seq}, {"change", last.change_id}}.dump();
-    commit_prepared(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, std::nullopt); });
+    writer_.commit(p, [&] { store_.commit_plan_change({p.update, p.observation, payload}, plan, std::nullopt); });
     ChangeOutcome outcome;
     outcome.change_id = last.change_id;
     outcome.decision = p.update.decisions.at(0);
     auto removed = world::removed_objects(*state, p.update.state);
     auto live = event_log_.begin();
-    outcome.version = finish_update(std::move(p), live, std::move(removed)).version;
+    outcome.version = writer_.finish(std::move(p), live, std::move(removed)).version;
     if (plan) {
-      sync_all_facts(engine_, *snapshot(), options_.world);
+      sync_all_facts(engine_, *snapshot(), options_.map.world);
       plan_checks_.refresh(*snapshot(), std::nullopt);
     } else {
       plan_checks_.unreject(last.change_id);

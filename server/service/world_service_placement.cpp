@@ -44,15 +44,15 @@ PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& cha
                                                bool undo) {
   const auto base = snapshot();
   if (base->objects.empty()) throw Conflict("no floor plan is loaded: there is nothing to place");
-  auto p = own_observation(base, change.observer, "placement", "none");
+  auto p = MapWriter::own_observation(base, change.observer, "placement", "none");
   p.update = world::apply_placement(*base, change, p.seq);
-  commit_prepared(p, [&] { store_.commit_placement({p.update, p.observation, payload}, undo); });
+  writer_.commit(p, [&] { store_.commit_placement({p.update, p.observation, payload}, undo); });
   const auto decision = p.update.decisions.at(0);
   const auto placement = p.update.state.placement;
   auto live = event_log_.begin();
-  auto outcome = finish_update(std::move(p), live);
+  auto outcome = writer_.finish(std::move(p), live);
   // The rules see the edges where the plan now is, before the next request is decided.
-  engine_.set_floor_plan(object_facts(*snapshot(), options_.world));
+  engine_.set_floor_plan(object_facts(*snapshot(), options_.map.world));
   plan_checks_.refresh(*snapshot(), std::nullopt);
   live.add(events::EventKind::placement, [&] {
     return json_codec::placement_event(outcome.version, placement, snapshot()->placement_cov, decision);
@@ -180,7 +180,7 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
     observation.sensor = "redecide";
     observation.received_at_unix_s = now_unix_s();
     observation.segments.push_back({current->segment});
-    auto result = world::apply_observation(without, observation, seq, options_.world, decide);
+    auto result = world::apply_observation(without, observation, seq, options_.map.world, decide);
     const auto action = result.decisions.at(0).action;
     if (action != rules::Action::confirm && action != rules::Action::merge && action != rules::Action::rigid_adjust)
       continue;  // the rules would keep it: it stays as it is, with its history
@@ -203,13 +203,13 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
   for (const auto n : total.removed_elements) total.changed_elements.erase(n);
   total.state.version = base->version + 1;
   total.state.last_observation_seq = seq;
-  auto p = own_observation(base, observer, "redecide", "none");
+  auto p = MapWriter::own_observation(base, observer, "redecide", "none");
   p.update = std::move(total);
   const std::string payload = "{\"redecide\": " + std::to_string(outcome.elements) + "}";
-  commit_prepared(p, [&] { store_.commit_observation(p.update, p.observation, payload); });
+  writer_.commit(p, [&] { store_.commit_observation(p.update, p.observation, payload); });
   auto live = event_log_.begin();
-  auto done = finish_update(std::move(p), live);
-  sync_all_facts(engine_, *snapshot(), options_.world);
+  auto done = writer_.finish(std::move(p), live);
+  sync_all_facts(engine_, *snapshot(), options_.map.world);
   outcome.version = done.version;
   outcome.decisions = std::move(done.decisions);
   return outcome;
@@ -223,7 +223,7 @@ std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference>
     ++state.version;
     store_.commit_georeference(state);
     const auto version = state.version;
-    published_.publish(std::move(state));
+    writer_.published().publish(std::move(state));
     emit(events::EventKind::georeference, [&] { return json_codec::georeference_event(version); });
     return version;
   });

@@ -36,11 +36,11 @@ int main(int argc, char** argv) {
       continue;
     }
     if (arg == "--grid-trim-every" && i + 1 < argc) {
-      options.service.grid_trim_every = static_cast<std::size_t>(std::stoul(argv[++i]));
+      options.service.ingest.grid_trim_every = static_cast<std::size_t>(std::stoul(argv[++i]));
       continue;
     }
     if (arg == "--no-scan-alignment") {
-      options.service.align_scans = false;
+      options.service.ingest.align_scans = false;
       continue;
     }
     if (arg == "--pose-sigma" && i + 1 < argc) {

@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
         continue;
       }
       if (flag == "--no-scan-alignment") {
-        options.service.align_scans = false;
+        options.service.ingest.align_scans = false;
         continue;
       }
       if (i + 1 >= argc) throw std::invalid_argument(flag + " needs a value");

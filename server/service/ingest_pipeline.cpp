@@ -1,5 +1,5 @@
-// The world service's processing network: the component kinds (matcher, store, grid, grid_lines), the default task
-// file, and the matcher's commands.
+// The ingest's processing network: the component kinds (matcher, store, grid, grid_lines), the default task file,
+// and the stages a scan goes through.
 //
 // A scan's path, in the order of this file:
 //   1. post_scan (an HTTP write thread): the scan and its ticket go into the matcher's queue; the thread waits on the
@@ -14,27 +14,18 @@
 //   5. insert_grid_scans (grid): the scan goes into both grids; its grid event closes the commit's events; every
 //      grid_trim_every scans a trim tick goes back to the matcher (decide_trim), and the scan's answer leaves when the
 //      last stage holding its ticket lets go of it.
+#include "server/service/ingest_pipeline.h"
+
 #include <cmath>
 #include <future>
 
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
-#include "server/service/knowledge_facts.h"
+#include "server/service/journal.h"
+#include "server/service/service_errors.h"
 #include "server/service/ticket.h"
-#include "server/service/world_service.h"
 
 namespace wm::service {
-
-// FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
-// Not a defence against a client that crafts collisions, which could only confuse its own requests.
-std::int64_t WorldService::body_hash(std::string_view body) {
-  std::uint64_t h = 14695981039346656037ull;
-  for (const unsigned char c : body) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return static_cast<std::int64_t>(h);
-}
 
 namespace {
 
@@ -66,7 +57,7 @@ struct GridTick {
 }  // namespace
 
 // A request decided on the matcher, on its way through the store and back.
-struct WorldService::Decided {
+struct IngestPipeline::Decided {
   std::uint64_t epoch = 0;
   ScanJobPtr scan;  // a scan (with its lines, if any) ...
   std::int64_t scan_seq = 0;
@@ -80,7 +71,7 @@ struct WorldService::Decided {
 };
 
 // A committed scan on its way into the grids, with its commit's live events (the scan event goes last).
-struct WorldService::GridScan {
+struct IngestPipeline::GridScan {
   ScanJobPtr job;
   std::int64_t seq = 0;
   EventLog::Commit live;
@@ -113,7 +104,7 @@ executors:
 )";
 }
 
-pipeline::Registry WorldService::network_registry() {
+pipeline::Registry IngestPipeline::network_registry() {
   using pipeline::Component;
   using pipeline::InputOptions;
   using pipeline::PortPolicy;
@@ -201,15 +192,58 @@ pipeline::Registry WorldService::network_registry() {
   return registry;
 }
 
-std::shared_ptr<const world::WorldState> WorldService::head() const { return in_flight_ > 0 ? head_ : snapshot(); }
-
-void WorldService::refresh_head() {
-  // With nothing in flight the published map is the head (a command may have changed it); a request that changes
-  // nothing (a sonar scan, a scan without lines) still goes in flight, and the next one chains from this.
-  if (in_flight_ == 0) head_ = snapshot();
+IngestPipeline::IngestPipeline(const IngestOptions& options, IngestParts parts)
+    : options_(options),
+      parts_(parts),
+      store_(parts.store),
+      engine_(parts.engine),
+      writer_(parts.writer),
+      grid_(parts.grid),
+      diagnostics_(parts.diagnostics) {
+  head_ = writer_.snapshot();
+  const std::int64_t last_scan_seq = grid_.last_scan_seq();
+  next_scan_seq_ = committed_scan_seq_ = last_scan_seq;
+  // The grid trim looks at what the scans since the last one could see: rebuilt from the journal, so a restart trims
+  // as an uninterrupted run would. A crash between a scan and the trim it made due leaves that trim undone: it is
+  // made at start (trim_left_undone), against the same map and grid the run had then (the journal ends at that scan).
+  if (options_.grid_trim_every > 0 && last_scan_seq > 0) {
+    const auto every = static_cast<std::int64_t>(options_.grid_trim_every);
+    auto since = last_scan_seq - last_scan_seq % every;
+    const bool due = last_scan_seq % every == 0 && !store_.has_observation(kTrimObserver, trim_payload(last_scan_seq));
+    if (due) since = last_scan_seq - every;
+    for_each_journaled_scan(store_, since, [this](std::int64_t seq, storage::JournaledScan&& record) {
+      try {
+        add_to_trim_region(journaled_scan(std::move(record)));
+      } catch (const std::exception& e) {
+        diagnostics_.report(common::Severity::warning, "grid_trim",
+                            "scan " + std::to_string(seq) + " left out of the grid trim: " + e.what());
+      }
+    });
+    if (due && trim_region_) {
+      trim_left_undone_.emplace(last_scan_seq, *trim_region_);
+      trim_region_.reset();
+    }
+  }
+  const auto spec = options_.network_file ? pipeline::read_task_file(options_.network_file->string())
+                                          : pipeline::parse_task(default_network_yaml(), "<default network>");
+  // A function that throws is a bug: counted in the network's stats, and reported here with what it said.
+  network_ = std::make_unique<pipeline::Network>(
+      spec, network_registry(), [this](std::string_view component, std::string_view function, std::string_view what) {
+        diagnostics_.report(common::Severity::error, "network",
+                            std::string(component) + "." + std::string(function) + " failed: " + std::string(what));
+      });
+  network_->start();
 }
 
-void WorldService::submit_command(std::function<void()> job) {
+IngestPipeline::~IngestPipeline() {
+  const auto report = network_->stop(true);
+  for (const auto& [port, count] : report.dropped)
+    diagnostics_.report(
+        common::Severity::warning, "network",
+        "stopped with " + std::to_string(count) + " values left in " + port + " (their requests got 503)");
+}
+
+void IngestPipeline::submit_command(std::function<void()> job) {
   try {
     network_->inject("matcher", "commands", std::make_shared<std::function<void()>>(std::move(job)));
   } catch (const pipeline::QueueFull& e) {
@@ -217,8 +251,8 @@ void WorldService::submit_command(std::function<void()> job) {
   }
 }
 
-ScanOutcome WorldService::post_scan(world::ScanObservation scan, std::string payload_json,
-                                    std::optional<std::string> request_id) {
+ScanOutcome IngestPipeline::post_scan(world::ScanObservation scan, std::string payload_json,
+                                      std::optional<std::string> request_id) {
   const std::string sensor = scan.sensor();
   if (!accepts_scans(sensor))
     throw std::invalid_argument("the processing network (" + network_->source() + ") does not process " + sensor +
@@ -234,8 +268,8 @@ ScanOutcome WorldService::post_scan(world::ScanObservation scan, std::string pay
   return future.get();
 }
 
-PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
-                                                std::optional<std::string> request_id) {
+PrimitivesOutcome IngestPipeline::post_primitives(world::Observation observation, std::string payload_json,
+                                                  std::optional<std::string> request_id) {
   auto job = std::make_shared<PrimitivesJob>(PrimitivesJob{std::move(observation), std::move(payload_json),
                                                            std::move(request_id), std::make_shared<PrimitivesTicket>(),
                                                            nullptr});
@@ -248,28 +282,23 @@ PrimitivesOutcome WorldService::post_primitives(world::Observation observation, 
   return future.get();
 }
 
-bool WorldService::accepts_scans(const std::string& sensor) const { return network_->consumes("matcher", sensor); }
+bool IngestPipeline::accepts_scans(const std::string& sensor) const { return network_->consumes("matcher", sensor); }
 
-pipeline::NetworkStats WorldService::network_stats() const { return network_->stats(); }
+pipeline::NetworkStats IngestPipeline::stats() const { return network_->stats(); }
 
 // On the matcher, from finish only: the groups committed before the failed one are finished (and published) by then,
 // and what was decided after it carries its epoch and fails in the store.
-void WorldService::resync_after_failure() {
+void IngestPipeline::resync_after_failure() {
   if (failed_epoch_ < epoch_) return;
   epoch_ = failed_epoch_ + 1;
   // What was decided on top of the failed group fails in the store too; the next request starts from the committed
   // map.
-  head_ = snapshot();
+  head_ = writer_.snapshot();
   next_scan_seq_ = committed_scan_seq_;
-  try {
-    sync_all_facts(engine_, *head_, options_.world);
-  } catch (const std::exception& e) {
-    diagnostics_.report(common::Severity::error, "rules",
-                        std::string("rule facts not restored after a failed commit: ") + e.what());
-  }
+  writer_.restore_facts(*head_, "a failed commit");
 }
 
-void WorldService::decide_scan(pipeline::Activation& a, const std::string& port) {
+void IngestPipeline::decide_scan(pipeline::Activation& a, const std::string& port) {
   refresh_head();
   auto job = a.take<ScanJobPtr>(port);
   try {
@@ -307,7 +336,7 @@ void WorldService::decide_scan(pipeline::Activation& a, const std::string& port)
   }
 }
 
-void WorldService::decide_primitives(pipeline::Activation& a) {
+void IngestPipeline::decide_primitives(pipeline::Activation& a) {
   refresh_head();
   auto job = a.take<PrimitivesJobPtr>("primitives");
   try {
@@ -323,7 +352,7 @@ void WorldService::decide_primitives(pipeline::Activation& a) {
     }
     auto d = std::make_shared<Decided>();
     d->epoch = epoch_;
-    d->update = prepare_update(std::move(job->observation));
+    d->update = writer_.prepare(head(), std::move(job->observation));
     if (job->request_id) {
       d->request = storage::RequestRecord{
           *job->request_id, "primitives", hash, d->update->seq, d->update->update.state.version, 0, std::nullopt};
@@ -347,7 +376,7 @@ void WorldService::decide_primitives(pipeline::Activation& a) {
   }
 }
 
-void WorldService::decide_trim(pipeline::Activation& a) {
+void IngestPipeline::decide_trim(pipeline::Activation& a) {
   refresh_head();
   auto tick = a.take<TrimTick>("trim");
   auto p = prepare_trim(tick.region);
@@ -362,7 +391,7 @@ void WorldService::decide_trim(pipeline::Activation& a) {
   a.emit("decided", std::move(d));
 }
 
-void WorldService::commit_group(pipeline::Activation& a) {
+void IngestPipeline::commit_group(pipeline::Activation& a) {
   auto group = a.take_all<DecidedPtr>("in");
   std::vector<DecidedPtr> valid;
   for (auto& d : group) {
@@ -407,7 +436,7 @@ void WorldService::commit_group(pipeline::Activation& a) {
   for (auto& d : group) a.emit("committed", std::move(d));
 }
 
-void WorldService::finish_committed(pipeline::Activation& a) {
+void IngestPipeline::finish_committed(pipeline::Activation& a) {
   auto d = a.take<DecidedPtr>("committed");
   --in_flight_;
   if (d->request) pending_request_ids_.erase(d->request->request_id);
@@ -424,32 +453,33 @@ void WorldService::finish_committed(pipeline::Activation& a) {
     return;
   }
   // The commit's events: its update, the robot heard from, and (a scan, on the grid thread) the grid region.
-  auto live = event_log_.begin();
+  auto live = parts_.events.begin();
   const std::string observer = d->update ? d->update->observation.observer : std::string();
   std::optional<PrimitivesOutcome> lines;
-  if (d->update) lines = finish_update(std::move(*d->update), live);
+  if (d->update) lines = writer_.finish(std::move(*d->update), live);
   if (!d->scan) {
     if (d->primitives && d->primitives->ticket) {
-      add_robot_event(live, robots_.on_primitives(observer, now_unix_s()));
+      add_robot_event(live, parts_.robots, parts_.robots.on_primitives(observer, now_unix_s()));
       d->primitives->ticket->succeed(std::move(*lines));
     }
     return;
   }
   committed_scan_seq_ = d->scan_seq;
   const auto& scan = d->scan->scan;
-  add_robot_event(live, robots_.on_scan(scan.observer, scan.sensor(), scan_pose(scan, now_unix_s())));
+  add_robot_event(live, parts_.robots,
+                  parts_.robots.on_scan(scan.observer, scan.sensor(), scan_pose(scan, now_unix_s())));
   d->scan->ticket->succeed(ScanOutcome{d->scan_seq, d->scan_seq, std::move(lines), false, d->placement});
   const bool laser = std::holds_alternative<fusion::LaserScan>(scan.scan);
   a.emit(laser ? "laser_scans" : "sonar_scans",
          std::make_shared<GridScan>(GridScan{std::move(d->scan), d->scan_seq, std::move(live)}));
 }
 
-void WorldService::insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every) {
+void IngestPipeline::insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every) {
   std::vector<GridScanPtr> scans;
   if (laser) scans.push_back(a.take<GridScanPtr>("laser"));
   if (sonar) scans.push_back(a.take<GridScanPtr>("sonar"));
   std::sort(scans.begin(), scans.end(), [](const auto& x, const auto& y) { return x->seq < y->seq; });
-  const auto state = snapshot();
+  const auto state = writer_.snapshot();
   for (const auto& s : scans) {
     try {
       grid_.insert(s->job->scan, s->seq, *state);
