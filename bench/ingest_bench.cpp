@@ -3,7 +3,8 @@
 // robot k posting scans k, k + R, ... in order as observer "robot-k"), with --sync full on a fresh database.
 // Baselines in the same run:
 //  - the same ingest against wmd started with the extra arguments in WM_BENCH_BASELINE_ARGS (space-separated;
-//    unset: --handler-threads 8, today's default);
+//    unset: --handler-threads 8, today's default), or against another wmd build, WM_BENCH_BASELINE_WMD=PATH (then
+//    with no extra arguments unless given): a refactor's wmd against the one before it;
 //  - raw SQLite (WAL, synchronous=FULL) inserting one Intel scan body per transaction, the fsync ceiling of a
 //    writer that commits every scan on its own, and 16 per transaction, what group commit could reach.
 // WM_BENCH_QUICK caps the log at 200 scans; WM_BENCH_LOG=FILE posts another CARMEN log's laser scans (the first
@@ -158,14 +159,14 @@ void print_network_profile(const std::string& label, int robots, const std::stri
 }
 
 void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans,
-            const std::vector<std::string>* wmd_args, const std::string* label) {
+            const std::vector<std::string>* wmd_args, const std::string* binary, const std::string* label) {
   const int robots = static_cast<int>(state.range(0));
   const auto bodies = robot_bodies(*scans, robots);
   std::size_t accepted = 0, retries = 0;
   std::vector<double> latencies_ms;
   double wmd_cpu_s = 0;
   try {
-    WmdProcess wmd(*wmd_args);
+    WmdProcess wmd(*wmd_args, *binary);
     // Connections opened before the clock starts: we time ingest, not the handshakes.
     std::vector<std::unique_ptr<Connection>> connections;
     for (int k = 0; k < robots; ++k) connections.push_back(std::make_unique<Connection>(wmd.port()));
@@ -283,10 +284,15 @@ int main(int argc, char** argv) {
   std::printf("ingest_bench: %zu scans of %s\n", scans.size(), log.c_str());
 
   const char* baseline_env = std::getenv("WM_BENCH_BASELINE_ARGS");
+  const char* baseline_wmd_env = std::getenv("WM_BENCH_BASELINE_WMD");
+  const bool other_build = baseline_wmd_env && *baseline_wmd_env;
   const std::vector<std::string> default_args;
-  const std::vector<std::string> baseline_args =
-      baseline_env && *baseline_env ? split_words(baseline_env) : std::vector<std::string>{"--handler-threads", "8"};
-  std::string baseline_label = "baseline:";
+  const std::vector<std::string> baseline_args = baseline_env && *baseline_env ? split_words(baseline_env)
+                                                 : other_build                 ? std::vector<std::string>{}
+                                                               : std::vector<std::string>{"--handler-threads", "8"};
+  const std::string default_binary = WM_WMD;
+  const std::string baseline_binary = other_build ? baseline_wmd_env : WM_WMD;
+  std::string baseline_label = other_build ? "baseline " + baseline_binary + ":" : "baseline:";
   for (const auto& a : baseline_args) baseline_label += " " + a;
   const std::string default_label = "default";
   const std::string payload = scan_body(scans.front(), "robot-0");
@@ -298,6 +304,7 @@ int main(int argc, char** argv) {
   for (const int robots : kRobotCounts) {
     for (const bool baseline : {false, true})
       benchmark::RegisterBenchmark(ingest_family(baseline), ingest, &scans, baseline ? &baseline_args : &default_args,
+                                   baseline ? &baseline_binary : &default_binary,
                                    baseline ? &baseline_label : &default_label)
           ->ArgName("robots")
           ->Arg(robots)

@@ -103,13 +103,13 @@ class Connection {
 };
 
 // wmd as a child process on a fresh database in its own directory, its output in wmd.log there; stopped with
-// SIGTERM by stop() or the destructor.
+// SIGTERM by stop() or the destructor. `binary`: another wmd build (a baseline), this build's by default.
 class WmdProcess {
  public:
-  explicit WmdProcess(const std::vector<std::string>& extra_args) {
+  explicit WmdProcess(const std::vector<std::string>& extra_args, std::string binary = WM_WMD) {
     const fs::path log = dir_.path() / "wmd.log";
     std::vector<std::string> args = {
-        WM_WMD,  "--db", (dir_.path() / "bench.db").string(), "--port", "0", "--sync", "full", "--no-watch-rules",
+        binary,  "--db", (dir_.path() / "bench.db").string(), "--port", "0", "--sync", "full", "--no-watch-rules",
         "--web", ""};
     args.insert(args.end(), extra_args.begin(), extra_args.end());
     std::vector<char*> argv;
