@@ -16,16 +16,18 @@ namespace wm::world {
 namespace {
 
 // Whether `seen` can be a view of `edge`, an edge of the rigid `object`: its ends within the edge's extent, up to
-// the gap allowance plus 3σ of where the object stands along the edge. A rigid object does not stretch, so a line
-// much longer than the edge, or running past its end (the wall a table stands against), is not that edge.
+// the gap allowance, 3σ of where the object stands along the edge and `overrun_share` of its own length. A rigid
+// object does not stretch, so a line much longer than the edge, or running far past its end (the wall a table
+// stands against), is not that edge.
 bool within_extent(const ObjectState& object, const fusion::LineSegment& edge, const fusion::LineSegment& seen,
-                   double gap_m) {
+                   double gap_m, double overrun_share) {
   const Eigen::Vector2d d = edge.line.direction();
   const Eigen::Vector2d middle = 0.5 * (edge.p0() + edge.p1());
   const auto& pose = object.body.pose();
   // Along the edge, the middle moves by d·δt + d·J(middle − t)·δθ.
   const Eigen::Vector3d j(d.x(), d.y(), d.dot(Eigen::Vector2d(-(middle.y() - pose.y_m), middle.x() - pose.x_m)));
-  const double slack = gap_m + 3.0 * std::sqrt(std::max(0.0, j.dot(object.body.pose_cov() * j)));
+  const double slack =
+      gap_m + 3.0 * std::sqrt(std::max(0.0, j.dot(object.body.pose_cov() * j))) + overrun_share * seen.length_m();
   const double ta = edge.line.coordinate_along(seen.p0()), tb = edge.line.coordinate_along(seen.p1());
   return std::min(ta, tb) >= edge.t0_m - slack && std::max(ta, tb) <= edge.t1_m + slack;
 }
@@ -41,7 +43,9 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
   for (const auto& [i, k] : state.objects.edges_near(near)) {
     auto edge = apriori_edge(state.objects[i], k, options);
     if (!Box::of(edge).overlaps(near)) continue;
-    if (is_rigid(state.objects[i]) && !within_extent(state.objects[i], edge, seen, options.match.max_gap_m)) continue;
+    if (is_rigid(state.objects[i]) &&
+        !within_extent(state.objects[i], edge, seen, options.match.max_gap_m, options.rigid_overrun_share))
+      continue;
     c.segments.push_back(std::move(edge));
     c.refs.push_back({i, k, 0});
   }

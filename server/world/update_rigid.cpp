@@ -31,10 +31,12 @@ double distance_to_segment(const Eigen::Vector2d& p, const fusion::LineSegment& 
 // After a carried object was found by its shape and moved there: the elements its earlier views became (seen one
 // side at a time, before two sides showed in one scan) lie on its edges now. They are views of the object, not walls:
 // each goes with a prune decision (rule object_found). An element lies on an edge when both its ends are within
-// 5 cm of the edge's line, its direction within 5° and its extent within the edge's plus 10 cm.
+// 5 cm of the edge's line, its direction within 5° and at least 80 % of its length within the edge's extent plus
+// 10 cm: views that took in a corner's mixed returns make an element a little longer than the side, while a wall
+// that runs on past the object along the same line lies mostly beyond it.
 void absorb_elements(UpdateResult& result, std::size_t index, const Observation& observation,
                      std::int64_t observation_seq) {
-  constexpr double kOffsetM = 0.05, kAngleRad = 0.0873, kBeyondM = 0.10;
+  constexpr double kOffsetM = 0.05, kAngleRad = 0.0873, kBeyondM = 0.10, kOnShare = 0.8;
   WorldState& state = result.state;
   const ObjectState& object = state.objects[index];
   std::vector<fusion::LineSegment> edges;
@@ -52,12 +54,12 @@ void absorb_elements(UpdateResult& result, std::size_t index, const Observation&
     const bool on_an_edge = std::any_of(edges.begin(), edges.end(), [&](const fusion::LineSegment& edge) {
       const double angle = std::abs(std::remainder(seg.line.phi_rad - edge.line.phi_rad, std::numbers::pi));
       if (angle > kAngleRad) return false;
-      for (const Eigen::Vector2d& p : {seg.p0(), seg.p1()}) {
+      for (const Eigen::Vector2d& p : {seg.p0(), seg.p1()})
         if (std::abs(edge.line.signed_distance(p)) > kOffsetM) return false;
-        const double t = edge.line.coordinate_along(p);
-        if (t < edge.t0_m - kBeyondM || t > edge.t1_m + kBeyondM) return false;
-      }
-      return true;
+      const double ta = edge.line.coordinate_along(seg.p0()), tb = edge.line.coordinate_along(seg.p1());
+      const double lo = std::min(ta, tb), hi = std::max(ta, tb);
+      const double on = std::min(hi, edge.t1_m + kBeyondM) - std::max(lo, edge.t0_m - kBeyondM);
+      return on >= kOnShare * (hi - lo);
     });
     if (!on_an_edge) continue;
     remove_element(result, number, "object_found",

@@ -54,6 +54,11 @@ struct WorldOptions {
   /// When an element lies on a grown one: both are fused estimates whose directions are known to the covariance
   /// floor, so a fixed 5° floor on the direction and the same offsets as for scan lines.
   fusion::MatchOptions join{3.0, 0.03, 0.087, 0.10, false};
+  /// A view of a rigid object's edge may run past the edge's ends by this share of its own length, beyond the gap
+  /// and the object's own uncertainty: a far view that takes in a corner's returns runs a little past it (a table
+  /// side seen from 20 m ran 17 cm past its corner and became an element of its own), while a wall the object
+  /// stands against runs far past it.
+  double rigid_overrun_share = 0.2;
   /// An element may only take in an observation (or another element) while everything it was built from stays
   /// this close to one straight line (RMS across it) [m]: what a wall seen with the poses' error spreads to.
   double max_straightness_rms_m = 0.05;
