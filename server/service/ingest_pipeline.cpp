@@ -179,11 +179,8 @@ pipeline::Registry IngestPipeline::network_registry() {
       const auto segments = fusion::extract_grid_lines(*raster, options_.grid_lines);
       if (segments.empty()) return;
       auto job = std::make_shared<PrimitivesJob>();
-      job->observation.observer = "grid-extractor";
-      job->observation.origin = "grid";
-      job->observation.sensor = "grid";
-      for (const auto& segment : segments) job->observation.segments.push_back({segment});
-      job->payload = "{\"grid_revision\": " + std::to_string(tick.scan_seq) + "}";
+      job->observation = grid_lines_observation(segments);
+      job->payload = grid_lines_payload(tick.scan_seq);
       job->hold = tick.hold;
       a.emit("primitives", std::move(job));
     });
@@ -194,11 +191,13 @@ pipeline::Registry IngestPipeline::network_registry() {
 
 IngestPipeline::IngestPipeline(const IngestOptions& options, IngestParts parts)
     : options_(options),
-      parts_(parts),
       store_(parts.store),
       engine_(parts.engine),
       writer_(parts.writer),
       grid_(parts.grid),
+      plan_checks_(parts.plan_checks),
+      robots_(parts.robots),
+      events_(parts.events),
       diagnostics_(parts.diagnostics) {
   head_ = writer_.snapshot();
   const std::int64_t last_scan_seq = grid_.last_scan_seq();
@@ -235,7 +234,11 @@ IngestPipeline::IngestPipeline(const IngestOptions& options, IngestParts parts)
   network_->start();
 }
 
-IngestPipeline::~IngestPipeline() {
+IngestPipeline::~IngestPipeline() { stop(); }
+
+void IngestPipeline::stop() {
+  if (stopped_) return;
+  stopped_ = true;
   const auto report = network_->stop(true);
   for (const auto& [port, count] : report.dropped)
     diagnostics_.report(
@@ -453,21 +456,20 @@ void IngestPipeline::finish_committed(pipeline::Activation& a) {
     return;
   }
   // The commit's events: its update, the robot heard from, and (a scan, on the grid thread) the grid region.
-  auto live = parts_.events.begin();
+  auto live = events_.begin();
   const std::string observer = d->update ? d->update->observation.observer : std::string();
   std::optional<PrimitivesOutcome> lines;
   if (d->update) lines = writer_.finish(std::move(*d->update), live);
   if (!d->scan) {
     if (d->primitives && d->primitives->ticket) {
-      add_robot_event(live, parts_.robots, parts_.robots.on_primitives(observer, now_unix_s()));
+      add_robot_event(live, robots_, robots_.on_primitives(observer, now_unix_s()));
       d->primitives->ticket->succeed(std::move(*lines));
     }
     return;
   }
   committed_scan_seq_ = d->scan_seq;
   const auto& scan = d->scan->scan;
-  add_robot_event(live, parts_.robots,
-                  parts_.robots.on_scan(scan.observer, scan.sensor(), scan_pose(scan, now_unix_s())));
+  add_robot_event(live, robots_, robots_.on_scan(scan.observer, scan.sensor(), scan_pose(scan, now_unix_s())));
   d->scan->ticket->succeed(ScanOutcome{d->scan_seq, d->scan_seq, std::move(lines), false, d->placement});
   const bool laser = std::holds_alternative<fusion::LaserScan>(scan.scan);
   a.emit(laser ? "laser_scans" : "sonar_scans",

@@ -73,19 +73,22 @@ struct IngestParts {
 void add_robot_event(EventLog::Commit& live, const RobotRegistry& robots, const std::optional<RobotState>& robot);
 
 /// The ingest: scans and primitives decided, committed and put into the grids on a processing network
-/// (pipeline::Network, from a task file). The matcher decides scans' lines and posted primitives against the map as
-/// the requests before them leave it (match → rules → apply), the store commits what arrives together in one
-/// transaction, the grid inserts committed scans; every other change (plan, placement, rules, extraction, trims) is
-/// a command the matcher runs when nothing is in flight. A request is answered after the transaction that holds it
-/// commits (a scan after it is in the grid too). A scan's path, stage by stage, is written out in
-/// ingest_pipeline.cpp.
+/// (pipeline::Network, from a task file). The matcher decides scans' lines, posted primitives and the grid trims
+/// against the map as the requests before them leave it (match → rules → apply), the store commits what arrives
+/// together in one transaction, the grid inserts committed scans. Whatever else changes the map (the service's plan,
+/// placement, rules and changes, a grid line extraction asked for) runs as a command on the matcher when nothing is
+/// in flight. A request is answered after the transaction that holds it commits (a scan after it is in the grid
+/// too). A scan's path, stage by stage, is written out in ingest_pipeline.cpp.
 class IngestPipeline {
  public:
   /// Rebuilds the grid trim's region from the journal (the grid must hold every journaled scan) and starts the
-  /// network. @throw pipeline errors for a bad task file.
+  /// network. @throw storage::StorageError reading the journal, pipeline errors for a bad task file.
   IngestPipeline(const IngestOptions& options, IngestParts parts);
-  /// Stops the network; values left in its queues are reported (their requests got 503).
+  /// Stops the network if stop() did not.
   ~IngestPipeline();
+  /// Runs what is queued (commands included) and stops the network; values left in its queues are reported (their
+  /// requests got 503). Called before the parts the commands use go away; a second call does nothing.
+  void stop();
   IngestPipeline(const IngestPipeline&) = delete;
   IngestPipeline& operator=(const IngestPipeline&) = delete;
 
@@ -110,6 +113,11 @@ class IngestPipeline {
   /// In a command: the grid line extractor over the whole grid, its lines decided like posted primitives (origin
   /// "grid"). nullopt when the grid is empty or yields no line.
   std::optional<PrimitivesOutcome> extract_grid_lines();
+  /// The observation of the grid line extractor's lines, and its payload (the grid revision it was run at).
+  static world::Observation grid_lines_observation(const std::vector<fusion::LineSegment>& segments);
+  static std::string grid_lines_payload(std::int64_t grid_revision) {
+    return "{\"grid_revision\": " + std::to_string(grid_revision) + "}";
+  }
   /// In a command, once at start: the grid trim a crash between a scan and the trim it made due left undone.
   void trim_left_undone();
 
@@ -177,12 +185,15 @@ class IngestPipeline {
   }
 
   const IngestOptions options_;
-  IngestParts parts_;
   storage::Store& store_;
   rules::Engine& engine_;
   MapWriter& writer_;
   GridStore& grid_;
+  PlanChecks& plan_checks_;
+  RobotRegistry& robots_;
+  EventLog& events_;
   common::Diagnostics& diagnostics_;
+  bool stopped_ = false;
 
   // Matcher thread only:
   std::shared_ptr<const world::WorldState> head_;

@@ -12,7 +12,7 @@
 
 namespace wm::service {
 
-// Not a defence against a client that crafts collisions, which could only confuse its own requests.
+// FNV-1a: not a defence against a client that crafts collisions, which could only confuse its own requests.
 std::int64_t IngestPipeline::body_hash(std::string_view body) {
   std::uint64_t h = 14695981039346656037ull;
   for (const unsigned char c : body) {
@@ -27,6 +27,15 @@ void add_robot_event(EventLog::Commit& live, const RobotRegistry& robots, const 
   const double now = now_unix_s();
   live.add(events::EventKind::robot,
            [&] { return json_codec::robot_event(*robot, to_string(robots.status(*robot, now)), now); });
+}
+
+world::Observation IngestPipeline::grid_lines_observation(const std::vector<fusion::LineSegment>& segments) {
+  world::Observation observation;
+  observation.observer = "grid-extractor";
+  observation.origin = "grid";
+  observation.sensor = "grid";
+  for (const auto& segment : segments) observation.segments.push_back({segment});
+  return observation;
 }
 
 std::shared_ptr<const world::WorldState> IngestPipeline::head() const {
@@ -139,7 +148,7 @@ void IngestPipeline::trim_now(std::int64_t scan_seq, const world::Box& region) {
     if (!p) return;
     const auto payload = trim_payload(scan_seq);
     writer_.commit(*p, [&] { store_.commit_observation(p->update, p->observation, payload); });
-    auto live = parts_.events.begin();
+    auto live = events_.begin();
     writer_.finish(std::move(*p), live);
   } catch (const std::exception& e) {
     diagnostics_.report(common::Severity::error, "grid_trim",
@@ -162,7 +171,7 @@ std::optional<PreparedUpdate> IngestPipeline::prepare_trim(const world::Box& reg
       checked = std::move(trimmed.checked);
     });
     // The plan's edges the same scans could see: the evidence of missing walls follows the grid.
-    parts_.plan_checks.refresh(*p.base, region);
+    plan_checks_.refresh(*p.base, region);
     // The trimmed elements' facts first (that drops their old element_grid/3), then what the grid said of every
     // element checked: the rules' prune/3 may remove what the grid backs nowhere.
     std::vector<rules::ElementFacts> upserts;
@@ -197,18 +206,13 @@ std::optional<PrimitivesOutcome> IngestPipeline::extract_grid_lines() {
   if (!raster) return std::nullopt;
   const auto segments = fusion::extract_grid_lines(*raster, options_.grid_lines);
   if (segments.empty()) return std::nullopt;
-  world::Observation observation;
-  observation.observer = "grid-extractor";
-  observation.origin = "grid";
-  observation.sensor = "grid";
-  for (const auto& segment : segments) observation.segments.push_back({segment});
-  return apply(std::move(observation), "{\"grid_revision\": " + std::to_string(grid_.revision()) + "}");
+  return apply(grid_lines_observation(segments), grid_lines_payload(grid_.revision()));
 }
 
 PrimitivesOutcome IngestPipeline::apply(world::Observation observation, const std::string& payload) {
   auto prepared = writer_.prepare(head(), std::move(observation));
   writer_.commit(prepared, [&] { store_.commit_observation(prepared.update, prepared.observation, payload); });
-  auto live = parts_.events.begin();
+  auto live = events_.begin();
   return writer_.finish(std::move(prepared), live);
 }
 

@@ -73,6 +73,7 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
 
 WorldService::~WorldService() {
   watcher_.reset();
+  ingest_->stop();  // its queued commands still reach ingest_
   ingest_.reset();
   try {
     grid_.flush(true);  // not past a gap: the journal replays from there at start
@@ -247,7 +248,7 @@ void WorldService::restore_robots() {
 }
 
 RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {
-  pose.received_at_unix_s = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+  pose.received_at_unix_s = now_unix_s();
   store_.commit_robot_pose({id, pose.x, pose.y, pose.theta, pose.cov, pose.stamp_s, pose.received_at_unix_s,
                             stopped ? "stopped" : "moving"});
   auto live = event_log_.begin();  // not a map commit: its place is when it is heard
