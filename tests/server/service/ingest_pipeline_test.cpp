@@ -9,42 +9,13 @@
 #include <thread>
 
 #include "server/service/service_errors.h"
+#include "server/service/service_test_helpers.h"
 #include "support/temp_dir.h"
 
 namespace wm::service {
 namespace {
 
-// A 720-beam laser scan from (x, y) inside the room [0, 10] × [0, 8] m, every beam ending on its walls.
-world::ScanObservation room_scan(double x, double y) {
-  fusion::LaserScan scan;
-  scan.sensor_pose = {x, y, 0};
-  scan.angle_min_rad = -std::numbers::pi;
-  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
-  scan.range_min_m = 0.05;
-  scan.range_max_m = 30;
-  for (int i = 0; i < 720; ++i) {
-    const double bearing = scan.angle_min_rad + i * scan.angle_increment_rad;
-    const double c = std::cos(bearing), s = std::sin(bearing);
-    double range = 1e9;
-    if (c > 1e-9) range = std::min(range, (10 - x) / c);
-    if (c < -1e-9) range = std::min(range, -x / c);
-    if (s > 1e-9) range = std::min(range, (8 - y) / s);
-    if (s < -1e-9) range = std::min(range, -y / s);
-    scan.ranges_m.push_back(range);
-  }
-  world::ScanObservation request;
-  request.observer = "robot-1";
-  request.scan = scan;
-  return request;
-}
-
-struct IngestPipelineTest : ::testing::Test {
-  testing::TempDir dir;
-  storage::Store store{{(dir.path() / "world.db").string(), false}};
-  rules::Engine engine{rules::EngineOptions{WM_SOURCE_DIR "/rules/prolog"}};
-  common::Diagnostics diagnostics{"", nullptr};
-  EventLog events{nullptr, diagnostics};
-  MapWriter writer{MapWriterOptions{}, store.load(world::WorldOptions{}), engine, diagnostics};
+struct IngestPipelineTest : ::testing::Test, WriterParts {
   RobotRegistry robots;
   GridStore grid{GridStoreOptions{}, store, diagnostics};
   PlanChecks plan_checks{PlanChecksOptions{}, grid, engine, diagnostics, {}};

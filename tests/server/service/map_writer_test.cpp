@@ -6,20 +6,12 @@
 
 #include <stdexcept>
 
+#include "server/service/service_test_helpers.h"
 #include "server/storage/store.h"
 #include "support/temp_dir.h"
 
 namespace wm::service {
 namespace {
-
-world::Observation one_line(Eigen::Vector2d a, Eigen::Vector2d b) {
-  world::Observation observation;
-  observation.observer = "robot-1";
-  auto s = fusion::LineSegment::from_points(a, b, Eigen::Matrix2d::Identity());
-  s.line.cov = world::midpoint_line_cov(s, 0.01, 0.01);
-  observation.segments.push_back({s});
-  return observation;
-}
 
 std::int64_t element_facts(rules::Engine& engine) {
   const auto result = engine.query("aggregate_all(count, element(_, _, _, _, _, _, _, _), N)", 1);
@@ -27,14 +19,7 @@ std::int64_t element_facts(rules::Engine& engine) {
   return result.solutions.empty() ? -1 : result.solutions[0][0].integer;
 }
 
-struct MapWriterTest : ::testing::Test {
-  testing::TempDir dir;
-  storage::Store store{{(dir.path() / "world.db").string(), false}};
-  rules::Engine engine{rules::EngineOptions{WM_SOURCE_DIR "/rules/prolog"}};
-  common::Diagnostics diagnostics{"", nullptr};
-  EventLog events{nullptr, diagnostics};
-  MapWriter writer{MapWriterOptions{}, store.load(world::WorldOptions{}), engine, diagnostics};
-};
+struct MapWriterTest : ::testing::Test, WriterParts {};
 
 TEST_F(MapWriterTest, APreparedObservationIsInTheRulesFactsAndReachesReadersOnlyWhenFinished) {
   const auto before = writer.snapshot();

@@ -1,9 +1,17 @@
 #pragma once
-// Scans and plans the service's unit tests share.
+// Scans, observations and plans the service's unit tests share.
+#include <algorithm>
+#include <cmath>
 #include <numbers>
+#include <string>
 
 #include "server/json/codec.h"
+#include "server/service/event_log.h"
+#include "server/service/map_writer.h"
+#include "server/storage/store.h"
+#include "server/world/update.h"
 #include "server/world/world_state.h"
+#include "support/temp_dir.h"
 
 namespace wm::service {
 
@@ -47,5 +55,49 @@ inline world::ScanObservation scan_of_standing_wall() {
   }
   return request;
 }
+
+// One line from `a` to `b` posted by robot-1, with the covariance of 1 cm noise on its ends.
+inline world::Observation one_line(Eigen::Vector2d a, Eigen::Vector2d b) {
+  world::Observation observation;
+  observation.observer = "robot-1";
+  auto s = fusion::LineSegment::from_points(a, b, Eigen::Matrix2d::Identity());
+  s.line.cov = world::midpoint_line_cov(s, 0.01, 0.01);
+  observation.segments.push_back({s});
+  return observation;
+}
+
+// A 720-beam laser scan from (x, y) inside the room [0, 10] × [0, 8] m, every beam ending on its walls.
+inline world::ScanObservation room_scan(double x, double y, std::string observer = "robot-1") {
+  fusion::LaserScan scan;
+  scan.sensor_pose = {x, y, 0};
+  scan.angle_min_rad = -std::numbers::pi;
+  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
+  scan.range_min_m = 0.05;
+  scan.range_max_m = 30;
+  for (int i = 0; i < 720; ++i) {
+    const double bearing = scan.angle_min_rad + i * scan.angle_increment_rad;
+    const double c = std::cos(bearing), s = std::sin(bearing);
+    double range = 1e9;
+    if (c > 1e-9) range = std::min(range, (10 - x) / c);
+    if (c < -1e-9) range = std::min(range, -x / c);
+    if (s > 1e-9) range = std::min(range, (8 - y) / s);
+    if (s < -1e-9) range = std::min(range, -y / s);
+    scan.ranges_m.push_back(range);
+  }
+  world::ScanObservation request;
+  request.observer = std::move(observer);
+  request.scan = scan;
+  return request;
+}
+
+// A map writer on a fresh SQLite store with the shipped rules, and what it needs: the parts under the ingest.
+struct WriterParts {
+  testing::TempDir dir;
+  storage::Store store{{(dir.path() / "world.db").string(), false}};
+  rules::Engine engine{rules::EngineOptions{WM_SOURCE_DIR "/rules/prolog"}};
+  common::Diagnostics diagnostics{"", nullptr};
+  EventLog events{nullptr, diagnostics};
+  MapWriter writer{MapWriterOptions{}, store.load(world::WorldOptions{}), engine, diagnostics};
+};
 
 }  // namespace wm::service

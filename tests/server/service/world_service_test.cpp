@@ -13,19 +13,11 @@
 #include <sstream>
 #include <thread>
 
+#include "server/service/service_test_helpers.h"
 #include "support/temp_dir.h"
 
 namespace wm::service {
 namespace {
-
-world::Observation one_line(Eigen::Vector2d a, Eigen::Vector2d b) {
-  world::Observation observation;
-  observation.observer = "robot-1";
-  auto s = fusion::LineSegment::from_points(a, b, Eigen::Matrix2d::Identity());
-  s.line.cov = world::midpoint_line_cov(s, 0.01, 0.01);
-  observation.segments.push_back({s});
-  return observation;
-}
 
 // Another connection to the same file: what the store cannot prevent (a full disk, a file made read-only) made
 // with a trigger that refuses every new observation.
@@ -39,30 +31,6 @@ void sql(const std::filesystem::path& path, const char* statement) {
   sqlite3_free(error);
   sqlite3_close(db);
   ASSERT_EQ(rc, SQLITE_OK) << message;
-}
-
-// A 720-beam laser scan from (x, y) inside the room [0, 10] × [0, 8] m, every beam ending on its walls.
-world::ScanObservation room_scan(double x, double y, std::string observer) {
-  fusion::LaserScan scan;
-  scan.sensor_pose = {x, y, 0};
-  scan.angle_min_rad = -std::numbers::pi;
-  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
-  scan.range_min_m = 0.05;
-  scan.range_max_m = 30;
-  for (int i = 0; i < 720; ++i) {
-    const double bearing = scan.angle_min_rad + i * scan.angle_increment_rad;
-    const double c = std::cos(bearing), s = std::sin(bearing);
-    double range = 1e9;
-    if (c > 1e-9) range = std::min(range, (10 - x) / c);
-    if (c < -1e-9) range = std::min(range, -x / c);
-    if (s > 1e-9) range = std::min(range, (8 - y) / s);
-    if (s < -1e-9) range = std::min(range, -y / s);
-    scan.ranges_m.push_back(range);
-  }
-  world::ScanObservation request;
-  request.observer = std::move(observer);
-  request.scan = scan;
-  return request;
 }
 
 std::int64_t element_facts(WorldService& world) {
