@@ -37,6 +37,15 @@ double SegmentMoments::rms_offset_m() const {
   return std::sqrt(std::max(0.0, half_trace - radius));
 }
 
+double SegmentMoments::rms_offset_from_m(const LineFeature& line) const {
+  if (!(weight > 0.0)) return 0.0;
+  // Mean of (n·p − ρ)² over the mass: nᵀ(second/w)n − 2ρ·n·(first/w) + ρ².
+  const Eigen::Vector2d n = line.normal();
+  const double mean_sq =
+      n.dot(second * n) / weight - 2.0 * line.rho_m * n.dot(first) / weight + line.rho_m * line.rho_m;
+  return std::sqrt(std::max(0.0, mean_sq));
+}
+
 std::optional<LineSegment> SegmentMoments::refit(const LineSegment& near) const {
   if (!(weight > 0.0)) return std::nullopt;
   const Eigen::Vector2d mean = first / weight;

@@ -26,6 +26,10 @@ struct SegmentMoments {
   /// second/weight − mean·meanᵀ. 0 when empty.
   double rms_offset_m() const;
 
+  /// RMS distance of the mass from `line` [m]: how far a short wall lies beside a long one's line, which the RMS of
+  /// the two together (weighing each by its length) hardly shows. 0 when empty.
+  double rms_offset_from_m(const LineFeature& line) const;
+
   /// The line that fits the mass best (total least squares: through its mean, along the scatter's major axis), as
   /// a segment that keeps `near`'s covariance, turns its normal to `near`'s side and spans `near`'s ends projected
   /// on it. nullopt when the moments are empty or have no major axis. Refitting an element this way after each

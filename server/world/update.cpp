@@ -55,7 +55,12 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
     const Element& element = state.elements.at(number);
     if (!Box::of(element.segment).overlaps(near) || !faces_agree(element.facing_rad, seen_facing)) continue;
     // Taking `seen` in would bend the element: not the same straight wall, whatever the gate says.
-    if ((element.moments + seen_moments).rms_offset_m() > straightness) continue;
+    if ((element.moments + seen_moments).rms_offset_m() > straightness ||
+        side_by_side(seen_moments, seen, element.moments, element.segment,
+                     element.moments.weight < seen_moments.weight
+                         ? std::max(straightness, straightness_allowance_m(element.segment, options))
+                         : straightness))
+      continue;
     c.segments.push_back(element.segment);
     c.refs.push_back({std::nullopt, 0, number});
   }

@@ -63,6 +63,19 @@ struct PendingRigid {
 Candidates collect_candidates(const WorldState& state, const fusion::LineSegment& seen,
                               const std::optional<double>& seen_facing, const WorldOptions& options);
 
+// Whether two segments lie end to end rather than over each other: less than half of the shorter one's extent,
+// projected on the longer one's line, falls within the longer one. Two surfaces seen from one side cannot lie over
+// each other a few cm apart (the nearer hides the farther), so parts that overlap are views of one surface, however
+// far one of them is off; parts end to end may be two (a depth step).
+bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b);
+
+// Whether two parts that lie end to end are two surfaces side by side (a depth step at a door frame, a pilaster's
+// face): the shorter one (by the length it was built from) lies farther than `allowance_m` RMS from the longer
+// one's line. The RMS of the two together weighs each by its length, so a short wall 15 cm beside a long one barely
+// shows in it, and a line fitted to both turns toward the short one and hides half of its offset.
+bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,
+                  const fusion::SegmentMoments& b, const fusion::LineSegment& b_segment, double allowance_m);
+
 // How far from one straight line (RMS) an element and a new view of it may lie together: the fixed allowance, or
 // WorldOptions::straightness_sigmas σ of the spread the view's own covariance gives (across its middle, and its
 // direction's σ over its length), whichever is larger.

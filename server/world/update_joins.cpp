@@ -22,6 +22,15 @@ double join_straightness_allowance_m(const Element& a, const Element& b, const W
                   options.join_scatter_factor * std::max(a.moments.rms_offset_m(), b.moments.rms_offset_m()));
 }
 
+// Whether `a` and `b` are two surfaces side by side (side_by_side), held to the straightness the shorter one's own
+// views allow, or the join's allowance, whichever is larger.
+bool steps_apart(const Element& a, const Element& b, const WorldOptions& options) {
+  const Element& shorter = a.moments.weight < b.moments.weight ? a : b;
+  const double allowance =
+      std::max(join_straightness_allowance_m(a, b, options), straightness_allowance_m(shorter.segment, options));
+  return side_by_side(a.moments, a.segment, b.moments, b.segment, allowance);
+}
+
 // Whether `part` is a piece of the wall `whole` stands for, whatever its own direction says: at most half as long,
 // its ends projected within `max_gap_m` of the whole's extent, and the part as a whole within `band_m` RMS of its
 // line (the straightness an element keeps). A view of 0.3–0.7 m tilted by a 3σ 7° lies within 3 cm RMS of its
@@ -101,6 +110,21 @@ bool join_into(UpdateResult& result, std::int64_t into, std::int64_t from, const
 
 }  // namespace
 
+bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b) {
+  const auto& longer = a.length_m() >= b.length_m() ? a : b;
+  const auto& shorter = &longer == &a ? b : a;
+  const double ta = longer.line.coordinate_along(shorter.p0()), tb = longer.line.coordinate_along(shorter.p1());
+  const double overlap = std::min(std::max(ta, tb), longer.t1_m) - std::max(std::min(ta, tb), longer.t0_m);
+  return overlap < 0.5 * std::abs(tb - ta);
+}
+
+bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,
+                  const fusion::SegmentMoments& b, const fusion::LineSegment& b_segment, double allowance_m) {
+  if (!end_to_end(a_segment, b_segment)) return false;
+  const bool a_shorter = a.weight < b.weight;
+  return (a_shorter ? a : b).rms_offset_from_m(a_shorter ? b_segment.line : a_segment.line) > allowance_m;
+}
+
 double straightness_allowance_m(const fusion::LineSegment& seen, const WorldOptions& options) {
   const double middle = 0.5 * (seen.t0_m + seen.t1_m), length = seen.length_m();
   const double spread_sq = std::max(0.0, fusion::offset_variance_at(seen.line, middle)) +
@@ -125,7 +149,8 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
     for (const auto other_number : state.elements.near(near)) {
       const Element& other = state.elements.at(other_number);
       if (other_number == number || declined.count(other_number) || !Box::of(other.segment).overlaps(near) ||
-          (keeper.moments + other.moments).rms_offset_m() > join_straightness_allowance_m(keeper, other, options))
+          (keeper.moments + other.moments).rms_offset_m() > join_straightness_allowance_m(keeper, other, options) ||
+          steps_apart(keeper, other, options))
         continue;
       if (!faces_agree(keeper.facing_rad, other.facing_rad)) {
         // Seen from opposite sides: one surface only if it is thin (a partition, a wall drawn as one line), i.e.

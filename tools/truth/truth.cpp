@@ -117,6 +117,36 @@ std::string optional_fixed(const std::optional<double>& value, int decimals) {
   return value ? fixed(*value, decimals) : "n/a";
 }
 
+// WM_TRUTH_TRACE: the decisions about some elements, on stderr, to follow how one came to be. "x,y": the elements
+// within 10 cm of the point; "e12,e40": those elements; "bx0,y0,x1,y1": every decision whose observed segment has
+// its middle in that box.
+void trace_decisions(const char* trace, service::WorldService& world, const world::WorldState& state) {
+  std::set<std::string> ids;
+  double bx0 = 0, by0 = 0, bx1 = -1, by1 = -1;
+  if (trace[0] == 'e') {
+    std::stringstream list(trace);
+    for (std::string id; std::getline(list, id, ',');) ids.insert(id);
+  } else if (trace[0] == 'b') {
+    std::sscanf(trace + 1, "%lf,%lf,%lf,%lf", &bx0, &by0, &bx1, &by1);
+  } else {
+    double x = 0, y = 0;
+    std::sscanf(trace, "%lf,%lf", &x, &y);
+    for (const auto& [number, e] : state.elements)
+      if (point_segment_distance(Vec(x, y), e.segment.p0(), e.segment.p1()) < 0.1) ids.insert(e.id());
+  }
+  const auto traced = [&](const world::DecisionRecord& d) {
+    const Vec m = 0.5 * (d.p0 + d.p1);
+    return (d.element && ids.count(*d.element)) || (d.matched_element && ids.count(*d.matched_element)) ||
+           (m.x() >= bx0 && m.x() <= bx1 && m.y() >= by0 && m.y() <= by1);
+  };
+  for (const auto& d : world.decisions(0, 10'000'000, std::nullopt))
+    if (traced(d))
+      std::fprintf(stderr, "trace %lld %s el=%s matched=%s (%.2f,%.2f)-(%.2f,%.2f) %s: %s\n",
+                   static_cast<long long>(d.observation_seq), std::string(rules::wire_name(d.action)).c_str(),
+                   d.element.value_or("-").c_str(), d.matched_element.value_or("-").c_str(), d.p0.x(), d.p0.y(),
+                   d.p1.x(), d.p1.y(), d.rule.c_str(), d.explanation.c_str());
+}
+
 }  // namespace
 
 const char* pose_noise_name(PoseNoise noise) { return noise == PoseNoise::low ? "low" : "high"; }
@@ -162,6 +192,7 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
         if (d.object.value_or(d.matched_object.value_or("")) == kTableId)
           std::fprintf(stderr, "table decision %lld: %s %s: %s\n", static_cast<long long>(d.observation_seq),
                        std::string(rules::wire_name(d.action)).c_str(), d.rule.c_str(), d.explanation.c_str());
+    if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state);
     outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;
@@ -201,6 +232,10 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
                    "off the walls: %.2f of %.2f m from (%.2f, %.2f) to (%.2f, %.2f), nearest wall %.3f m, %.1f deg\n",
                    e.length() - good_here, e.length(), e.p0.x(), e.p0.y(), e.p1.x(), e.p1.y(), nearest,
                    angle * 180 / 3.141592653589793);
+      for (const auto& line : world.lines)
+        if (segment_distance(e.p0, e.p1, line.p0, line.p1) < 0.3)
+          std::fprintf(stderr, "    true wall (%.2f, %.2f) to (%.2f, %.2f)\n", line.p0.x(), line.p0.y(), line.p1.x(),
+                       line.p1.y());
     }
   }
   const auto cover = covering(elements, world.lines);

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 
 namespace wm::fusion {
 namespace {
@@ -30,6 +31,14 @@ TEST(SegmentMomentsTest, FarFromTheOriginTheSpreadIsStillCentimetres) {
   const auto m = SegmentMoments::of(seg(far, far + 3 * along)) +
                  SegmentMoments::of(seg(far + 0.02 * across, far + 0.02 * across + 3 * along));
   EXPECT_NEAR(m.rms_offset_m(), 0.01, 1e-4);
+}
+
+TEST(SegmentMomentsTest, DistanceFromAGivenLine) {
+  // A segment 10 cm above the x axis, and one crossing it from −0.1 to +0.1: RMS 0.1 and 0.1/√3.
+  const LineFeature x_axis{0.0, std::numbers::pi / 2, Eigen::Matrix2d::Identity()};
+  EXPECT_NEAR(SegmentMoments::of(seg({2, 0.1}, {5, 0.1})).rms_offset_from_m(x_axis), 0.1, 1e-9);
+  EXPECT_NEAR(SegmentMoments::of(seg({2, -0.1}, {5, 0.1})).rms_offset_from_m(x_axis), 0.1 / std::sqrt(3.0), 1e-9);
+  EXPECT_EQ(SegmentMoments{}.rms_offset_from_m(x_axis), 0.0);
 }
 
 TEST(SegmentMomentsTest, StoredFormRoundTripsAndEmptyIsZero) {

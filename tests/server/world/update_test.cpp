@@ -296,6 +296,33 @@ TEST(UpdateTest, AViewOfALongWallPostedWithANoisyHeadingIsTakenIn) {
   EXPECT_EQ(apply_observation(state, second, 2, options, std::ref(rules)).state.elements.size(), 2u);
 }
 
+// A depth step at a door frame: a wall face, and beside it, end to end, a face 12 cm back. Posted with a pose σ of
+// 3 cm / 0.5°, each passes the other's gate; they are still two surfaces.
+TEST(UpdateTest, TwoFacesOfADepthStepStayTwoElements) {
+  WorldOptions options;
+  JoiningRules rules;
+  const Eigen::Vector2d robot{1.5, -2.0};
+  // One scan sees both.
+  auto scan = view_from({0, 0}, {1.4, 0}, robot, 0.03, 0.0087);
+  scan.segments.push_back(view_from({1.45, 0.12}, {3.0, 0.12}, robot, 0.03, 0.0087).segments[0]);
+  const auto one = apply_observation(WorldState{}, scan, 1, options, std::ref(rules));
+  ASSERT_EQ(one.state.elements.size(), 2u);
+  for (const auto& [number, e] : one.state.elements)
+    EXPECT_LT(std::abs(std::cos(e.segment.line.phi_rad)), 0.002) << e.id() << " tilted";
+  // Seen in two scans, each face alone: the long face does not take the short one in as it grows either.
+  const auto first =
+      apply_observation(WorldState{}, view_from({0, 0}, {6, 0}, robot, 0.03, 0.0087), 1, options, std::ref(rules));
+  const auto second = apply_observation(first.state, view_from({6.05, 0.12}, {7.2, 0.12}, robot, 0.03, 0.0087), 2,
+                                        options, std::ref(rules));
+  ASSERT_EQ(second.state.elements.size(), 2u);
+  EXPECT_NEAR(second.state.elements.at(1).segment.line.rho_m, 0.0, 0.005);
+  // Whereas a view of the same face as far off, lying over it (the nearer surface would hide a farther one), is
+  // that face seen with a pose error: taken in.
+  const auto over = apply_observation(first.state, view_from({2.0, 0.06}, {4.0, 0.06}, robot, 0.03, 0.0087), 2, options,
+                                      std::ref(rules));
+  EXPECT_EQ(over.state.elements.size(), 1u);
+}
+
 TEST(UpdateTest, MidpointCovarianceCarriesTheLeverArm) {
   auto s = fusion::LineSegment::from_points({10, 3}, {14, 3}, Eigen::Matrix2d::Identity());
   const auto c = midpoint_line_cov(s, 0.01, 0.02);
