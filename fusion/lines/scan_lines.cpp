@@ -25,6 +25,48 @@ double normal_sigma(const Eigen::Matrix2d& q, const Eigen::Vector2d& normal) {
   return std::sqrt(normal.dot(q * normal));
 }
 
+// Where a piece that passes the straightness test is two parallel surfaces side by side (a door frame 8 cm proud of
+// the wall, seen from the side: no range jump, and a line fitted to both lies within 4 cm of every point): the
+// index k that best splits [first, last) into two runs of at least kMinSide points fitted by two parallel lines
+// (one direction, two offsets), when their offsets differ by more than the split threshold (and 4σ of that
+// difference). nullopt when there is no such step.
+std::optional<std::size_t> step_at(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
+                                   Piece piece, const Eigen::Vector2d& normal, const ScanLineOptions& options) {
+  constexpr std::size_t kMinSide = 3;
+  const std::size_t n = piece.last - piece.first;
+  if (n < 2 * kMinSide) return std::nullopt;
+  // Prefix sums (about the first point, for precision) of p and p·pᵀ, and the largest σ across the line.
+  const Eigen::Vector2d origin = points[piece.first];
+  std::vector<Eigen::Vector2d> sum(n + 1, Eigen::Vector2d::Zero());
+  std::vector<Eigen::Matrix2d> sum_sq(n + 1, Eigen::Matrix2d::Zero());
+  double sigma = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d p = points[piece.first + i] - origin;
+    sum[i + 1] = sum[i] + p;
+    sum_sq[i + 1] = sum_sq[i] + p * p.transpose();
+    sigma = std::max(sigma, normal_sigma(covs[piece.first + i], normal));
+  }
+  std::optional<std::size_t> best;
+  double best_excess = 1.0;
+  for (std::size_t k = kMinSide; k + kMinSide <= n; ++k) {
+    const double nl = static_cast<double>(k), nr = static_cast<double>(n - k);
+    const Eigen::Vector2d ml = sum[k] / nl, mr = (sum[n] - sum[k]) / nr;
+    const Eigen::Matrix2d within =
+        (sum_sq[k] - nl * ml * ml.transpose()) + (sum_sq[n] - sum_sq[k] - nr * mr * mr.transpose());
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(within);
+    const Eigen::Vector2d across = eigen.eigenvectors().col(0);
+    const double offset = std::abs(across.dot(ml - mr));
+    const double threshold = std::max(2.0 * options.split_distance_m, 4.0 * sigma * std::sqrt(1.0 / nl + 1.0 / nr));
+    // Each side must itself be straight about its own line: a bend is the split's business, not a step's.
+    const double spread = std::sqrt(std::max(0.0, eigen.eigenvalues()(0)) / static_cast<double>(n));
+    if (offset / threshold > best_excess && spread < 0.25 * offset) {
+      best_excess = offset / threshold;
+      best = piece.first + k;
+    }
+  }
+  return best;
+}
+
 // Splits [first, last) while some point lies farther than the threshold from the piece's least-squares line,
 // at the interior point farthest from the chord between the end points (the corner, for an L). Testing
 // against the fitted line rather than the chord keeps long noisy walls whole: the chord is off by the
@@ -50,6 +92,11 @@ void split(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::
                std::max(options.split_distance_m, 4.0 * normal_sigma(covs[i], normal));
   }
   if (straight) {
+    if (const auto k = options.split_steps ? step_at(points, covs, piece, normal, options) : std::nullopt) {
+      split(points, covs, {piece.first, *k}, options, out);
+      split(points, covs, {*k, piece.last}, options, out);
+      return;
+    }
     out.push_back(piece);
     return;
   }

@@ -231,6 +231,33 @@ TEST(ScanLinesTest, DepthStepsCutTheScanSoNoSegmentJoinsTwoFaces) {
   EXPECT_GT(segments_seen, 100);
 }
 
+// A door frame 7 cm proud of its wall, seen from the side of its step: the returns run on from the wall over the
+// step's face to the frame with no jump, and a line through both faces can lie within the split's 4 cm of every
+// return. Two parallel lines fit them far better: two segments, each on its face.
+TEST(ScanLinesTest, AStepWithoutARangeJumpIsSplitIntoItsTwoFaces) {
+  const std::vector<Wall> walls = {{{-0.8, 3}, {0, 3}}, {{0, 3}, {0, 2.93}}, {{0, 2.93}, {0.6, 2.93}}};
+  const auto spanning = [&](bool split_steps) {
+    ScanLineOptions options;
+    options.split_steps = split_steps;
+    std::mt19937 rng(5);
+    int count = 0, segments = 0;
+    for (const double x : {-4.0, -3.0, -2.5, -2.0, -1.5, -1.0, 1.0, 2.0, 3.0})
+      for (const double y : {-3.0, -1.0, 0.0, 1.0, 2.0}) {
+        const Pose2D pose{x, y, std::numbers::pi / 2};
+        for (const auto& s :
+             extract_scan_lines(scan(walls, pose, options, rng, 720), pose, Eigen::Matrix3d::Zero(), options)) {
+          ++segments;
+          count += lies_on(s, walls[0], 0.02) || lies_on(s, walls[2], 0.02) ? 0 : 1;
+        }
+      }
+    EXPECT_GT(segments, 50);
+    return count;
+  };
+  const int with_steps = spanning(true), without = spanning(false);
+  EXPECT_LE(with_steps, 3);
+  EXPECT_GT(without, with_steps) << "without the step test more segments should span both faces";
+}
+
 TEST(ScanLinesTest, TheBreakpointDetectorIsAnOption) {
   // Without it a 13 cm step seen head-on at 3 m is no gap of 0.25 m: the run spans both faces.
   const std::vector<Wall> walls = {{{-3, 3}, {0, 3}}, {{0, 3}, {0, 3.13}}, {{0, 3.13}, {3, 3.13}}};
