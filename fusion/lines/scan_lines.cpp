@@ -51,15 +51,17 @@ std::optional<std::size_t> step_at(const std::vector<Eigen::Vector2d>& points, c
   for (std::size_t k = kMinSide; k + kMinSide <= n; ++k) {
     const double nl = static_cast<double>(k), nr = static_cast<double>(n - k);
     const Eigen::Vector2d ml = sum[k] / nl, mr = (sum[n] - sum[k]) / nr;
-    const Eigen::Matrix2d within =
-        (sum_sq[k] - nl * ml * ml.transpose()) + (sum_sq[n] - sum_sq[k] - nr * mr * mr.transpose());
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(within);
+    const Eigen::Matrix2d left = sum_sq[k] - nl * ml * ml.transpose();
+    const Eigen::Matrix2d right = sum_sq[n] - sum_sq[k] - nr * mr * mr.transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(left + right);
     const Eigen::Vector2d across = eigen.eigenvectors().col(0);
     const double offset = std::abs(across.dot(ml - mr));
     const double threshold = std::max(2.0 * options.split_distance_m, 4.0 * sigma * std::sqrt(1.0 / nl + 1.0 / nr));
-    // Each side must itself be straight about its own line: a bend is the split's business, not a step's.
-    const double spread = std::sqrt(std::max(0.0, eigen.eigenvalues()(0)) / static_cast<double>(n));
-    if (offset / threshold > best_excess && spread < 0.25 * offset) {
+    // Each side must itself lie along the common direction (its own RMS spread across it under a quarter of the
+    // offset): the two sides of a bend spread about it, and a bend is the split's business, not a step's.
+    const double most_spread_sq = 0.0625 * offset * offset;
+    if (offset / threshold > best_excess && across.dot(left * across) / nl < most_spread_sq &&
+        across.dot(right * across) / nr < most_spread_sq) {
       best_excess = offset / threshold;
       best = piece.first + k;
     }
@@ -316,6 +318,8 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
       const Piece joined{a.piece.first, std::max(a.piece.last, b.piece.last)};
       auto refit = fit_piece(points, covs, joined, options);
       if (!refit || !on_line(points, covs, refit->piece, refit->segment.line, options)) continue;
+      // Two faces the step test split apart stay apart, however well their lines agree.
+      if (options.split_steps && step_at(points, covs, refit->piece, refit->segment.line.normal(), options)) continue;
       segments[k] = *refit;
       segments.erase(segments.begin() + static_cast<std::ptrdiff_t>(k + 1));
       merged = true;

@@ -42,8 +42,8 @@ struct ScanLineOptions {
   /// it with offsets more than twice split_distance_m (and 4σ of their difference) apart: a door frame or pilaster
   /// 6–10 cm proud of its wall, seen from the side of its step, gives no range jump, and a line through both faces
   /// lies within 4 cm of every return, tilted toward the frame. On the truth benchmark's AHG2 (frames drawn 8–15 cm
-  /// proud) precision rose 0.976 → 0.982 (low pose noise) and 0.959 → 0.963 (high); on the CARMEN logs recall fell
-  /// by 0.010 at most (edmonton). false: only the split's test.
+  /// proud) precision rose 0.976 → 0.981 (low pose noise) and 0.959 → 0.964 (high); on the CARMEN logs recall fell
+  /// by 0.007 at most (edmonton, acapulco). false: only the split's test.
   bool split_steps = true;
   double merge_chi2 = 5.991;    // χ², 2 dof (95 %): adjacent segments whose lines agree are merged
   double sigma_range_m = 0.01;  // range noise per reading, plus sigma_range_relative · range

@@ -57,7 +57,7 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
     // Taking `seen` in would bend the element: not the same straight wall, whatever the gate says.
     if ((element.moments + seen_moments).rms_offset_m() > straightness ||
         side_by_side(seen_moments, seen, element.moments, element.segment,
-                     element.moments.weight < seen_moments.weight
+                     element.segment.length_m() < seen.length_m()
                          ? std::max(straightness, straightness_allowance_m(element.segment, options))
                          : straightness))
       continue;

@@ -70,7 +70,7 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
 bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b);
 
 // Whether two parts that lie end to end are two surfaces side by side (a depth step at a door frame, a pilaster's
-// face): the shorter one (by the length it was built from) lies farther than `allowance_m` RMS from the longer
+// face): the shorter one's mass (the views it was built from) lies farther than `allowance_m` RMS from the longer
 // one's line. The RMS of the two together weighs each by its length, so a short wall 15 cm beside a long one barely
 // shows in it, and a line fitted to both turns toward the short one and hides half of its offset.
 bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,

@@ -25,7 +25,7 @@ double join_straightness_allowance_m(const Element& a, const Element& b, const W
 // Whether `a` and `b` are two surfaces side by side (side_by_side), held to the straightness the shorter one's own
 // views allow, or the join's allowance, whichever is larger.
 bool steps_apart(const Element& a, const Element& b, const WorldOptions& options) {
-  const Element& shorter = a.moments.weight < b.moments.weight ? a : b;
+  const Element& shorter = a.segment.length_m() < b.segment.length_m() ? a : b;
   const double allowance =
       std::max(join_straightness_allowance_m(a, b, options), straightness_allowance_m(shorter.segment, options));
   return side_by_side(a.moments, a.segment, b.moments, b.segment, allowance);
@@ -121,7 +121,7 @@ bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b) {
 bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,
                   const fusion::SegmentMoments& b, const fusion::LineSegment& b_segment, double allowance_m) {
   if (!end_to_end(a_segment, b_segment)) return false;
-  const bool a_shorter = a.weight < b.weight;
+  const bool a_shorter = a_segment.length_m() < b_segment.length_m();
   return (a_shorter ? a : b).rms_offset_from_m(a_shorter ? b_segment.line : a_segment.line) > allowance_m;
 }
 

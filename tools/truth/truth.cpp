@@ -127,10 +127,18 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
     std::stringstream list(trace);
     for (std::string id; std::getline(list, id, ',');) ids.insert(id);
   } else if (trace[0] == 'b') {
-    std::sscanf(trace + 1, "%lf,%lf,%lf,%lf", &bx0, &by0, &bx1, &by1);
+    if (std::sscanf(trace + 1, "%lf,%lf,%lf,%lf", &bx0, &by0, &bx1, &by1) != 4) {
+      std::fprintf(stderr, "WM_TRUTH_TRACE: a box is bX0,Y0,X1,Y1\n");
+      return;
+    }
+    std::tie(bx0, bx1) = std::minmax(bx0, bx1);
+    std::tie(by0, by1) = std::minmax(by0, by1);
   } else {
     double x = 0, y = 0;
-    std::sscanf(trace, "%lf,%lf", &x, &y);
+    if (std::sscanf(trace, "%lf,%lf", &x, &y) != 2) {
+      std::fprintf(stderr, "WM_TRUTH_TRACE: X,Y | eN,eM,... | bX0,Y0,X1,Y1\n");
+      return;
+    }
     for (const auto& [number, e] : state.elements)
       if (point_segment_distance(Vec(x, y), e.segment.p0(), e.segment.p1()) < 0.1) ids.insert(e.id());
   }
