@@ -500,8 +500,14 @@ TEST(SharedMapExportTest, TruncationsRacingTheCopiesNeverKillTheExporter) {
               }
             }
           });
-          const auto until = std::chrono::steady_clock::now() + 1500ms;
-          for (std::uint64_t n = 0; std::chrono::steady_clock::now() < until; ++n) {
+          // At least 1.5 s and 150 truncations (a loaded machine, or a sanitizer build, cuts more slowly), at most 30
+          // s.
+          const auto start = std::chrono::steady_clock::now();
+          const auto racing = [&] {
+            const auto now = std::chrono::steady_clock::now();
+            return now < start + 30s && (now < start + 1500ms || cuts.load() < 150);
+          };
+          for (std::uint64_t n = 0; racing(); ++n) {
             for (int i = 0; i < 64; ++i) port.bump(i, 0);
             exporter.sync();
           }
