@@ -28,8 +28,8 @@ double normal_sigma(const Eigen::Matrix2d& q, const Eigen::Vector2d& normal) {
 // Where a piece that passes the straightness test is two parallel surfaces side by side (a door frame 8 cm proud of
 // the wall, seen from the side: no range jump, and a line fitted to both lies within 4 cm of every point): the
 // index k that best splits [first, last) into two runs of at least kMinSide points fitted by two parallel lines
-// (one direction, two offsets), when their offsets differ by more than the split threshold (and 4σ of that
-// difference). nullopt when there is no such step.
+// (one direction, two offsets), when their offsets differ by more than twice split_distance_m (and 4σ of that
+// difference) and each side lies along the common direction. nullopt when there is no such step.
 std::optional<std::size_t> step_at(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
                                    Piece piece, const Eigen::Vector2d& normal, const ScanLineOptions& options) {
   constexpr std::size_t kMinSide = 3;
