@@ -230,6 +230,21 @@ test(a_rule_that_writes_files_is_refused, [true(sub_string(P, _, _, _, "can reac
                      test_rules, 100000, 5.0, 0.0, error(Problems)),
     member(P, Problems).
 
+test(a_format_with_a_term_for_its_format_is_refused_without_reaching_the_sandbox,
+     [true(sub_string(P, _, _, _, "a format must be text"))]) :-
+    wm_engine:reload([text('a.pl', "decide(_, _, add, r, E) :- format(string(E), x).")],
+                     test_rules, 100000, 5.0, 0.0, error([P])).
+
+%   library(sandbox) of SWI-Prolog 9.0.4 never returns on format/2 with a term for its format.
+test(the_sandbox_check_stops_at_its_time_limit, [true(sub_atom(F, _, _, _, "did not finish within"))]) :-
+    get_time(T0),
+    wm_engine:sandbox_refusal(format(atom(_), x), 0.3, format(F, [0.3])),
+    get_time(T1),
+    assertion(T1 - T0 < 5).
+
+test(the_sandbox_check_passes_a_safe_goal, [fail]) :-
+    wm_engine:sandbox_refusal(format(string(_), "~w", [x]), 5.0, _).
+
 test(a_singleton_warning_refuses_the_rules, [true(sub_string(P, _, _, _, "Singleton"))]) :-
     wm_engine:reload([text('a.pl', "decide(O, _, add, r, x).")], test_rules, 100000, 5.0, 0.0,
                      error(Problems)),

@@ -163,6 +163,21 @@ TEST_F(RuleTextSecurityTest, CharacterCodesAndRadixNumbersAreRefusedBeforeTheRea
   expect_knowledge_base_intact();
 }
 
+TEST_F(RuleTextSecurityTest, AFormatWithATermForItsFormatIsRefusedWithoutHangingTheSafetyCheck) {
+  // The fuzzer's reproducer: a mutated glass.pl whose rule calls format(string(E), ass), format/2 with a term
+  // for its format. SWI-Prolog 9.0.4's sandbox check never returned on it, so the dry run hung.
+  const std::string reproducer = read_text(std::filesystem::path(WM_SOURCE_DIR) / "fuzz" / "regressions" /
+                                           "fuzz_rules_text" / "sandbox-check-hangs-on-format-of-a-term.pl");
+  const auto start = Clock::now();
+  const auto message = refused_dry_run(reproducer.substr(1));
+  EXPECT_LT(Clock::now() - start, std::chrono::seconds(8));
+  EXPECT_TRUE(contains(message, "zz.pl:9: ")) << message;
+  EXPECT_TRUE(contains(message, "a format must be text")) << message;
+  EXPECT_TRUE(
+      contains(refused_dry_run("override(_, _, add, r, \"x\") :- format(atom(_), x).\n"), "a format must be text"));
+  expect_knowledge_base_intact();
+}
+
 TEST_F(RuleTextSecurityTest, ACandidateThatBlocksIsStoppedPerDecision) {
   const auto start = Clock::now();
   // It passes the self-check (source self_check) and blocks in the cases asked (source lidar).
