@@ -110,12 +110,17 @@ bool join_into(UpdateResult& result, std::int64_t into, std::int64_t from, const
 
 }  // namespace
 
+// A surface behind another, seen through the gap beside the nearer one's end at incidence θ, shows up to
+// offset · tan θ of itself behind that end: 3 offsets is θ = 72°.
+constexpr double kObliqueOverlapPerOffset = 3.0;
+
 bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b) {
   const auto& longer = a.length_m() >= b.length_m() ? a : b;
   const auto& shorter = &longer == &a ? b : a;
   const double ta = longer.line.coordinate_along(shorter.p0()), tb = longer.line.coordinate_along(shorter.p1());
   const double overlap = std::min(std::max(ta, tb), longer.t1_m) - std::max(std::min(ta, tb), longer.t0_m);
-  return overlap < 0.5 * std::abs(tb - ta);
+  const double offset = std::abs(longer.line.signed_distance(0.5 * (shorter.p0() + shorter.p1())));
+  return overlap < std::max(0.5 * std::abs(tb - ta), kObliqueOverlapPerOffset * offset);
 }
 
 bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,

@@ -321,6 +321,14 @@ TEST(UpdateTest, TwoFacesOfADepthStepStayTwoElements) {
   const auto over = apply_observation(first.state, view_from({2.0, 0.06}, {4.0, 0.06}, robot, 0.03, 0.0087), 2, options,
                                       std::ref(rules));
   EXPECT_EQ(over.state.elements.size(), 1u);
+  // A surface 12 cm behind the end of a nearer one, seen obliquely through the gap beside that end: 0.30 m of the
+  // 0.46 m view lies behind the nearer face's extent (more than half of it), and it is still another surface.
+  const auto front =
+      apply_observation(WorldState{}, view_from({0, 0}, {1.4, 0}, robot, 0.03, 0.0087), 1, options, std::ref(rules));
+  const auto behind = apply_observation(front.state, view_from({1.1, 0.12}, {1.56, 0.12}, robot, 0.03, 0.0087), 2,
+                                        options, std::ref(rules));
+  ASSERT_EQ(behind.state.elements.size(), 2u);
+  EXPECT_NEAR(behind.state.elements.at(1).segment.line.rho_m, 0.0, 0.005);
 }
 
 TEST(UpdateTest, MidpointCovarianceCarriesTheLeverArm) {
