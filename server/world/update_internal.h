@@ -75,8 +75,12 @@ bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b);
 // face): the shorter one's mass (the views it was built from) lies farther than `allowance_m` RMS from the longer
 // one's line. The RMS of the two together weighs each by its length, so a short wall 15 cm beside a long one barely
 // shows in it, and a line fitted to both turns toward the short one and hides half of its offset.
+// The overlap argument holds only when both were seen from one side: an element that faces both ways (a thin wall
+// joined from its two sides) has an extent seen partly from the other side, over which a surface in front of it may
+// well lie; then `one_side` is false and parts that overlap are tested too.
 bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,
-                  const fusion::SegmentMoments& b, const fusion::LineSegment& b_segment, double allowance_m);
+                  const fusion::SegmentMoments& b, const fusion::LineSegment& b_segment, double allowance_m,
+                  bool one_side = true);
 
 // How far from one straight line (RMS) an element and a new view of it may lie together: the fixed allowance, or
 // WorldOptions::straightness_sigmas σ of the spread the view's own covariance gives (across its middle, and its

@@ -28,7 +28,8 @@ bool steps_apart(const Element& a, const Element& b, const WorldOptions& options
   const Element& shorter = a.segment.length_m() < b.segment.length_m() ? a : b;
   const double allowance =
       std::max(join_straightness_allowance_m(a, b, options), straightness_allowance_m(shorter.segment, options));
-  return side_by_side(a.moments, a.segment, b.moments, b.segment, allowance);
+  return side_by_side(a.moments, a.segment, b.moments, b.segment, allowance,
+                      a.facing_rad.has_value() && b.facing_rad.has_value());
 }
 
 // Whether `part` is a piece of the wall `whole` stands for, whatever its own direction says: at most half as long,
@@ -93,9 +94,10 @@ bool join_into(UpdateResult& result, std::int64_t into, std::int64_t from, const
                                    joined.moments);
   joined.support += other.support;
   // A thin surface seen from both sides faces both ways: views from either side match it from now on.
-  joined.facing_rad = faces_agree(keeper.facing_rad, other.facing_rad)
-                          ? keeper.facing_rad.has_value() ? keeper.facing_rad : other.facing_rad
-                          : std::nullopt;
+  joined.facing_rad =
+      faces_agree(keeper.facing_rad, other.facing_rad) && !faces_both_ways(keeper) && !faces_both_ways(other)
+          ? keeper.facing_rad.has_value() ? keeper.facing_rad : other.facing_rad
+          : std::nullopt;
   joined.updated_version = state.version;
   joined.updated_at_unix_s = observation.received_at_unix_s;
   record.after = line_numbers(joined.segment.line);
@@ -124,8 +126,9 @@ bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b) {
 }
 
 bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,
-                  const fusion::SegmentMoments& b, const fusion::LineSegment& b_segment, double allowance_m) {
-  if (!end_to_end(a_segment, b_segment)) return false;
+                  const fusion::SegmentMoments& b, const fusion::LineSegment& b_segment, double allowance_m,
+                  bool one_side) {
+  if (one_side && !end_to_end(a_segment, b_segment)) return false;
   const bool a_shorter = a_segment.length_m() < b_segment.length_m();
   return (a_shorter ? a : b).rms_offset_from_m(a_shorter ? b_segment.line : a_segment.line) > allowance_m;
 }

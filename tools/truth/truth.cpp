@@ -120,7 +120,8 @@ std::string optional_fixed(const std::optional<double>& value, int decimals) {
 // WM_TRUTH_TRACE: the decisions about some elements, on stderr, to follow how one came to be. "x,y": the elements
 // within 10 cm of the point; "e12,e40": those elements; "bx0,y0,x1,y1": every decision whose observed segment has
 // its middle in that box.
-void trace_decisions(const char* trace, service::WorldService& world, const world::WorldState& state) {
+void trace_decisions(const char* trace, service::WorldService& world, const world::WorldState& state,
+                     const std::vector<fusion::LaserScan>& scans) {
   std::set<std::string> ids;
   double bx0 = 0, by0 = 0, bx1 = -1, by1 = -1;
   if (trace[0] == 'e') {
@@ -148,11 +149,15 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
            (m.x() >= bx0 && m.x() <= bx1 && m.y() >= by0 && m.y() <= by1);
   };
   for (const auto& d : world.decisions(0, 10'000'000, std::nullopt))
-    if (traced(d))
-      std::fprintf(stderr, "trace %lld %s el=%s matched=%s (%.2f,%.2f)-(%.2f,%.2f) %s: %s\n",
+    if (traced(d)) {
+      // Observations are numbered from 1 in the order of the scans; the robot's posted (noisy) pose.
+      const auto k = static_cast<std::size_t>(d.observation_seq - 1);
+      const auto robot = k < scans.size() ? scans[k].sensor_pose : fusion::Pose2D{};
+      std::fprintf(stderr, "trace %lld %s el=%s matched=%s (%.2f,%.2f)-(%.2f,%.2f) robot (%.2f,%.2f) %s: %s\n",
                    static_cast<long long>(d.observation_seq), std::string(rules::wire_name(d.action)).c_str(),
                    d.element.value_or("-").c_str(), d.matched_element.value_or("-").c_str(), d.p0.x(), d.p0.y(),
-                   d.p1.x(), d.p1.y(), d.rule.c_str(), d.explanation.c_str());
+                   d.p1.x(), d.p1.y(), robot.x_m, robot.y_m, d.rule.c_str(), d.explanation.c_str());
+    }
 }
 
 }  // namespace
@@ -200,7 +205,7 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
         if (d.object.value_or(d.matched_object.value_or("")) == kTableId)
           std::fprintf(stderr, "table decision %lld: %s %s: %s\n", static_cast<long long>(d.observation_seq),
                        std::string(rules::wire_name(d.action)).c_str(), d.rule.c_str(), d.explanation.c_str());
-    if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state);
+    if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state, scans);
     outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;

@@ -63,6 +63,21 @@ TEST(FacingTest, AThinSurfaceSeenFromBothSidesIsOneElementThatFacesBothWays) {
     EXPECT_EQ(more.state.elements.size(), 1u);
     EXPECT_EQ(more.decisions.front().matched_element, surface.id());
   }
+  // It keeps facing both ways as views from one side merge into it: the next view from the other side merges too.
+  auto seen_from_below = joined.state;
+  for (std::int64_t seq = 3; seq < 6; ++seq)
+    seen_from_below = apply_observation(seen_from_below, view_from({1, 0.005}, {5, 0.005}, {3, -2}, 0.01, 0.0035), seq,
+                                        options, std::ref(rules))
+                          .state;
+  EXPECT_FALSE(seen_from_below.elements.at(surface.number).facing_rad.has_value());
+  const auto from_above = apply_observation(seen_from_below, view_from({1, 0.005}, {5, 0.005}, {3, 2}, 0.01, 0.0035), 6,
+                                            options, std::ref(rules));
+  EXPECT_EQ(from_above.decisions.front().matched_element, surface.id());
+  // Its extent was partly seen from the other side, so a surface 11 cm in front of it that lies over it is not
+  // hidden by it and may be another one: a noisy view (σ 4 cm, within the gate) of one stays apart.
+  const auto in_front = apply_observation(seen_from_below, view_from({2, -0.11}, {3.5, -0.11}, {3, -2}, 0.04, 0.0087),
+                                          6, options, std::ref(rules));
+  EXPECT_EQ(in_front.state.elements.size(), 2u);
   // 5 cm apart is more than thin_surface_m: two faces.
   const auto thick =
       apply_observation(state, view_from({0, 0.05}, {6, 0.05}, {3, 2}, 0.01, 0.0035), 2, options, std::ref(rules));
