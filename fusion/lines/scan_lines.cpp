@@ -215,6 +215,8 @@ bool within_adaptive_distance(const RangeReading& a, const RangeReading& b, doub
 bool cuts_as_gap(const RangeReading& a, const RangeReading& b, double distance, const ScanLineOptions& options) {
   if (distance <= options.max_gap_m) return false;
   if (options.far_gap_lambda_rad <= 0 || std::max(a.range_m, b.range_m) > options.far_gap_max_range_m) return true;
+  const double beams_apart = std::abs(b.bearing_rad - a.bearing_rad) / options.bearing_step_rad;
+  if (options.bearing_step_rad > 0 && beams_apart > static_cast<double>(options.max_missing_beams) + 1.5) return true;
   return !within_adaptive_distance(a, b, distance, options.far_gap_lambda_rad, options);
 }
 
@@ -248,6 +250,8 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
           "far_gap_lambda_rad must be in [0, pi/2)");
   require(std::isfinite(options.far_gap_max_range_m) && options.far_gap_max_range_m >= 0,
           "far_gap_max_range_m must be finite and >= 0");
+  require(std::isfinite(options.bearing_step_rad) && options.bearing_step_rad >= 0,
+          "bearing_step_rad must be finite and >= 0");
   require(options.breakpoint_lambda_rad > 0 && options.breakpoint_lambda_rad < std::numbers::pi / 2,
           "breakpoint_lambda_rad must be in (0, pi/2)");
   require(std::isfinite(options.breakpoint_isolation) && options.breakpoint_isolation >= 0,

@@ -23,6 +23,12 @@ struct ScanLineOptions {
   /// 0.773 and orebro from 0.974 to 0.894. A doorway is wider than such a gap from any range where it could be seen.
   double far_gap_lambda_rad = 0.2618;  // 15°
   double far_gap_max_range_m = 20.0;
+  /// Angle between neighbouring beams [rad] (0: not known). When it is known, the far-gap spacing above is allowed
+  /// only between returns of beams at most max_missing_beams apart: the beams between two returns 9° apart would
+  /// have hit a surface joining them, and returned nothing (an opening: Barcelona's 2.3 m gap between a wall's end
+  /// and a far wall 14 m away had become one 5 m line along the wall).
+  double bearing_step_rad = 0.0;
+  std::size_t max_missing_beams = 2;
   /// Adaptive breakpoint detector (Borges & Aldon, J. Intell. Robot. Syst. 39, 2004): consecutive points
   /// p_{n−1}, p_n also start a new segment when ‖p_n − p_{n−1}‖ > r_{n−1}·sin Δφ / sin(λ − Δφ) + 3σ_r, Δφ their
   /// bearing difference, σ_r the range noise. That distance is how far apart two returns from one surface seen at

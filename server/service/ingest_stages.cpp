@@ -94,6 +94,7 @@ std::optional<PreparedUpdate> IngestPipeline::prepare_scan_lines(world::ScanObse
   auto line_options = options_.scan_lines;
   line_options.sigma_range_m = laser->sigma_range_m;
   line_options.sigma_range_relative = laser->sigma_range_per_m;
+  line_options.bearing_step_rad = std::abs(laser->angle_increment_rad);
   // In the sensor's own frame first (the sensor's noise only), so that they can place the sensor.
   const auto local = fusion::extract_scan_lines(readings, fusion::Pose2D{}, Eigen::Matrix3d::Zero(), line_options);
   if (local.empty()) return std::nullopt;

@@ -13,6 +13,7 @@
 #include <tuple>
 
 #include "common/diagnostics.h"
+#include "fusion/grid/scan_geometry.h"
 #include "logs/scan_body.h"
 #include "rules/engine.h"
 #include "server/storage/store.h"
@@ -120,8 +121,11 @@ std::string optional_fixed(const std::optional<double>& value, int decimals) {
 // WM_TRUTH_TRACE: the decisions about some elements, on stderr, to follow how one came to be. "x,y": the elements
 // within 10 cm of the point; "e12,e40": those elements; "bx0,y0,x1,y1": every decision whose observed segment has
 // its middle in that box.
+// Where each scan was placed, by the sequence number of its observation (the lines decided from it).
+using Placements = std::map<std::int64_t, service::ScanPlacement>;
+
 void trace_decisions(const char* trace, service::WorldService& world, const world::WorldState& state,
-                     const std::vector<fusion::LaserScan>& scans) {
+                     const Placements& placements) {
   std::set<std::string> ids;
   double bx0 = 0, by0 = 0, bx1 = -1, by1 = -1;
   if (trace[0] == 'e') {
@@ -150,14 +154,31 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
   };
   for (const auto& d : world.decisions(0, 10'000'000, std::nullopt))
     if (traced(d)) {
-      // Observations are numbered from 1 in the order of the scans; the robot's posted (noisy) pose.
-      const auto k = static_cast<std::size_t>(d.observation_seq - 1);
-      const auto robot = k < scans.size() ? scans[k].sensor_pose : fusion::Pose2D{};
+      // Where the server placed the robot's scan (its posted pose aligned to the map).
+      const auto at = placements.find(d.observation_seq);
+      const auto robot = at != placements.end() ? at->second.placed : fusion::Pose2D{};
       std::fprintf(stderr, "trace %lld %s el=%s matched=%s (%.2f,%.2f)-(%.2f,%.2f) robot (%.2f,%.2f) %s: %s\n",
                    static_cast<long long>(d.observation_seq), std::string(rules::wire_name(d.action)).c_str(),
                    d.element.value_or("-").c_str(), d.matched_element.value_or("-").c_str(), d.p0.x(), d.p0.y(),
                    d.p1.x(), d.p1.y(), robot.x_m, robot.y_m, d.rule.c_str(), d.explanation.c_str());
     }
+}
+
+// The returns of the scan whose lines were observation `seq`, in the world frame of the pose the server placed it
+// at: "return SEQ BEAM X Y RANGE", one per line.
+void print_returns(const std::vector<fusion::LaserScan>& scans, const std::map<std::int64_t, std::size_t>& scan_of,
+                   const Placements& placements, std::int64_t seq) {
+  const auto k = scan_of.find(seq);
+  if (k == scan_of.end()) return;
+  const auto& scan = scans[k->second];
+  const auto pose = placements.at(seq).placed;
+  for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+    const double r = scan.ranges_m[i];
+    if (!std::isfinite(r) || r < scan.range_min_m || r >= scan.range_max_m) continue;
+    const double bearing = pose.theta_rad + fusion::beam_bearing_rad(scan, i);
+    std::fprintf(stderr, "return %lld %zu %.3f %.3f %.3f\n", static_cast<long long>(seq), i,
+                 pose.x_m + r * std::cos(bearing), pose.y_m + r * std::sin(bearing), r);
+  }
 }
 
 }  // namespace
@@ -189,6 +210,8 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
     service::WorldService world(options.service, store, engine, diagnostics);
     if (plan) world.load_floor_plan(*plan);
     double stamp = 0;
+    Placements placements;
+    std::map<std::int64_t, std::size_t> scan_of;  // by observation seq
     for (const auto& scan : scans) {
       world::ScanObservation request;
       request.observer = "truth";
@@ -196,7 +219,11 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
       request.pose_cov = pose_cov;
       auto payload = logs::laser_scan_body(scan, request.observer, stamp).dump();
       request.scan = scan;
-      world.post_scan(std::move(request), std::move(payload), std::nullopt);
+      const auto posted = world.post_scan(std::move(request), std::move(payload), std::nullopt);
+      if (posted.lines && posted.placement) {
+        placements.emplace(posted.lines->seq, *posted.placement);
+        scan_of.emplace(posted.lines->seq, static_cast<std::size_t>(&scan - scans.data()));
+      }
       stamp += 0.5;
     }
     outcome.state = world.snapshot();
@@ -205,7 +232,8 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
         if (d.object.value_or(d.matched_object.value_or("")) == kTableId)
           std::fprintf(stderr, "table decision %lld: %s %s: %s\n", static_cast<long long>(d.observation_seq),
                        std::string(rules::wire_name(d.action)).c_str(), d.rule.c_str(), d.explanation.c_str());
-    if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state, scans);
+    if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state, placements);
+    if (const char* seq = std::getenv("WM_TRUTH_SCAN")) print_returns(scans, scan_of, placements, std::atoll(seq));
     outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;

@@ -312,6 +312,46 @@ TEST(ScanLinesTest, AFarWallWhoseReturnsLieFartherApartThanTheGapIsStillOneSegme
   EXPECT_THROW(extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
 }
 
+TEST(ScanLinesTest, AnOpeningSeenThroughManyEmptyBeamsCutsWhenTheBeamStepIsKnown) {
+  // Seen from 14 m: a wall ends at y = 11.93, the beams past its end return nothing up to a far wall at y = 14.19
+  // seen at 8°, whose first return lies on the first wall's line. The 2.3 m between the two returns is within the
+  // far-gap spacing of a surface seen at 15° from 9° apart, and no breakpoint (the far wall's own returns lie
+  // 0.8 m apart), so without the beam step one line runs along the first wall and across the opening.
+  constexpr int kHalfDegreeBeams = 720;
+  const double step = 2 * std::numbers::pi / kHalfDegreeBeams;
+  const Pose2D pose{21.14, 12.27, std::numbers::pi / 2};  // the scan's first beam points away from the scene
+  double end_x = 0, best = 1e9;                           // where the beam nearest to x = 7.55 meets y = 14.19
+  for (int i = 0; i < kHalfDegreeBeams; ++i) {
+    const double bearing = pose.theta_rad - std::numbers::pi + i * step;
+    if (std::sin(bearing) <= 0.01) continue;
+    const double x = pose.x_m + (14.19 - pose.y_m) * std::cos(bearing) / std::sin(bearing);
+    if (std::abs(x - 7.55) < best) best = std::abs(x - 7.55), end_x = x;
+  }
+  const std::vector<Wall> walls = {{{end_x, 8.0}, {end_x, 11.93}}, {{end_x - 0.01, 14.19}, {25, 14.19}}};
+  ScanLineOptions options;
+  options.sigma_bearing_rad = 0;
+  std::mt19937 rng(7);
+  const auto readings = scan(walls, pose, options, rng, kHalfDegreeBeams);
+  const auto across = [&](const ScanLineOptions& o) {
+    std::size_t n = 0;
+    for (const auto& s : extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), o))
+      n += std::abs(s.p0().x() - end_x) < 0.05 && std::abs(s.p1().x() - end_x) < 0.05 &&
+                   std::max(s.p0().y(), s.p1().y()) > 12.5
+               ? 1
+               : 0;
+    return n;
+  };
+  EXPECT_EQ(across(options), 1u) << "the test no longer shows the opening joined without the beam step";
+  options.bearing_step_rad = step;
+  EXPECT_EQ(across(options), 0u);
+  std::size_t on_wall = 0;
+  for (const auto& s : extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options))
+    on_wall += lies_on(s, walls[0], 0.03) ? 1 : 0;
+  EXPECT_EQ(on_wall, 1u) << "the wall itself is still seen";
+  options.bearing_step_rad = -0.01;
+  EXPECT_THROW(extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
+}
+
 TEST(ScanLinesTest, BadInputIsRefused) {
   ScanLineOptions options;
   EXPECT_THROW(extract_scan_lines({{std::nan(""), 0.0}}, {0, 0, 0}, Eigen::Matrix3d::Zero(), options),
