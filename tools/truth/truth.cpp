@@ -136,8 +136,8 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
       std::fprintf(stderr, "WM_TRUTH_TRACE: a box is bX0,Y0,X1,Y1\n");
       return;
     }
-    std::tie(bx0, bx1) = std::minmax(bx0, bx1);
-    std::tie(by0, by1) = std::minmax(by0, by1);
+    std::tie(bx0, bx1) = std::minmax({bx0, bx1});  // by value: minmax(a, b) returns references to a and b
+    std::tie(by0, by1) = std::minmax({by0, by1});
   } else {
     double x = 0, y = 0;
     if (std::sscanf(trace, "%lf,%lf", &x, &y) != 2) {
