@@ -192,11 +192,12 @@ INSTANTIATE_TEST_SUITE_P(Buildings, TruthBuildingTest,
 // The same drives with the pose posted at σ 3 cm / 0.5° (and its covariance), with the figures reached (seed 1) as
 // the floor, so that what keeps noisy views on their walls (each scan aligned to the map before it is decided), the
 // two faces of a wall apart and the table's far views on the table cannot quietly go. Reached: precision
-// 0.959-0.997 (without the alignment 0.832-0.901; AHG2 0.935 before a short wall beside a long one, end to end, was
+// 0.962-0.997 (without the alignment 0.832-0.901; AHG2 0.935 before a short wall beside a long one, end to end, was
 // kept apart as a depth step), recall 0.862-0.985, demolished walls found 0.878-1.000, the table within 3.6 cm /
 // 0.2° and none of its sides a wall (two on Barcelona before a far view that ran 17 cm past the table's corner was
-// taken as its side). Not met: precision in AHG2 (0.959) and the RMF office (0.962), recall in
-// GDC1 (0.889) and Barcelona (0.862), AHG2's demolished walls (0.878), the table on GDC1 (3.6 cm).
+// taken as its side). Not met: precision in AHG2 (0.967) and the RMF office (0.962, its curved wall drawn as facets
+// 7-8° apart), recall in GDC1 (0.890) and Barcelona (0.862), AHG2's demolished walls (0.878), the table on GDC1
+// (3.6 cm).
 struct ExpectedNoisy {
   const char* building;
   double precision, recall;
@@ -226,8 +227,8 @@ TEST_P(TruthHighNoiseTest, NoisyPosesStillGiveOneElementPerWallAndTheChanges) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Buildings, TruthHighNoiseTest,
-                         ::testing::Values(ExpectedNoisy{"gdc1", 0.965, 0.88, 0.95, 0.04},
-                                           ExpectedNoisy{"ahg2", 0.95, 0.92, 0.87, 0.03},
+                         ::testing::Values(ExpectedNoisy{"gdc1", 0.97, 0.885, 0.95, 0.04},
+                                           ExpectedNoisy{"ahg2", 0.96, 0.925, 0.87, 0.03},
                                            ExpectedNoisy{"rmf-office", 0.95, 0.97, 0.95, 0.03},
                                            ExpectedNoisy{"barcelona", 0.99, 0.85, 0.95, 0.03}),
                          [](const auto& info) { return test_name(info.param.building); });
