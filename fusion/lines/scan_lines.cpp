@@ -215,8 +215,9 @@ bool within_adaptive_distance(const RangeReading& a, const RangeReading& b, doub
 bool cuts_as_gap(const RangeReading& a, const RangeReading& b, double distance, const ScanLineOptions& options) {
   if (distance <= options.max_gap_m) return false;
   if (options.far_gap_lambda_rad <= 0 || std::max(a.range_m, b.range_m) > options.far_gap_max_range_m) return true;
-  const double beams_apart = std::abs(b.bearing_rad - a.bearing_rad) / options.bearing_step_rad;
-  if (options.bearing_step_rad > 0 && beams_apart > static_cast<double>(options.max_missing_beams) + 1.5) return true;
+  if (options.bearing_step_rad > 0 && std::abs(b.bearing_rad - a.bearing_rad) / options.bearing_step_rad >
+                                          static_cast<double>(options.max_missing_beams) + 1.5)
+    return true;
   return !within_adaptive_distance(a, b, distance, options.far_gap_lambda_rad, options);
 }
 

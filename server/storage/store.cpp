@@ -110,6 +110,11 @@ ALTER TABLE elements ADD COLUMN facing REAL;
     R"sql(
 ALTER TABLE scans ADD COLUMN scan BLOB;
 )sql",
+    // v11: an element seen from both sides (a thin surface; its facing is then NULL). Elements stored before read
+    // as of unknown side, which the next view gives them.
+    R"sql(
+ALTER TABLE elements ADD COLUMN both_ways INTEGER NOT NULL DEFAULT 0;
+)sql",
 };
 constexpr int kMigrationCount = static_cast<int>(sizeof(kMigrations) / sizeof(kMigrations[0]));
 static_assert(kMigrationCount == Store::kSchemaVersion);

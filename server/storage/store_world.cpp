@@ -75,7 +75,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
   {
     Statement s(writer_,
                 "SELECT number, rho, phi, cov, t0, t1, support, source, observer, created_version, updated_version, "
-                "updated_at, moments, facing FROM elements ORDER BY number");
+                "updated_at, moments, facing, both_ways FROM elements ORDER BY number");
     while (s.step()) {
       world::Element e;
       e.number = s.column_int(0);
@@ -101,6 +101,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
         throw StorageError("corrupt element moments in database");
       }
       e.facing_rad = s.column_optional_double(13);
+      e.both_ways = s.column_int(14) != 0;
       state.elements.put(std::move(e));
     }
   }
@@ -157,12 +158,12 @@ void Store::write_observation(const ObservationEntry& entry) {
     Statement s(
         writer_,
         "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
-        "updated_version, updated_at, moments, facing) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, "
-        "?13, ?14) "
+        "updated_version, updated_at, moments, facing, both_ways) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, "
+        "?11, ?12, ?13, ?14, ?15) "
         "ON CONFLICT(number) DO UPDATE SET "
         "rho = excluded.rho, phi = excluded.phi, cov = excluded.cov, t0 = excluded.t0, t1 = excluded.t1, "
         "support = excluded.support, updated_version = excluded.updated_version, updated_at = excluded.updated_at, "
-        "moments = excluded.moments, facing = excluded.facing");
+        "moments = excluded.moments, facing = excluded.facing, both_ways = excluded.both_ways");
     for (auto number : update.changed_elements) {
       const auto& e = update.state.elements.at(number);
       s.bind(1, e.number).bind(2, e.segment.line.rho_m).bind(3, e.segment.line.phi_rad);
@@ -171,7 +172,7 @@ void Store::write_observation(const ObservationEntry& entry) {
       s.bind(8, std::string_view(e.origin)).bind(9, std::string_view(e.observer));
       const auto moments = e.moments.to_array();
       bind_doubles(s, 13, std::vector<double>(moments.begin(), moments.end()));
-      s.bind(14, e.facing_rad);
+      s.bind(14, e.facing_rad).bind(15, static_cast<std::int64_t>(e.both_ways ? 1 : 0));
       s.bind(10, e.created_version).bind(11, e.updated_version).bind(12, e.updated_at_unix_s).run();
     }
   }

@@ -60,7 +60,7 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
                      element.segment.length_m() < seen.length_m()
                          ? std::max(straightness, straightness_allowance_m(element.segment, options))
                          : straightness,
-                     element.facing_rad.has_value() && seen_facing.has_value()))
+                     !element.both_ways))
       continue;
     c.segments.push_back(element.segment);
     c.refs.push_back({std::nullopt, 0, number});
@@ -213,8 +213,6 @@ bool faces_agree(const std::optional<double>& a, const std::optional<double>& b)
   return !a || !b || std::cos(*a - *b) > 0;
 }
 
-bool faces_both_ways(const Element& element) { return element.origin == "scan" && !element.facing_rad; }
-
 UpdateResult apply_observation(const WorldState& current, const Observation& observation, std::int64_t observation_seq,
                                const WorldOptions& options, const Decide& decide) {
   UpdateResult result{current, {}, {}, {}, {}};
@@ -327,7 +325,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
         element.moments += fusion::SegmentMoments::of(seen);
         element.segment = fused_and_refit(fusion::fuse(element.segment, seen, options.fusion), element.moments);
         // An element that faces both ways keeps doing so; one whose side was not known learns it.
-        if (!element.facing_rad && !faces_both_ways(element)) element.facing_rad = observation.segments[i].facing_rad;
+        if (!element.facing_rad && !element.both_ways) element.facing_rad = observation.segments[i].facing_rad;
       }
       record.after = line_numbers(element.segment.line);
       ++element.support;

@@ -32,11 +32,6 @@ double facing_toward(const fusion::LineSegment& segment, const Eigen::Vector2d& 
 /// 90° apart).
 bool faces_agree(const std::optional<double>& a, const std::optional<double>& b);
 
-/// Whether `element` is a thin surface seen from both sides. An element built from scan lines knows from birth the
-/// side its wall was seen from; it has none only once it was joined with a view from the other side. (Elements
-/// posted by clients or fitted to the grid have none because it is not known.)
-bool faces_both_ways(const Element& element);
-
 /// A batch of segments from one request. Naming throughout world/ and storage/: `observer` is the robot (or
 /// client) that saw it, `origin` how the segments were made: posted by a client, extracted from a scan or from
 /// the grid. (The JSON field "source" that clients send is the observer; the codec maps it.)

@@ -64,11 +64,11 @@ Candidates collect_candidates(const WorldState& state, const fusion::LineSegment
                               const std::optional<double>& seen_facing, const WorldOptions& options);
 
 // Whether two segments lie end to end rather than over each other: less than half of the shorter one's extent,
-// projected on the longer one's line, falls within the longer one, or less than three times the shorter one's
-// offset from that line. Two surfaces seen from one side cannot lie over each other a few cm apart (the nearer
-// hides the farther) beyond what an oblique view through the gap at the nearer one's end shows of the farther
-// (offset · tan θ), so parts that overlap more are views of one surface, however far one of them is off; parts end
-// to end may be two (a depth step).
+// projected on the longer one's line, falls within the longer one, or, when the shorter runs on past one of the
+// longer one's ends, less than three times the shorter one's offset from that line. Two surfaces seen from one side
+// cannot lie over each other a few cm apart (the nearer hides the farther) beyond what an oblique view through the gap
+// at the nearer one's end shows of the farther (offset · tan θ), so parts that overlap more are views of one surface,
+// however far one of them is off; parts end to end may be two (a depth step).
 bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b);
 
 // Whether two parts that lie end to end are two surfaces side by side (a depth step at a door frame, a pilaster's

@@ -28,8 +28,7 @@ bool steps_apart(const Element& a, const Element& b, const WorldOptions& options
   const Element& shorter = a.segment.length_m() < b.segment.length_m() ? a : b;
   const double allowance =
       std::max(join_straightness_allowance_m(a, b, options), straightness_allowance_m(shorter.segment, options));
-  return side_by_side(a.moments, a.segment, b.moments, b.segment, allowance,
-                      a.facing_rad.has_value() && b.facing_rad.has_value());
+  return side_by_side(a.moments, a.segment, b.moments, b.segment, allowance, !a.both_ways && !b.both_ways);
 }
 
 // Whether `part` is a piece of the wall `whole` stands for, whatever its own direction says: at most half as long,
@@ -94,10 +93,10 @@ bool join_into(UpdateResult& result, std::int64_t into, std::int64_t from, const
                                    joined.moments);
   joined.support += other.support;
   // A thin surface seen from both sides faces both ways: views from either side match it from now on.
-  joined.facing_rad =
-      faces_agree(keeper.facing_rad, other.facing_rad) && !faces_both_ways(keeper) && !faces_both_ways(other)
-          ? keeper.facing_rad.has_value() ? keeper.facing_rad : other.facing_rad
-          : std::nullopt;
+  joined.both_ways = keeper.both_ways || other.both_ways || !faces_agree(keeper.facing_rad, other.facing_rad);
+  joined.facing_rad = joined.both_ways                ? std::nullopt
+                      : keeper.facing_rad.has_value() ? keeper.facing_rad
+                                                      : other.facing_rad;
   joined.updated_version = state.version;
   joined.updated_at_unix_s = observation.received_at_unix_s;
   record.after = line_numbers(joined.segment.line);
@@ -121,8 +120,11 @@ bool end_to_end(const fusion::LineSegment& a, const fusion::LineSegment& b) {
   const auto& shorter = &longer == &a ? b : a;
   const double ta = longer.line.coordinate_along(shorter.p0()), tb = longer.line.coordinate_along(shorter.p1());
   const double overlap = std::min(std::max(ta, tb), longer.t1_m) - std::max(std::min(ta, tb), longer.t0_m);
+  if (overlap < 0.5 * std::abs(tb - ta)) return true;
+  // Seen obliquely past the longer one's end: the shorter one runs on beyond that end.
+  const bool past_an_end = std::min(ta, tb) < longer.t0_m || std::max(ta, tb) > longer.t1_m;
   const double offset = std::abs(longer.line.signed_distance(0.5 * (shorter.p0() + shorter.p1())));
-  return overlap < std::max(0.5 * std::abs(tb - ta), kObliqueOverlapPerOffset * offset);
+  return past_an_end && overlap < kObliqueOverlapPerOffset * offset;
 }
 
 bool side_by_side(const fusion::SegmentMoments& a, const fusion::LineSegment& a_segment,

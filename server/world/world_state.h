@@ -109,6 +109,10 @@ struct Element {
   /// Direction [rad] of the normal pointing to the side the wall was seen from, when known (scan lines): the two
   /// faces of a thin wall face away from each other and are never one element, however close under pose noise.
   std::optional<double> facing_rad;
+  /// A thin surface seen from both sides (joined from views of either side): facing_rad is then empty, and stays so
+  /// as views from one side merge into it. An empty facing_rad without it means the side is not known (posted
+  /// segments, grid lines, elements stored before the side was kept), and the next view's side is taken.
+  bool both_ways = false;
   std::string origin;    // of the first observation: client | scan | grid (SQL column and JSON "source")
   std::string observer;  // who sent it first, e.g. robot-1
   std::int64_t created_version = 0;

@@ -89,7 +89,7 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
 }
 
 // The side a wall was seen from keeps the two faces of a thick wall apart after a restart as before it; unknown
-// stays unknown (NULL), not 0 rad.
+// stays unknown (NULL), not 0 rad, and a thin surface seen from both sides stays so.
 TEST(StoreTest, AnElementsFacingSurvivesReopenAndUnknownStaysUnknown) {
   testing::TempDir dir;
   const auto path = (dir.path() / "a.db").string();
@@ -103,12 +103,20 @@ TEST(StoreTest, AnElementsFacingSurvivesReopenAndUnknownStaysUnknown) {
     auto second = add_element(update.state, 2);
     ASSERT_FALSE(second.state.elements.at(2).facing_rad.has_value());
     store.commit_observation(second, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
+    auto third = add_element(second.state, 3);
+    auto thin = third.state.elements.at(3);
+    thin.both_ways = true;
+    third.state.elements.put(thin);
+    store.commit_observation(third, world::Observation{"r", "scan", "laser", 0, 0, {}}, "{}");
   }
   Store store({path, true});
   const auto state = store.load(world::WorldOptions{});
-  ASSERT_EQ(state.elements.size(), 2u);
+  ASSERT_EQ(state.elements.size(), 3u);
   EXPECT_EQ(state.elements.at(1).facing_rad, std::optional<double>(-1.25));
   EXPECT_FALSE(state.elements.at(2).facing_rad.has_value());
+  EXPECT_FALSE(state.elements.at(1).both_ways || state.elements.at(2).both_ways);
+  EXPECT_TRUE(state.elements.at(3).both_ways);
+  EXPECT_FALSE(state.elements.at(3).facing_rad.has_value());
 }
 
 TEST(StoreTest, FailedCommitLeavesNothingBehind) {
@@ -258,6 +266,7 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
     DROP INDEX decisions_by_observation; DROP TABLE requests; ALTER TABLE scans DROP COLUMN lines_seq;
     ALTER TABLE scans DROP COLUMN scan;
     ALTER TABLE elements DROP COLUMN moments; ALTER TABLE elements DROP COLUMN facing; DROP TABLE placements;
+    ALTER TABLE elements DROP COLUMN both_ways;
     DROP TABLE georeference;
     DROP TABLE robot_poses; DROP INDEX scans_by_observer; DROP TABLE plan_changes; DROP TABLE edge_beams;
     PRAGMA user_version = 3;

@@ -55,6 +55,7 @@ TEST(FacingTest, AThinSurfaceSeenFromBothSidesIsOneElementThatFacesBothWays) {
   ASSERT_EQ(joined.state.elements.size(), 1u);
   const Element& surface = (*joined.state.elements.begin()).second;
   EXPECT_FALSE(surface.facing_rad.has_value());
+  EXPECT_TRUE(surface.both_ways);
   EXPECT_EQ(joined.decisions.back().rule, "elements_merged");
   // From now on a view from either side merges straight into it.
   for (const auto& viewpoint : {Eigen::Vector2d(3, -2), Eigen::Vector2d(3, 2)}) {
@@ -70,6 +71,7 @@ TEST(FacingTest, AThinSurfaceSeenFromBothSidesIsOneElementThatFacesBothWays) {
                                         options, std::ref(rules))
                           .state;
   EXPECT_FALSE(seen_from_below.elements.at(surface.number).facing_rad.has_value());
+  EXPECT_TRUE(seen_from_below.elements.at(surface.number).both_ways);
   const auto from_above = apply_observation(seen_from_below, view_from({1, 0.005}, {5, 0.005}, {3, 2}, 0.01, 0.0035), 6,
                                             options, std::ref(rules));
   EXPECT_EQ(from_above.decisions.front().matched_element, surface.id());
@@ -82,6 +84,25 @@ TEST(FacingTest, AThinSurfaceSeenFromBothSidesIsOneElementThatFacesBothWays) {
   const auto thick =
       apply_observation(state, view_from({0, 0.05}, {6, 0.05}, {3, 2}, 0.01, 0.0035), 2, options, std::ref(rules));
   EXPECT_EQ(thick.state.elements.size(), 2u);
+}
+
+// A posted segment has no side; the first view from a scan gives its element one (it is not a thin surface).
+TEST(FacingTest, AnElementOfUnknownSideTakesTheSideOfTheFirstViewThatMerges) {
+  WorldOptions options;
+  JoiningRules rules;
+  const auto posted = apply_observation(WorldState{}, view_from({0, 0}, {6, 0}, {3, -2}, 0.01, 0.0035, false), 1,
+                                        options, std::ref(rules));
+  ASSERT_EQ(posted.state.elements.size(), 1u);
+  const Element& unknown = (*posted.state.elements.begin()).second;
+  EXPECT_FALSE(unknown.facing_rad.has_value());
+  EXPECT_FALSE(unknown.both_ways);
+  const auto seen = apply_observation(posted.state, view_from({1, 0.005}, {5, 0.005}, {3, -2}, 0.01, 0.0035), 2,
+                                      options, std::ref(rules));
+  ASSERT_EQ(seen.state.elements.size(), 1u);
+  const Element& known = seen.state.elements.at(unknown.number);
+  ASSERT_TRUE(known.facing_rad.has_value());
+  EXPECT_NEAR(std::sin(*known.facing_rad), -1.0, 1e-6);
+  EXPECT_FALSE(known.both_ways);
 }
 
 }  // namespace
