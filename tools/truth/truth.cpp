@@ -118,12 +118,17 @@ std::string optional_fixed(const std::optional<double>& value, int decimals) {
   return value ? fixed(*value, decimals) : "n/a";
 }
 
+// A replayed scan: its index in the drive, and where the server placed it.
+struct PlacedScan {
+  std::size_t index = 0;
+  service::ScanPlacement placement;
+};
+// By the sequence number of the observation made of the scan's lines.
+using Placements = std::map<std::int64_t, PlacedScan>;
+
 // WM_TRUTH_TRACE: the decisions about some elements, on stderr, to follow how one came to be. "x,y": the elements
 // within 10 cm of the point; "e12,e40": those elements; "bx0,y0,x1,y1": every decision whose observed segment has
 // its middle in that box.
-// Where each scan was placed, by the sequence number of its observation (the lines decided from it).
-using Placements = std::map<std::int64_t, service::ScanPlacement>;
-
 void trace_decisions(const char* trace, service::WorldService& world, const world::WorldState& state,
                      const Placements& placements) {
   std::set<std::string> ids;
@@ -156,7 +161,7 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
     if (traced(d)) {
       // Where the server placed the robot's scan (its posted pose aligned to the map).
       const auto at = placements.find(d.observation_seq);
-      const auto robot = at != placements.end() ? at->second.placed : fusion::Pose2D{};
+      const auto robot = at != placements.end() ? at->second.placement.placed : fusion::Pose2D{};
       std::fprintf(stderr, "trace %lld %s el=%s matched=%s (%.2f,%.2f)-(%.2f,%.2f) robot (%.2f,%.2f) %s: %s\n",
                    static_cast<long long>(d.observation_seq), std::string(rules::wire_name(d.action)).c_str(),
                    d.element.value_or("-").c_str(), d.matched_element.value_or("-").c_str(), d.p0.x(), d.p0.y(),
@@ -166,12 +171,11 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
 
 // The returns of the scan whose lines were observation `seq`, in the world frame of the pose the server placed it
 // at: "return SEQ BEAM X Y RANGE", one per line.
-void print_returns(const std::vector<fusion::LaserScan>& scans, const std::map<std::int64_t, std::size_t>& scan_of,
-                   const Placements& placements, std::int64_t seq) {
-  const auto k = scan_of.find(seq);
-  if (k == scan_of.end()) return;
-  const auto& scan = scans[k->second];
-  const auto pose = placements.at(seq).placed;
+void print_returns(const std::vector<fusion::LaserScan>& scans, const Placements& placements, std::int64_t seq) {
+  const auto at = placements.find(seq);
+  if (at == placements.end()) return;
+  const auto& scan = scans[at->second.index];
+  const auto pose = at->second.placement.placed;
   for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
     const double r = scan.ranges_m[i];
     if (!std::isfinite(r) || r < scan.range_min_m || r >= scan.range_max_m) continue;
@@ -211,7 +215,6 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
     if (plan) world.load_floor_plan(*plan);
     double stamp = 0;
     Placements placements;
-    std::map<std::int64_t, std::size_t> scan_of;  // by observation seq
     for (const auto& scan : scans) {
       world::ScanObservation request;
       request.observer = "truth";
@@ -221,8 +224,8 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
       request.scan = scan;
       const auto posted = world.post_scan(std::move(request), std::move(payload), std::nullopt);
       if (posted.lines && posted.placement) {
-        placements.emplace(posted.lines->seq, *posted.placement);
-        scan_of.emplace(posted.lines->seq, static_cast<std::size_t>(&scan - scans.data()));
+        placements.emplace(posted.lines->seq,
+                           PlacedScan{static_cast<std::size_t>(&scan - scans.data()), *posted.placement});
       }
       stamp += 0.5;
     }
@@ -233,7 +236,7 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
           std::fprintf(stderr, "table decision %lld: %s %s: %s\n", static_cast<long long>(d.observation_seq),
                        std::string(rules::wire_name(d.action)).c_str(), d.rule.c_str(), d.explanation.c_str());
     if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state, placements);
-    if (const char* seq = std::getenv("WM_TRUTH_SCAN")) print_returns(scans, scan_of, placements, std::atoll(seq));
+    if (const char* seq = std::getenv("WM_TRUTH_SCAN")) print_returns(scans, placements, std::atoll(seq));
     outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;
