@@ -214,7 +214,9 @@ bool within_adaptive_distance(const RangeReading& a, const RangeReading& b, doub
 // from that range.
 bool cuts_as_gap(const RangeReading& a, const RangeReading& b, double distance, const ScanLineOptions& options) {
   if (distance <= options.max_gap_m) return false;
-  if (options.far_gap_lambda_rad <= 0 || std::max(a.range_m, b.range_m) > options.far_gap_max_range_m) return true;
+  if (options.far_gap_lambda_rad <= 0 || std::max(a.range_m, b.range_m) > options.far_gap_max_range_m ||
+      distance > options.far_gap_max_m)
+    return true;
   if (options.bearing_step_rad > 0 && std::abs(b.bearing_rad - a.bearing_rad) / options.bearing_step_rad >
                                           static_cast<double>(options.max_missing_beams) + 1.5)
     return true;
@@ -249,6 +251,7 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
   require(options.sigma_range_relative >= 0 && options.sigma_bearing_rad >= 0, "noise terms must be >= 0");
   require(options.far_gap_lambda_rad >= 0 && options.far_gap_lambda_rad < std::numbers::pi / 2,
           "far_gap_lambda_rad must be in [0, pi/2)");
+  require(std::isfinite(options.far_gap_max_m) && options.far_gap_max_m >= 0, "far_gap_max_m must be finite and >= 0");
   require(std::isfinite(options.far_gap_max_range_m) && options.far_gap_max_range_m >= 0,
           "far_gap_max_range_m must be finite and >= 0");
   require(std::isfinite(options.bearing_step_rad) && options.bearing_step_rad >= 0,

@@ -10,6 +10,8 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include <string>
+#include <string_view>
 #include <tuple>
 
 #include "common/diagnostics.h"
@@ -169,9 +171,15 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
     }
 }
 
-// The returns of the scan whose lines were observation `seq`, in the world frame of the pose the server placed it
-// at: "return SEQ BEAM X Y RANGE", one per line.
-void print_returns(const std::vector<fusion::LaserScan>& scans, const Placements& placements, std::int64_t seq) {
+// WM_TRUTH_SCAN: the returns of one scan ("SEQ", the sequence number of the observation made of its lines) or of
+// every scan ("all"), in the world frame of the pose the server placed each at: "return SEQ BEAM X Y RANGE", one
+// per line.
+void print_returns(const std::vector<fusion::LaserScan>& scans, const Placements& placements, const char* which) {
+  if (std::string_view(which) == "all") {
+    for (const auto& [seq, placed] : placements) print_returns(scans, placements, std::to_string(seq).c_str());
+    return;
+  }
+  const std::int64_t seq = std::atoll(which);
   const auto at = placements.find(seq);
   if (at == placements.end()) return;
   const auto& scan = scans[at->second.index];
@@ -236,7 +244,7 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
           std::fprintf(stderr, "table decision %lld: %s %s: %s\n", static_cast<long long>(d.observation_seq),
                        std::string(rules::wire_name(d.action)).c_str(), d.rule.c_str(), d.explanation.c_str());
     if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state, placements);
-    if (const char* seq = std::getenv("WM_TRUTH_SCAN")) print_returns(scans, placements, std::atoll(seq));
+    if (const char* seq = std::getenv("WM_TRUTH_SCAN")) print_returns(scans, placements, seq);
     outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;

@@ -312,11 +312,36 @@ TEST(ScanLinesTest, AFarWallWhoseReturnsLieFartherApartThanTheGapIsStillOneSegme
   EXPECT_THROW(extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
 }
 
+TEST(ScanLinesTest, AFarGapIsNeverWiderThanADoorway) {
+  // A wall 17 m ahead with a 0.9 m doorway, seen head on by a 1° laser whose step is not known: its returns lie
+  // 0.3 m apart, and the beams through the doorway return nothing. The 1.2 m between the returns either side of the
+  // doorway is within the far-gap spacing of a surface seen at 15° from 4° apart. Here the jump also stands out
+  // among its neighbours' spacings, a breakpoint; seen obliquely the spacings beside an opening are wide too, so the
+  // breakpoints are set aside and only the gap's own width may keep the doorway open.
+  const std::vector<Wall> walls = {{{-3, 17}, {-0.45, 17}}, {{0.45, 17}, {3, 17}}};
+  ScanLineOptions options;
+  options.breakpoint_isolation = 100;  // no jump stands out so far
+  std::mt19937 rng(6);
+  const Pose2D pose{0, 0, 0};
+  const auto readings = scan(walls, pose, options, rng, 360);
+  const auto segments = extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options);
+  ASSERT_EQ(segments.size(), 2u);
+  for (const auto& s : segments) EXPECT_TRUE(lies_on(s, walls[0], 0.05) || lies_on(s, walls[1], 0.05));
+
+  options.far_gap_max_m = 2.0;  // wider than the doorway: one line across it
+  const auto across = extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options);
+  ASSERT_EQ(across.size(), 1u);
+  EXPECT_GT(across.front().length_m(), 5.0);
+  options.far_gap_max_m = -1;
+  EXPECT_THROW(extract_scan_lines(readings, pose, Eigen::Matrix3d::Zero(), options), std::invalid_argument);
+}
+
 TEST(ScanLinesTest, AnOpeningSeenThroughManyEmptyBeamsCutsWhenTheBeamStepIsKnown) {
   // Seen from 14 m: a wall ends at y = 11.93, the beams past its end return nothing up to a far wall at y = 14.19
   // seen at 8°, whose first return lies on the first wall's line. The 2.3 m between the two returns is within the
   // far-gap spacing of a surface seen at 15° from 9° apart, and no breakpoint (the far wall's own returns lie
-  // 0.8 m apart), so without the beam step one line runs along the first wall and across the opening.
+  // 0.8 m apart), so without the beam step, and with far gaps as wide as 3 m, one line runs along the first wall
+  // and across the opening. Either the beam step or the far gaps' own limit (0.75 m) keeps it open.
   constexpr int kHalfDegreeBeams = 720;
   const double step = 2 * std::numbers::pi / kHalfDegreeBeams;
   const Pose2D pose{21.14, 12.27, std::numbers::pi / 2};  // the scan's first beam points away from the scene
@@ -341,6 +366,8 @@ TEST(ScanLinesTest, AnOpeningSeenThroughManyEmptyBeamsCutsWhenTheBeamStepIsKnown
                : 0;
     return n;
   };
+  EXPECT_EQ(across(options), 0u) << "2.3 m is wider than any far gap";
+  options.far_gap_max_m = 3.0;
   EXPECT_EQ(across(options), 1u) << "the test no longer shows the opening joined without the beam step";
   options.bearing_step_rad = step;
   EXPECT_EQ(across(options), 0u);
