@@ -21,7 +21,7 @@
 
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
-#include "server/service/journal.h"
+#include "server/service/map_recovery.h"
 #include "server/service/service_errors.h"
 #include "server/service/ticket.h"
 

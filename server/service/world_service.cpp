@@ -12,8 +12,8 @@
 #include "fusion/grid/scan_geometry.h"
 #include "fusion/grid/sensor_model.h"
 #include "server/json/events_json.h"
-#include "server/service/journal.h"
 #include "server/service/knowledge_facts.h"
+#include "server/service/map_recovery.h"
 #include "server/world/plan_edit.h"
 #include "server/world/scan_alignment.h"
 
@@ -39,20 +39,13 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
       writer_(options.map, store.load(options.map.world), engine, diagnostics),
       grid_(options.grids, store, diagnostics),
       plan_checks_(options.plan_checks, grid_, engine, diagnostics, rejected_changes(store)) {
-  // The journal is the grid's source of truth: a scan is journaled (with its line decisions) before it
-  // touches the grid, and the tiles are flushed later. Replaying past the flush brings the grid, and its
-  // revision, to the last journaled scan.
-  for_each_journaled_scan(store_, grid_.flushed_scan_seq(), [this](std::int64_t seq, storage::JournaledScan&& record) {
-    grid_.insert(journaled_scan(std::move(record)), seq, *snapshot());
-  });
-  if (grid_.last_scan_seq() != store_.last_scan_seq())
-    throw storage::StorageError("the scan journal ends at " + std::to_string(store_.last_scan_seq()) +
-                                " but the grid was rebuilt to " + std::to_string(grid_.last_scan_seq()));
-  // Replayed tiles stay dirty: the next flush (or the one at shutdown) writes them.
-  restore_robots();
+  replay_journal_into_grid(store_, grid_, *snapshot());
+  restore_robots(store_, robots_);
   reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
   ingest_ = std::make_unique<IngestPipeline>(
       options_.ingest, IngestParts{store_, engine_, writer_, grid_, plan_checks_, robots_, event_log_, diagnostics_});
+  plan_ = std::make_unique<PlanCommands>(
+      PlanParts{options_.map, store_, engine_, writer_, grid_, plan_checks_, event_log_, *ingest_});
   // The knowledge base mirrors the committed map; fill it before the first request is taken.
   run_command([this] {
     const auto& map_options = options_.map;
@@ -118,23 +111,34 @@ std::optional<MapRemovals> WorldService::removed_since(std::int64_t since, std::
   return writer_.published().removed_since(since, up_to);
 }
 
-std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) {
-  return run_command([this, plan = std::move(plan)] {
-    const auto current = snapshot();
-    auto update = world::apply_floor_plan(*current, plan, options_.map.world);
-    auto new_facts = object_facts(update.state, options_.map.world);
-    store_.commit_floor_plan(update, plan);
-    const auto version = update.state.version;
-    MapRemovals removed;  // the objects of the old plan that the new one does not have
-    removed.objects = world::removed_objects(*current, update.state);
-    writer_.published().publish(std::move(update.state), std::move(removed));
-    engine_.set_floor_plan(new_facts);
-    plan_checks_.refresh(*snapshot(), std::nullopt);
-    emit(events::EventKind::floorplan,
-         [&] { return json_codec::floorplan_event(version, plan.name, plan.objects.size()); });
-    return version;
-  });
+std::int64_t WorldService::load_floor_plan(apriori::FloorPlan plan) { return plan_->load_floor_plan(std::move(plan)); }
+
+PlacementOutcome WorldService::place_floor_plan(world::PlacementChange change, std::string payload_json) {
+  return plan_->place(std::move(change), std::move(payload_json));
 }
+
+AlignOutcome WorldService::align_floor_plan(AlignRequest request) { return plan_->align(std::move(request)); }
+
+PlacementOutcome WorldService::undo_placement(std::string observer) {
+  return plan_->undo_placement(std::move(observer));
+}
+
+RedecideOutcome WorldService::redecide_elements(std::string observer) { return plan_->redecide(std::move(observer)); }
+
+std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference> georeference) {
+  return plan_->set_georeference(std::move(georeference));
+}
+
+std::vector<world::Change> WorldService::changes(std::shared_ptr<const world::WorldState>& state,
+                                                 std::shared_ptr<const world::PlanReport>& evidence) const {
+  return plan_->changes(state, evidence);
+}
+
+ChangeOutcome WorldService::decide_change(const std::string& change_id, bool accept, std::string observer) {
+  return plan_->decide_change(change_id, accept, std::move(observer));
+}
+
+ChangeOutcome WorldService::undo_change(std::string observer) { return plan_->undo_change(std::move(observer)); }
 
 rules::RulesStatus WorldService::rules_status() { return engine_.status(); }
 
@@ -215,36 +219,6 @@ std::optional<GridTileValues> WorldService::grid_tile(fusion::OccupancyGrid::Lay
 
 std::optional<GridTileValues> WorldService::grid_tile_layers(std::int64_t tx, std::int64_t ty) const {
   return grid_.tile_layers(tx, ty);
-}
-
-void WorldService::restore_robots() {
-  for (auto& journal : store_.robot_journal(robots_.options().track_points)) {
-    RobotState robot;
-    robot.id = journal.robot;
-    robot.scans = std::move(journal.scans);
-    robot.primitives = journal.primitives;
-    robot.poses = journal.poses;
-    robot.first_seen_unix_s = journal.first_seen;
-    robot.last_seen_unix_s = journal.last_seen;
-    std::optional<RobotPose> from_scan;
-    if (journal.last_scan) {
-      try {
-        from_scan = scan_pose(journaled_scan(std::move(*journal.last_scan)), journal.last_scan_received_at);
-      } catch (const std::exception&) {
-        // A payload this build no longer reads: the robot comes back without its scan pose.
-      }
-    }
-    for (auto it = journal.poses_newest_first.rbegin(); it != journal.poses_newest_first.rend(); ++it)
-      robot.track.push_back(RobotPose{it->x, it->y, it->theta, it->cov, it->stamp, it->received_at, "reported"});
-    const auto* reported = robot.track.empty() ? nullptr : &robot.track.back();
-    if (reported && (!from_scan || reported->received_at_unix_s >= from_scan->received_at_unix_s)) {
-      robot.pose = *reported;
-      robot.stopped = journal.poses_newest_first.front().state == "stopped";
-    } else {
-      robot.pose = from_scan;
-    }
-    robots_.restore(std::move(robot));
-  }
 }
 
 RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {

@@ -32,6 +32,7 @@
 #include "server/service/ingest_pipeline.h"
 #include "server/service/map_writer.h"
 #include "server/service/plan_checks.h"
+#include "server/service/plan_commands.h"
 #include "server/service/prolog_worker.h"
 #include "server/service/rules_watcher.h"
 #include "server/service/snapshot_log.h"
@@ -58,11 +59,12 @@ struct ServiceOptions {
 };
 
 /// Owns the world model, as a few parts with one job each: the map writer (decide, commit, publish an observation),
-/// the ingest pipeline (scans and primitives on the processing network, the grid trim), the grid store, the plan
-/// checks, the robots and the events of each commit. This class builds them in order at start (the grid from the
-/// journal, the knowledge base from the map), runs every other change (plan, placement, rules, changes) as a
-/// command on the ingest's writer thread, and answers reads from the published snapshot, which never blocks on the
-/// writers. Knowledge-base queries and dry runs run on their own Prolog thread.
+/// the ingest pipeline (scans and primitives on the processing network, the grid trim), the plan commands (load,
+/// place, align and edit the plan, accept changes), the grid store, the plan checks, the robots and the events of
+/// each commit. This class builds them in order at start (the grid and robots from the journal, the knowledge base
+/// from the map), runs every change as a command on the ingest's writer thread, and answers reads from the
+/// published snapshot, which never blocks on the writers. Knowledge-base queries and dry runs run on their own
+/// Prolog thread.
 class WorldService final : public WorldPort {
  public:
   /// Starts the writer with the state loaded from `store`. @throw storage::StorageError, rules::RuleError.
@@ -158,8 +160,6 @@ class WorldService final : public WorldPort {
 
  private:
   void on_rules_changed();
-  /// The robots as the journal left them (at start).
-  void restore_robots();
   /// Runs `work` on the writer thread when nothing is in flight. @throw Busy when the queue is full.
   template <typename F>
   auto run_command(F&& work) -> decltype(work()) {
@@ -169,9 +169,6 @@ class WorldService final : public WorldPort {
   void emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json) {
     event_log_.publish(kind, make_json);
   }
-  /// On the writer: applies and commits a placement (`undo`: pops the stack instead of pushing).
-  PlacementOutcome place_on_writer(const world::PlacementChange& change, const std::string& payload, bool undo);
-  RedecideOutcome redecide_on_writer(const std::string& observer);
 
   const ServiceOptions options_;
   storage::Store& store_;
@@ -180,13 +177,13 @@ class WorldService final : public WorldPort {
   EventLog event_log_;  // the commits' live events, in commit order
   MapWriter writer_;    // the published map
   RobotRegistry robots_;
-  GridStore grid_;                     // inserted on the grid thread (and at start, before the ingest runs)
-  PlanChecks plan_checks_;             // refreshed on the writer
-  std::atomic<bool> aligning_{false};  // an align_floor_plan search is running
+  GridStore grid_;          // inserted on the grid thread (and at start, before the ingest runs)
+  PlanChecks plan_checks_;  // refreshed on the writer
 
   // Declared last: destroyed first, so their threads stop before the members they use go away (also when the
   // constructor throws after the network started).
   std::unique_ptr<IngestPipeline> ingest_;
+  std::unique_ptr<PlanCommands> plan_;  // runs on ingest_'s writer
   std::unique_ptr<PrologWorker> reader_;
   std::unique_ptr<RulesWatcher> watcher_;
 };

@@ -5,9 +5,14 @@
 #include <utility>
 
 #include "server/json/codec.h"
+#include "server/service/grid_store.h"
+#include "server/service/robot_registry.h"
 #include "server/storage/store.h"
 #include "server/world/scan_observation.h"
+#include "server/world/world_state.h"
 
+// How a map comes back at start from what its store committed: the journal is the grid's source of truth, and the
+// robots' last poses and tracks are journaled with their scans and reports.
 namespace wm::service {
 
 /// A journaled scan; rows stored before the journal kept scans in binary form hold the request body instead.
@@ -30,5 +35,14 @@ void for_each_journaled_scan(storage::Store& store, std::int64_t after, Visit vi
     if (page.size() < kPage) return;
   }
 }
+
+/// Inserts every journaled scan past the grid's last flush into `grid` (decided against `map`, the map as loaded), so
+/// the grid and its revision reach the last journaled scan; the replayed tiles stay dirty for the next flush.
+/// @throw storage::StorageError when the journal and the rebuilt grid end at different scans.
+void replay_journal_into_grid(storage::Store& store, GridStore& grid, const world::WorldState& map);
+
+/// The robots as the journal left them: tracks, counts, and the newest of the last reported pose and the last
+/// scan's pose.
+void restore_robots(storage::Store& store, RobotRegistry& robots);
 
 }  // namespace wm::service

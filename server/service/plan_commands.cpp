@@ -1,13 +1,17 @@
-// The world service's floor-plan placement: place, undo, align to the grid, re-decide, georeference.
-#include <atomic>
+// A map's plan commands: load, place, undo, align to the grid, re-decide, georeference, and the changes in the
+// building (list, accept or reject, undo).
+#include "server/service/plan_commands.h"
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
 #include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
-#include "server/service/world_service.h"
+#include "server/world/plan_edit.h"
 
 namespace wm::service {
+
 
 namespace {
 
@@ -34,35 +38,43 @@ std::string placement_text(const fusion::Similarity2D& p) {
 
 }  // namespace
 
-PlacementOutcome WorldService::place_floor_plan(world::PlacementChange change, std::string payload_json) {
-  return run_command([this, change = std::move(change), payload = std::move(payload_json)] {
+void PlanCommands::follow_plan(Facts facts) {
+  const auto map = snapshot();
+  if (facts == Facts::objects)
+    parts_.engine.set_floor_plan(object_facts(*map, world_options()));
+  else
+    sync_all_facts(parts_.engine, *map, world_options());
+  parts_.plan_checks.refresh(*map, std::nullopt);
+}
+
+PlacementOutcome PlanCommands::place(world::PlacementChange change, std::string payload_json) {
+  return on_writer([this, change = std::move(change), payload = std::move(payload_json)] {
     return place_on_writer(change, payload, false);
   });
 }
 
-PlacementOutcome WorldService::place_on_writer(const world::PlacementChange& change, const std::string& payload,
+PlacementOutcome PlanCommands::place_on_writer(const world::PlacementChange& change, const std::string& payload,
                                                bool undo) {
   const auto base = snapshot();
   if (base->objects.empty()) throw Conflict("no floor plan is loaded: there is nothing to place");
   auto p = MapWriter::own_observation(base, change.observer, "placement", "none");
   p.update = world::apply_placement(*base, change, p.seq);
-  writer_.commit(p, [&] { store_.commit_placement({p.update, p.observation, payload}, undo); });
+  parts_.writer.commit(p, [&] { parts_.store.commit_placement({p.update, p.observation, payload}, undo); });
   const auto decision = p.update.decisions.at(0);
   const auto placement = p.update.state.placement;
-  auto live = event_log_.begin();
-  auto outcome = writer_.finish(std::move(p), live);
+  auto live = parts_.events.begin();
+  auto outcome = parts_.writer.finish(std::move(p), live);
   // The rules see the edges where the plan now is, before the next request is decided.
-  engine_.set_floor_plan(object_facts(*snapshot(), options_.map.world));
-  plan_checks_.refresh(*snapshot(), std::nullopt);
+  follow_plan(Facts::objects);
   live.add(events::EventKind::placement, [&] {
     return json_codec::placement_event(outcome.version, placement, snapshot()->placement_cov, decision);
   });
   return {outcome.version, decision};
 }
 
-PlacementOutcome WorldService::undo_placement(std::string observer) {
-  return run_command([this, observer = std::move(observer)] {
-    const auto history = store_.placements();
+PlacementOutcome PlanCommands::undo_placement(std::string observer) {
+  return on_writer([this, observer = std::move(observer)] {
+    const auto history = parts_.store.placements();
     if (history.empty()) throw Conflict("the plan is placed as drawn: there is no placement to undo");
     world::PlacementChange change;
     if (history.size() >= 2) {
@@ -77,7 +89,7 @@ PlacementOutcome WorldService::undo_placement(std::string observer) {
   });
 }
 
-AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
+AlignOutcome PlanCommands::align(AlignRequest request) {
   // The search runs on the calling thread, against a snapshot and a copy of the grid: the writer goes on meanwhile.
   // One at a time: a search takes a core for up to its time budget.
   if (aligning_.exchange(true)) throw Conflict("an alignment is running: try again when it has answered");
@@ -87,7 +99,7 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
   } release{aligning_};
   const auto state = snapshot();
   if (state->objects.empty()) throw Conflict("no floor plan is loaded: there is nothing to align");
-  auto raster = grid_.probability_raster();
+  auto raster = parts_.grid.probability_raster();
   if (!raster) throw Conflict("the grid is empty: post scans before aligning the plan");
   fusion::ObservedMap observed{raster->geometry, std::move(raster->p), {}};
   // Points along the elements at the grid's cell, within the grid's bounds (a client's element may be km long).
@@ -145,7 +157,7 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
   change.observer = request.observer;
   nlohmann::json payload = {{"align", {{"score", r.best.score}, {"coverage", r.best.coverage}}}};
   // Applied only to the plan and placement it was searched for: a plan loaded or placed meanwhile wins.
-  outcome.placement = run_command([&] {
+  outcome.placement = on_writer([&] {
     const auto now = snapshot();
     if (!(now->placement == outcome.before) || now->plan_name != state->plan_name ||
         now->objects.size() != state->objects.size())
@@ -153,20 +165,20 @@ AlignOutcome WorldService::align_floor_plan(AlignRequest request) {
     return place_on_writer(change, payload.dump(), false);
   });
   outcome.applied = true;
-  if (request.redecide) outcome.redecided = redecide_elements(request.observer);
+  if (request.redecide) outcome.redecided = redecide(request.observer);
   return outcome;
 }
 
-RedecideOutcome WorldService::redecide_elements(std::string observer) {
-  return run_command([this, observer = std::move(observer)] { return redecide_on_writer(observer); });
+RedecideOutcome PlanCommands::redecide(std::string observer) {
+  return on_writer([this, observer = std::move(observer)] { return redecide_on_writer(observer); });
 }
 
-RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
+RedecideOutcome PlanCommands::redecide_on_writer(const std::string& observer) {
   const auto base = snapshot();
   RedecideOutcome outcome;
   const std::int64_t seq = base->last_observation_seq + 1;
   world::UpdateResult total{*base, {}, {}, {}, {}};
-  const auto decide = [this](const rules::DecisionQuery& q) { return engine_.decide(q); };
+  const auto decide = [this](const rules::DecisionQuery& q) { return parts_.engine.decide(q); };
   std::int64_t index = 0;
   for (const auto& [number, element] : base->elements) {
     ++outcome.elements;
@@ -180,7 +192,7 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
     observation.sensor = "redecide";
     observation.received_at_unix_s = now_unix_s();
     observation.segments.push_back({current->segment});
-    auto result = world::apply_observation(without, observation, seq, options_.map.world, decide);
+    auto result = world::apply_observation(without, observation, seq, world_options(), decide);
     const auto action = result.decisions.at(0).action;
     if (action != rules::Action::confirm && action != rules::Action::merge && action != rules::Action::rigid_adjust)
       continue;  // the rules would keep it: it stays as it is, with its history
@@ -206,26 +218,138 @@ RedecideOutcome WorldService::redecide_on_writer(const std::string& observer) {
   auto p = MapWriter::own_observation(base, observer, "redecide", "none");
   p.update = std::move(total);
   const std::string payload = "{\"redecide\": " + std::to_string(outcome.elements) + "}";
-  writer_.commit(p, [&] { store_.commit_observation(p.update, p.observation, payload); });
-  auto live = event_log_.begin();
-  auto done = writer_.finish(std::move(p), live);
-  sync_all_facts(engine_, *snapshot(), options_.map.world);
+  parts_.writer.commit(p, [&] { parts_.store.commit_observation(p.update, p.observation, payload); });
+  auto live = parts_.events.begin();
+  auto done = parts_.writer.finish(std::move(p), live);
+  sync_all_facts(parts_.engine, *snapshot(), world_options());
   outcome.version = done.version;
   outcome.decisions = std::move(done.decisions);
   return outcome;
 }
 
-std::int64_t WorldService::set_georeference(std::optional<apriori::Georeference> georeference) {
+std::int64_t PlanCommands::set_georeference(std::optional<apriori::Georeference> georeference) {
   if (georeference) apriori::validate(*georeference);
-  return run_command([this, georeference] {
+  return on_writer([this, georeference] {
     world::WorldState state = *snapshot();
     state.georeference = georeference;
     ++state.version;
-    store_.commit_georeference(state);
+    parts_.store.commit_georeference(state);
     const auto version = state.version;
-    writer_.published().publish(std::move(state));
-    emit(events::EventKind::georeference, [&] { return json_codec::georeference_event(version); });
+    parts_.writer.published().publish(std::move(state));
+    parts_.events.publish(events::EventKind::georeference, [&] { return json_codec::georeference_event(version); });
     return version;
+  });
+}
+
+
+std::int64_t PlanCommands::load_floor_plan(apriori::FloorPlan plan) {
+  return on_writer([this, plan = std::move(plan)] {
+    const auto current = snapshot();
+    auto update = world::apply_floor_plan(*current, plan, world_options());
+    auto new_facts = object_facts(update.state, world_options());
+    parts_.store.commit_floor_plan(update, plan);
+    const auto version = update.state.version;
+    MapRemovals removed;  // the objects of the old plan that the new one does not have
+    removed.objects = world::removed_objects(*current, update.state);
+    parts_.writer.published().publish(std::move(update.state), std::move(removed));
+    parts_.engine.set_floor_plan(new_facts);
+    parts_.plan_checks.refresh(*snapshot(), std::nullopt);
+    parts_.events.publish(events::EventKind::floorplan,
+         [&] { return json_codec::floorplan_event(version, plan.name, plan.objects.size()); });
+    return version;
+  });
+}
+
+
+
+std::vector<world::Change> PlanCommands::changes(std::shared_ptr<const world::WorldState>& state,
+                                                 std::shared_ptr<const world::PlanReport>& evidence) const {
+  state = snapshot();
+  evidence = parts_.plan_checks.report();
+  return parts_.plan_checks.changes(*state, evidence.get());
+}
+
+ChangeOutcome PlanCommands::decide_change(const std::string& change_id, bool accept, std::string observer) {
+  return on_writer([this, &change_id, accept, &observer] {
+    std::shared_ptr<const world::WorldState> state;
+    std::shared_ptr<const world::PlanReport> evidence;
+    const auto listed = changes(state, evidence);
+    const auto change =
+        std::find_if(listed.begin(), listed.end(), [&change_id](const world::Change& c) { return c.id == change_id; });
+    if (change == listed.end())
+      throw NotFound("no change '" + change_id + "' is listed now (GET /api/v1/changes lists them)");
+    const auto before = world::current_plan(*state);
+    ChangeOutcome outcome;
+    outcome.change_id = change_id;
+    std::optional<apriori::FloorPlan> plan;
+    std::vector<std::int64_t> remove;
+    std::string added;
+    if (accept) {
+      plan = world::plan_with_change(*state, *change, &added);
+      if (change->kind == world::ChangeKind::new_wall)
+        if (const auto number = world::WorldState::element_number(change->element_id)) remove.push_back(*number);
+      if (!added.empty()) outcome.added_object = added;
+    }
+    const std::string subject = change->object_id.empty() ? change->element_id : change->object_id;
+    std::string explanation = std::string(accept ? "accepted into the plan" : "rejected") + ": change " + change_id +
+                              " (" + change->key + ", confidence " +
+                              std::to_string(std::lround(change->confidence * 100)) + " %): " + change->explanation;
+    if (!added.empty()) explanation += "; drawn as object " + added;
+    auto p = MapWriter::own_observation(state, std::move(observer), "plan", "none");
+    p.update = world::apply_plan_edit(*state, plan ? *plan : before, world_options(), remove, p.seq,
+                                      accept ? rules::Action::accept : rules::Action::reject,
+                                      accept ? "change_accepted" : "change_rejected", explanation,
+                                      p.observation.observer, subject);
+    const std::string payload =
+        nlohmann::json{{"change", change_id}, {"verdict", accept ? "accepted" : "rejected"}}.dump();
+    storage::Store::PlanChangeRecord record{change_id, accept ? "accepted" : "rejected",
+                                            accept ? std::optional(before) : std::nullopt, 0};
+    parts_.writer.commit(p, [&] { parts_.store.commit_plan_change({p.update, p.observation, payload}, plan, record); });
+    outcome.decision = p.update.decisions.at(0);
+    auto removed = world::removed_objects(*state, p.update.state);
+    auto live = parts_.events.begin();
+    outcome.version = parts_.writer.finish(std::move(p), live, std::move(removed)).version;
+    if (accept) {
+      follow_plan(Facts::all);
+    } else {
+      parts_.plan_checks.reject(change_id);
+    }
+    live.add(events::EventKind::change,
+             [&] { return json_codec::change_event(change_id, accept ? "accepted" : "rejected", outcome.version); });
+    return outcome;
+  });
+}
+
+ChangeOutcome PlanCommands::undo_change(std::string observer) {
+  return on_writer([this, &observer] {
+    const auto history = parts_.store.plan_changes();
+    if (history.empty()) throw Conflict("no change was accepted or rejected: there is nothing to undo");
+    const auto& last = history.back();
+    const auto state = snapshot();
+    std::optional<apriori::FloorPlan> plan;
+    if (last.verdict == "accepted" && last.plan_before) plan = last.plan_before;
+    auto p = MapWriter::own_observation(state, std::move(observer), "plan", "none");
+    const std::string explanation = "undo of decision " + std::to_string(last.decision_seq) + ": change " +
+                                    last.change_id + " is no longer " + last.verdict +
+                                    (plan ? "; the plan is back as it was before it" : "; it is listed again");
+    p.update = world::apply_plan_edit(*state, plan ? *plan : world::current_plan(*state), world_options(), {}, p.seq,
+                                      rules::Action::undo, "change_undone", explanation, p.observation.observer, "");
+    const std::string payload = nlohmann::json{{"undo", last.decision_seq}, {"change", last.change_id}}.dump();
+    parts_.writer.commit(p, [&] { parts_.store.commit_plan_change({p.update, p.observation, payload}, plan, std::nullopt); });
+    ChangeOutcome outcome;
+    outcome.change_id = last.change_id;
+    outcome.decision = p.update.decisions.at(0);
+    auto removed = world::removed_objects(*state, p.update.state);
+    auto live = parts_.events.begin();
+    outcome.version = parts_.writer.finish(std::move(p), live, std::move(removed)).version;
+    if (plan) {
+      follow_plan(Facts::all);
+    } else {
+      parts_.plan_checks.unreject(last.change_id);
+    }
+    live.add(events::EventKind::change,
+             [&] { return json_codec::change_event(last.change_id, "undone", outcome.version); });
+    return outcome;
   });
 }
 
