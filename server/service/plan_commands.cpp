@@ -12,7 +12,6 @@
 
 namespace wm::service {
 
-
 namespace {
 
 // Every drawn edge of the plan in the drawing's frame (objects at their drawn poses, so a table the robots moved
@@ -241,7 +240,6 @@ std::int64_t PlanCommands::set_georeference(std::optional<apriori::Georeference>
   });
 }
 
-
 std::int64_t PlanCommands::load_floor_plan(apriori::FloorPlan plan) {
   return on_writer([this, plan = std::move(plan)] {
     const auto current = snapshot();
@@ -255,12 +253,10 @@ std::int64_t PlanCommands::load_floor_plan(apriori::FloorPlan plan) {
     parts_.engine.set_floor_plan(new_facts);
     parts_.plan_checks.refresh(*snapshot(), std::nullopt);
     parts_.events.publish(events::EventKind::floorplan,
-         [&] { return json_codec::floorplan_event(version, plan.name, plan.objects.size()); });
+                          [&] { return json_codec::floorplan_event(version, plan.name, plan.objects.size()); });
     return version;
   });
 }
-
-
 
 std::vector<world::Change> PlanCommands::changes(std::shared_ptr<const world::WorldState>& state,
                                                  std::shared_ptr<const world::PlanReport>& evidence) const {
@@ -304,20 +300,33 @@ ChangeOutcome PlanCommands::decide_change(const std::string& change_id, bool acc
         nlohmann::json{{"change", change_id}, {"verdict", accept ? "accepted" : "rejected"}}.dump();
     storage::Store::PlanChangeRecord record{change_id, accept ? "accepted" : "rejected",
                                             accept ? std::optional(before) : std::nullopt, 0};
-    parts_.writer.commit(p, [&] { parts_.store.commit_plan_change({p.update, p.observation, payload}, plan, record); });
-    outcome.decision = p.update.decisions.at(0);
-    auto removed = world::removed_objects(*state, p.update.state);
-    auto live = parts_.events.begin();
-    outcome.version = parts_.writer.finish(std::move(p), live, std::move(removed)).version;
-    if (accept) {
-      follow_plan(Facts::all);
-    } else {
-      parts_.plan_checks.reject(change_id);
-    }
-    live.add(events::EventKind::change,
-             [&] { return json_codec::change_event(change_id, accept ? "accepted" : "rejected", outcome.version); });
+    const auto committed = commit_change_edit(std::move(p), *state, change_id, payload, plan, record);
+    outcome.decision = committed.decision;
+    outcome.version = committed.version;
     return outcome;
   });
+}
+
+ChangeOutcome PlanCommands::commit_change_edit(PreparedUpdate p, const world::WorldState& state,
+                                               const std::string& change_id, const std::string& payload,
+                                               const std::optional<apriori::FloorPlan>& plan,
+                                               const std::optional<storage::Store::PlanChangeRecord>& push) {
+  parts_.writer.commit(p, [&] { parts_.store.commit_plan_change({p.update, p.observation, payload}, plan, push); });
+  ChangeOutcome outcome;
+  outcome.change_id = change_id;
+  outcome.decision = p.update.decisions.at(0);
+  auto removed = world::removed_objects(state, p.update.state);
+  auto live = parts_.events.begin();
+  outcome.version = parts_.writer.finish(std::move(p), live, std::move(removed)).version;
+  if (plan)
+    follow_plan(Facts::all);
+  else if (push)
+    parts_.plan_checks.reject(change_id);
+  else
+    parts_.plan_checks.unreject(change_id);
+  const std::string status = push ? push->verdict : "undone";
+  live.add(events::EventKind::change, [&] { return json_codec::change_event(change_id, status, outcome.version); });
+  return outcome;
 }
 
 ChangeOutcome PlanCommands::undo_change(std::string observer) {
@@ -335,21 +344,7 @@ ChangeOutcome PlanCommands::undo_change(std::string observer) {
     p.update = world::apply_plan_edit(*state, plan ? *plan : world::current_plan(*state), world_options(), {}, p.seq,
                                       rules::Action::undo, "change_undone", explanation, p.observation.observer, "");
     const std::string payload = nlohmann::json{{"undo", last.decision_seq}, {"change", last.change_id}}.dump();
-    parts_.writer.commit(p, [&] { parts_.store.commit_plan_change({p.update, p.observation, payload}, plan, std::nullopt); });
-    ChangeOutcome outcome;
-    outcome.change_id = last.change_id;
-    outcome.decision = p.update.decisions.at(0);
-    auto removed = world::removed_objects(*state, p.update.state);
-    auto live = parts_.events.begin();
-    outcome.version = parts_.writer.finish(std::move(p), live, std::move(removed)).version;
-    if (plan) {
-      follow_plan(Facts::all);
-    } else {
-      parts_.plan_checks.unreject(last.change_id);
-    }
-    live.add(events::EventKind::change,
-             [&] { return json_codec::change_event(last.change_id, "undone", outcome.version); });
-    return outcome;
+    return commit_change_edit(std::move(p), *state, last.change_id, payload, plan, std::nullopt);
   });
 }
 

@@ -78,6 +78,12 @@ class PlanCommands {
   /// On the writer: applies and commits a placement (`undo`: pops the stack instead of pushing).
   PlacementOutcome place_on_writer(const world::PlacementChange& change, const std::string& payload, bool undo);
   RedecideOutcome redecide_on_writer(const std::string& observer);
+  /// On the writer: commits `p`, a plan edit made against `state` for the change `change_id` (`plan`: the plan to
+  /// store when the edit changed it; `push`: the accept or reject to push on the stack of decided changes, nullopt
+  /// for an undo, which pops it), publishes it, lists the change again or no more, and tells live clients.
+  ChangeOutcome commit_change_edit(PreparedUpdate p, const world::WorldState& state, const std::string& change_id,
+                                   const std::string& payload, const std::optional<apriori::FloorPlan>& plan,
+                                   const std::optional<storage::Store::PlanChangeRecord>& push);
 
   PlanParts parts_;
   std::atomic<bool> aligning_{false};  // an align search is running
