@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer harnesses (fuzz/, clang with ASan + UBSan) and runs each for a bounded time:
-#   bash scripts/fuzz.sh [SECONDS [HARNESS...]]      default 60 s each, every harness, one after the other
+#   bash scripts/fuzz.sh [SECONDS [HARNESS...]]      default 60 s each, every harness, nproc at a time
 #   WM_FUZZ_RUNS=1000000 bash scripts/fuzz.sh 0      a number of executions each instead (0 s: no time bound)
 # Each harness first re-runs its reproducers (fuzz/regressions/<harness>/), then fuzzes from the committed seeds
 # (fuzz/corpus/<harness>/) plus a working corpus kept in the build directory, so longer local runs build on
@@ -8,7 +8,8 @@
 # as <build>/fuzz-artifacts/<harness>/crash-* (minimise it with -minimize_crash=1 and commit it under
 # fuzz/regressions/<harness>/). Prints executions and coverage per harness.
 # Environment: WM_SANITIZE_BUILD_DIR (default build/sanitize, shared with the sanitizer suite of scripts/test.sh),
-# WM_FUZZ_JOBS (build parallelism, default nproc), WM_FUZZ_NO_BUILD=1 (use the binaries as they are),
+# WM_FUZZ_JOBS (build parallelism, default nproc), WM_FUZZ_PARALLEL (harnesses run at once, default nproc),
+# WM_FUZZ_NO_BUILD=1 (use the binaries as they are),
 # WM_FUZZ_FORK=N (libFuzzer's -fork=N: N worker processes share one corpus; -runs counts all of them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -58,9 +59,9 @@ options_for() {
   esac
 }
 
-failed=()
-printf '%-22s %12s %8s %8s %8s  %s\n' harness executions exec/s cov ft result
-for h in "${harnesses[@]}"; do
+# One harness: its reproducers, then fuzzing; its table row goes to <log>.row, its result to <log>.result.
+run_harness() {
+  local h=$1 opts bin work artifacts log result execs rate cov ft
   opts=$(options_for "$h")
   bin="$build/bin/$h"
   work="$build/fuzz-corpus/$h"
@@ -69,7 +70,7 @@ for h in "${harnesses[@]}"; do
   mkdir -p "$work" "$artifacts" "$(dirname "$log")"
   result=ok
   shopt -s nullglob
-  reproducers=(fuzz/regressions/"$h"/*)
+  local reproducers=(fuzz/regressions/"$h"/*)
   shopt -u nullglob
   if [ ${#reproducers[@]} -gt 0 ] && ! "$bin" $opts "${reproducers[@]}" >"$log.regressions" 2>&1; then
     result="REGRESSION (see $log.regressions)"
@@ -86,7 +87,43 @@ for h in "${harnesses[@]}"; do
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
   cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
-  printf '%-22s %12s %8s %8s %8s  %s\n' "$h" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" "$result"
+  printf '%-22s %12s %8s %8s %8s  %s\n' "$h" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" "$result" >"$log.row"
+  echo "$result" >"$log.result"
+}
+
+# WM_FUZZ_PARALLEL harnesses at a time (default nproc; each is one process unless WM_FUZZ_FORK is set), so every
+# harness gets its whole time on a core of its own.
+parallel=${WM_FUZZ_PARALLEL:-$(nproc)}
+[ -n "${WM_FUZZ_FORK:-}" ] && parallel=1
+for h in "${harnesses[@]}"; do
+  options_for "$h" >/dev/null  # an unknown harness stops the run here
+  rm -f "$build/fuzz-logs/$h.log.row" "$build/fuzz-logs/$h.log.result"
+done
+[ ${#harnesses[@]} -lt "$parallel" ] && parallel=${#harnesses[@]}
+if [ "$parallel" -le 1 ]; then
+  for h in "${harnesses[@]}"; do run_harness "$h"; done  # in the foreground: Ctrl-C reaches the fuzzer
+else
+  # Background jobs of a script ignore SIGINT: stop the whole process group (the fuzzers too) when it is stopped.
+  trap 'trap - INT TERM; kill 0' INT TERM
+  running=0
+  for h in "${harnesses[@]}"; do
+    if [ "$running" -ge "$parallel" ]; then
+      wait -n || true
+      running=$((running - 1))
+    fi
+    run_harness "$h" &
+    running=$((running + 1))
+  done
+  wait || true
+  trap - INT TERM
+fi
+
+failed=()
+printf '%-22s %12s %8s %8s %8s  %s\n' harness executions exec/s cov ft result
+for h in "${harnesses[@]}"; do
+  log="$build/fuzz-logs/$h.log"
+  cat "$log.row" 2>/dev/null || printf '%-22s %12s %8s %8s %8s  %s\n' "$h" ? ? ? ? "NO RESULT"
+  result=$(cat "$log.result" 2>/dev/null || echo "NO RESULT")
   if [ "$result" != ok ]; then
     failed+=("$h")
     for f in "$log.regressions" "$log"; do
