@@ -175,24 +175,12 @@ std::optional<PreparedUpdate> IngestPipeline::prepare_trim(const world::Box& reg
     plan_checks_.refresh(*p.base, region);
     // The trimmed elements' facts first (that drops their old element_grid/3), then what the grid said of every
     // element checked: the rules' prune/3 may remove what the grid backs nowhere.
-    std::vector<rules::ElementFacts> upserts;
-    for (auto number : p.update.changed_elements) upserts.push_back(element_facts(p.update.state.elements.at(number)));
-    engine_.update_elements(upserts, {});
+    writer_.follow_elements(p.update, false);
     std::vector<rules::ElementGridFacts> grid_facts;
     grid_facts.reserve(checked.size());
     for (const auto& c : checked) grid_facts.push_back({world::element_id(c.number), c.backed, c.contrary});
     engine_.set_element_grid(grid_facts);
-    const auto orders = engine_.prune_orders(writer_.options().max_prune_per_update);
-    if (!orders.empty()) {
-      if (p.update.decisions.empty()) {
-        p.update.state.version = p.base->version + 1;
-        p.update.state.last_observation_seq = p.seq;
-      }
-      world::apply_prune(p.update, orders, p.seq, p.observation.observer);
-      std::vector<std::string> removed;
-      for (auto number : p.update.removed_elements) removed.push_back(world::element_id(number));
-      engine_.update_elements({}, removed);
-    }
+    writer_.prune(p, p.observation.observer);
     if (p.update.decisions.empty()) return std::nullopt;
     return p;
   } catch (const std::exception& e) {

@@ -36,19 +36,9 @@ PreparedUpdate MapWriter::prepare(std::shared_ptr<const world::WorldState> base,
   p.update = world::apply_observation(*p.base, observation, p.seq, options_.world,
                                       [this](const rules::DecisionQuery& q) { return engine_.decide(q); });
   try {
-    // The rules' prune/3 sees the map as this update leaves it.
-    std::vector<rules::ElementFacts> upserts;
-    for (auto number : p.update.changed_elements) upserts.push_back(element_facts(p.update.state.elements.at(number)));
-    std::vector<std::string> joined_away;  // elements a join removed
-    for (auto number : p.update.removed_elements) joined_away.push_back(world::element_id(number));
-    engine_.update_elements(upserts, joined_away);
-    const auto orders = engine_.prune_orders(options_.max_prune_per_update);
-    if (!orders.empty()) {
-      world::apply_prune(p.update, orders, p.seq, observation.observer);
-      std::vector<std::string> removed;
-      for (auto number : p.update.removed_elements) removed.push_back(world::element_id(number));
-      engine_.update_elements({}, removed);
-    }
+    // The rules' prune/3 sees the map as this update leaves it (without the elements a join removed).
+    follow_elements(p.update, true);
+    prune(p, observation.observer);
     // Edge facts are in the world frame: a moved object must be seen where it is now by the next rule call.
     if (std::any_of(p.update.decisions.begin(), p.update.decisions.end(),
                     [](const auto& d) { return d.action == rules::Action::rigid_adjust; }))
@@ -59,6 +49,28 @@ PreparedUpdate MapWriter::prepare(std::shared_ptr<const world::WorldState> base,
   }
   p.observation = std::move(observation);
   return p;
+}
+
+void MapWriter::follow_elements(const world::UpdateResult& update, bool removals) {
+  std::vector<rules::ElementFacts> upserts;
+  for (auto number : update.changed_elements) upserts.push_back(element_facts(update.state.elements.at(number)));
+  std::vector<std::string> removed;
+  if (removals)
+    for (auto number : update.removed_elements) removed.push_back(world::element_id(number));
+  engine_.update_elements(upserts, removed);
+}
+
+void MapWriter::prune(PreparedUpdate& p, const std::string& observer) {
+  const auto orders = engine_.prune_orders(options_.max_prune_per_update);
+  if (orders.empty()) return;
+  if (p.update.decisions.empty()) {  // nothing else changed: the pruning is the new version
+    p.update.state.version = p.base->version + 1;
+    p.update.state.last_observation_seq = p.seq;
+  }
+  world::apply_prune(p.update, orders, p.seq, observer);
+  std::vector<std::string> removed;
+  for (auto number : p.update.removed_elements) removed.push_back(world::element_id(number));
+  engine_.update_elements({}, removed);
 }
 
 void MapWriter::commit(const PreparedUpdate& prepared, const std::function<void()>& store_write) {

@@ -54,6 +54,12 @@ class MapWriter {
   /// update is the caller's to fill.
   static PreparedUpdate own_observation(std::shared_ptr<const world::WorldState> base, std::string observer,
                                         std::string origin, std::string sensor);
+  /// The knowledge base's element facts follow `update`: its changed elements, and (`removals`) those it removed.
+  /// Part of a prepare, on the writer; the caller puts the facts back if the prepare fails.
+  void follow_elements(const world::UpdateResult& update, bool removals);
+  /// The rules' prune/3 over the map as `p` leaves it (the facts must follow it): applies their orders to `p`, at
+  /// most MapWriterOptions::max_prune_per_update, as decisions of `observer`, and drops the pruned elements' facts.
+  void prune(PreparedUpdate& p, const std::string& observer);
   /// Runs `store_write`; if it throws, puts the rules' facts back to the committed map and rethrows.
   void commit(const PreparedUpdate& prepared, const std::function<void()>& store_write);
   /// After the commit: publishes the new map (with `removed_objects`, the plan objects it no longer has), logs the
