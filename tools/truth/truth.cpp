@@ -193,6 +193,29 @@ void print_returns(const std::vector<fusion::LaserScan>& scans, const Placements
   }
 }
 
+// WM_TRUTH_GRID=x0,y0,x1,y1: the Bayes grid over that box at the end of the replay, a row of characters per row of
+// cells from the top: '#' occupied (P > 0.65), '.' free (P < 0.25), '?' between, ' ' never seen.
+void print_grid(const service::WorldService& world, const char* box) {
+  double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  if (std::sscanf(box, "%lf,%lf,%lf,%lf", &x0, &y0, &x1, &y1) != 4 || !(x1 > x0) || !(y1 > y0)) {
+    std::fprintf(stderr, "WM_TRUTH_GRID: a box is X0,Y0,X1,Y1\n");
+    return;
+  }
+  const double r = world.grid_resolution_m();
+  const auto w = static_cast<std::int64_t>(std::ceil((x1 - x0) / r)),
+             h = static_cast<std::int64_t>(std::ceil((y1 - y0) / r));
+  const auto values =
+      world.grid_layer(fusion::OccupancyGrid::Layer::bayes_probability, fusion::GridGeometry({x0, y0}, r, w, h)).values;
+  for (std::int64_t y = h - 1; y >= 0; --y) {
+    std::fprintf(stderr, "grid %8.2f ", y0 + (static_cast<double>(y) + 0.5) * r);
+    for (std::int64_t x = 0; x < w; ++x) {
+      const float p = values[static_cast<std::size_t>(y * w + x)];
+      std::fputc(std::isnan(p) ? ' ' : p > 0.65f ? '#' : p < 0.25f ? '.' : '?', stderr);
+    }
+    std::fputc('\n', stderr);
+  }
+}
+
 }  // namespace
 
 const char* pose_noise_name(PoseNoise noise) { return noise == PoseNoise::low ? "low" : "high"; }
@@ -245,6 +268,7 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
                        std::string(rules::wire_name(d.action)).c_str(), d.rule.c_str(), d.explanation.c_str());
     if (const char* trace = std::getenv("WM_TRUTH_TRACE")) trace_decisions(trace, world, *outcome.state, placements);
     if (const char* seq = std::getenv("WM_TRUTH_SCAN")) print_returns(scans, placements, seq);
+    if (const char* box = std::getenv("WM_TRUTH_GRID")) print_grid(world, box);
     outcome.report = world.refresh_plan_report();  // the evidence of the last scans too, not only the last trim's
   }
   return outcome;
