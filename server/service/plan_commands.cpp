@@ -37,6 +37,24 @@ std::string placement_text(const fusion::Similarity2D& p) {
 
 }  // namespace
 
+std::int64_t PlanCommands::load_floor_plan(apriori::FloorPlan plan) {
+  return on_writer([this, plan = std::move(plan)] {
+    const auto current = snapshot();
+    auto update = world::apply_floor_plan(*current, plan, world_options());
+    auto new_facts = object_facts(update.state, world_options());
+    parts_.store.commit_floor_plan(update, plan);
+    const auto version = update.state.version;
+    MapRemovals removed;  // the objects of the old plan that the new one does not have
+    removed.objects = world::removed_objects(*current, update.state);
+    parts_.writer.published().publish(std::move(update.state), std::move(removed));
+    parts_.engine.set_floor_plan(new_facts);
+    parts_.plan_checks.refresh(*snapshot(), std::nullopt);
+    parts_.events.publish(events::EventKind::floorplan,
+                          [&] { return json_codec::floorplan_event(version, plan.name, plan.objects.size()); });
+    return version;
+  });
+}
+
 void PlanCommands::follow_plan(Facts facts) {
   const auto map = snapshot();
   if (facts == Facts::objects)
@@ -240,24 +258,6 @@ std::int64_t PlanCommands::set_georeference(std::optional<apriori::Georeference>
   });
 }
 
-std::int64_t PlanCommands::load_floor_plan(apriori::FloorPlan plan) {
-  return on_writer([this, plan = std::move(plan)] {
-    const auto current = snapshot();
-    auto update = world::apply_floor_plan(*current, plan, world_options());
-    auto new_facts = object_facts(update.state, world_options());
-    parts_.store.commit_floor_plan(update, plan);
-    const auto version = update.state.version;
-    MapRemovals removed;  // the objects of the old plan that the new one does not have
-    removed.objects = world::removed_objects(*current, update.state);
-    parts_.writer.published().publish(std::move(update.state), std::move(removed));
-    parts_.engine.set_floor_plan(new_facts);
-    parts_.plan_checks.refresh(*snapshot(), std::nullopt);
-    parts_.events.publish(events::EventKind::floorplan,
-                          [&] { return json_codec::floorplan_event(version, plan.name, plan.objects.size()); });
-    return version;
-  });
-}
-
 std::vector<world::Change> PlanCommands::changes(std::shared_ptr<const world::WorldState>& state,
                                                  std::shared_ptr<const world::PlanReport>& evidence) const {
   state = snapshot();
@@ -275,8 +275,6 @@ ChangeOutcome PlanCommands::decide_change(const std::string& change_id, bool acc
     if (change == listed.end())
       throw NotFound("no change '" + change_id + "' is listed now (GET /api/v1/changes lists them)");
     const auto before = world::current_plan(*state);
-    ChangeOutcome outcome;
-    outcome.change_id = change_id;
     std::optional<apriori::FloorPlan> plan;
     std::vector<std::int64_t> remove;
     std::string added;
@@ -284,7 +282,6 @@ ChangeOutcome PlanCommands::decide_change(const std::string& change_id, bool acc
       plan = world::plan_with_change(*state, *change, &added);
       if (change->kind == world::ChangeKind::new_wall)
         if (const auto number = world::WorldState::element_number(change->element_id)) remove.push_back(*number);
-      if (!added.empty()) outcome.added_object = added;
     }
     const std::string subject = change->object_id.empty() ? change->element_id : change->object_id;
     std::string explanation = std::string(accept ? "accepted into the plan" : "rejected") + ": change " + change_id +
@@ -300,9 +297,8 @@ ChangeOutcome PlanCommands::decide_change(const std::string& change_id, bool acc
         nlohmann::json{{"change", change_id}, {"verdict", accept ? "accepted" : "rejected"}}.dump();
     storage::Store::PlanChangeRecord record{change_id, accept ? "accepted" : "rejected",
                                             accept ? std::optional(before) : std::nullopt, 0};
-    const auto committed = commit_change_edit(std::move(p), *state, change_id, payload, plan, record);
-    outcome.decision = committed.decision;
-    outcome.version = committed.version;
+    auto outcome = commit_change_edit(std::move(p), *state, change_id, payload, plan, record);
+    if (!added.empty()) outcome.added_object = added;
     return outcome;
   });
 }

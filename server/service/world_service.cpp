@@ -14,7 +14,6 @@
 #include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
 #include "server/service/map_recovery.h"
-#include "server/world/plan_edit.h"
 #include "server/world/scan_alignment.h"
 
 namespace wm::service {

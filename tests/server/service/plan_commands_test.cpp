@@ -16,19 +16,6 @@
 namespace wm::service {
 namespace {
 
-// One solid wall from (2, −1) to (2, 1).
-apriori::FloorPlan one_wall_plan() {
-  apriori::FloorPlan plan;
-  plan.name = "one wall";
-  apriori::PlanObject wall;
-  wall.id = "w";
-  wall.kind = "wall";
-  wall.attributes = {"solid"};
-  wall.polylines = {{{2, -1}, {2, 1}}};
-  plan.objects = {wall};
-  return plan;
-}
-
 // The distance from the origin of wall w's edge as the rules see it (edge/5 holds its line in Hesse normal form).
 double rules_rho_of_wall(WorldService& world) {
   const auto result = world.query("edge(w, _, Rho, _, _)", 2);
@@ -61,7 +48,7 @@ struct Served {
 TEST(PlanCommandsTest, APlacementAndItsUndoMoveThePlanAndTheRulesSeeItWhereItIsEachTime) {
   Served s;
   EXPECT_THROW(s.world.place_floor_plan({}, "{}"), Conflict);  // no plan: nothing to place
-  s.world.load_floor_plan(one_wall_plan());
+  s.world.load_floor_plan(wall_plan());
   EXPECT_NEAR(rules_rho_of_wall(s.world), 2.0, 1e-9);
   EXPECT_THROW(s.world.undo_placement("test"), Conflict);  // placed as drawn: nothing to undo
 
@@ -85,7 +72,7 @@ TEST(PlanCommandsTest, APlacementAndItsUndoMoveThePlanAndTheRulesSeeItWhereItIsE
 
 TEST(PlanCommandsTest, ANewWallRejectedAcceptedAndUndoneChangesThePlanTheFactsAndTheListEachTime) {
   Served s;
-  auto plan = one_wall_plan();  // and a second wall, so that the plan's footprint takes in y = 3
+  auto plan = wall_plan();  // and a second wall, so that the plan's footprint takes in y = 3
   plan.objects.push_back(plan.objects.front());
   plan.objects.back().id = "v";
   plan.objects.back().polylines = {{{-1, 5}, {5, 5}}};

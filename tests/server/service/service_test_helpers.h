@@ -30,8 +30,8 @@ inline world::ScanObservation ring_scan(double x, double range) {
   return request;
 }
 
-// A plan with one solid wall from (2, −1) to (2, 1), drawn `shift_m` further along x.
-inline world::WorldState wall_state(double shift_m = 0) {
+// A plan with one solid wall "w" from (2, −1) to (2, 1), drawn `shift_m` further along x.
+inline apriori::FloorPlan wall_plan(double shift_m = 0) {
   apriori::FloorPlan plan;
   plan.name = "wall";
   apriori::PlanObject wall;
@@ -40,6 +40,12 @@ inline world::WorldState wall_state(double shift_m = 0) {
   wall.attributes = {"solid"};
   wall.polylines = {{{2 + shift_m, -1}, {2 + shift_m, 1}}};
   plan.objects = {wall};
+  return plan;
+}
+
+// The map of wall_plan(shift_m).
+inline world::WorldState wall_state(double shift_m = 0) {
+  const auto plan = wall_plan(shift_m);
   world::WorldState state;
   state.objects = world::ObjectTable(world::make_objects(plan, world::WorldOptions{}, 1));
   return state;
