@@ -171,25 +171,25 @@ void trace_decisions(const char* trace, service::WorldService& world, const worl
     }
 }
 
-// WM_TRUTH_SCAN: the returns of one scan ("SEQ", the sequence number of the observation made of its lines) or of
-// every scan ("all"), in the world frame of the pose the server placed each at: "return SEQ BEAM X Y RANGE", one
-// per line.
-void print_returns(const std::vector<fusion::LaserScan>& scans, const Placements& placements, const char* which) {
-  if (std::string_view(which) == "all") {
-    for (const auto& [seq, placed] : placements) print_returns(scans, placements, std::to_string(seq).c_str());
-    return;
-  }
-  const std::int64_t seq = std::atoll(which);
-  const auto at = placements.find(seq);
-  if (at == placements.end()) return;
-  const auto& scan = scans[at->second.index];
-  const auto pose = at->second.placement.placed;
+// The returns of one replayed scan, in the world frame of the pose the server placed it at: "return SEQ BEAM X Y
+// RANGE", one per line (`seq`: the sequence number of the observation made of its lines).
+void print_scan_returns(const fusion::LaserScan& scan, const PlacedScan& placed, std::int64_t seq) {
+  const auto pose = placed.placement.placed;
   for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
     const double r = scan.ranges_m[i];
     if (!std::isfinite(r) || r < scan.range_min_m || r >= scan.range_max_m) continue;
     const double bearing = pose.theta_rad + fusion::beam_bearing_rad(scan, i);
     std::fprintf(stderr, "return %lld %zu %.3f %.3f %.3f\n", static_cast<long long>(seq), i,
                  pose.x_m + r * std::cos(bearing), pose.y_m + r * std::sin(bearing), r);
+  }
+}
+
+// WM_TRUTH_SCAN: the returns of one scan ("SEQ") or of every scan ("all").
+void print_returns(const std::vector<fusion::LaserScan>& scans, const Placements& placements, const char* which) {
+  if (std::string_view(which) == "all") {
+    for (const auto& [seq, placed] : placements) print_scan_returns(scans[placed.index], placed, seq);
+  } else if (const auto at = placements.find(std::atoll(which)); at != placements.end()) {
+    print_scan_returns(scans[at->second.index], at->second, at->first);
   }
 }
 
