@@ -78,7 +78,7 @@ class Engine {
   /// Inserts or replaces wm_kb:element_grid/3 facts (one per id). update_elements and set_elements drop them for
   /// the elements they touch. @throw std::invalid_argument for a non-finite share or an empty id.
   void set_element_grid(const std::vector<ElementGridFacts>& facts);
-  /// Inserts or replaces the edge_evidence/5 and edge_seen_through/5 facts of the given edges (all of them first
+  /// Inserts or replaces the edge_evidence/5 and edge_seen_through/6 facts of the given edges (all of them first
   /// when `replace_all`). @throw std::invalid_argument for an empty id, a non-finite share or stretch.
   void set_edge_evidence(const std::vector<EdgeEvidenceFacts>& facts, bool replace_all);
   /// Asks the active rules for their verdicts on the plan from the evidence facts (at most `max`), under the

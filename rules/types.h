@@ -65,19 +65,18 @@ struct ElementGridFacts {
   double backed = 0, contrary = 0;  // [0, 1]
 };
 
-/// What the occupancy grid says of one edge of a plan object (wm_kb:edge_evidence/5, edge_seen_through/5 and
-/// edge_beams/4), from
-/// the server's last grid check of it: edge_evidence(Object, Edge, Backed, SeenThrough, Observed) with the shares of
-/// its length within one cell of an occupied cell, seen free with nothing occupied near, and seen at all; and one
-/// edge_seen_through(Object, Edge, S0, S1, Beams) per stretch seen through, [m] from the edge's first end, with the
-/// beams counted passing through it.
+/// What the occupancy grid says of one edge of a plan object (wm_kb:edge_evidence/5, edge_seen_through/6 and
+/// edge_beams/4), from the server's last grid check of it: edge_evidence(Object, Edge, Backed, SeenThrough, Observed)
+/// with the shares of its length within one cell of an occupied cell, seen free with nothing occupied near, and seen
+/// at all; and one edge_seen_through(Object, Edge, S0, S1, Through, Ended) per stretch seen through, [m] from the
+/// edge's first end, with the beams counted passing through it and returning on it.
 struct EdgeEvidenceFacts {
   std::string object_id;                              // e.g. "wall-12"
   std::string edge_id;                                // e.g. "wall-12/0", as edge/5 names it
   double backed = 0, seen_through = 0, observed = 0;  // [0, 1]
   struct Stretch {
-    double s0_m = 0, s1_m = 0;       // S0 < S1 [m]
-    std::int64_t beams_through = 0;  // beams counted passing through it
+    double s0_m = 0, s1_m = 0;                        // S0 < S1 [m]
+    std::int64_t beams_through = 0, beams_ended = 0;  // beams counted passing through it, returning on it
   };
   std::vector<Stretch> stretches;
   /// Laser beams counted at the edge (edge_beams(Object, Edge, Through, Ended)): passed through it, returned on it.

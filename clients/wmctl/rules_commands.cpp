@@ -63,7 +63,7 @@ void print_history(const json& r) {
                 << " beams passed through it, " << e["beams_ended"] << " returned on it";
       for (const auto& s : e["seen_through_stretches"])
         std::cout << "\n    seen through from " << s["s0"].get<double>() << " to " << s["s1"].get<double>() << " m, by "
-                  << s["beams_through"] << " beams";
+                  << s["beams_through"] << " beams, " << s.value("beams_ended", 0) << " returned on it";
       std::cout << std::defaultfloat << std::setprecision(6) << "\n";
     }
   }

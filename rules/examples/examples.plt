@@ -8,8 +8,9 @@
 :- use_module(library(lists)).
 
 :- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7,
-           wm_kb:edge_evidence/5, wm_kb:edge_seen_through/5, wm_kb:edge_beams/4.
+           wm_kb:edge_evidence/5, wm_kb:edge_seen_through/6, wm_kb:edge_beams/4.
 :- set_module(wm_kb:base(system)).
+wm_kb:edge_seen_through(O, E, S0, S1, Through) :- wm_kb:edge_seen_through(O, E, S0, S1, Through, _).
 %   The engine sets the context per decision; here a global variable stands in for it.
 wm_kb:observation_sensor(S) :- nb_current(test_sensor, S0) -> S = S0 ; S = unknown.
 wm_kb:observation_origin(client).

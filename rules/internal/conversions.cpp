@@ -123,7 +123,7 @@ Vocabulary Vocabulary::lookup() {
   v.element_grid_fact = f("element_grid", 3);
   v.evidence = f("evidence", 8);
   v.minus = f("-", 2);
-  v.stretch = f("stretch", 3);
+  v.stretch = f("stretch", 4);
   v.file = f("file", 2);
   v.text = f("text", 2);
   v.observation = f("observation", 4);
@@ -261,7 +261,7 @@ void put_edge_evidence_facts(term_t list, const std::vector<EdgeEvidenceFacts>& 
   term_t item = PL_new_term_ref();
   term_t a = PL_new_term_refs(8);
   term_t pair = PL_new_term_ref();
-  term_t ends = PL_new_term_refs(3);
+  term_t ends = PL_new_term_refs(4);
   PL_put_nil(list);
   for (auto f = facts.rbegin(); f != facts.rend(); ++f) {
     if (f->object_id.empty() || f->edge_id.empty()) throw std::invalid_argument("set_edge_evidence: an id is empty");
@@ -277,10 +277,12 @@ void put_edge_evidence_facts(term_t list, const std::vector<EdgeEvidenceFacts>& 
     for (auto s = f->stretches.rbegin(); s != f->stretches.rend(); ++s) {
       require_finite(s->s0_m, kWhere, "stretch");
       require_finite(s->s1_m, kWhere, "stretch");
-      if (s->beams_through < 0) throw std::invalid_argument("set_edge_evidence: a beam count is negative");
+      if (s->beams_through < 0 || s->beams_ended < 0)
+        throw std::invalid_argument("set_edge_evidence: a beam count is negative");
       put_float(ends, s->s0_m);
       put_float(ends + 1, s->s1_m);
       put_int64(ends + 2, s->beams_through, kWhere);
+      put_int64(ends + 3, s->beams_ended, kWhere);
       put_functor(pair, v.stretch, ends, kWhere);
       cons(a + 5, pair);
     }

@@ -46,7 +46,11 @@
 %   Observed map elements and recent decisions, kept in step with the map by the server.
 :- dynamic wm_kb:element/8, wm_kb:element_grid/3, wm_kb:decision/7.
 %   What the grid says of the plan's edges, kept current by the server at every grid check.
-:- dynamic wm_kb:edge_evidence/5, wm_kb:edge_seen_through/5, wm_kb:edge_beams/4.
+:- dynamic wm_kb:edge_evidence/5, wm_kb:edge_seen_through/6, wm_kb:edge_beams/4.
+%   The stretches seen through with the beams that passed only, as rule files written before the beams that
+%   returned on a stretch were counted ask for them.
+wm_kb:(edge_seen_through(Object, Edge, S0, S1, Through) :-
+           edge_seen_through(Object, Edge, S0, S1, Through, _)).
 
 %   What the rules can ask about the observation being decided (set per decision, backtrackable).
 wm_kb:observation_origin(Origin) :-
@@ -93,26 +97,25 @@ set_element_grid(Facts) :-
 
 %!  set_edge_evidence(+Facts, +ReplaceAll) is det.
 %   Facts: list of evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended), Stretches a
-%   list of stretch(S0, S1, Beams). Replaces the edge_evidence/5, edge_seen_through/5 and edge_beams/4 facts of
-%   those edges (of
-%   every edge first when ReplaceAll is true), in one transaction.
+%   list of stretch(S0, S1, Through, Ended). Replaces the edge_evidence/5, edge_seen_through/6 and edge_beams/4
+%   facts of those edges (of every edge first when ReplaceAll is true), in one transaction.
 set_edge_evidence(Facts, ReplaceAll) :-
     must_be(list, Facts),
     transaction(( (   ReplaceAll == true
                   ->  retractall(wm_kb:edge_evidence(_, _, _, _, _)),
-                      retractall(wm_kb:edge_seen_through(_, _, _, _, _)),
+                      retractall(wm_kb:edge_seen_through(_, _, _, _, _, _)),
                       retractall(wm_kb:edge_beams(_, _, _, _))
                   ;   true
                   ),
                   forall(member(evidence(O, E, _, _, _, _, _, _), Facts),
                          ( retractall(wm_kb:edge_evidence(O, E, _, _, _)),
-                           retractall(wm_kb:edge_seen_through(O, E, _, _, _)),
+                           retractall(wm_kb:edge_seen_through(O, E, _, _, _, _)),
                            retractall(wm_kb:edge_beams(O, E, _, _)) )),
                   forall(member(evidence(O, E, B, S, Obs, Stretches, Through, Ended), Facts),
                          ( assertz(wm_kb:edge_evidence(O, E, B, S, Obs)),
                            assertz(wm_kb:edge_beams(O, E, Through, Ended)),
-                           forall(member(stretch(S0, S1, N), Stretches),
-                                  assertz(wm_kb:edge_seen_through(O, E, S0, S1, N))) )) )).
+                           forall(member(stretch(S0, S1, Through1, Ended1), Stretches),
+                                  assertz(wm_kb:edge_seen_through(O, E, S0, S1, Through1, Ended1))) )) )).
 
 %!  add_decisions(+Decisions, +KeepLast) is det.
 %   Appends decision/7 facts and forgets all but the KeepLast newest (the full log is in SQLite).

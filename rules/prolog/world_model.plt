@@ -11,8 +11,10 @@
 
 %   The test-facts module: the same dynamic facts the C++ engine asserts from the floor plan.
 :- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5, wm_kb:element/8, wm_kb:decision/7,
-           wm_kb:observation_origin/1, wm_kb:element_grid/3, wm_kb:edge_evidence/5, wm_kb:edge_seen_through/5, wm_kb:edge_beams/4.
+           wm_kb:observation_origin/1, wm_kb:element_grid/3, wm_kb:edge_evidence/5, wm_kb:edge_seen_through/6,
+           wm_kb:edge_beams/4.
 :- set_module(wm_kb:base(system)).
+wm_kb:edge_seen_through(O, E, S0, S1, Through) :- wm_kb:edge_seen_through(O, E, S0, S1, Through, _).
 
 :- prolog_load_context(directory, Dir),
    directory_file_path(Dir, 'world_model.pl', File),
@@ -33,7 +35,7 @@ set_facts(Facts) :-
     retractall(wm_kb:element_grid(_, _, _)),
     retractall(wm_kb:edge_evidence(_, _, _, _, _)),
     retractall(wm_kb:edge_beams(_, _, _, _)),
-    retractall(wm_kb:edge_seen_through(_, _, _, _, _)),
+    retractall(wm_kb:edge_seen_through(_, _, _, _, _, _)),
     forall(member(F, Facts), assertz(wm_kb:F)).
 
 plan([ object(w1, wall), attribute(w1, solid), edge(w1, w1_e0, 2.0, 0.0, 4.0),
@@ -156,8 +158,13 @@ test(wall_free_but_not_crossed_by_beams_is_not_missing, [fail]) :-
 
 test(door_cut_in_is_partly_missing, [V-R == partly_missing(1.5, 2.5)-wall_partly_missing]) :-
     plan(P),
-    with_facts([edge_evidence(w1, w1_e0, 0.7, 0.25, 0.95), edge_seen_through(w1, w1_e0, 1.5, 2.5, 40)|P],
+    with_facts([edge_evidence(w1, w1_e0, 0.7, 0.25, 0.95), edge_seen_through(w1, w1_e0, 1.5, 2.5, 40, 40)|P],
                wm_rules_under_test:edge_verdict(w1, w1_e0, V, R, _)).
+
+test(stretch_whose_beams_end_on_it_is_not_partly_missing, [fail]) :-
+    plan(P),
+    with_facts([edge_evidence(w1, w1_e0, 0.7, 0.25, 0.95), edge_seen_through(w1, w1_e0, 1.5, 2.5, 40, 41)|P],
+               wm_rules_under_test:edge_verdict(w1, w1_e0, _, _, _)).
 
 test(backed_wall_has_no_verdict, [fail]) :-
     plan(P),

@@ -24,7 +24,8 @@ json displacement_json(const world::Displacement& d) {
 json evidence_json(const world::EdgeEvidence& e) {
   json stretches = json::array();
   for (const auto& s : e.seen_through_stretches)
-    stretches.push_back({{"s0", s.s0_m}, {"s1", s.s1_m}, {"beams_through", s.beams_through}});
+    stretches.push_back(
+        {{"s0", s.s0_m}, {"s1", s.s1_m}, {"beams_through", s.beams_through}, {"beams_ended", s.beams_ended}});
   return {{"edge", e.edge},
           {"length", e.length_m},
           {"backed", e.backed},

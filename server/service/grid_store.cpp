@@ -241,19 +241,39 @@ std::vector<world::EdgeEvidence> GridStore::edge_evidence(const world::WorldStat
                                                           world::PlanEvidenceOptions options,
                                                           std::int64_t& revision) const {
   std::vector<world::EdgeEvidence> found;
+  const double bin = options_.beam_crossings.bin_m;
+  // The bins of an edge that [s0, s1) touches.
+  const auto bins_of = [bin](const fusion::SegmentBeams& counted, double s0, double s1) {
+    const auto first = static_cast<std::size_t>(std::max(0.0, std::floor(s0 / bin)));
+    const auto last = std::min(counted.through.size(), static_cast<std::size_t>(std::max(0.0, std::ceil(s1 / bin))));
+    return std::pair{first, std::max(first, last)};
+  };
   {
+    // The grid's lock, then the beams': nothing takes them the other way round.
     std::shared_lock lock(mutex_);
+    std::lock_guard beams_lock(beams_mutex_);
     fusion::OccupancyGrid::CellReader cells(*grid_);
     options.step_m = resolution_m_;
     const auto probe = grid_edge_probe(cells, resolution_m_);
-    found = region ? world::plan_evidence(state, *region, probe, options) : world::plan_evidence(state, probe, options);
+    const world::EdgeCrossings crossings = [&](std::size_t object, std::size_t edge, double s0, double s1) {
+      world::BeamTally tally;
+      if (const auto* counted = edge_beams(state.objects[object], edge)) {
+        const auto [first, last] = bins_of(*counted, s0, s1);
+        for (std::size_t b = first; b < last; ++b) {
+          tally.through += counted->through[b];
+          tally.ended += counted->ended[b];
+        }
+      }
+      return tally;
+    };
+    found = region ? world::plan_evidence(state, *region, probe, options, crossings)
+                   : world::plan_evidence(state, probe, options, crossings);
     revision = revision_.load();
   }
   // Edges nothing has seen say nothing.
   std::erase_if(found, [](const world::EdgeEvidence& e) { return e.observed <= 0; });
   // The beams counted at each edge, and at each stretch seen through (the bins it covers).
   std::lock_guard lock(beams_mutex_);
-  const double bin = options_.beam_crossings.bin_m;
   for (auto& e : found) {
     const auto* counted = edge_beams(state.objects[e.object], e.edge);
     if (!counted) continue;
@@ -262,9 +282,11 @@ std::vector<world::EdgeEvidence> GridStore::edge_evidence(const world::WorldStat
       e.beams_ended += counted->ended[b];
     }
     for (auto& stretch : e.seen_through_stretches) {
-      const auto first = static_cast<std::size_t>(std::max(0.0, std::floor(stretch.s0_m / bin)));
-      const auto last = std::min(counted->through.size(), static_cast<std::size_t>(std::ceil(stretch.s1_m / bin)));
-      for (std::size_t b = first; b < last; ++b) stretch.beams_through += counted->through[b];
+      const auto [first, last] = bins_of(*counted, stretch.s0_m, stretch.s1_m);
+      for (std::size_t b = first; b < last; ++b) {
+        stretch.beams_through += counted->through[b];
+        stretch.beams_ended += counted->ended[b];
+      }
     }
   }
   return found;

@@ -49,7 +49,7 @@ void PlanChecks::refresh(const world::WorldState& state, const std::optional<wor
           object_id,    world::edge_id(object_id, e.edge), e.backed, e.seen_through, e.observed, {}, e.beams_through,
           e.beams_ended};
       for (const auto& stretch : e.seen_through_stretches)
-        f.stretches.push_back({stretch.s0_m, stretch.s1_m, stretch.beams_through});
+        f.stretches.push_back({stretch.s0_m, stretch.s1_m, stretch.beams_through, stretch.beams_ended});
       keys.push_back({f.object_id, f.edge_id});
       facts.push_back(std::move(f));
       refreshed.insert({e.object, e.edge});

@@ -18,6 +18,7 @@ void check(const PlanEvidenceOptions& options) {
     throw std::invalid_argument("plan_evidence: min_stretch_m must be finite and >= 0");
   if (!(options.junction_cells >= 0) || !std::isfinite(options.junction_cells))
     throw std::invalid_argument("plan_evidence: junction_cells must be finite and >= 0");
+  if (options.min_beams_crossing < 0) throw std::invalid_argument("plan_evidence: min_beams_crossing must be >= 0");
 }
 
 double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
@@ -89,7 +90,7 @@ void fill_junctions(const std::vector<bool>& at_junction, std::vector<EdgeSample
 /// The samples of one edge: n equal pieces, each judged at its centre.
 std::optional<EdgeEvidence> edge_evidence(const WorldState& state, std::size_t object_index, std::size_t k,
                                           const EdgeProbe& probe, const PlanEvidenceOptions& options,
-                                          std::vector<EdgeSample>& samples) {
+                                          const EdgeCrossings& crossings, std::vector<EdgeSample>& samples) {
   const ObjectState& object = state.objects[object_index];
   const auto segment = object.body.world_edge(k, Eigen::Matrix2d::Zero());
   const double length = segment.length_m();
@@ -100,8 +101,17 @@ std::optional<EdgeEvidence> edge_evidence(const WorldState& state, std::size_t o
   std::vector<Eigen::Vector2d> points;
   for (std::size_t i = 0; i < n; ++i)
     points.push_back(a + (static_cast<double>(i) + 0.5) / static_cast<double>(n) * (b - a));
+  const double piece = length / static_cast<double>(n);
   samples.clear();
-  for (const auto& point : points) samples.push_back(probe(point, normal));
+  for (std::size_t i = 0; i < n; ++i) {
+    auto sample = probe(points[i], normal);
+    if (sample == EdgeSample::unknown && crossings && options.min_beams_crossing > 0) {
+      const auto beams = crossings(object_index, k, static_cast<double>(i) * piece, static_cast<double>(i + 1) * piece);
+      if (beams.through >= options.min_beams_crossing && beams.through >= 5 * beams.ended)
+        sample = EdgeSample::seen_through;
+    }
+    samples.push_back(sample);
+  }
   std::vector<bool> at_junction;
   mark_junctions(state, object_index, k, segment, points, options, at_junction);
   fill_junctions(at_junction, samples);
@@ -120,7 +130,6 @@ std::optional<EdgeEvidence> edge_evidence(const WorldState& state, std::size_t o
   evidence.observed = 1.0 - share(EdgeSample::unknown);
   // Runs of seen-through samples; a few unknown samples inside a run (a cell no beam reached between two that many
   // did) do not break it, anything else does. The run ends at its last seen-through sample.
-  const double piece = length / static_cast<double>(n);
   for (std::size_t i = 0; i < n;) {
     if (samples[i] != EdgeSample::seen_through) {
       ++i;
@@ -147,25 +156,27 @@ std::optional<EdgeEvidence> edge_evidence(const WorldState& state, std::size_t o
 }  // namespace
 
 std::vector<EdgeEvidence> plan_evidence(const WorldState& state, const Box& region, const EdgeProbe& probe,
-                                        const PlanEvidenceOptions& options) {
+                                        const PlanEvidenceOptions& options, const EdgeCrossings& crossings) {
   check(options);
   std::vector<EdgeEvidence> result;
   std::vector<EdgeSample> samples;
   for (const auto& [i, k] : state.objects.edges_near(region)) {
     if (!region.crossed_by(state.objects[i].body.world_edge(k, Eigen::Matrix2d::Zero()))) continue;
-    if (auto evidence = edge_evidence(state, i, k, probe, options, samples)) result.push_back(std::move(*evidence));
+    if (auto evidence = edge_evidence(state, i, k, probe, options, crossings, samples))
+      result.push_back(std::move(*evidence));
   }
   return result;
 }
 
 std::vector<EdgeEvidence> plan_evidence(const WorldState& state, const EdgeProbe& probe,
-                                        const PlanEvidenceOptions& options) {
+                                        const PlanEvidenceOptions& options, const EdgeCrossings& crossings) {
   check(options);
   std::vector<EdgeEvidence> result;
   std::vector<EdgeSample> samples;
   for (std::size_t i = 0; i < state.objects.size(); ++i) {
     for (std::size_t k = 0; k < state.objects[i].body.edges().size(); ++k)
-      if (auto evidence = edge_evidence(state, i, k, probe, options, samples)) result.push_back(std::move(*evidence));
+      if (auto evidence = edge_evidence(state, i, k, probe, options, crossings, samples))
+        result.push_back(std::move(*evidence));
   }
   return result;
 }

@@ -24,6 +24,14 @@ enum class EdgeSample {
 /// Classifies a point of an edge; `normal` is the edge's unit normal (the probe looks along it).
 using EdgeProbe = std::function<EdgeSample(const Eigen::Vector2d& point, const Eigen::Vector2d& normal)>;
 
+/// Laser beams counted at a stretch of an edge: passed through it, returned on it.
+struct BeamTally {
+  std::int64_t through = 0, ended = 0;
+};
+/// The beams counted at [s0_m, s1_m) of edge `edge` of object `object` (WorldState::objects index), from the edge's
+/// first end as placed now; zeros when none were counted.
+using EdgeCrossings = std::function<BeamTally(std::size_t object, std::size_t edge, double s0_m, double s1_m)>;
+
 struct PlanEvidenceOptions {
   double step_m = 0.05;             // sample spacing along an edge (the grid's cell size) [m], > 0
   double min_stretch_m = 0.30;      // a seen-through run shorter than this is not reported as a stretch [m]
@@ -32,12 +40,18 @@ struct PlanEvidenceOptions {
   /// verdict of the samples beside them: the other wall's cells are there whether this wall stands or not, so a
   /// demolished wall would otherwise end a few cells short of its corners. 0: off.
   double junction_cells = 2.5;
+  /// A sample the probe left unknown (nothing occupied near, but some cells crossed by fewer beams than make them
+  /// free) is seen through when at least this many counted beams crossed the edge there, five for each that
+  /// returned on it. Far from a well-placed robot the beams of its scans fall on the same cells and leave every
+  /// other cell of a line with one or two misses; the beams crossing the line itself were many. 0: off.
+  std::int64_t min_beams_crossing = 3;
 };
 
 /// A stretch of an edge, from its first end (p0 of the edge as placed now) [m].
 struct Stretch {
   double s0_m = 0, s1_m = 0;
-  std::int64_t beams_through = 0;  // beams counted passing through this stretch (0 when not counted)
+  /// Beams counted passing through this stretch, and returning on it (0 when not counted).
+  std::int64_t beams_through = 0, beams_ended = 0;
 };
 
 /// The grid's evidence on one edge of a plan object, as the object is placed now.
@@ -55,12 +69,13 @@ struct EdgeEvidence {
 };
 
 /// The evidence of every edge of every object that has an edge crossing `region`, in (object, edge) order, sampled
-/// at options.step_m with `probe`. Edges shorter than two samples are left out.
+/// at options.step_m with `probe`, and with `crossings` where the probe says unknown (none: the probe alone). Edges
+/// shorter than two samples are left out.
 std::vector<EdgeEvidence> plan_evidence(const WorldState& state, const Box& region, const EdgeProbe& probe,
-                                        const PlanEvidenceOptions& options);
+                                        const PlanEvidenceOptions& options, const EdgeCrossings& crossings = {});
 /// The same for every edge of the plan.
 std::vector<EdgeEvidence> plan_evidence(const WorldState& state, const EdgeProbe& probe,
-                                        const PlanEvidenceOptions& options);
+                                        const PlanEvidenceOptions& options, const EdgeCrossings& crossings = {});
 
 /// What the rules concluded about an edge or an object from the evidence (wm_kb verdict hooks).
 struct Verdict {

@@ -51,6 +51,27 @@ TEST_F(VerdictsTest, BackedWallWithADoorCutInIsPartlyMissingOverTheStretch) {
   EXPECT_DOUBLE_EQ(verdicts[0].s1_m, 2.5);
 }
 
+TEST_F(VerdictsTest, AStretchWhoseBeamsMostlyEndOnItIsNoVerdict) {
+  // A thin wall seen from both sides with a poor pose: its cells freed, but most of its beams returned on it.
+  auto thin = evidence("w1", "w1_e0", 0.7, 0.25, 0.95, {{1.5, 2.5}});
+  thin.stretches[0].beams_ended = 41;  // 40 through: fewer passed than returned
+  engine_.set_edge_evidence({thin}, true);
+  EXPECT_TRUE(engine_.plan_verdicts(std::nullopt, 100).empty());
+  // Both forms of the fact answer: with the returns, and without (rule files written before they were counted).
+  const auto with_ended = engine_.query("edge_seen_through(w1, w1_e0, _, _, T, E)", 10);
+  ASSERT_EQ(with_ended.solutions.size(), 1u);
+  EXPECT_EQ(with_ended.solutions[0].at(0).integer, 40);
+  EXPECT_EQ(with_ended.solutions[0].at(1).integer, 41);
+  const auto through_only = engine_.query("edge_seen_through(w1, w1_e0, _, _, T)", 10);
+  ASSERT_EQ(through_only.solutions.size(), 1u);
+  EXPECT_EQ(through_only.solutions[0].at(0).integer, 40);
+  thin.stretches[0].beams_ended = 40;  // as many passed as returned: the stretch is missing
+  engine_.set_edge_evidence({thin}, true);
+  ASSERT_EQ(engine_.plan_verdicts(std::nullopt, 100).size(), 1u);
+  thin.stretches[0].beams_ended = -1;
+  EXPECT_THROW(engine_.set_edge_evidence({thin}, true), std::invalid_argument);
+}
+
 TEST_F(VerdictsTest, WallBackedOrBarelySeenHasNoVerdict) {
   engine_.set_edge_evidence({evidence("w1", "w1_e0", 0.9, 0.0, 0.95)}, true);
   EXPECT_TRUE(engine_.plan_verdicts(std::nullopt, 100).empty());

@@ -193,11 +193,11 @@ INSTANTIATE_TEST_SUITE_P(Buildings, TruthBuildingTest,
 // the floor, so that what keeps noisy views on their walls (each scan aligned to the map before it is decided), the
 // two faces of a wall apart and the table's far views on the table cannot quietly go. Reached: precision
 // 0.962-0.997 (without the alignment 0.832-0.901; AHG2 0.935 before a short wall beside a long one, end to end, was
-// kept apart as a depth step), recall 0.862-0.985, demolished walls found 0.878-1.000, the table within 3.6 cm /
-// 0.2° and none of its sides a wall (two on Barcelona before a far view that ran 17 cm past the table's corner was
-// taken as its side). Not met: precision in AHG2 (0.967) and the RMF office (0.962, its curved wall drawn as facets
-// 7-8° apart), recall in GDC1 (0.890) and Barcelona (0.862), AHG2's demolished walls (0.878), the table on GDC1
-// (3.6 cm).
+// kept apart as a depth step), recall 0.862-0.985, demolished walls found 0.993-1.000 (AHG2 0.878 before an edge sample
+// the grid could not call free, crossed by many counted beams and returned on by few, was taken as seen through), the
+// table within 3.6 cm / 0.2° and none of its sides a wall (two on Barcelona before a far view that ran 17 cm past the
+// table's corner was taken as its side). Not met: precision in AHG2 (0.967) and the RMF office (0.962, its curved wall
+// drawn as facets 7-8° apart), recall in GDC1 (0.890) and Barcelona (0.862), the table on GDC1 (3.6 cm).
 struct ExpectedNoisy {
   const char* building;
   double precision, recall;
@@ -218,9 +218,12 @@ TEST_P(TruthHighNoiseTest, NoisyPosesStillGiveOneElementPerWallAndTheChanges) {
   expect_mapping(r.mapping, e.precision, e.recall);
   ASSERT_TRUE(r.as_built);
   const auto& a = *r.as_built;
-  ASSERT_TRUE(a.demolished_found && a.false_missing);
+  ASSERT_TRUE(a.demolished_found && a.false_missing && a.people_missing_m);
   EXPECT_GE(*a.demolished_found, e.demolished_found);
   EXPECT_LE(*a.false_missing, 0.01);
+  // AHG2 had 0.30 m here before a stretch had to be crossed by as many beams as returned on it (a 0.32 m wall
+  // seen from both sides, its cells freed by the beams of each side).
+  EXPECT_EQ(*a.people_missing_m, 0.0);
   EXPECT_EQ(a.people_element_m, 0.0);
   EXPECT_LE(a.table_error_m, e.max_table_error_m);
   EXPECT_EQ(a.table_edge_elements, 0u);
@@ -228,7 +231,7 @@ TEST_P(TruthHighNoiseTest, NoisyPosesStillGiveOneElementPerWallAndTheChanges) {
 
 INSTANTIATE_TEST_SUITE_P(Buildings, TruthHighNoiseTest,
                          ::testing::Values(ExpectedNoisy{"gdc1", 0.97, 0.885, 0.95, 0.04},
-                                           ExpectedNoisy{"ahg2", 0.96, 0.925, 0.87, 0.03},
+                                           ExpectedNoisy{"ahg2", 0.96, 0.925, 0.95, 0.03},
                                            ExpectedNoisy{"rmf-office", 0.95, 0.97, 0.95, 0.03},
                                            ExpectedNoisy{"barcelona", 0.99, 0.85, 0.95, 0.03}),
                          [](const auto& info) { return test_name(info.param.building); });

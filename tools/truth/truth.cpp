@@ -440,11 +440,12 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
         through += wall_through;
         reported += wall_reported;
         if (std::getenv("WM_TRUTH_VERBOSE"))
-          std::fprintf(stderr,
-                       "demolished %s/%zu (%.2f m): seen through %.2f m, reported missing %.2f m; not reported at m "
-                       "(beams):%s\n",
-                       walls[w].object_id.c_str(), walls[w].edge, (walls[w].p1 - walls[w].p0).norm(), wall_through,
-                       wall_reported, unreported.c_str());
+          std::fprintf(
+              stderr,
+              "demolished %s/%zu (%.2f m, (%.2f, %.2f) to (%.2f, %.2f)): seen through %.2f m, reported missing "
+              "%.2f m; not reported at m (beams):%s\n",
+              walls[w].object_id.c_str(), walls[w].edge, (walls[w].p1 - walls[w].p0).norm(), walls[w].p0.x(),
+              walls[w].p0.y(), walls[w].p1.x(), walls[w].p1.y(), wall_through, wall_reported, unreported.c_str());
       }
       if (through > 0) {
         found += reported / through;

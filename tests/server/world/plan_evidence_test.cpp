@@ -194,6 +194,41 @@ TEST(PlanEvidenceTest, AShortWallEndMostlyAtJunctionsKeepsWhatTheProbeSaid) {
   EXPECT_TRUE(found[0].seen_through_stretches.empty());
 }
 
+TEST(PlanEvidenceTest, UnknownSamplesThatManyBeamsCrossedAreSeenThrough) {
+  const auto state = plan_state();
+  // The probe sees through every other sample of the wall and leaves the rest unknown (too few misses on their
+  // cells); the counted beams crossed x < 2 eight per 5 cm, none returning, and x >= 2 as often but half returned.
+  const EdgeProbe striped = [](const Eigen::Vector2d& p, const Eigen::Vector2d&) {
+    if (p.y() > 5) return EdgeSample::unknown;
+    return static_cast<int>(std::floor(p.x() / 0.05)) % 2 == 0 ? EdgeSample::seen_through : EdgeSample::unknown;
+  };
+  int asked_elsewhere = 0;
+  const EdgeCrossings crossings = [&](std::size_t object, std::size_t, double s0, double s1) {
+    if (object != 0) {
+      ++asked_elsewhere;
+      return BeamTally{};
+    }
+    const auto beams = static_cast<std::int64_t>(std::lround((s1 - s0) / 0.05 * 8));
+    return s0 < 2 ? BeamTally{beams, 0} : BeamTally{beams, beams / 2};
+  };
+  auto o = options();
+  o.max_unknown_gap = 0;
+  const auto wall = plan_evidence(state, striped, o, crossings).at(0);
+  EXPECT_NEAR(wall.seen_through, 0.75, 1e-9);
+  EXPECT_NEAR(wall.observed, 0.75, 1e-9);
+  ASSERT_EQ(wall.seen_through_stretches.size(), 1u);  // x >= 2 stays split every other sample
+  EXPECT_NEAR(wall.seen_through_stretches[0].s0_m, 0.0, 1e-9);
+  EXPECT_NEAR(wall.seen_through_stretches[0].s1_m, 2.05, 1e-9);
+  EXPECT_GT(asked_elsewhere, 0);  // the table's unseen sides were asked too, and stay unknown
+  // Fewer beams than the option asks for: the probe alone.
+  o.min_beams_crossing = 9;
+  EXPECT_NEAR(plan_evidence(state, striped, o, crossings).at(0).seen_through, 0.5, 1e-9);
+  o.min_beams_crossing = 0;
+  EXPECT_NEAR(plan_evidence(state, striped, o, crossings).at(0).seen_through, 0.5, 1e-9);
+  o.min_beams_crossing = -1;
+  EXPECT_THROW(plan_evidence(state, striped, o, crossings), std::invalid_argument);
+}
+
 TEST(PlanEvidenceTest, BadOptionsAreRefused) {
   const auto state = plan_state();
   const EdgeProbe probe = [](const Eigen::Vector2d&, const Eigen::Vector2d&) { return EdgeSample::backed; };
