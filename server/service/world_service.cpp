@@ -9,12 +9,9 @@
 #include <type_traits>
 #include <variant>
 
-#include "fusion/grid/scan_geometry.h"
-#include "fusion/grid/sensor_model.h"
 #include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
 #include "server/service/map_recovery.h"
-#include "server/world/scan_alignment.h"
 
 namespace wm::service {
 namespace {

@@ -123,7 +123,9 @@ Polyline auto_route(const std::vector<PlanWall>& walls, unsigned seed) {
     cost[current] = 0;
     queue.push({0, current});
     while (!queue.empty()) {
-      const auto [c, i] = queue.top();
+      // Plain variables, not a structured binding: the lambda below captures them.
+      const double c = queue.top().first;
+      const int i = queue.top().second;
       queue.pop();
       if (c > cost[i]) continue;
       neighbours(i, [&](int j, double step) {
