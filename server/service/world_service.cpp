@@ -9,7 +9,6 @@
 #include <type_traits>
 #include <variant>
 
-#include "server/json/events_json.h"
 #include "server/service/knowledge_facts.h"
 #include "server/service/map_recovery.h"
 
@@ -37,7 +36,6 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
       plan_checks_(options.plan_checks, grid_, engine, diagnostics, rejected_changes(store)) {
   replay_journal_into_grid(store_, grid_, *snapshot());
   restore_robots(store_, robots_);
-  reader_ = std::make_unique<PrologWorker>(engine_, 64, "knowledge-base query");
   ingest_ = std::make_unique<IngestPipeline>(
       options_.ingest, IngestParts{store_, engine_, writer_, grid_, plan_checks_, robots_, event_log_, diagnostics_});
   plan_ = std::make_unique<PlanCommands>(
@@ -55,14 +53,13 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
     ingest_->trim_left_undone();
     return 0;
   });
-  if (options_.watch_rules_dir) {
-    watcher_ = std::make_unique<RulesWatcher>(*options_.watch_rules_dir, [this] { on_rules_changed(); });
-  }
+  rules_ = std::make_unique<RulesCommands>(
+      RulesParts{store_, engine_, writer_, plan_checks_, event_log_, *ingest_, diagnostics_}, options_.watch_rules_dir);
 }
 
 WorldService::~WorldService() {
-  watcher_.reset();
-  ingest_->stop();  // its queued commands still reach ingest_
+  if (rules_) rules_->stop_watching();  // a watched edit reloads on the ingest's writer
+  ingest_->stop();                      // its queued commands still reach ingest_
   ingest_.reset();
   try {
     grid_.flush(true);  // not past a gap: the journal replays from there at start
@@ -70,7 +67,7 @@ WorldService::~WorldService() {
     diagnostics_.report(common::Severity::warning, "grid",
                         std::string("final grid flush failed (the journal still has every scan): ") + e.what());
   }
-  reader_.reset();
+  rules_.reset();
 }
 
 ScanOutcome WorldService::post_scan(world::ScanObservation scan, std::string payload_json,
@@ -136,57 +133,16 @@ ChangeOutcome WorldService::decide_change(const std::string& change_id, bool acc
 
 ChangeOutcome WorldService::undo_change(std::string observer) { return plan_->undo_change(std::move(observer)); }
 
-rules::RulesStatus WorldService::rules_status() { return engine_.status(); }
+rules::RulesStatus WorldService::rules_status() { return rules_->status(); }
 
-rules::RulesStatus WorldService::reload_rules() {
-  return run_command([this] {
-    try {
-      auto status = engine_.reload();
-      plan_checks_.refresh(*snapshot(), std::nullopt, true);  // the new rules' verdicts on the same evidence
-      emit(events::EventKind::rules, [&] { return json_codec::rules_event(status); });
-      return status;
-    } catch (const rules::RuleError&) {
-      emit(events::EventKind::rules, [&] { return json_codec::rules_event(engine_.status()); });
-      throw;
-    }
-  });
-}
-
-void WorldService::on_rules_changed() {
-  try {
-    const auto status = reload_rules();
-    diagnostics_.report(common::Severity::info, "rules",
-                        "rules reloaded (generation " + std::to_string(status.generation) + ", " +
-                            std::to_string(status.files.size()) + " files)");
-  } catch (const rules::RuleError& e) {
-    diagnostics_.report(common::Severity::warning, "rules",
-                        std::string("rules edit rejected, the previous rules stay active:\n") + e.what());
-  } catch (const std::exception& e) {
-    diagnostics_.report(common::Severity::error, "rules", std::string("rules reload failed: ") + e.what());
-  }
-}
+rules::RulesStatus WorldService::reload_rules() { return rules_->reload(); }
 
 rules::QueryResult WorldService::query(const std::string& goal, std::size_t max_solutions) {
-  return reader_->run([this, goal, max_solutions] { return engine_.query(goal, max_solutions); });
+  return rules_->query(goal, max_solutions);
 }
 
 DryRunOutcome WorldService::dry_run(const rules::RuleText& candidate, std::size_t count) {
-  return reader_->run([this, candidate, count] {
-    const auto recorded = store_.latest_decisions(count);
-    std::vector<rules::DecisionQuery> queries;
-    queries.reserve(recorded.size());
-    for (const auto& d : recorded) queries.push_back(d.query());
-    const auto answers = engine_.dry_run(candidate, queries);
-    DryRunOutcome outcome;
-    outcome.redecided = recorded.size();
-    for (std::size_t i = 0; i < recorded.size(); ++i) {
-      const auto& before = recorded[i];
-      const auto& after = answers[i];
-      if (before.rule != after.rule || rules::wire_name(before.action) != after.action)
-        outcome.changes.push_back({before, after});
-    }
-    return outcome;
-  });
+  return rules_->dry_run(candidate, count);
 }
 
 std::vector<world::DecisionRecord> WorldService::decisions(std::int64_t since_seq, std::size_t limit,

@@ -33,8 +33,7 @@
 #include "server/service/map_writer.h"
 #include "server/service/plan_checks.h"
 #include "server/service/plan_commands.h"
-#include "server/service/prolog_worker.h"
-#include "server/service/rules_watcher.h"
+#include "server/service/rules_commands.h"
 #include "server/service/snapshot_log.h"
 #include "server/service/world_port.h"
 #include "server/storage/store.h"
@@ -60,11 +59,11 @@ struct ServiceOptions {
 
 /// Owns the world model, as a few parts with one job each: the map writer (decide, commit, publish an observation),
 /// the ingest pipeline (scans and primitives on the processing network, the grid trim), the plan commands (load,
-/// place, align and edit the plan, accept changes), the grid store, the plan checks, the robots and the events of
-/// each commit. This class builds them in order at start (the grid and robots from the journal, the knowledge base
-/// from the map), runs every change as a command on the ingest's writer thread, and answers reads from the
-/// published snapshot, which never blocks on the writers. Knowledge-base queries and dry runs run on their own
-/// Prolog thread.
+/// place, align and edit the plan, accept changes), the rules commands (reload, query, dry run), the grid store, the
+/// plan checks, the robots and the events of each commit. This class builds them in order at start (the grid and
+/// robots from the journal, the knowledge base from the map), runs every change as a command on the ingest's writer
+/// thread, and answers reads from the published snapshot, which never blocks on the writers. Knowledge-base queries
+/// and dry runs run on their own Prolog thread.
 class WorldService final : public WorldPort {
  public:
   /// Starts the writer with the state loaded from `store`. @throw storage::StorageError, rules::RuleError.
@@ -159,15 +158,10 @@ class WorldService final : public WorldPort {
   bool accepts_scans(const std::string& sensor) const;
 
  private:
-  void on_rules_changed();
   /// Runs `work` on the writer thread when nothing is in flight. @throw Busy when the queue is full.
   template <typename F>
   auto run_command(F&& work) -> decltype(work()) {
     return ingest_->run_command(std::forward<F>(work));
-  }
-  /// Publishes an event of `kind` as a commit of its own (when anyone listens; its JSON only when someone reads it).
-  void emit(events::EventKind kind, const std::function<nlohmann::json()>& make_json) {
-    event_log_.publish(kind, make_json);
   }
 
   const ServiceOptions options_;
@@ -183,9 +177,8 @@ class WorldService final : public WorldPort {
   // Declared last: destroyed first, so their threads stop before the members they use go away (also when the
   // constructor throws after the network started).
   std::unique_ptr<IngestPipeline> ingest_;
-  std::unique_ptr<PlanCommands> plan_;  // runs on ingest_'s writer
-  std::unique_ptr<PrologWorker> reader_;
-  std::unique_ptr<RulesWatcher> watcher_;
+  std::unique_ptr<PlanCommands> plan_;    // runs on ingest_'s writer
+  std::unique_ptr<RulesCommands> rules_;  // reloads on ingest_'s writer; queries on a Prolog thread of its own
 };
 
 }  // namespace wm::service
