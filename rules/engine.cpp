@@ -3,11 +3,11 @@
 #include <SWI-Prolog.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -34,9 +34,27 @@ using internal::put_float;
 using internal::put_int64;
 using internal::require_attached;
 
-// The SWI-Prolog runtime is per process and cannot be initialised twice, so "one Engine at a time"
-// is a process-wide fact; this flag is the only global state of the module.
-std::atomic<bool> engine_exists{false};
+// The knowledge bases of the Engines alive in this process: the SWI-Prolog runtime is per process, so which module
+// holds which Engine's facts is a process-wide fact; this set is the only global state of the module.
+struct LiveKnowledgeBases {
+  std::mutex mutex;
+  std::set<std::string> names;
+};
+LiveKnowledgeBases& live_knowledge_bases() {
+  static LiveKnowledgeBases live;
+  return live;
+}
+
+// A knowledge base's module name: "wm_kb", or "wm_kb_" and 1-48 of [a-z0-9_], so that no name an Engine takes can be a
+// module of SWI-Prolog's or of the rules.
+bool valid_knowledge_base(const std::string& name) {
+  constexpr std::string_view kPrefix = "wm_kb";
+  if (name == kPrefix) return true;
+  if (name.size() < kPrefix.size() + 2 || name.size() > kPrefix.size() + 49 || name.compare(0, 6, "wm_kb_") != 0)
+    return false;
+  return std::all_of(name.begin() + 6, name.end(),
+                     [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_'; });
+}
 
 std::int64_t unix_now_s() {
   return std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
@@ -57,10 +75,11 @@ std::string joined_lines(const std::vector<std::string>& lines, const char* othe
   return message.empty() ? otherwise : message;
 }
 
-// The support module's entry points (rules/internal/engine_support.pl), looked up once.
+// The support module's entry points (rules/internal/engine_support.pl), looked up once. Each takes the engine's
+// knowledge base (a module name) before the arguments listed here.
 struct EntryPoints {
-  predicate_t init = nullptr;               // init/0
-  predicate_t shutdown = nullptr;           // shutdown/0
+  predicate_t init = nullptr;               // init
+  predicate_t shutdown = nullptr;           // shutdown
   predicate_t set_floor_plan = nullptr;     // set_floor_plan(+Objects)
   predicate_t set_elements = nullptr;       // set_elements(+Elements)
   predicate_t update_elements = nullptr;    // update_elements(+Upserts, +RemovedIds)
@@ -77,21 +96,21 @@ struct EntryPoints {
 
   static EntryPoints lookup() {
     const auto p = [](const char* name, int arity) { return PL_predicate(name, arity, internal::kSupportModuleName); };
-    return {.init = p("init", 0),
-            .shutdown = p("shutdown", 0),
-            .set_floor_plan = p("set_floor_plan", 1),
-            .set_elements = p("set_elements", 1),
-            .update_elements = p("update_elements", 2),
-            .add_decisions = p("add_decisions", 2),
-            .set_element_grid = p("set_element_grid", 1),
-            .set_edge_evidence = p("set_edge_evidence", 2),
-            .verdicts = p("verdicts", 5),
-            .decide = p("decide", 6),
-            .decide_batch = p("decide_batch", 4),
-            .reload = p("reload", 6),
-            .dry_run = p("dry_run", 6),
-            .prune = p("prune", 4),
-            .query = p("query", 5)};
+    return {.init = p("init", 1),
+            .shutdown = p("shutdown", 1),
+            .set_floor_plan = p("set_floor_plan", 2),
+            .set_elements = p("set_elements", 2),
+            .update_elements = p("update_elements", 3),
+            .add_decisions = p("add_decisions", 3),
+            .set_element_grid = p("set_element_grid", 2),
+            .set_edge_evidence = p("set_edge_evidence", 3),
+            .verdicts = p("verdicts", 6),
+            .decide = p("decide", 7),
+            .decide_batch = p("decide_batch", 5),
+            .reload = p("reload", 7),
+            .dry_run = p("dry_run", 7),
+            .prune = p("prune", 5),
+            .query = p("query", 6)};
   }
 };
 
@@ -120,6 +139,14 @@ struct Engine::Impl {
     if (read.decision) return std::move(*read.decision);
     set_last_error(read.error);
     return fallback_decision(read.error);
+  }
+
+  // The arguments of an entry point: the knowledge base first, then `n` more, the first of which is returned;
+  // `call` is set to the whole vector, to pass to the entry point.
+  term_t kb_args(int n, term_t& call) const {
+    call = PL_new_term_refs(n + 1);
+    put_atom(call, options.knowledge_base);
+    return call + 1;
   }
 
   // Puts the engine's inference and time limits as two consecutive arguments.
@@ -160,10 +187,22 @@ Engine::Engine(const EngineOptions& options) {
   if (!std::isfinite(options.time_limit_s) || options.time_limit_s <= 0) {
     throw std::invalid_argument("Engine: time_limit_s must be finite and > 0");
   }
-  bool expected = false;
-  if (!engine_exists.compare_exchange_strong(expected, true)) {
-    throw RuleError("Engine: another Engine already owns the SWI-Prolog runtime of this process");
+  if (!valid_knowledge_base(options.knowledge_base)) {
+    throw std::invalid_argument("Engine: knowledge_base must be \"wm_kb\" or \"wm_kb_\" and 1-48 of [a-z0-9_] (got \"" +
+                                options.knowledge_base + "\")");
   }
+  {
+    auto& live = live_knowledge_bases();
+    std::lock_guard lock(live.mutex);
+    if (!live.names.insert(options.knowledge_base).second) {
+      throw RuleError("Engine: knowledge base " + options.knowledge_base + " belongs to another Engine");
+    }
+  }
+  const auto release_name = [&options] {
+    auto& live = live_knowledge_bases();
+    std::lock_guard lock(live.mutex);
+    live.names.erase(options.knowledge_base);
+  };
   try {
     impl_ = std::make_unique<Impl>(options);
     internal::initialise_runtime();
@@ -176,12 +215,14 @@ Engine::Engine(const EngineOptions& options) {
     internal::load_support_module();
     {
       Frame frame;
-      call_or_throw(impl_->entry.init, PL_new_term_refs(0), "Engine");
+      term_t call;
+      impl_->kb_args(0, call);
+      call_or_throw(impl_->entry.init, call, "Engine");
     }
     reload();
   } catch (...) {
     if (impl_ && impl_->attached_by_constructor) PL_thread_destroy_engine();
-    engine_exists.store(false);
+    release_name();
     throw;
   }
 }
@@ -191,20 +232,26 @@ Engine::~Engine() {
   if (PL_thread_self() < 0) attached_here = PL_thread_attach_engine(nullptr) >= 0;
   if (PL_thread_self() >= 0) {
     Frame frame;
-    (void)call_once(impl_->entry.shutdown, PL_new_term_refs(0));
+    term_t call;
+    impl_->kb_args(0, call);
+    (void)call_once(impl_->entry.shutdown, call);
   }
   if (attached_here) PL_thread_destroy_engine();
-  if (impl_->attached_by_constructor) PL_thread_destroy_engine();
-  engine_exists.store(false);
+  auto& live = live_knowledge_bases();
+  std::lock_guard lock(live.mutex);
+  live.names.erase(impl_->options.knowledge_base);
+  // The thread keeps its Prolog engine while another Engine may still be used on it.
+  if (impl_->attached_by_constructor && live.names.empty()) PL_thread_destroy_engine();
 }
 
 void Engine::set_floor_plan(const std::vector<ObjectFacts>& objects) {
   require_attached("set_floor_plan");
   internal::validate_objects(objects);
   Frame frame;
-  term_t list = PL_new_term_ref();
+  term_t call;
+  term_t list = impl_->kb_args(1, call);
   internal::put_objects(list, objects, impl_->vocabulary);
-  call_or_throw(impl_->entry.set_floor_plan, list, "set_floor_plan");
+  call_or_throw(impl_->entry.set_floor_plan, call, "set_floor_plan");
 }
 
 Decision Engine::decide(const DecisionQuery& query) {
@@ -213,10 +260,11 @@ Decision Engine::decide(const DecisionQuery& query) {
   Impl& d = *impl_;
   Frame frame;
   // decide(+Observation, +Match, +Context, +InferenceLimit, +TimeLimit, -Result)
-  term_t args = PL_new_term_refs(6);
+  term_t call;
+  term_t args = d.kb_args(6, call);
   internal::put_case(args, args + 1, args + 2, query, d.vocabulary);
   d.put_limits(args + 3, d.options.time_limit_s, "decide");
-  if (auto call_error = call_once(d.entry.decide, args)) {
+  if (auto call_error = call_once(d.entry.decide, call)) {
     d.set_last_error(*call_error);
     return fallback_decision(*call_error);
   }
@@ -229,14 +277,15 @@ std::vector<Decision> Engine::decide_batch(const std::vector<DecisionQuery>& que
   Impl& d = *impl_;
   Frame frame;
   // decide_batch(+Cases, +InferenceLimit, +TimeLimit, -Results)
-  term_t args = PL_new_term_refs(4);
+  term_t call;
+  term_t args = d.kb_args(4, call);
   internal::put_cases(args, queries, d.vocabulary, "decide_batch");
   // The whole batch may use the time of all its decisions.
   d.put_limits(args + 1, d.options.time_limit_s * static_cast<double>(std::max<std::size_t>(1, queries.size())),
                "decide_batch");
   std::vector<Decision> decisions;
   decisions.reserve(queries.size());
-  if (auto call_error = call_once(d.entry.decide_batch, args)) {
+  if (auto call_error = call_once(d.entry.decide_batch, call)) {
     d.set_last_error(*call_error);
     decisions.assign(queries.size(), fallback_decision(*call_error));
     return decisions;
@@ -263,13 +312,14 @@ RulesStatus Engine::reload() {
     {
       Frame frame;
       // reload(+Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result)
-      term_t args = PL_new_term_refs(6);
+      term_t call;
+      term_t args = d.kb_args(6, call);
       internal::put_rule_files(args, d.options.rules_dir, paths, nullptr, d.vocabulary);
       put_atom(args + 1, d.options.rules_dir.string());
       d.put_limits(args + 2, d.options.time_limit_s, kFunction);
       // A retired rule module is freed once no decision can still be running in it.
       put_float(args + 4, 2 * d.options.time_limit_s + 1.0);
-      call_or_throw(d.entry.reload, args, kFunction);
+      call_or_throw(d.entry.reload, call, kFunction);
 
       term_t result = args + 5;  // ok(Hashes) | error(Problems)
       term_t list = PL_new_term_ref();
@@ -301,35 +351,39 @@ RulesStatus Engine::status() const {
 void Engine::set_elements(const std::vector<ElementFacts>& elements) {
   require_attached("set_elements");
   Frame frame;
-  term_t list = PL_new_term_ref();
+  term_t call;
+  term_t list = impl_->kb_args(1, call);
   internal::put_element_facts(list, elements, impl_->vocabulary);
-  call_or_throw(impl_->entry.set_elements, list, "set_elements");
+  call_or_throw(impl_->entry.set_elements, call, "set_elements");
 }
 
 void Engine::update_elements(const std::vector<ElementFacts>& upserts, const std::vector<std::string>& removed) {
   require_attached("update_elements");
   Frame frame;
-  term_t args = PL_new_term_refs(2);  // update_elements(+Upserts, +RemovedIds)
+  term_t call;
+  term_t args = impl_->kb_args(2, call);  // update_elements(+Upserts, +RemovedIds)
   internal::put_element_facts(args, upserts, impl_->vocabulary);
   internal::put_atoms(args + 1, removed);
-  call_or_throw(impl_->entry.update_elements, args, "update_elements");
+  call_or_throw(impl_->entry.update_elements, call, "update_elements");
 }
 
 void Engine::set_element_grid(const std::vector<ElementGridFacts>& facts) {
   require_attached("set_element_grid");
   Frame frame;
-  term_t list = PL_new_term_ref();
+  term_t call;
+  term_t list = impl_->kb_args(1, call);
   internal::put_element_grid_facts(list, facts, impl_->vocabulary);
-  call_or_throw(impl_->entry.set_element_grid, list, "set_element_grid");
+  call_or_throw(impl_->entry.set_element_grid, call, "set_element_grid");
 }
 
 void Engine::set_edge_evidence(const std::vector<EdgeEvidenceFacts>& facts, bool replace_all) {
   require_attached("set_edge_evidence");
   Frame frame;
-  term_t args = PL_new_term_refs(2);  // set_edge_evidence(+Facts, +ReplaceAll)
+  term_t call;
+  term_t args = impl_->kb_args(2, call);  // set_edge_evidence(+Facts, +ReplaceAll)
   internal::put_edge_evidence_facts(args, facts, impl_->vocabulary);
   internal::put_atom(args + 1, replace_all ? "true" : "false");
-  call_or_throw(impl_->entry.set_edge_evidence, args, "set_edge_evidence");
+  call_or_throw(impl_->entry.set_edge_evidence, call, "set_edge_evidence");
 }
 
 std::vector<VerdictFacts> Engine::plan_verdicts(const std::optional<std::vector<EdgeKey>>& edges, std::size_t max) {
@@ -338,7 +392,8 @@ std::vector<VerdictFacts> Engine::plan_verdicts(const std::optional<std::vector<
   Impl& d = *impl_;
   Frame frame;
   // verdicts(+Scope, +Max, +InferenceLimit, +TimeLimit, -Result), Scope = all | edges([Object-Edge, ...])
-  term_t args = PL_new_term_refs(5);
+  term_t call;
+  term_t args = d.kb_args(5, call);
   if (!edges) {
     put_atom(args, "all");
   } else {
@@ -356,7 +411,7 @@ std::vector<VerdictFacts> Engine::plan_verdicts(const std::optional<std::vector<
   }
   put_int64(args + 1, static_cast<std::int64_t>(max), kFunction);
   d.put_limits(args + 2, d.options.time_limit_s, kFunction);
-  call_or_throw(d.entry.verdicts, args, kFunction);
+  call_or_throw(d.entry.verdicts, call, kFunction);
   term_t result = args + 4;  // ok(Verdicts) | error(Message)
   term_t part = PL_new_term_ref();
   if (PL_is_functor(result, d.vocabulary.error) && PL_get_arg(1, result, part)) {
@@ -370,10 +425,11 @@ std::vector<VerdictFacts> Engine::plan_verdicts(const std::optional<std::vector<
 void Engine::add_decisions(const std::vector<DecisionFacts>& decisions, std::size_t keep_last) {
   require_attached("add_decisions");
   Frame frame;
-  term_t args = PL_new_term_refs(2);  // add_decisions(+Decisions, +KeepLast)
+  term_t call;
+  term_t args = impl_->kb_args(2, call);  // add_decisions(+Decisions, +KeepLast)
   internal::put_decision_facts(args, decisions, impl_->vocabulary);
   put_int64(args + 1, static_cast<std::int64_t>(keep_last), "add_decisions");
-  call_or_throw(impl_->entry.add_decisions, args, "add_decisions");
+  call_or_throw(impl_->entry.add_decisions, call, "add_decisions");
 }
 
 std::vector<PruneOrder> Engine::prune_orders(std::size_t max) {
@@ -382,10 +438,11 @@ std::vector<PruneOrder> Engine::prune_orders(std::size_t max) {
   Impl& d = *impl_;
   Frame frame;
   // prune(+Max, +InferenceLimit, +TimeLimit, -Result)
-  term_t args = PL_new_term_refs(4);
+  term_t call;
+  term_t args = d.kb_args(4, call);
   put_int64(args, static_cast<std::int64_t>(max), kFunction);
   d.put_limits(args + 1, d.options.time_limit_s, kFunction);
-  call_or_throw(d.entry.prune, args, kFunction);
+  call_or_throw(d.entry.prune, call, kFunction);
   term_t result = args + 3;  // ok(Orders) | error(Message)
   term_t part = PL_new_term_ref();
   if (PL_is_functor(result, d.vocabulary.error) && PL_get_arg(1, result, part)) {
@@ -405,11 +462,12 @@ QueryResult Engine::query(const std::string& goal, std::size_t max_solutions) {
   Impl& d = *impl_;
   Frame frame;
   // query(+Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result)
-  term_t args = PL_new_term_refs(5);
+  term_t call;
+  term_t args = d.kb_args(5, call);
   internal::put_string(args, goal, kFunction);
   put_int64(args + 1, static_cast<std::int64_t>(max_solutions), kFunction);
   d.put_limits(args + 2, d.options.time_limit_s, kFunction);
-  if (auto error = call_once(d.entry.query, args)) throw QueryError(QueryError::Reason::failed, *error);
+  if (auto error = call_once(d.entry.query, call)) throw QueryError(QueryError::Reason::failed, *error);
   return internal::read_query_answer(args + 4);
 }
 
@@ -430,12 +488,13 @@ std::vector<Decision> Engine::dry_run(const RuleText& candidate, const std::vect
   }
   Frame frame;
   // dry_run(+Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result)
-  term_t args = PL_new_term_refs(6);
+  term_t call;
+  term_t args = d.kb_args(6, call);
   internal::put_rule_files(args, d.options.rules_dir, paths, &candidate, d.vocabulary);
   put_atom(args + 1, d.options.rules_dir.string());
   internal::put_cases(args + 2, queries, d.vocabulary, kFunction);
   d.put_limits(args + 3, d.options.time_limit_s, kFunction);
-  call_or_throw(d.entry.dry_run, args, kFunction);
+  call_or_throw(d.entry.dry_run, call, kFunction);
   term_t result = args + 5;  // ok(Results) | error(Problems)
   term_t list = PL_new_term_ref();
   if (!PL_get_arg(1, result, list)) throw RuleError("dry_run: malformed answer " + internal::written(result));

@@ -19,6 +19,10 @@ struct EngineOptions {
   std::int64_t inference_limit = 200000;
   /// Wall time allowed per decision (and per self-check case) [s]; finite, > 0.
   double time_limit_s = 1.0;
+  /// The Prolog module that holds this engine's facts, and that its rules see: "wm_kb", or "wm_kb_" and 1-48 of
+  /// [a-z0-9_]. Engines with different knowledge bases live side by side in one process (one per map), each with
+  /// its own facts and active rules; two with the same one cannot.
+  std::string knowledge_base = "wm_kb";
 };
 
 /// The knowledge base: owns the process-wide SWI-Prolog runtime, the floor-plan facts and the active
@@ -30,12 +34,15 @@ struct EngineOptions {
 /// set_floor_plan(): a decision sees either the old or the new rules and facts, never a mix.
 ///
 /// The runtime is initialised by the first Engine and never torn down (SWI-Prolog cannot be
-/// initialised twice in a process); only one Engine may exist at a time, a later one reuses the runtime.
+/// initialised twice in a process); later Engines share it. Engines with different knowledge bases
+/// (EngineOptions::knowledge_base) may exist at once: each has its own facts and active rules.
 class Engine {
  public:
   /// Initialises the SWI-Prolog runtime if needed and loads options.rules_dir atomically (see reload()).
-  /// @throw RuleError when another Engine exists, the runtime does not start, or the rules do not load.
-  /// @throw std::invalid_argument when inference_limit <= 0 or time_limit_s is not finite and > 0.
+  /// @throw RuleError when another Engine has the same knowledge base, the runtime does not start, or the rules do
+  /// not load.
+  /// @throw std::invalid_argument when inference_limit <= 0, time_limit_s is not finite and > 0, or the knowledge
+  /// base's name is not one an Engine may take.
   explicit Engine(const EngineOptions& options);
   ~Engine();
   Engine(const Engine&) = delete;

@@ -8,11 +8,13 @@
     text or query may contain, bounded printing), whose predicates it imports. engine_support.plt
     beside it holds its plunit tests.
 
-    Entry points, all called from C++ and all catching every error they can report:
-      init/0, set_floor_plan/1, set_elements/1, update_elements/2, set_element_grid/1,
-      set_edge_evidence/2, verdicts/5,
-      add_decisions/2, decide/6,
-      decide_batch/4, reload/6, dry_run/6, prune/4, query/5, shutdown/0.
+    Entry points, all called from C++ and all catching every error they can report; each takes first
+    the knowledge base it works on (Kb, a module: one per Engine, so one process can hold several
+    maps, each with its facts and its active rules):
+      init/1, set_floor_plan/2, set_elements/2, update_elements/3, set_element_grid/2,
+      set_edge_evidence/3, verdicts/6,
+      add_decisions/3, decide/7,
+      decide_batch/5, reload/7, dry_run/7, prune/5, query/6, shutdown/1.
     C++ registers one foreign predicate in this module before loading it: text_nesting_exceeds/3
     (+Text, +Max, -Line), true when brackets nest deeper than Max outside quotes and comments.
 
@@ -33,8 +35,8 @@
 :- import(wm_rule_checks:bounded_term/2).
 :- import(wm_rule_checks:message_text/2).
 
-:- dynamic active_rules/1.          % active_rules(Module): the module decide/5 is answered from
-:- dynamic retired_rules/2.         % retired_rules(Module, RetiredAt [s]): freed after a grace period
+:- dynamic active_rules/2.          % active_rules(Kb, Module): the module Kb's decide/5 is answered from
+:- dynamic retired_rules/3.         % retired_rules(Kb, Module, RetiredAt [s]): freed after a grace period
 :- thread_local collecting/0.       % this thread is loading rule files: capture its messages
 :- thread_local load_problem/1.     % load_problem(String) "file:line: text"
 :- thread_local source_path/2.      % source_path(SourceId, Path): source ids are unique per load
@@ -42,124 +44,139 @@
 :- use_module(library(sandbox), [safe_goal/1]).
 :- use_module(library(solution_sequences), [limit/2]).
 
-:- dynamic wm_kb:object/2, wm_kb:attribute/2, wm_kb:edge/5.
-%   Observed map elements and recent decisions, kept in step with the map by the server.
-:- dynamic wm_kb:element/8, wm_kb:element_grid/3, wm_kb:decision/7.
-%   What the grid says of the plan's edges, kept current by the server at every grid check.
-:- dynamic wm_kb:edge_evidence/5, wm_kb:edge_seen_through/6, wm_kb:edge_beams/4.
-%   The stretches seen through with the beams that passed only, as rule files written before the beams that
-%   returned on a stretch were counted ask for them.
-wm_kb:(edge_seen_through(Object, Edge, S0, S1, Through) :-
-           edge_seen_through(Object, Edge, S0, S1, Through, _)).
+%   A knowledge base's facts: the floor plan (object/2, attribute/2, edge/5); observed map elements and
+%   recent decisions, kept in step with the map by the server (element/8, element_grid/3, decision/7);
+%   what the grid says of the plan's edges, kept current at every grid check (edge_evidence/5,
+%   edge_seen_through/6, edge_beams/4).
+kb_fact(object/2).
+kb_fact(attribute/2).
+kb_fact(edge/5).
+kb_fact(element/8).
+kb_fact(element_grid/3).
+kb_fact(decision/7).
+kb_fact(edge_evidence/5).
+kb_fact(edge_seen_through/6).
+kb_fact(edge_beams/4).
 
-%   What the rules can ask about the observation being decided (set per decision, backtrackable).
-wm_kb:observation_origin(Origin) :-
-    (   nb_current(wm_context, context(O, _)) -> Origin = O ; Origin = unknown ).
-wm_kb:observation_sensor(Sensor) :-
-    (   nb_current(wm_context, context(_, S)) -> Sensor = S ; Sensor = unknown ).
+%!  init(+Kb) is det.
+%   Makes module Kb a knowledge base: its facts, empty; what the rules can ask about the observation being
+%   decided (set per decision, backtrackable); the stretches seen through with the beams that passed only
+%   (edge_seen_through/5, as rule files written before the beams that returned on a stretch were counted
+%   ask for them). Without base(system), an undefined predicate in Kb or a rules module falls through to
+%   `user`.
+init(Kb) :-
+    set_module(Kb:base(system)),
+    forall(kb_fact(Name/Arity), dynamic(Kb:Name/Arity)),
+    (   current_predicate(Kb:observation_origin/1)
+    ->  true
+    ;   compile_aux_clauses_in(Kb,
+            [ (observation_origin(Origin) :-
+                  ( nb_current(wm_context, context(O, _)) -> Origin = O ; Origin = unknown )),
+              (observation_sensor(Sensor) :-
+                  ( nb_current(wm_context, context(_, S)) -> Sensor = S ; Sensor = unknown )),
+              (edge_seen_through(Object, Edge, S0, S1, Through) :-
+                  edge_seen_through(Object, Edge, S0, S1, Through, _)) ])
+    ),
+    clear_facts(Kb).
 
-% Without base(system), an undefined predicate in wm_kb or a rules module falls through to `user`.
-init :-
-    set_module(wm_kb:base(system)),
-    clear_facts.
+%   Static clauses in module Kb (a rule may call them, never change them).
+compile_aux_clauses_in(Kb, Clauses) :-
+    forall(member(Clause, Clauses), assertz(Kb:Clause)),
+    compile_predicates([Kb:observation_origin/1, Kb:observation_sensor/1, Kb:edge_seen_through/5]).
 
-clear_facts :-
-    retractall(wm_kb:object(_, _)),
-    retractall(wm_kb:attribute(_, _)),
-    retractall(wm_kb:edge(_, _, _, _, _)).
+clear_facts(Kb) :-
+    retractall(Kb:object(_, _)),
+    retractall(Kb:attribute(_, _)),
+    retractall(Kb:edge(_, _, _, _, _)).
 
-%!  set_elements(+Elements) is det.
+%!  set_elements(+Kb, +Elements) is det.
 %   Replaces every element/8 fact. Elements: list of element(Id, Origin, Observer, Rho, Phi, Length,
 %   Support, UpdatedAt).
-set_elements(Elements) :-
+set_elements(Kb, Elements) :-
     must_be(list, Elements),
-    transaction(( retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
-                  retractall(wm_kb:element_grid(_, _, _)),
-                  forall(member(E, Elements), assertz(wm_kb:E)) )).
+    transaction(( retractall(Kb:element(_, _, _, _, _, _, _, _)),
+                  retractall(Kb:element_grid(_, _, _)),
+                  forall(member(E, Elements), assertz(Kb:E)) )).
 
-%!  update_elements(+Upserts, +RemovedIds) is det.
-update_elements(Upserts, Removed) :-
+%!  update_elements(+Kb, +Upserts, +RemovedIds) is det.
+update_elements(Kb, Upserts, Removed) :-
     transaction(( forall(member(element(Id, _, _, _, _, _, _, _), Upserts),
-                         ( retractall(wm_kb:element(Id, _, _, _, _, _, _, _)),
-                           retractall(wm_kb:element_grid(Id, _, _)) )),
+                         ( retractall(Kb:element(Id, _, _, _, _, _, _, _)),
+                           retractall(Kb:element_grid(Id, _, _)) )),
                   forall(member(Id, Removed),
-                         ( retractall(wm_kb:element(Id, _, _, _, _, _, _, _)),
-                           retractall(wm_kb:element_grid(Id, _, _)) )),
-                  forall(member(E, Upserts), assertz(wm_kb:E)) )).
+                         ( retractall(Kb:element(Id, _, _, _, _, _, _, _)),
+                           retractall(Kb:element_grid(Id, _, _)) )),
+                  forall(member(E, Upserts), assertz(Kb:E)) )).
 
-%!  set_element_grid(+Facts) is det.
+%!  set_element_grid(+Kb, +Facts) is det.
 %   Inserts or replaces element_grid(Id, Backed, Contrary) facts: what the grid said of each element at its
 %   last check (an element that changes loses its fact in update_elements/2).
-set_element_grid(Facts) :-
+set_element_grid(Kb, Facts) :-
     must_be(list, Facts),
-    transaction(( forall(member(element_grid(Id, _, _), Facts), retractall(wm_kb:element_grid(Id, _, _))),
-                  forall(member(F, Facts), assertz(wm_kb:F)) )).
+    transaction(( forall(member(element_grid(Id, _, _), Facts), retractall(Kb:element_grid(Id, _, _))),
+                  forall(member(F, Facts), assertz(Kb:F)) )).
 
-%!  set_edge_evidence(+Facts, +ReplaceAll) is det.
+%!  set_edge_evidence(+Kb, +Facts, +ReplaceAll) is det.
 %   Facts: list of evidence(Object, Edge, Backed, SeenThrough, Observed, Stretches, Through, Ended), Stretches a
 %   list of stretch(S0, S1, Through, Ended). Replaces the edge_evidence/5, edge_seen_through/6 and edge_beams/4
 %   facts of those edges (of every edge first when ReplaceAll is true), in one transaction.
-set_edge_evidence(Facts, ReplaceAll) :-
+set_edge_evidence(Kb, Facts, ReplaceAll) :-
     must_be(list, Facts),
     transaction(( (   ReplaceAll == true
-                  ->  retractall(wm_kb:edge_evidence(_, _, _, _, _)),
-                      retractall(wm_kb:edge_seen_through(_, _, _, _, _, _)),
-                      retractall(wm_kb:edge_beams(_, _, _, _))
+                  ->  retractall(Kb:edge_evidence(_, _, _, _, _)),
+                      retractall(Kb:edge_seen_through(_, _, _, _, _, _)),
+                      retractall(Kb:edge_beams(_, _, _, _))
                   ;   true
                   ),
                   forall(member(evidence(O, E, _, _, _, _, _, _), Facts),
-                         ( retractall(wm_kb:edge_evidence(O, E, _, _, _)),
-                           retractall(wm_kb:edge_seen_through(O, E, _, _, _, _)),
-                           retractall(wm_kb:edge_beams(O, E, _, _)) )),
+                         ( retractall(Kb:edge_evidence(O, E, _, _, _)),
+                           retractall(Kb:edge_seen_through(O, E, _, _, _, _)),
+                           retractall(Kb:edge_beams(O, E, _, _)) )),
                   forall(member(evidence(O, E, B, S, Obs, Stretches, Through, Ended), Facts),
-                         ( assertz(wm_kb:edge_evidence(O, E, B, S, Obs)),
-                           assertz(wm_kb:edge_beams(O, E, Through, Ended)),
+                         ( assertz(Kb:edge_evidence(O, E, B, S, Obs)),
+                           assertz(Kb:edge_beams(O, E, Through, Ended)),
                            forall(member(stretch(S0, S1, Through1, Ended1), Stretches),
-                                  assertz(wm_kb:edge_seen_through(O, E, S0, S1, Through1, Ended1))) )) )).
+                                  assertz(Kb:edge_seen_through(O, E, S0, S1, Through1, Ended1))) )) )).
 
-%!  add_decisions(+Decisions, +KeepLast) is det.
+%!  add_decisions(+Kb, +Decisions, +KeepLast) is det.
 %   Appends decision/7 facts and forgets all but the KeepLast newest (the full log is in SQLite).
-add_decisions(Decisions, KeepLast) :-
-    forall(member(D, Decisions), assertz(wm_kb:D)),
-    flag(wm_decision_facts, N0, N0),
+add_decisions(Kb, Decisions, KeepLast) :-
+    forall(member(D, Decisions), assertz(Kb:D)),
+    flag(wm_decision_facts(Kb), N0, N0),
     length(Decisions, Added),
     Excess is N0 + Added - KeepLast,
-    forget_oldest_decisions(Excess),
-    flag(wm_decision_facts, _, min(N0 + Added, KeepLast)).
+    forget_oldest_decisions(Kb, Excess),
+    flag(wm_decision_facts(Kb), _, min(N0 + Added, KeepLast)).
 
-forget_oldest_decisions(N) :- N =< 0, !.
-forget_oldest_decisions(N) :-
-    (   retract(wm_kb:decision(_, _, _, _, _, _, _)) -> N1 is N - 1, forget_oldest_decisions(N1) ; true ).
+forget_oldest_decisions(_, N) :- N =< 0, !.
+forget_oldest_decisions(Kb, N) :-
+    (   retract(Kb:decision(_, _, _, _, _, _, _)) -> N1 is N - 1, forget_oldest_decisions(Kb, N1) ; true ).
 
-%!  set_floor_plan(+Objects) is det.
+%!  set_floor_plan(+Kb, +Objects) is det.
 %   Objects: list of object(Id, Kind, Attributes, Edges), Edges: list of edge(Id, Rho, Phi, Length).
 %   All facts are replaced in one transaction: other threads see the old or the new plan, never half.
-set_floor_plan(Objects) :-
+set_floor_plan(Kb, Objects) :-
     must_be(list, Objects),
-    transaction(( clear_facts,
-                  forall(member(Object, Objects), assert_object(Object)) )).
+    transaction(( clear_facts(Kb),
+                  forall(member(Object, Objects), assert_object(Kb, Object)) )).
 
-assert_object(object(Id, Kind, Attributes, Edges)) :-
-    assertz(wm_kb:object(Id, Kind)),
+assert_object(Kb, object(Id, Kind, Attributes, Edges)) :-
+    assertz(Kb:object(Id, Kind)),
     sort(Attributes, Unique),
-    forall(member(A, Unique), assertz(wm_kb:attribute(Id, A))),
+    forall(member(A, Unique), assertz(Kb:attribute(Id, A))),
     forall(member(edge(E, Rho, Phi, Length), Edges),
-           assertz(wm_kb:edge(Id, E, Rho, Phi, Length))).
+           assertz(Kb:edge(Id, E, Rho, Phi, Length))).
 
-%!  decide(+Observation, +Match, +InferenceLimit, +TimeLimit, -Result) is det.
+%!  decide(+Kb, +Observation, +Match, +Context, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Context = context(Origin, Sensor), what observation_origin/1 and observation_sensor/1 answer.
 %   Result = decision(Action:atom, Rule:string, Explanation:string) | error(Message:string).
-decide(Observation, Match, InferenceLimit, TimeLimit, Result) :-
-    (   active_rules(M)
+decide(Kb, Observation, Match, Context, InferenceLimit, TimeLimit, Result) :-
+    reset_inference_limit,
+    b_setval(wm_context, Context),
+    (   active_rules(Kb, M)
     ->  run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result)
     ;   Result = error("no rules are active")
     ).
-
-%!  decide(+Observation, +Match, +Context, +InferenceLimit, +TimeLimit, -Result) is det.
-%   Context = context(Origin, Sensor), what observation_origin/1 and observation_sensor/1 answer.
-decide(Observation, Match, Context, InferenceLimit, TimeLimit, Result) :-
-    reset_inference_limit,
-    b_setval(wm_context, Context),
-    decide(Observation, Match, InferenceLimit, TimeLimit, Result).
 
 %   A time-limit exception that arrives while call_with_inference_limit/3 restores the previous limit
 %   can leave the thread's limit set, and a later call then stops with inference_limit_exceeded
@@ -168,12 +185,12 @@ decide(Observation, Match, Context, InferenceLimit, TimeLimit, Result) :-
 reset_inference_limit :-
     (   catch(system:'$inference_limit_false'(9223372036854775807), _, fail) -> true ; true ).
 
-%!  decide_batch(+Cases, +InferenceLimit, +TimeLimit, -Results) is det.
+%!  decide_batch(+Kb, +Cases, +InferenceLimit, +TimeLimit, -Results) is det.
 %   Cases: list of case(Observation, Match, Context); one time limit around the whole batch (it costs
 %   more than a decision), the inference limit per case.
-decide_batch(Cases, InferenceLimit, TimeLimit, Results) :-
+decide_batch(Kb, Cases, InferenceLimit, TimeLimit, Results) :-
     reset_inference_limit,
-    (   active_rules(M)
+    (   active_rules(Kb, M)
     ->  catch(call_with_time_limit(TimeLimit, decide_cases(Cases, M, InferenceLimit, Results)),
               E, ( message_text(E, Text), length(Cases, N), length(Results, N),
                    format(string(Msg), "batch stopped: ~w", [Text]),
@@ -237,29 +254,29 @@ explanation_string(E, S) :- catch(text_to_string(E, S), _, fail), !.
 explanation_string(E, S) :- format(string(S), "~W", [E, [quoted(true), max_depth(20)]]).
 
 
-%!  reload(+Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result) is det.
-%   Loads Files, a list of file(Path, AbsolutePath) (Path is shown in messages), into a fresh module,
-%   self-checks it and makes it active.
+%!  reload(+Kb, +Files, +RulesDir, +InferenceLimit, +TimeLimit, +GracePeriod, -Result) is det.
+%   Loads Files, a list of file(Path, AbsolutePath) (Path is shown in messages), into a fresh module
+%   that sees Kb's facts, self-checks it and makes it Kb's active rules.
 %   Result = ok(Hashes) with Hashes a list of sha256 hex atoms in the order of Files,
 %          | error(Problems), a non-empty list of strings "file:line: text"; then nothing changed.
-reload(Files, RulesDir, InferenceLimit, TimeLimit, GracePeriod, Result) :-
+reload(Kb, Files, RulesDir, InferenceLimit, TimeLimit, GracePeriod, Result) :-
     reset_inference_limit,
-    load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems),
+    load_aside(Kb, Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems),
     (   Problems == []
-    ->  activate(M, GracePeriod),
+    ->  activate(Kb, M, GracePeriod),
         Result = ok(Hashes)
     ;   free_module(M),
         Result = error(Problems)
     ).
 
-%!  load_aside(+Files, +RulesDir, +InferenceLimit, +TimeLimit, -Module, -Hashes, -Problems) is det.
-%   Loads Files into a fresh module and self-checks it; nothing else changes. Files: file(Path,
+%!  load_aside(+Kb, +Files, +RulesDir, +InferenceLimit, +TimeLimit, -Module, -Hashes, -Problems) is det.
+%   Loads Files into a fresh module whose facts are Kb's and self-checks it; nothing else changes. Files: file(Path,
 %   AbsolutePath) read from disk, or text(Path, Text) given in memory (a dry-run candidate).
-load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems) :-
+load_aside(Kb, Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems) :-
     flag(wm_rules_counter, N, N+1),
     format(atom(M), "wm_rules_~d", [N]),
     set_module(M:base(system)),
-    add_import_module(M, wm_kb, start),
+    add_import_module(M, Kb, start),
     declare_hooks(M),
     retractall(load_problem(_)),
     retractall(source_path(_, _)),
@@ -276,7 +293,7 @@ load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, Hashes, Problems) :-
     ),
     findall(P, load_problem(P), LoadProblems),
     (   LoadProblems == []
-    ->  self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems)
+    ->  self_check(Kb, M, RulesDir, InferenceLimit, TimeLimit, Problems)
     ;   Problems = LoadProblems
     ),
     retractall(load_problem(_)).
@@ -288,16 +305,16 @@ declare_hooks(M) :-
     forall(member(Name/Arity, [override/5, prune/3, verdict_override/5, edge_verdict/5, object_verdict/4]),
            ( dynamic(M:Name/Arity), multifile(M:Name/Arity), discontiguous(M:Name/Arity) )).
 
-%!  dry_run(+Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result) is det.
+%!  dry_run(+Kb, +Files, +RulesDir, +Cases, +InferenceLimit, +TimeLimit, -Result) is det.
 %   Loads Files aside like reload/6, answers every case(Observation, Match, Context) with them, and
 %   frees them again: the active rules and the facts are untouched.
 %   Result = ok(Results) (decide_batch/4 results) | error(Problems).
-dry_run(Files, RulesDir, Cases, InferenceLimit, TimeLimit, Result) :-
+dry_run(Kb, Files, RulesDir, Cases, InferenceLimit, TimeLimit, Result) :-
     %   The candidate text is untrusted: this thread gets the small stack of queries.
     reset_inference_limit,
     query_stack_limit(StackLimit),
     set_prolog_flag(stack_limit, StackLimit),
-    load_aside(Files, RulesDir, InferenceLimit, TimeLimit, M, _, Problems),
+    load_aside(Kb, Files, RulesDir, InferenceLimit, TimeLimit, M, _, Problems),
     (   Problems == []
     ->  length(Cases, N),
         max_dry_run_time_s(MaxTotal),
@@ -328,12 +345,12 @@ query_stack_limit(16000000).
 %   Cells of a query's answer (after bounded_term/2), ~8 bytes each.
 max_answer_cells(1000000).
 
-%!  prune(+Max, +InferenceLimit, +TimeLimit, -Result) is det.
+%!  prune(+Kb, +Max, +InferenceLimit, +TimeLimit, -Result) is det.
 %   Asks the active rules' prune/3 which elements to remove.
 %   Result = ok(List of prune(ElementId, Rule, Explanation)) | error(Message).
-prune(Max, InferenceLimit, TimeLimit, Result) :-
+prune(Kb, Max, InferenceLimit, TimeLimit, Result) :-
     reset_inference_limit,
-    (   active_rules(M)
+    (   active_rules(Kb, M)
     ->  catch(call_with_time_limit(TimeLimit,
                   call_with_inference_limit(
                       findall(prune(E, R, X), limit(Max, prune_answer(M, E, R, X)), Orders),
@@ -356,7 +373,7 @@ prune_answer(M, E, R, X) :-
     atom_string(R0, R),
     explanation_string(X0, X).
 
-%!  verdicts(+Scope, +Max, +InferenceLimit, +TimeLimit, -Result) is det.
+%!  verdicts(+Kb, +Scope, +Max, +InferenceLimit, +TimeLimit, -Result) is det.
 %   Asks the active rules what the evidence says of the plan. Scope = all | edges(List of Object-Edge):
 %   for each edge in scope with an edge_evidence/5 fact, the first answer of verdict_override/5 if it has
 %   one, else every answer of edge_verdict/5; then object_verdict/4 for every object in scope (all, or
@@ -364,12 +381,12 @@ prune_answer(M, E, R, X) :-
 %   Result = ok(List of verdict(Object, Edge, Verdict, S0, S1, Rule, Explanation)) | error(Message), Edge
 %   `none` for an object's verdict, [S0, S1] the stretch of the edge [m] (partly_missing(S0, S1) answers
 %   give theirs; other edge verdicts cover the whole edge).
-verdicts(Scope, Max, InferenceLimit, TimeLimit, Result) :-
+verdicts(Kb, Scope, Max, InferenceLimit, TimeLimit, Result) :-
     reset_inference_limit,
-    (   active_rules(M)
+    (   active_rules(Kb, M)
     ->  catch(call_with_time_limit(TimeLimit,
                   call_with_inference_limit(
-                      findall(V, limit(Max, verdict_answer(M, Scope, V)), Verdicts),
+                      findall(V, limit(Max, verdict_answer(Kb, M, Scope, V)), Verdicts),
                       InferenceLimit, Status)),
               Error, true),
         (   nonvar(Error)
@@ -383,18 +400,18 @@ verdicts(Scope, Max, InferenceLimit, TimeLimit, Result) :-
     ;   Result = ok([])
     ).
 
-verdict_answer(M, Scope, verdict(O, E, V, S0, S1, R, X)) :-
-    scope_edge(Scope, O, E),
+verdict_answer(Kb, M, Scope, verdict(O, E, V, S0, S1, R, X)) :-
+    scope_edge(Kb, Scope, O, E),
     (   M:verdict_override(O, E, V0, R0, X0)
     ->  true
     ;   M:edge_verdict(O, E, V0, R0, X0)
     ),
     V0 \== kept,
-    edge_stretch(O, E, V0, V, S0, S1),
+    edge_stretch(Kb, O, E, V0, V, S0, S1),
     atom_string(R0, R),
     explanation_string(X0, X).
-verdict_answer(M, Scope, verdict(O, none, V, 0.0, 0.0, R, X)) :-
-    scope_object(Scope, O),
+verdict_answer(Kb, M, Scope, verdict(O, none, V, 0.0, 0.0, R, X)) :-
+    scope_object(Kb, Scope, O),
     M:object_verdict(O, V0, R0, X0),
     V0 \== kept,
     atom(V0),
@@ -402,26 +419,26 @@ verdict_answer(M, Scope, verdict(O, none, V, 0.0, 0.0, R, X)) :-
     atom_string(R0, R),
     explanation_string(X0, X).
 
-scope_edge(all, O, E) :- wm_kb:edge_evidence(O, E, _, _, _).
-scope_edge(edges(List), O, E) :- member(O-E, List), wm_kb:edge_evidence(O, E, _, _, _).
+scope_edge(Kb, all, O, E) :- Kb:edge_evidence(O, E, _, _, _).
+scope_edge(Kb, edges(List), O, E) :- member(O-E, List), Kb:edge_evidence(O, E, _, _, _).
 
-scope_object(all, O) :- wm_kb:object(O, _).
-scope_object(edges(List), O) :- setof(O1, E^member(O1-E, List), Objects), member(O, Objects).
+scope_object(Kb, all, O) :- Kb:object(O, _).
+scope_object(_, edges(List), O) :- setof(O1, E^member(O1-E, List), Objects), member(O, Objects).
 
-edge_stretch(_, _, partly_missing(A, B), partly_missing, S0, S1) :-
+edge_stretch(_, _, _, partly_missing(A, B), partly_missing, S0, S1) :-
     !,
     S0 is float(A),
     S1 is float(B).
-edge_stretch(O, E, V, V, 0.0, S1) :-
+edge_stretch(Kb, O, E, V, V, 0.0, S1) :-
     atom(V),
-    (   wm_kb:edge(O, E, _, _, Length) -> S1 is float(Length) ; S1 = 0.0 ).
+    (   Kb:edge(O, E, _, _, Length) -> S1 is float(Length) ; S1 = 0.0 ).
 
-%!  query(+Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result) is det.
-%   Runs a read-only goal given as text against the knowledge base (the active rules module, which
+%!  query(+Kb, +Text, +MaxSolutions, +InferenceLimit, +TimeLimit, -Result) is det.
+%   Runs a read-only goal given as text against knowledge base Kb (its active rules module, which
 %   sees the facts). Result = ok(Names, Rows, Truncated) with Rows a list of lists of values in the
 %   order of Names | syntax(Message) | unsafe(Message) | limit(Message) | error(Message).
-query(Text, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
-    (   active_rules(M) -> true ; M = wm_kb ),
+query(Kb, Text, MaxSolutions, InferenceLimit, TimeLimit, Result) :-
+    (   active_rules(Kb, M) -> true ; M = Kb ),
     reset_inference_limit,
     query_stack_limit(StackLimit),
     set_prolog_flag(stack_limit, StackLimit),
@@ -706,17 +723,17 @@ canonical_case('matched not_deformable',
 canonical_case('unmatched',
                observation(self_check, 3.0, 3.141592653589793, 1.0), none).
 
-canonical_facts :-
-    set_floor_plan([ object(wm_check_wall, wall, [solid], [edge(wm_check_e1, 2.0, 0.0, 4.0)]),
+canonical_facts(Kb) :-
+    set_floor_plan(Kb, [ object(wm_check_wall, wall, [solid], [edge(wm_check_e1, 2.0, 0.0, 4.0)]),
                      object(wm_check_table, table, [not_deformable],
                             [edge(wm_check_e3, 1.0, 1.5707963267948966, 0.8)]) ]).
 
-self_check(M, RulesDir, InferenceLimit, TimeLimit, Problems) :-
+self_check(Kb, M, RulesDir, InferenceLimit, TimeLimit, Problems) :-
     (   \+ defines_decide(M)
     ->  format(string(P), "~w: no rule file defines decide/5", [RulesDir]),
         Problems = [P]
     ;   decide_location(M, Location),
-        snapshot(( canonical_facts,
+        snapshot(( canonical_facts(Kb),
                    findall(P, ( canonical_case(Name, Observation, Match),
                                 run_decide(M, Observation, Match, InferenceLimit, TimeLimit, Result),
                                 Result = error(Msg),
@@ -732,17 +749,17 @@ defines_decide(M) :-
 decide_location(M, Location) :-
     entry_location(M, decide(_, _, _, _, _), Location).
 
-activate(M, GracePeriod) :-
+activate(Kb, M, GracePeriod) :-
     get_time(Now),
-    forall(active_rules(Old), assertz(retired_rules(Old, Now))),
-    transaction(( retractall(active_rules(_)), assertz(active_rules(M)) )),
-    free_retired(Now, GracePeriod).
+    forall(active_rules(Kb, Old), assertz(retired_rules(Kb, Old, Now))),
+    transaction(( retractall(active_rules(Kb, _)), assertz(active_rules(Kb, M)) )),
+    free_retired(Kb, Now, GracePeriod).
 
 %   A retired module is freed only when no decision can still run in it (one started before the
 %   switch ends within the time limit).
-free_retired(Now, GracePeriod) :-
-    forall(( retired_rules(Old, At), Now - At > GracePeriod ),
-           ( free_module(Old), retractall(retired_rules(Old, _)) )).
+free_retired(Kb, Now, GracePeriod) :-
+    forall(( retired_rules(Kb, Old, At), Now - At > GracePeriod ),
+           ( free_module(Old), retractall(retired_rules(Kb, Old, _)) )).
 
 free_module(M) :-
     forall(( current_predicate(M:Name/Arity),
@@ -750,13 +767,12 @@ free_module(M) :-
              predicate_property(M:Head, implementation_module(M)) ),
            catch(abolish(M:Name/Arity), _, true)).
 
-shutdown :-
-    forall(active_rules(M), free_module(M)),
-    forall(retired_rules(M, _), free_module(M)),
-    retractall(active_rules(_)),
-    retractall(retired_rules(_, _)),
-    clear_facts,
-    retractall(wm_kb:element(_, _, _, _, _, _, _, _)),
-    retractall(wm_kb:element_grid(_, _, _)),
-    retractall(wm_kb:decision(_, _, _, _, _, _, _)),
-    flag(wm_decision_facts, _, 0).
+%!  shutdown(+Kb) is det.
+%   Frees Kb's rule modules and empties its facts.
+shutdown(Kb) :-
+    forall(active_rules(Kb, M), free_module(M)),
+    forall(retired_rules(Kb, M, _), free_module(M)),
+    retractall(active_rules(Kb, _)),
+    retractall(retired_rules(Kb, _, _)),
+    forall(kb_fact(Name/Arity), ( functor(Head, Name, Arity), retractall(Kb:Head) )),
+    flag(wm_decision_facts(Kb), _, 0).

@@ -37,7 +37,7 @@ nesting([C|Cs], Depth, Max, Line0, Line) :-
     ;   nesting(Cs, Depth, Max, Line0, Line)
     ).
 
-:- wm_engine:init.
+:- wm_engine:init(wm_kb).
 
 %!  rule_text_problems(+Text, -Problems:list(string)) is det.
 %   The problems check_rule_text/3 records for Text as file t.pl (empty when accepted).
@@ -47,7 +47,7 @@ rule_text_problems(Text, Problems) :-
     findall(P, wm_engine:load_problem(P), Problems),
     retractall(wm_engine:load_problem(_)).
 
-%   (wm_engine:query/5 and the other entry points expect an unbound result argument: they test it with
+%   (wm_engine:query/6 and the other entry points expect an unbound result argument: they test it with
 %   nonvar/1 on the way. Tests bind the result after the call.)
 
 %!  refused_with(+Text, +Part) is semidet.
@@ -76,7 +76,7 @@ depth(T, D) :- T =.. [_|Args], foldl([A, D0, D1]>>(depth(A, DA), D1 is max(D0, D
 %   A rule set given as texts, decided with generous limits.
 load_rules(Texts) :-
     findall(text(Name, Text), member(Name-Text, Texts), Files),
-    wm_engine:reload(Files, test_rules, 100000, 5.0, 0.0, Result),
+    wm_engine:reload(wm_kb, Files, test_rules, 100000, 5.0, 0.0, Result),
     assertion(Result = ok(_)).
 
 minimal_rules("decide(_, none, add, unmatched, \"nothing matched\").
@@ -84,7 +84,7 @@ decide(_, element(_, _, _), delete, matched, \"it is there\").
 ").
 
 decide(Observation, Match, Result) :-
-    wm_engine:decide(Observation, Match, context(client, lidar), 100000, 5.0, Result).
+    wm_engine:decide(wm_kb, Observation, Match, context(client, lidar), 100000, 5.0, Result).
 
 :- begin_tests(check_rule_text).
 
@@ -153,10 +153,10 @@ test(refuses_nesting_deeper_than_200_levels) :-
 
 :- end_tests(check_rule_text).
 
-:- begin_tests(decisions, [cleanup(wm_engine:shutdown)]).
+:- begin_tests(decisions, [cleanup(wm_engine:shutdown(wm_kb))]).
 
 test(reload_answers_one_hash_per_file, [setup(minimal_rules(R))]) :-
-    wm_engine:reload([text('a.pl', R)], test_rules, 100000, 5.0, 0.0, Result),
+    wm_engine:reload(wm_kb, [text('a.pl', R)], test_rules, 100000, 5.0, 0.0, Result),
     Result = ok([Hash]),
     atom_length(Hash, 64).
 
@@ -181,7 +181,7 @@ test(an_action_that_is_not_an_atom_is_an_error,
     wm_engine:answer_result(answer("add", r, x), 100000, 5.0, Result).
 
 test(rules_answering_a_string_action_fail_the_self_check, [N == 4]) :-
-    wm_engine:reload([text('a.pl', "decide(_, _, \"add\", r, x).")], test_rules, 100000, 5.0, 0.0,
+    wm_engine:reload(wm_kb, [text('a.pl', "decide(_, _, \"add\", r, x).")], test_rules, 100000, 5.0, 0.0,
                      error(Problems)),
     length(Problems, N),
     forall(member(P, Problems),
@@ -197,42 +197,42 @@ test(batch_answers_each_case, [Results == [decision(add, "unmatched", "nothing m
                                            error("no rule applies (decide/5 failed)")]]) :-
     minimal_rules(R),
     load_rules(['a.pl'-R]),
-    wm_engine:decide_batch([case(observation(r1, 1.0, 0.0, 2.0), none, context(client, lidar)),
+    wm_engine:decide_batch(wm_kb, [case(observation(r1, 1.0, 0.0, 2.0), none, context(client, lidar)),
                             case(observation(r1, 1.0, 0.0, 2.0), other, context(client, lidar))],
                            100000, 5.0, Results).
 
 test(the_context_is_visible_to_rules, [Result == decision(add, "ctx", "scan/sonar")]) :-
     load_rules(['a.pl'-"decide(_, _, add, ctx, X) :- observation_origin(O), observation_sensor(S),
     format(string(X), \"~w/~w\", [O, S])."]),
-    wm_engine:decide(observation(r1, 1.0, 0.0, 2.0), none, context(scan, sonar), 100000, 5.0, Result).
+    wm_engine:decide(wm_kb, observation(r1, 1.0, 0.0, 2.0), none, context(scan, sonar), 100000, 5.0, Result).
 
 test(a_rejected_reload_keeps_the_active_rules, [Answer == decision(add, "unmatched", "nothing matched")]) :-
     minimal_rules(R),
     load_rules(['a.pl'-R]),
-    wm_engine:reload([text('b.pl', "decide(_, _, add, r, x) :- .")], test_rules, 100000, 5.0, 0.0, Result),
+    wm_engine:reload(wm_kb, [text('b.pl', "decide(_, _, add, r, x) :- .")], test_rules, 100000, 5.0, 0.0, Result),
     assertion(( Result = error([P|_]), starts(P, "b.pl:1:") )),
     decide(observation(r1, 1.0, 0.0, 2.0), none, Answer).
 
 test(rules_without_decide_fail_the_self_check, [Result == error(["test_rules: no rule file defines decide/5"])]) :-
-    wm_engine:reload([text('a.pl', "helper(1).")], test_rules, 100000, 5.0, 0.0, Result).
+    wm_engine:reload(wm_kb, [text('a.pl', "helper(1).")], test_rules, 100000, 5.0, 0.0, Result).
 
 test(rules_that_fail_a_canonical_case_are_refused, [true(sub_string(P, _, _, _, "self-check 'unmatched'"))]) :-
-    wm_engine:reload([text('a.pl', "decide(_, element(_, _, _), delete, r, x).")],
+    wm_engine:reload(wm_kb, [text('a.pl', "decide(_, element(_, _, _), delete, r, x).")],
                      test_rules, 100000, 5.0, 0.0, error([P])).
 
 test(a_call_to_an_undefined_predicate_is_refused,
      [true(sub_string(P, _, _, _, "a.pl:1: decide/5 calls the undefined predicate hepler/0"))]) :-
-    wm_engine:reload([text('a.pl', "decide(_, _, add, r, x) :- hepler.")], test_rules, 100000, 5.0, 0.0,
+    wm_engine:reload(wm_kb, [text('a.pl', "decide(_, _, add, r, x) :- hepler.")], test_rules, 100000, 5.0, 0.0,
                      error([P|_])).
 
 test(a_rule_that_writes_files_is_refused, [true(sub_string(P, _, _, _, "can reach a call that rules may not make"))]) :-
-    wm_engine:reload([text('a.pl', "decide(_, _, add, r, x) :- open('/tmp/x', write, S), close(S).")],
+    wm_engine:reload(wm_kb, [text('a.pl', "decide(_, _, add, r, x) :- open('/tmp/x', write, S), close(S).")],
                      test_rules, 100000, 5.0, 0.0, error(Problems)),
     member(P, Problems).
 
 test(a_format_with_a_term_for_its_format_is_refused_without_reaching_the_sandbox,
      [true(sub_string(P, _, _, _, "a format must be text"))]) :-
-    wm_engine:reload([text('a.pl', "decide(_, _, add, r, E) :- format(string(E), x).")],
+    wm_engine:reload(wm_kb, [text('a.pl', "decide(_, _, add, r, E) :- format(string(E), x).")],
                      test_rules, 100000, 5.0, 0.0, error([P])).
 
 %   library(sandbox) of SWI-Prolog 9.0.4 never returns on format/2 with a term for its format.
@@ -246,40 +246,40 @@ test(the_sandbox_check_passes_a_safe_goal, [fail]) :-
     wm_engine:sandbox_refusal(format(string(_), "~w", [x]), 5.0, _).
 
 test(a_singleton_warning_refuses_the_rules, [true(sub_string(P, _, _, _, "Singleton"))]) :-
-    wm_engine:reload([text('a.pl', "decide(O, _, add, r, x).")], test_rules, 100000, 5.0, 0.0,
+    wm_engine:reload(wm_kb, [text('a.pl', "decide(O, _, add, r, x).")], test_rules, 100000, 5.0, 0.0,
                      error(Problems)),
     member(P, Problems).
 
 test(dry_run_decides_with_the_candidate_only, [Dry-Active == [decision(merge, "cand", "x")]-decision(add, "unmatched", "nothing matched")]) :-
     minimal_rules(R),
     load_rules(['a.pl'-R]),
-    wm_engine:dry_run([text('a.pl', "decide(_, _, merge, cand, x).")], test_rules,
+    wm_engine:dry_run(wm_kb, [text('a.pl', "decide(_, _, merge, cand, x).")], test_rules,
                       [case(observation(r1, 1.0, 0.0, 2.0), none, context(client, lidar))], 100000, 5.0,
                       ok(Dry)),
     decide(observation(r1, 1.0, 0.0, 2.0), none, Active).
 
 :- end_tests(decisions).
 
-:- begin_tests(facts, [cleanup(wm_engine:shutdown)]).
+:- begin_tests(facts, [cleanup(wm_engine:shutdown(wm_kb))]).
 
 test(set_floor_plan_replaces_all_facts, [Facts == [object(t1, table), attribute(t1, not_deformable),
                                                    edge(t1, t1_e0, 1.0, 0.5, 0.8)]]) :-
-    wm_engine:set_floor_plan([object(w1, wall, [solid], [edge(w1_e0, 2.0, 0.0, 4.0)])]),
-    wm_engine:set_floor_plan([object(t1, table, [not_deformable, not_deformable],
+    wm_engine:set_floor_plan(wm_kb, [object(w1, wall, [solid], [edge(w1_e0, 2.0, 0.0, 4.0)])]),
+    wm_engine:set_floor_plan(wm_kb, [object(t1, table, [not_deformable, not_deformable],
                                      [edge(t1_e0, 1.0, 0.5, 0.8)])]),
     findall(F, ( member(F, [object(_, _), attribute(_, _), edge(_, _, _, _, _)]), wm_kb:F ), Facts).
 
 test(add_decisions_keeps_the_newest, [Seqs == [3, 4]]) :-
     Ds = [decision(1, delete, r, e1, w1, robot, 1.0), decision(2, add, r, none, none, robot, 2.0)],
-    wm_engine:add_decisions(Ds, 2),
-    wm_engine:add_decisions([decision(3, merge, r, e2, none, robot, 3.0),
+    wm_engine:add_decisions(wm_kb, Ds, 2),
+    wm_engine:add_decisions(wm_kb, [decision(3, merge, r, e2, none, robot, 3.0),
                              decision(4, add, r, none, none, robot, 4.0)], 2),
     findall(S, wm_kb:decision(S, _, _, _, _, _, _), Seqs).
 
 test(update_elements_upserts_and_removes, [Ids-Support == [e2, e3]-5]) :-
-    wm_engine:set_elements([element(e1, client, r, 1.0, 0.0, 1.0, 1, 0.0),
+    wm_engine:set_elements(wm_kb, [element(e1, client, r, 1.0, 0.0, 1.0, 1, 0.0),
                             element(e2, client, r, 1.0, 0.0, 1.0, 1, 0.0)]),
-    wm_engine:update_elements([element(e2, client, r, 1.0, 0.0, 1.0, 5, 0.0),
+    wm_engine:update_elements(wm_kb, [element(e2, client, r, 1.0, 0.0, 1.0, 5, 0.0),
                                element(e3, scan, r, 2.0, 0.0, 1.0, 1, 0.0)], [e1]),
     findall(Id, wm_kb:element(Id, _, _, _, _, _, _, _), Ids0),
     msort(Ids0, Ids),
@@ -288,16 +288,16 @@ test(update_elements_upserts_and_removes, [Ids-Support == [e2, e3]-5]) :-
 :- end_tests(facts).
 
 :- begin_tests(queries, [setup(( minimal_rules(R), load_rules(['a.pl'-R]),
-                                 wm_engine:set_floor_plan([object(w1, wall, [solid], [])]) )),
-                         cleanup(wm_engine:shutdown)]).
+                                 wm_engine:set_floor_plan(wm_kb, [object(w1, wall, [solid], [])]) )),
+                         cleanup(wm_engine:shutdown(wm_kb))]).
 
-query(Text, Result) :- wm_engine:query(Text, 10, 100000, 5.0, Result).
+query(Text, Result) :- wm_engine:query(wm_kb, Text, 10, 100000, 5.0, Result).
 
 test(answers_bindings_in_order, [Result == ok(["O", "K"], [[w1, wall]], false)]) :-
     query("object(O, K)", Result).
 
 test(truncates_at_max_solutions, [Result == ok(["X"], [[1], [2]], true)]) :-
-    wm_engine:query("between(1, 5, X)", 2, 100000, 5.0, Result).
+    wm_engine:query(wm_kb, "between(1, 5, X)", 2, 100000, 5.0, Result).
 
 test(refuses_a_write, [Result == unsafe("assertz(object(x,wall)) changes the knowledge base; queries are read-only")]) :-
     query("assertz(object(x, wall))", Result).

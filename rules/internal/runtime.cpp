@@ -6,6 +6,7 @@
 #include <csignal>
 #include <filesystem>
 #include <iterator>
+#include <mutex>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -90,8 +91,14 @@ void initialise_runtime() {
 }
 
 void load_support_module() {
+  // Once per process: loading the text again would wipe the dynamic state of the Engines that use it.
+  static std::mutex mutex;
+  static bool loaded = false;
+  std::lock_guard lock(mutex);
+  if (loaded) return;
   load_module_text(kRuleChecksText, "wm_rule_checks.pl", "wm_rule_checks:term_problem/2");
-  load_module_text(kSupportModuleText, "wm_engine_support.pl", "wm_engine:reload/6");
+  load_module_text(kSupportModuleText, "wm_engine_support.pl", "wm_engine:reload/7");
+  loaded = true;
 }
 
 }  // namespace wm::rules::internal

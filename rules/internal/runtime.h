@@ -11,8 +11,9 @@ namespace wm::rules::internal {
 void initialise_runtime();
 
 /// Loads the support modules from the texts embedded at build time: wm_rule_checks (rule_checks.pl),
-/// then wm_engine (engine_support.pl), which imports from it. Loading them again (a later Engine in the
-/// same process) replaces them and resets their state. Needs an attached thread.
+/// then wm_engine (engine_support.pl), which imports from it; once per process (a later call returns
+/// at once): loading them again would reset the state of the Engines that use them. Needs an attached
+/// thread.
 /// @throw RuleError when one does not load.
 void load_support_module();
 

@@ -4,9 +4,12 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <regex>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "tests/rules/rules_test_helpers.h"
 
@@ -14,6 +17,7 @@ namespace wm::rules {
 namespace {
 
 using testing::copy_shipped_rules;
+using testing::demo_floor_plan;
 using testing::matched;
 using testing::options_for;
 using testing::TempDir;
@@ -151,12 +155,88 @@ TEST(EngineTest, HalfAMillionDecisionsInARowKeepWorking) {
   EXPECT_EQ(wrong, 0);
 }
 
-TEST(EngineTest, SecondEngineWhileTheFirstExistsThrows) {
+TEST(EngineTest, SecondEngineWithTheSameKnowledgeBaseThrows) {
   TempDir dir;
   copy_shipped_rules(dir);
   Engine first(options_for(dir));
   EXPECT_THROW(Engine second(options_for(dir)), RuleError);
   EXPECT_EQ(first.decide(unmatched()).rule, "unmatched_added");
+}
+
+// One process, two maps: each engine has its own facts, its own rules and its own reloads.
+TEST(EngineTest, EnginesWithTheirOwnKnowledgeBasesKeepTheirFactsAndRulesApart) {
+  TempDir shipped, other;
+  copy_shipped_rules(shipped);
+  write_text(other / "floor2.pl", "decide(_, _, add, floor2, \"floor 2 keeps everything\").\n");
+  Engine first(options_for(shipped));
+  auto second_options = options_for(other);
+  second_options.knowledge_base = "wm_kb_floor2";
+  auto second = std::make_unique<Engine>(second_options);
+
+  first.set_floor_plan(demo_floor_plan());
+  EXPECT_EQ(first.query("object(w1, K)", 10).solutions.size(), 1u);
+  EXPECT_TRUE(second->query("object(O, K)", 10).solutions.empty());
+  EXPECT_EQ(first.decide(matched("w1_e0", "w1")).rule, "solid_confirmed");
+  EXPECT_EQ(second->decide(matched("w1_e0", "w1")).rule, "floor2");
+
+  // A reload of one leaves the other's rules and generation as they were.
+  write_text(other / "floor2.pl", "decide(_, _, add, floor2_v2, \"floor 2, second version\").\n");
+  EXPECT_EQ(second->reload().generation, 2);
+  EXPECT_EQ(second->decide(unmatched()).rule, "floor2_v2");
+  EXPECT_EQ(first.status().generation, 1);
+  EXPECT_EQ(first.decide(unmatched()).rule, "unmatched_added");
+
+  // Gone, it leaves the first as it was; its knowledge base can be taken again, empty.
+  second.reset();
+  EXPECT_EQ(first.query("object(w1, K)", 10).solutions.size(), 1u);
+  EXPECT_EQ(first.decide(matched("w1_e0", "w1")).rule, "solid_confirmed");
+  Engine again(second_options);
+  EXPECT_TRUE(again.query("object(O, K)", 10).solutions.empty());
+  EXPECT_EQ(again.decide(unmatched()).rule, "floor2_v2");
+}
+
+TEST(EngineTest, TwoKnowledgeBasesDecideAndChangeTheirFactsOnTwoThreadsAtOnce) {
+  TempDir shipped, other;
+  copy_shipped_rules(shipped);
+  copy_shipped_rules(other);
+  Engine first(options_for(shipped));
+  auto second_options = options_for(other);
+  second_options.knowledge_base = "wm_kb_2";
+  Engine second(second_options);
+  // Each thread swaps its engine's plan between the demo plan and none, deciding a view of w1 after each swap:
+  // the other engine's swaps must never show.
+  const auto run = [](Engine& engine, int& wrong) {
+    ThreadAttachment attached(engine);
+    for (int i = 0; i < 300; ++i) {
+      const bool with_plan = i % 2 == 0;
+      engine.set_floor_plan(with_plan ? demo_floor_plan() : std::vector<ObjectFacts>{});
+      // Without the plan w1 is no solid object to the rules, so its view is not confirmed as one.
+      const bool confirmed = engine.decide(matched("w1_e0", "w1")).rule == "solid_confirmed";
+      const auto objects = engine.query("object(O, K)", 10).solutions.size();
+      if (confirmed != with_plan || objects != (with_plan ? 3u : 0u)) ++wrong;
+    }
+  };
+  int wrong_first = 0, wrong_second = 0;
+  std::thread a([&] { run(first, wrong_first); });
+  std::thread b([&] { run(second, wrong_second); });
+  a.join();
+  b.join();
+  EXPECT_EQ(wrong_first, 0);
+  EXPECT_EQ(wrong_second, 0);
+}
+
+TEST(EngineTest, AKnowledgeBaseNameThatCouldBeAnotherModuleIsRefused) {
+  TempDir dir;
+  copy_shipped_rules(dir);
+  auto options = options_for(dir);
+  for (const char* name : {"", "user", "system", "lists", "wm_kb_", "wm_kbx", "wm_kb_A", "wm_kb_a-b", "wm_kb_a:b",
+                           "wm_kb_12345678901234567890123456789012345678901234567890"}) {
+    options.knowledge_base = name;
+    EXPECT_THROW(Engine engine(options), std::invalid_argument) << name;
+  }
+  options.knowledge_base = "wm_kb_site_1_floor_2";
+  Engine engine(options);
+  EXPECT_EQ(engine.decide(unmatched()).rule, "unmatched_added");
 }
 
 TEST(EngineTest, InvalidOptionsAreRejected) {
