@@ -1,0 +1,137 @@
+#include "server/service/map_registry.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <system_error>
+#include <utility>
+
+#include "server/service/service_errors.h"
+
+namespace wm::service {
+namespace {
+
+constexpr std::string_view kMapSuffix = ".db";
+constexpr std::string_view kRemovedPrefix = ".removed-";
+
+std::filesystem::path map_file(const std::filesystem::path& data_dir, const std::string& id) {
+  return data_dir / (id + std::string(kMapSuffix));
+}
+
+// The database file and the two SQLite keeps beside it in WAL mode.
+std::vector<std::filesystem::path> sqlite_files(const std::filesystem::path& db) {
+  return {db, db.string() + "-wal", db.string() + "-shm"};
+}
+
+}  // namespace
+
+bool valid_map_id(std::string_view id) {
+  if (id.empty() || id.size() > 32) return false;
+  const auto allowed = [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-'; };
+  return std::all_of(id.begin(), id.end(), allowed) && id.front() != '_' && id.front() != '-';
+}
+
+MapInstance::MapInstance(std::string map_id, const MapRegistryOptions& options, std::string knowledge_base,
+                         common::Diagnostics& diagnostics)
+    : id(std::move(map_id)),
+      store([&] {
+        auto store_options = options.store;
+        store_options.path = map_file(options.data_dir, id).string();
+        return store_options;
+      }()),
+      engine([&] {
+        auto rules_options = options.rules;
+        rules_options.knowledge_base = std::move(knowledge_base);
+        return rules_options;
+      }()),
+      world(options.service, store, engine, diagnostics) {}
+
+MapInstance::~MapInstance() = default;
+
+MapRegistry::MapRegistry(MapRegistryOptions options, common::Diagnostics& diagnostics)
+    : options_(std::move(options)), diagnostics_(diagnostics) {
+  std::filesystem::create_directories(options_.data_dir);
+  std::vector<std::string> found;
+  for (const auto& entry : std::filesystem::directory_iterator(options_.data_dir)) {
+    const auto name = entry.path().filename().string();
+    if (name.starts_with(kRemovedPrefix)) {
+      std::error_code ignored;
+      std::filesystem::remove(entry.path(), ignored);  // a removal interrupted after its rename
+      continue;
+    }
+    if (!entry.is_regular_file() || !name.ends_with(kMapSuffix)) continue;
+    const auto id = name.substr(0, name.size() - kMapSuffix.size());
+    if (valid_map_id(id)) found.push_back(id);
+  }
+  std::sort(found.begin(), found.end());
+  std::lock_guard lock(mutex_);
+  for (const auto& id : found) {
+    try {
+      maps_.emplace(id, open(id));
+    } catch (const std::exception& e) {
+      // One map that does not open (a damaged file) leaves the others serving; its file stays for a person to look at.
+      diagnostics_.report(common::Severity::error, "maps", "map '" + id + "' not opened: " + e.what());
+    }
+  }
+}
+
+std::shared_ptr<MapInstance> MapRegistry::open(const std::string& id) {
+  const auto knowledge_base = "wm_kb_map" + std::to_string(++knowledge_bases_);
+  const auto data_dir = options_.data_dir;
+  // The last holder of a removed map takes its files with it, after the store has closed them.
+  return std::shared_ptr<MapInstance>(
+      new MapInstance(id, options_, knowledge_base, diagnostics_), [data_dir](MapInstance* map) {
+        const auto removed_as = map->removed_as;
+        const auto id = map->id;
+        delete map;
+        if (removed_as.empty()) return;
+        for (const auto& file : sqlite_files(map_file(data_dir, id))) {
+          std::error_code ignored;
+          std::filesystem::remove(data_dir / (removed_as + file.filename().string()), ignored);
+        }
+      });
+}
+
+std::vector<std::string> MapRegistry::ids() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::string> ids;
+  for (const auto& [id, map] : maps_) ids.push_back(id);
+  return ids;
+}
+
+std::shared_ptr<MapInstance> MapRegistry::find(const std::string& id) const {
+  std::lock_guard lock(mutex_);
+  const auto found = maps_.find(id);
+  return found == maps_.end() ? nullptr : found->second;
+}
+
+std::shared_ptr<MapInstance> MapRegistry::create(const std::string& id) {
+  if (!valid_map_id(id))
+    throw std::invalid_argument("map id '" + id + "': 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'");
+  std::lock_guard lock(mutex_);
+  if (maps_.count(id)) throw Conflict("map '" + id + "' exists");
+  auto map = open(id);
+  maps_.emplace(id, map);
+  return map;
+}
+
+void MapRegistry::remove(const std::string& id) {
+  std::shared_ptr<MapInstance> map;
+  std::string removed_as;
+  {
+    std::lock_guard lock(mutex_);
+    const auto found = maps_.find(id);
+    if (found == maps_.end()) throw NotFound("no map '" + id + "'");
+    map = std::move(found->second);
+    maps_.erase(found);
+    removed_as = std::string(kRemovedPrefix) + std::to_string(++removals_) + "-";
+  }
+  // Renamed aside at once: the map is gone from the directory whatever happens next (a start removes what a crash
+  // left). A request that still holds the map ends against it, into the renamed files: it came before the removal.
+  for (const auto& file : sqlite_files(map_file(options_.data_dir, id))) {
+    std::error_code missing;  // -wal and -shm may not exist
+    std::filesystem::rename(file, options_.data_dir / (removed_as + file.filename().string()), missing);
+  }
+  map->removed_as = removed_as;
+}
+
+}  // namespace wm::service

@@ -1,0 +1,81 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/diagnostics.h"
+#include "rules/engine.h"
+#include "server/service/world_service.h"
+#include "server/storage/store.h"
+
+namespace wm::service {
+
+/// Whether `id` may name a map: 1–32 of [a-z0-9_-], starting with a letter or a digit (it goes into URLs and file
+/// names as it is).
+bool valid_map_id(std::string_view id);
+
+struct MapRegistryOptions {
+  /// One SQLite file per map, `<id>.db` (with its -wal and -shm); created when missing.
+  std::filesystem::path data_dir;
+  storage::StoreOptions store;  // the path is the map's own
+  rules::EngineOptions rules;   // the rules directory is shared; the knowledge base is the map's own
+  ServiceOptions service;
+};
+
+/// One map: its store, its knowledge base and its world service, built in that order and gone in the reverse.
+struct MapInstance {
+  MapInstance(std::string id, const MapRegistryOptions& options, std::string knowledge_base,
+              common::Diagnostics& diagnostics);
+  ~MapInstance();
+  MapInstance(const MapInstance&) = delete;
+  MapInstance& operator=(const MapInstance&) = delete;
+
+  const std::string id;
+  storage::Store store;
+  rules::Engine engine;
+  WorldService world;
+  /// Set by MapRegistry::remove: the prefix its files were renamed with, to go when the last user lets go.
+  std::string removed_as;
+};
+
+/// The maps of one server, each with its own store file, knowledge base, grids and writer, so that no map waits on
+/// another's commits. A map is found by its id; a request holds it (a shared pointer) while it runs, so a map removed
+/// meanwhile stays whole until that request ends and only then takes its files with it. Thread-safe.
+class MapRegistry {
+ public:
+  /// Opens every map whose file is in options.data_dir (creating the directory when missing) and removes what an
+  /// interrupted removal left; a map that does not open is reported to `diagnostics` and left out.
+  /// @throw std::filesystem::filesystem_error when the directory cannot be made or read.
+  MapRegistry(MapRegistryOptions options, common::Diagnostics& diagnostics);
+  MapRegistry(const MapRegistry&) = delete;
+  MapRegistry& operator=(const MapRegistry&) = delete;
+
+  /// The ids of the maps, sorted.
+  std::vector<std::string> ids() const;
+  /// The map `id`, or nullptr when there is none.
+  std::shared_ptr<MapInstance> find(const std::string& id) const;
+  /// A new, empty map. @throw std::invalid_argument for an id valid_map_id refuses; Conflict when it exists.
+  std::shared_ptr<MapInstance> create(const std::string& id);
+  /// Removes map `id`: it is found no more at once, and its files are renamed aside so that a crash leaves no map
+  /// behind (the next start removes them); they go when the last request that holds the map ends (such a request
+  /// came before the removal and ends as it would have). @throw NotFound.
+  void remove(const std::string& id);
+
+ private:
+  std::shared_ptr<MapInstance> open(const std::string& id);
+
+  const MapRegistryOptions options_;
+  common::Diagnostics& diagnostics_;
+  mutable std::mutex mutex_;
+  std::map<std::string, std::shared_ptr<MapInstance>> maps_;
+  std::int64_t knowledge_bases_ = 0;  // the next map's knowledge base is wm_kb_map<n>
+  std::int64_t removals_ = 0;         // removed files are named .removed-<n>-<file>
+};
+
+}  // namespace wm::service
