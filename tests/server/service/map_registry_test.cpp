@@ -36,8 +36,10 @@ std::vector<std::string> files_in(const std::filesystem::path& dir) {
 }
 
 TEST(MapRegistryTest, MapIdsAreShortAndUrlSafe) {
-  for (const char* good : {"a", "floor-1", "gdc_7", "0", "abcdefghijklmnopqrstuvwxyz012345"}) EXPECT_TRUE(valid_map_id(good)) << good;
-  for (const char* bad : {"", "-a", "_a", "A", "floor 1", "a/b", "..", "a.db", "é", "abcdefghijklmnopqrstuvwxyz0123456"})
+  for (const char* good : {"a", "floor-1", "gdc_7", "0", "abcdefghijklmnopqrstuvwxyz012345"})
+    EXPECT_TRUE(valid_map_id(good)) << good;
+  for (const char* bad :
+       {"", "-a", "_a", "A", "floor 1", "a/b", "..", "a.db", "é", "abcdefghijklmnopqrstuvwxyz0123456"})
     EXPECT_FALSE(valid_map_id(bad)) << bad;
 }
 
