@@ -242,51 +242,43 @@ std::vector<world::EdgeEvidence> GridStore::edge_evidence(const world::WorldStat
                                                           std::int64_t& revision) const {
   std::vector<world::EdgeEvidence> found;
   const double bin = options_.beam_crossings.bin_m;
-  // The bins of an edge that [s0, s1) touches.
-  const auto bins_of = [bin](const fusion::SegmentBeams& counted, double s0, double s1) {
+  // The beams counted in the bins of an edge that [s0, s1) touches.
+  const auto tally = [bin](const fusion::SegmentBeams& counted, double s0, double s1) {
     const auto first = static_cast<std::size_t>(std::max(0.0, std::floor(s0 / bin)));
     const auto last = std::min(counted.through.size(), static_cast<std::size_t>(std::max(0.0, std::ceil(s1 / bin))));
-    return std::pair{first, std::max(first, last)};
+    world::BeamTally beams;
+    for (std::size_t b = first; b < last; ++b) {
+      beams.through += counted.through[b];
+      beams.ended += counted.ended[b];
+    }
+    return beams;
   };
-  {
-    // The grid's lock, then the beams': nothing takes them the other way round.
-    std::shared_lock lock(mutex_);
-    std::lock_guard beams_lock(beams_mutex_);
-    fusion::OccupancyGrid::CellReader cells(*grid_);
-    options.step_m = resolution_m_;
-    const auto probe = grid_edge_probe(cells, resolution_m_);
-    const world::EdgeCrossings crossings = [&](std::size_t object, std::size_t edge, double s0, double s1) {
-      world::BeamTally tally;
-      if (const auto* counted = edge_beams(state.objects[object], edge)) {
-        const auto [first, last] = bins_of(*counted, s0, s1);
-        for (std::size_t b = first; b < last; ++b) {
-          tally.through += counted->through[b];
-          tally.ended += counted->ended[b];
-        }
-      }
-      return tally;
-    };
-    found = region ? world::plan_evidence(state, *region, probe, options, crossings)
-                   : world::plan_evidence(state, probe, options, crossings);
-    revision = revision_.load();
-  }
+  // The grid's lock, then the beams': nothing takes them the other way round.
+  std::shared_lock lock(mutex_);
+  std::lock_guard beams_lock(beams_mutex_);
+  fusion::OccupancyGrid::CellReader cells(*grid_);
+  options.step_m = resolution_m_;
+  const auto probe = grid_edge_probe(cells, resolution_m_);
+  const world::EdgeCrossings crossings = [&](std::size_t object, std::size_t edge, double s0, double s1) {
+    const auto* counted = edge_beams(state.objects[object], edge);
+    return counted ? tally(*counted, s0, s1) : world::BeamTally{};
+  };
+  found = region ? world::plan_evidence(state, *region, probe, options, crossings)
+                 : world::plan_evidence(state, probe, options, crossings);
+  revision = revision_.load();
   // Edges nothing has seen say nothing.
   std::erase_if(found, [](const world::EdgeEvidence& e) { return e.observed <= 0; });
   // The beams counted at each edge, and at each stretch seen through (the bins it covers).
-  std::lock_guard lock(beams_mutex_);
   for (auto& e : found) {
     const auto* counted = edge_beams(state.objects[e.object], e.edge);
     if (!counted) continue;
-    for (std::size_t b = 0; b < counted->through.size(); ++b) {
-      e.beams_through += counted->through[b];
-      e.beams_ended += counted->ended[b];
-    }
+    const auto all = tally(*counted, 0, bin * static_cast<double>(counted->through.size()));
+    e.beams_through = all.through;
+    e.beams_ended = all.ended;
     for (auto& stretch : e.seen_through_stretches) {
-      const auto [first, last] = bins_of(*counted, stretch.s0_m, stretch.s1_m);
-      for (std::size_t b = first; b < last; ++b) {
-        stretch.beams_through += counted->through[b];
-        stretch.beams_ended += counted->ended[b];
-      }
+      const auto beams = tally(*counted, stretch.s0_m, stretch.s1_m);
+      stretch.beams_through = beams.through;
+      stretch.beams_ended = beams.ended;
     }
   }
   return found;
