@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "fusion/lines/scan_lines.h"
 #include "tests/support/test_data.h"
 
 namespace wm::truth {
@@ -121,13 +122,19 @@ TEST(TruthScoreTest, TheTrueLinesAsAMapScoreFullMarks) {
   const auto s = score_mapping(state, world, d.coverage);
   EXPECT_NEAR(s.precision, 1.0, 1e-9);
   EXPECT_NEAR(s.recall, 1.0, 1e-9);
+  EXPECT_NEAR(s.recall_all, 1.0, 1e-9);
   // Lines of the plan that meet at corners share a bin or two there.
   EXPECT_LT(s.redundancy, 0.01);
   EXPECT_NEAR(s.elements_per_wall, 1.0, 0.2);
   EXPECT_EQ(s.people_element_m, 0.0);
 }
 
-// The figures the issue asks for, per building, and where a building does not reach one today the figure it does
+// The mapping recall leaves out walls shorter than the shortest line the scan line extractor makes, and only those.
+TEST(TruthScoreTest, TheRecallLeavesOutOnlyWallsNoScanLineCanCover) {
+  EXPECT_EQ(kShortestLineM, fusion::ScanLineOptions{}.min_length_m);
+}
+
+// The figures asked of a line map, per building, and where a building does not reach one today the figure it does
 // reach (seed 1, low pose noise σ 1 cm / 0.2°, whole routes), so that the test fails on any regression and says
 // plainly what is not met. wm-truth prints the same table for both pose noises.
 struct Expected {
@@ -178,26 +185,27 @@ TEST_P(TruthBuildingTest, MapAndChangesAgainstTheBuildingAsBuilt) {
   EXPECT_LE(a.table_edge_elements, e.max_table_elements);
 }
 
-// Not met today, with the figure reached: the RMF office's precision 0.970 (its curved façade, drawn as facets 7°
-// apart, is seen as chords), GDC1's partitions 0.958 covered, and Barcelona's recall 0.862 (the pavilion's cruciform
-// columns: faces of 5-10 cm that no scan line of 0.3 m covers, and walls seen only beyond the laser's 20 m or flatter
-// than 15°). The table (moved 0.29 m / 10°) ends within 0.9 cm / 0.1° everywhere.
+// Reached (seed 1): precision 0.970-1.000 (the RMF office's curved façade, drawn as facets 7° apart, is seen as
+// chords), recall 0.903-0.985 (Barcelona: a 5 m wall seen only from 11-20 m at grazing angles; counting the 4-6 cm
+// faces of its cruciform columns too, 0.862), demolished walls 0.993-1.000. Not met: GDC1's partitions 0.967 covered
+// (the far 0.3 m of one, seen by one or two beams per 5 cm at 14° from 7 m). The table (moved 0.29 m / 10°) ends
+// within 1.7 cm / 0.1° everywhere.
 INSTANTIATE_TEST_SUITE_P(Buildings, TruthBuildingTest,
                          ::testing::Values(Expected{"gdc1", 0.97, 0.90, 0.95, 0.95, 0.03, 0},
-                                           Expected{"ahg2", 0.97, 0.93, 0.95, 1.00, 0.03, 0},
+                                           Expected{"ahg2", 0.97, 0.95, 0.95, 1.00, 0.03, 0},
                                            Expected{"rmf-office", 0.965, 0.90, 0.95, 0.99, 0.03, 0},
-                                           Expected{"barcelona", 0.97, 0.85, 0.95, 1.00, 0.03, 0}),
+                                           Expected{"barcelona", 0.97, 0.90, 0.95, 1.00, 0.03, 0}),
                          [](const auto& info) { return test_name(info.param.building); });
 
 // The same drives with the pose posted at σ 3 cm / 0.5° (and its covariance), with the figures reached (seed 1) as
 // the floor, so that what keeps noisy views on their walls (each scan aligned to the map before it is decided), the
 // two faces of a wall apart and the table's far views on the table cannot quietly go. Reached: precision
 // 0.962-0.997 (without the alignment 0.832-0.901; AHG2 0.935 before a short wall beside a long one, end to end, was
-// kept apart as a depth step), recall 0.862-0.985, demolished walls found 0.993-1.000 (AHG2 0.878 before an edge sample
+// kept apart as a depth step), recall 0.903-0.987, demolished walls found 0.993-1.000 (AHG2 0.878 before an edge sample
 // the grid could not call free, crossed by many counted beams and returned on by few, was taken as seen through), the
 // table within 3.6 cm / 0.2° and none of its sides a wall (two on Barcelona before a far view that ran 17 cm past the
 // table's corner was taken as its side). Not met: precision in AHG2 (0.967) and the RMF office (0.962, its curved wall
-// drawn as facets 7-8° apart), recall in GDC1 (0.890) and Barcelona (0.862), the table on GDC1 (3.6 cm).
+// drawn as facets 7-8° apart), the table on GDC1 (3.6 cm).
 struct ExpectedNoisy {
   const char* building;
   double precision, recall;
@@ -230,10 +238,10 @@ TEST_P(TruthHighNoiseTest, NoisyPosesStillGiveOneElementPerWallAndTheChanges) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Buildings, TruthHighNoiseTest,
-                         ::testing::Values(ExpectedNoisy{"gdc1", 0.97, 0.885, 0.95, 0.04},
-                                           ExpectedNoisy{"ahg2", 0.96, 0.925, 0.95, 0.03},
+                         ::testing::Values(ExpectedNoisy{"gdc1", 0.97, 0.90, 0.95, 0.04},
+                                           ExpectedNoisy{"ahg2", 0.96, 0.95, 0.95, 0.03},
                                            ExpectedNoisy{"rmf-office", 0.95, 0.97, 0.95, 0.03},
-                                           ExpectedNoisy{"barcelona", 0.99, 0.85, 0.95, 0.03}),
+                                           ExpectedNoisy{"barcelona", 0.99, 0.90, 0.95, 0.03}),
                          [](const auto& info) { return test_name(info.param.building); });
 
 }  // namespace

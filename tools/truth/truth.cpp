@@ -315,7 +315,7 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
     }
   }
   const auto cover = covering(elements, world.lines);
-  double redundant = 0, recalled = 0, walls_elements = 0;
+  double redundant = 0, recalled = 0, recalled_all = 0, walls_elements = 0;
   for (std::size_t l = 0; l < world.lines.size(); ++l) {
     const auto& line = world.lines[l];
     std::vector<std::size_t> near;  // elements within 5 cm of the line, whatever their direction
@@ -334,7 +334,10 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
       const bool covered = std::any_of(near.begin(), near.end(), [&](std::size_t i) {
         return point_segment_distance(c, elements[i].p0, elements[i].p1) <= kOnLineM;
       });
-      recalled += covered ? kBinM : 0;
+      const bool short_wall = (line.p1 - line.p0).norm() < kShortestLineM;
+      recalled += covered && !short_wall ? kBinM : 0;
+      recalled_all += covered ? kBinM : 0;
+      score.seen_short_m += short_wall ? kBinM : 0;
       missed += covered ? 0 : kBinM;
       missed_returns += covered ? 0 : coverage.hits[l][b];
     }
@@ -353,7 +356,9 @@ MappingScore score_mapping(const world::WorldState& state, const BuiltWorld& wor
     }
   }
   score.precision = score.element_length_m > 0 ? good / score.element_length_m : 0;
-  score.recall = score.seen_length_m > 0 ? recalled / score.seen_length_m : 0;
+  const double seen_long_m = score.seen_length_m - score.seen_short_m;
+  score.recall = seen_long_m > 0 ? recalled / seen_long_m : 0;
+  score.recall_all = score.seen_length_m > 0 ? recalled_all / score.seen_length_m : 0;
   score.redundancy = score.element_length_m > 0 ? redundant / score.element_length_m : 0;
   score.elements_per_wall = score.walls_seen_2m > 0 ? walls_elements / static_cast<double>(score.walls_seen_2m) : 0;
   score.people_element_m = people_elements(elements, world);
@@ -575,11 +580,12 @@ TruthResult run_truth(const std::string& name, const TruthOptions& options) {
 std::string format_table(const std::vector<TruthResult>& results) {
   std::ostringstream out;
   char line[512];
-  const char* header = "%-11s %-5s %6s %7s %9s %7s %10s %8s %10s %10s %9s %15s %8s %20s\n";
-  std::snprintf(line, sizeof line, header, "building", "noise", "scans", "route_m", "precision", "recall", "redundancy",
+  const char* header = "%-11s %-5s %6s %7s %9s %7s %10s %10s %8s %10s %10s %9s %15s %8s %20s\n";
+  std::snprintf(line, sizeof line, header, "building", "noise", "scans", "route_m", "precision", "recall", "recall_all",
+                "redundancy",
                 "el/wall", "demolished", "false_miss", "new_found", "table_cm,deg", "table_el", "people_m el/el/miss");
   out << line;
-  MappingScore worst_map{1, 1, 0, 0};
+  MappingScore worst_map{1, 1, 1, 0, 0};
   std::optional<double> worst_demolished, worst_false, worst_people_missing;
   double worst_new = 1, worst_table_cm = 0, worst_table_deg = 0, worst_people = 0;
   std::size_t worst_table_el = 0;
@@ -594,6 +600,7 @@ std::string format_table(const std::vector<TruthResult>& results) {
     const auto& m = r.mapping;
     worst_map.precision = std::min(worst_map.precision, m.precision);
     worst_map.recall = std::min(worst_map.recall, m.recall);
+    worst_map.recall_all = std::min(worst_map.recall_all, m.recall_all);
     worst_map.redundancy = std::max(worst_map.redundancy, m.redundancy);
     worst_map.elements_per_wall = std::max(worst_map.elements_per_wall, m.elements_per_wall);
     worst_people = std::max(worst_people, m.people_element_m);
@@ -621,14 +628,15 @@ std::string format_table(const std::vector<TruthResult>& results) {
     }
     std::snprintf(line, sizeof line, header, r.building.c_str(), pose_noise_name(r.pose_noise),
                   std::to_string(r.scans).c_str(), fixed(r.route_m, 0).c_str(), fixed(m.precision, 3).c_str(),
-                  fixed(m.recall, 3).c_str(), fixed(m.redundancy, 3).c_str(), fixed(m.elements_per_wall, 2).c_str(),
+                  fixed(m.recall, 3).c_str(), fixed(m.recall_all, 3).c_str(), fixed(m.redundancy, 3).c_str(), fixed(m.elements_per_wall, 2).c_str(),
                   demolished.c_str(), false_missing.c_str(), new_found.c_str(), table.c_str(), table_el.c_str(),
                   people.c_str());
     out << line;
   }
   if (!results.empty()) {
     std::snprintf(line, sizeof line, header, "worst", "", "", "", fixed(worst_map.precision, 3).c_str(),
-                  fixed(worst_map.recall, 3).c_str(), fixed(worst_map.redundancy, 3).c_str(),
+                  fixed(worst_map.recall, 3).c_str(), fixed(worst_map.recall_all, 3).c_str(),
+                  fixed(worst_map.redundancy, 3).c_str(),
                   fixed(worst_map.elements_per_wall, 2).c_str(),
                   any_plan ? optional_fixed(worst_demolished, 3).c_str() : "-",
                   any_plan ? optional_fixed(worst_false, 3).c_str() : "-", any_plan ? fixed(worst_new, 3).c_str() : "-",

@@ -36,11 +36,13 @@ struct TruthOptions {
 /// The map without a plan, against the walls as built (the table's sides count as walls; people do not).
 struct MappingScore {
   double precision = 0;          // share of element length within 5 cm and 3° of a true line
-  double recall = 0;             // share of the seen length (bins the beams returned from) within 5 cm of an element
+  double recall = 0;             // share of the seen length (bins the beams returned from) within 5 cm of an element,
+                                 // over walls at least kShortestLineM long
+  double recall_all = 0;         // the same over every wall, the faces of columns and frames too
   double redundancy = 0;         // share of element length on a part of a line another element already covers
   double elements_per_wall = 0;  // elements covering ≥ 10 cm of it, over walls and partitions seen over ≥ 2 m
   std::size_t elements = 0;
-  double element_length_m = 0, seen_length_m = 0;
+  double element_length_m = 0, seen_length_m = 0, seen_short_m = 0;  // seen_short_m: on walls shorter than kShortestLineM
   std::size_t walls_seen_2m = 0;
   double people_element_m = 0;  // element length within 0.3 m of a person's track, on no true line [m]
 };

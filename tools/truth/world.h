@@ -120,6 +120,11 @@ struct LaserOptions {
 /// Sample spacing along true lines for what the laser saw [m].
 inline constexpr double kBinM = 0.05;
 
+/// Walls shorter than this are not counted in the mapping recall: the scan line extractor makes no line shorter
+/// (its default minimum length), so the faces of a column or a door frame are the grid's to map, not the line map's.
+/// MappingScore::recall_all counts them too.
+inline constexpr double kShortestLineM = 0.3;
+
 /// What the drive saw of each line.
 /// Beams closer than this to running along a wall are not counted as seeing through it [rad] (10°).
 inline constexpr double kMinIncidenceRad = 0.1745;
