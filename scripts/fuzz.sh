@@ -15,7 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 # Every harness (scripts/test.sh builds this list: `bash scripts/fuzz.sh --list`).
-all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_scan_alignment fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text)
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_scan_alignment fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text fuzz_map_routes)
 if [ "${1:-}" = --list ]; then
   echo "${all[@]}"
   exit 0
@@ -54,6 +54,7 @@ options_for() {
     # handler allocates, so a signal that lands while libFuzzer's per-input leak check has stopped the world
     # deadlocks the worker (seen after 11 min of fork mode): leaks are left to the sanitizer suite here.
     fuzz_query) echo "-max_len=512 -dict=fuzz/dict/prolog.dict -handle_usr1=0 -handle_usr2=0 -detect_leaks=0" ;;
+    fuzz_map_routes) echo "-max_len=512 -dict=fuzz/dict/routes.dict -handle_usr1=0 -handle_usr2=0 -detect_leaks=0" ;;
     fuzz_rules_text) echo "-max_len=8192 -dict=fuzz/dict/prolog.dict -handle_usr1=0 -handle_usr2=0 -detect_leaks=0" ;;
     *) echo "fuzz: unknown harness $1 (${all[*]})" >&2; exit 2 ;;
   esac

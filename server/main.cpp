@@ -16,6 +16,7 @@
 #include "server/config/server_config.h"
 #include "server/foxglove/bridge.h"
 #include "server/http/http_server.h"
+#include "server/service/map_registry.h"
 #include "server/service/world_service.h"
 #include "server/shm/shared_map_export.h"
 #include "server/storage/store.h"
@@ -77,8 +78,11 @@ int main(int argc, char** argv) {
                 << cfg.floor_plan_file->string() << "\n";
       world.load_floor_plan(std::move(plan));
     }
+    // The other maps, each with its own store, knowledge base and writer (GET /api/v1/maps).
+    service::MapRegistry maps({cfg.maps_dir, cfg.store, cfg.rules, cfg.service}, diagnostics);
     api::Services services{cfg.api, world};
     services.diagnostics = &diagnostics;
+    services.maps = &maps;
     // Before the HTTP server, which hands it to handlers, and after the world it reads.
     std::optional<shm::SharedMapExport> shared_memory;
     if (cfg.shm.enabled) {
@@ -116,7 +120,9 @@ int main(int argc, char** argv) {
     if (cfg.api.token.empty() && !boost::asio::ip::make_address(cfg.http.bind_address).is_loopback())
       std::cerr << "wmd: warning: no --token and --bind " << cfg.http.bind_address
                 << " (--insecure-no-token): anyone who reaches the port can change the map\n";
+    const auto other_maps = maps.ids();
     std::cout << "wmd: database " << cfg.store.path << ", rules " << cfg.rules.rules_dir.string() << "\n"
+              << "wmd: " << other_maps.size() << " other map(s) in " << cfg.maps_dir.string() << "\n"
               << "wmd: listening on http://" << cfg.http.bind_address << ":" << server.port() << "/" << std::endl;
     server.run();
     pthread_kill(signal_waiter.native_handle(), SIGTERM);  // wakes the waiter when run() ended otherwise

@@ -8,6 +8,9 @@ namespace wm::wmctl {
 // The map and the floor plan (map_commands.cpp).
 int health(const Invocation& in);
 int network(const Invocation& in);
+int maps_list(const Invocation& in);
+int maps_create(const Invocation& in);
+int maps_delete(const Invocation& in);
 int floorplan_load(const Invocation& in);
 int floorplan_show(const Invocation& in);
 int floorplan_align(const Invocation& in);

@@ -4,12 +4,23 @@
 #include <boost/asio/ip/tcp.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <string_view>
 
 namespace wm::client {
 
 namespace beast = boost::beast;
 namespace http = boost::beast::http;
 namespace net = boost::asio;
+
+std::string map_target(const std::string& map, const std::string& target) {
+  constexpr std::string_view api = "/api/v1/";
+  if (map.empty() || map == "default" || !target.starts_with(api)) return target;
+  const auto rest = std::string_view(target).substr(api.size());
+  const auto first = rest.substr(0, rest.find_first_of("/?"));
+  for (const std::string_view server_wide : {"network", "maps", "events"})
+    if (first == server_wide) return target;
+  return std::string(api) + "maps/" + map + "/" + std::string(rest);
+}
 
 HttpClient::HttpClient(const std::string& base_url, std::chrono::seconds timeout) : timeout_(timeout) {
   const std::string scheme = "http://";
@@ -33,7 +44,7 @@ HttpResult HttpClient::request(const std::string& method, const std::string& tar
     beast::tcp_stream stream(ioc);
     stream.expires_after(timeout_);
     stream.connect(resolver.resolve(host_, port_));
-    http::request<http::string_body> req{http::string_to_verb(method), target, 11};
+    http::request<http::string_body> req{http::string_to_verb(method), map_target(map_, target), 11};
     req.set(http::field::host, host_);
     req.set(http::field::user_agent, "wmctl");
     if (!token.empty()) req.set(http::field::authorization, "Bearer " + token);

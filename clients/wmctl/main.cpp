@@ -13,10 +13,11 @@
 namespace wm::wmctl {
 namespace {
 
-const char* kGlobalUsage = "usage: wmctl [--server URL] [--token TOKEN] [--json] COMMAND [ARGUMENTS]\n";
+const char* kGlobalUsage = "usage: wmctl [--server URL] [--map ID] [--token TOKEN] [--json] COMMAND [ARGUMENTS]\n";
 const char* kGlobalOptions =
     "options:\n"
     "  --server URL   default http://127.0.0.1:8080 (or $WMCTL_SERVER)\n"
+    "  --map ID       work on map ID (GET /api/v1/maps lists them; default: the default map, or $WMCTL_MAP)\n"
     "  --token TOKEN  sent with the requests that change the map or the rules\n"
     "  --json         print the server's JSON as it came (for scripts)\n"
     "  --help, -h     this text; `wmctl help COMMAND` for one command\n";
@@ -25,6 +26,9 @@ std::vector<Command> command_table() {
   return {
       {"health", {}, {}, "server status, counts and loaded rules", health},
       {"network", {}, {}, "the processing network: executors' load, functions' activations, queues", network},
+      {"maps", {}, {}, "the server's maps: id, plan, elements, observations, robots", maps_list},
+      {"maps create", {"ID"}, {}, "a new, empty map (1-32 of a-z, 0-9, '_', '-')", maps_create},
+      {"maps delete", {"ID"}, {}, "delete a map and its file (not the default map)", maps_delete},
       {"floorplan load",
        {"FILE"},
        {{"--mapping", "M.json"}, {"--units", "m|cm|mm|in|ft"}, {"--level", "NAME"}},
@@ -160,7 +164,7 @@ std::string full_usage(const std::vector<Command>& table) {
 }
 
 std::string command_usage(const Command& command) {
-  return "usage: wmctl [--server URL] [--token TOKEN] [--json] " + usage_line(command) + "\n";
+  return "usage: wmctl [--server URL] [--map ID] [--token TOKEN] [--json] " + usage_line(command) + "\n";
 }
 
 // How many leading words of `words` name `command`; 0 when they do not.
@@ -205,12 +209,13 @@ int help(const std::vector<Command>& table, const std::vector<std::string>& word
 int run(const std::vector<std::string>& args, const std::vector<Command>& table) {
   std::string server = std::getenv("WMCTL_SERVER") ? std::getenv("WMCTL_SERVER") : "http://127.0.0.1:8080";
   std::string token;
+  std::string map = std::getenv("WMCTL_MAP") ? std::getenv("WMCTL_MAP") : "";
   bool raw_json = false;
   std::vector<std::string> words;
   for (std::size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--server" || args[i] == "--token") {
+    if (args[i] == "--server" || args[i] == "--token" || args[i] == "--map") {
       if (i + 1 >= args.size()) throw UsageError(args[i] + " needs a value");
-      std::string& target = args[i] == "--server" ? server : token;
+      std::string& target = args[i] == "--server" ? server : args[i] == "--token" ? token : map;
       target = args[++i];
     } else if (args[i] == "--json") {
       raw_json = true;
@@ -232,7 +237,11 @@ int run(const std::vector<std::string>& args, const std::vector<Command>& table)
     if (!family.empty()) throw UsageError("'" + words[0] + "' needs a subcommand: " + family);
     throw UsageError("unknown command '" + words[0] + "'");
   }
-  const client::HttpClient client(server);
+  // The server judges the id; only what would change the path is refused here.
+  if (map.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789_-") != std::string::npos)
+    throw UsageError("--map: a map id is made of a-z, 0-9, '_' and '-'");
+  client::HttpClient client(server);
+  client.use_map(map);
   Invocation invocation{client, token, raw_json, {}, {}};
   try {
     parse_arguments(*command, {words.begin() + static_cast<std::ptrdiff_t>(name_words), words.end()}, invocation);

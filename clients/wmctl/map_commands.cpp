@@ -50,6 +50,28 @@ int health(const Invocation& in) {
   });
 }
 
+int maps_list(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/maps")), [](const json& answer) {
+    for (const auto& m : answer["maps"])
+      std::cout << m["id"].get<std::string>() << (m["default"].get<bool>() ? " (default)" : "") << ": plan '"
+                << m["plan_name"].get<std::string>() << "', " << m["objects"] << " objects, " << m["elements"]
+                << " elements, " << m["observations"] << " observations, " << m["robots"] << " robots, version "
+                << m["version"] << "\n";
+  });
+}
+
+int maps_create(const Invocation& in) {
+  const json body = {{"id", in.operands[0]}};
+  return in.emit(parse_answer(in.client.request("POST", "/api/v1/maps", body.dump(), "application/json", in.token)),
+                 [](const json& m) { std::cout << "created map " << m["id"].get<std::string>() << "\n"; });
+}
+
+int maps_delete(const Invocation& in) {
+  const auto answer = in.client.request("DELETE", "/api/v1/maps/" + in.operands[0], "", "application/json", in.token);
+  return in.emit(parse_answer(answer),
+                 [](const json& r) { std::cout << "deleted map " << r["deleted"].get<std::string>() << "\n"; });
+}
+
 int network(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/network")), [](const json& n) {
     std::cout << "network " << n["task_file"].get<std::string>() << "\n";

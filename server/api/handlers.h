@@ -13,6 +13,7 @@
 #include "server/api/http_types.h"
 #include "server/api/map_cache.h"
 #include "server/api/request.h"
+#include "server/service/map_registry.h"
 #include "server/service/world_port.h"
 #include "server/shm/shared_map_export.h"
 
@@ -26,8 +27,11 @@ struct Call {
   const ApiOptions& options;
   const service::WorldPorts& world;  // the service's ports: map, ingest, plan, rules, grid, robots
   MapCache& map_cache;
-  const shm::SharedMapExport* shm = nullptr;         // nullptr when wmd runs with --no-shm
+  const shm::SharedMapExport* shm = nullptr;         // nullptr when wmd runs with --no-shm, and for other maps
   const common::Diagnostics* diagnostics = nullptr;  // nullptr: the health answer has no "diagnostics"
+  /// The map the request is about: kDefaultMapId for today's routes, {map} under /api/v1/maps/{map}/.
+  std::string_view map_id = service::kDefaultMapId;
+  service::MapRegistry* maps = nullptr;  // the server's other maps; nullptr: it has only the default map
 };
 
 using Handler = Response (*)(const Call&);
@@ -89,6 +93,11 @@ Response get_changes(const Call& call);         // GET /api/v1/changes
 Response post_change_accept(const Call& call);  // POST /api/v1/changes/{id}/accept
 Response post_change_reject(const Call& call);  // POST /api/v1/changes/{id}/reject
 Response post_changes_undo(const Call& call);   // POST /api/v1/changes/undo
+// handlers/maps.cpp: the maps a server holds
+Response get_maps(const Call& call);       // GET /api/v1/maps
+Response post_maps(const Call& call);      // POST /api/v1/maps: a new, empty map
+Response get_map_entry(const Call& call);  // GET /api/v1/maps/{map}
+Response delete_map(const Call& call);     // DELETE /api/v1/maps/{map}: the map and its file
 // handlers/static_files.cpp
 Response get_static(const Call& call);
 // handlers/events.cpp: a plain GET of a WebSocket route (the events, Foxglove), which only answers upgrades

@@ -7,6 +7,7 @@
 #include "server/api/error_mapping.h"
 #include "server/api/request.h"
 #include "server/api/routes.h"
+#include "server/service/map_registry.h"
 
 namespace wm::api {
 namespace {
@@ -27,19 +28,83 @@ void require_allowed_sender(const Request& request, const Services& services) {
     require_allowed_origin(request, services.options);
 }
 
-Call call_of(const Request& request, const Target& target, const RouteMatch& match, const Services& services) {
-  return Call{request,        target,
-              match.param,    services.options,
-              services.world, *services.map_cache,
-              services.shm,   services.diagnostics};
+// The map a request is about and what its handler works on: the default map's ports and cache, or one map of the
+// registry, held while the request runs (a map deleted meanwhile stays whole until it ends).
+struct MapContext {
+  std::string id = std::string(service::kDefaultMapId);
+  std::shared_ptr<service::MapInstance> instance;  // null for the default map
+  std::optional<service::WorldPorts> ports;        // the instance's
+  std::shared_ptr<MapCache> cache;
+};
+
+MapContext map_context(const std::string& id, Services& services) {
+  MapContext context;
+  if (id == service::kDefaultMapId) {
+    context.cache = services.map_cache;
+    return context;
+  }
+  if (!service::valid_map_id(id))
+    throw bad_request("map", "a map id is 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'");
+  context.instance = services.maps ? services.maps->find(id) : nullptr;
+  if (!context.instance) throw ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
+  context.id = id;
+  context.ports.emplace(context.instance->world);
+  context.cache = services.map_caches->of(context.instance);
+  return context;
+}
+
+Call call_of(const Request& request, const Target& target, const RouteMatch& match, const Services& services,
+             const MapContext& map) {
+  Call call{request,
+            target,
+            match.param,
+            services.options,
+            map.ports ? *map.ports : services.world,
+            *map.cache,
+            map.instance ? nullptr : services.shm,
+            services.diagnostics};
+  call.map_id = map.id;
+  call.maps = services.maps;
+  return call;
+}
+
+// The route of a method and a path, the map path split off first: {map's id, route}; nullopt when no route answers
+// it (or a server-wide route is asked for under a map).
+std::optional<std::pair<std::optional<std::string>, RouteMatch>> route_of(http::verb method, std::string_view path) {
+  if (auto scoped = split_map_path(path)) {
+    auto match = find_route(method, scoped->path);
+    if (!match || !is_per_map(*match->route)) return std::nullopt;
+    return std::pair{std::optional<std::string>(std::move(scoped->map)), std::move(*match)};
+  }
+  auto match = find_route(method, path);
+  if (!match) return std::nullopt;
+  return std::pair{std::optional<std::string>(), std::move(*match)};
+}
+
+// The methods a path takes, under a map only those of a map's routes.
+std::string allowed_methods_of(std::string_view path) {
+  const auto scoped = split_map_path(path);
+  if (!scoped) return allowed_methods(path);
+  std::string allow;
+  for (const auto method : {http::verb::get, http::verb::put, http::verb::post, http::verb::delete_}) {
+    const auto match = find_route(method, scoped->path);
+    if (!match || !is_per_map(*match->route)) continue;
+    const auto name = http::to_string(method);
+    allow += (allow.empty() ? "" : ", ") + std::string(name.data(), name.size());
+    if (method == http::verb::get) allow += ", HEAD";
+  }
+  return allow;
 }
 
 Response dispatch(const Request& request, Services& services) {
   require_allowed_sender(request, services);
   const Target target = parse_target(target_of(request));
-  if (const auto match = find_route(request.method(), target.path))
-    return match->route->handler(call_of(request, target, *match, services));
-  const auto allow = allowed_methods(target.path);
+  if (const auto found = route_of(request.method(), target.path)) {
+    const auto& [map_id, match] = *found;
+    const auto map = map_context(map_id.value_or(std::string(service::kDefaultMapId)), services);
+    return match.route->handler(call_of(request, target, match, services, map));
+  }
+  const auto allow = allowed_methods_of(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
   auto response =
       error_response(request.version(), request.keep_alive(), 405, "method_not_allowed", "allowed: " + allow);
@@ -52,7 +117,7 @@ Response dispatch(const Request& request, Services& services) {
 Lane handler_lane(const Request& request) {
   const auto target = target_of(request);
   const auto path = target.substr(0, target.find('?'));
-  if (const auto match = find_route(request.method(), path)) return match->route->lane;
+  if (const auto found = route_of(request.method(), path)) return found->second.route->lane;
   // A path that decoding changes ("%2F", "+") may still name a route once decoded: run it on a handler lane as
   // any read or write. Otherwise no route answers it, and its 404 or 405 is answered at once.
   if (path.find_first_of("%+") != std::string_view::npos)
@@ -83,8 +148,9 @@ std::string_view websocket_subprotocol(const Request& request) {
 
 std::optional<SharedResponse> answer_at_once(const Request& request, Services& services) {
   const auto raw = target_of(request);
-  const auto match = find_route(request.method(), raw.substr(0, raw.find('?')));
-  if (!match || !match->route->at_once) return std::nullopt;  // the common case: one table lookup, nothing else
+  const auto found = route_of(request.method(), raw.substr(0, raw.find('?')));
+  if (!found || !found->second.route->at_once) return std::nullopt;  // the common case: one lookup, nothing else
+  const auto& [map_id, match] = *found;
   // A path with escapes may decode to another route (or another placeholder's text): that one goes to its lane,
   // where the decoded path is looked up. Without them the decoded path is the raw one, and `match` stands.
   if (raw.substr(0, raw.find('?')).find_first_of("%+") != std::string_view::npos) return std::nullopt;
@@ -93,7 +159,8 @@ std::optional<SharedResponse> answer_at_once(const Request& request, Services& s
   try {
     require_allowed_sender(request, services);
     const Target target = parse_target(raw);
-    auto answer = match->route->at_once(call_of(request, target, *match, services), shared);
+    const auto map = map_context(map_id.value_or(std::string(service::kDefaultMapId)), services);
+    auto answer = match.route->at_once(call_of(request, target, match, services, map), shared);
     if (!answer) return std::nullopt;
     response = for_request_method(request, std::move(*answer));
   } catch (...) {  // a refused Host, a bad parameter: answered at once, as on a handler thread

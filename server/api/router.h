@@ -8,6 +8,7 @@
 #include "server/api/api_options.h"
 #include "server/api/http_types.h"
 #include "server/api/map_cache.h"
+#include "server/api/map_scope.h"
 #include "server/api/response.h"
 #include "server/service/world_port.h"
 #include "server/shm/shared_map_export.h"
@@ -21,6 +22,9 @@ struct Services {
   std::shared_ptr<MapCache> map_cache = std::make_shared<MapCache>();  // the map's bytes per version
   const shm::SharedMapExport* shm = nullptr;                           // the shared-memory export, when on
   const common::Diagnostics* diagnostics = nullptr;  // what the server reported (GET /api/v1/health counts it)
+  /// The maps besides the default one, served under /api/v1/maps/{map}/; nullptr: only the default map.
+  service::MapRegistry* maps = nullptr;
+  std::shared_ptr<MapCaches> map_caches = std::make_shared<MapCaches>();  // the map's bytes, per map of `maps`
 };
 
 /// The answer to a request whose route is marked at_once, when it can be given on the calling (I/O) thread without

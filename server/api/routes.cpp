@@ -57,6 +57,11 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1/robots", get_robots, Lane::read},
     Route{verb::put, "/api/v1/robots/{id}/pose", put_robot_pose, Lane::write},
     Route{verb::get, "/api/v1/robots/{id}", get_robot, Lane::read},
+    Route{verb::get, "/api/v1/maps", get_maps, Lane::read},
+    Route{verb::post, "/api/v1/maps", post_maps, Lane::write},
+    // A map's own resources, "/api/v1/maps/{map}/...", are split off before the table is searched (map_scope.h).
+    Route{verb::get, "/api/v1/maps/{map}", get_map_entry, Lane::read},
+    Route{verb::delete_, "/api/v1/maps/{map}", delete_map, Lane::write},
     Route{verb::get, "/api/v1/events", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true},
     // Foxglove's protocol, outside /api/v1: it is versioned by its subprotocol, not by this API's version.
     Route{verb::get, "/foxglove", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true, nullptr,
@@ -142,6 +147,13 @@ const Route* websocket_route(std::string_view target) {
     return route.websocket && route.method == verb::get && pattern_matches(route.pattern, path, ignored);
   });
   return it == kRoutes.end() ? nullptr : &*it;
+}
+
+bool is_per_map(const Route& route) {
+  constexpr std::array<std::string_view, 8> server_wide{
+      "/",         "/api/v1",    "/api/v1/network", "/api/v1/maps", "/api/v1/maps/{map}", "/api/v1/events",
+      "/foxglove", "/web/{path}"};
+  return std::find(server_wide.begin(), server_wide.end(), route.pattern) == server_wide.end();
 }
 
 std::string route_name(const Route& route) { return method_name(route.method) + " " + std::string(route.pattern); }

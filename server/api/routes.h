@@ -56,6 +56,11 @@ bool is_websocket_target(std::string_view target);
 /// The WebSocket route of a target (path and query), nullptr when it names none.
 const Route* websocket_route(std::string_view target);
 
+/// Whether a route is one map's resource, and so also answers under /api/v1/maps/{map}/ (the floor plan, scans,
+/// grid, health, ...); the server's own (the index, the network, the maps, the viewer's files, the WebSockets) are
+/// not.
+bool is_per_map(const Route& route);
+
 /// "METHOD PATTERN" of a route, as the index and the README list it.
 std::string route_name(const Route& route);
 

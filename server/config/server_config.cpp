@@ -41,6 +41,8 @@ std::vector<std::string> comma_list(const std::string& text) {
 std::string usage() {
   return "usage: wmd [options]\n"
          "  --db FILE              SQLite file of the world model (default worldmodel.db; created if missing)\n"
+         "  --maps-dir DIR         the other maps (POST /api/v1/maps), one SQLite file each (default: the --db file's\n"
+         "                         name + '.maps', beside it; made when the first map is)\n"
          "  --port N               TCP port (default 8080; 0 picks a free one, printed at start)\n"
          "  --bind ADDR            address to listen on (default 127.0.0.1)\n"
          "  --rules DIR            directory of *.pl rule files (default: the shipped rules/prolog)\n"
@@ -140,6 +142,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     const std::string& value = args[++i];
     if (flag == "--db")
       c.store.path = value;
+    else if (flag == "--maps-dir")
+      c.maps_dir = value;
     else if (flag == "--port")
       c.http.port = parse_number<unsigned short>(flag, value, 0, 65535);
     else if (flag == "--bind")
@@ -225,6 +229,7 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     }
   }
   if (c.store.path.empty()) throw ConfigError("--db: must not be empty");
+  if (c.maps_dir.empty()) c.maps_dir = c.store.path + ".maps";
   boost::system::error_code bad_address;
   const auto bind = boost::asio::ip::make_address(c.http.bind_address, bad_address);
   if (bad_address) throw ConfigError("--bind: '" + c.http.bind_address + "' is not an IP address");

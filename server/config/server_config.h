@@ -32,6 +32,8 @@ struct ServerConfig {
   shm::ShmOptions shm;
   foxglove::FoxgloveOptions foxglove;
   std::optional<std::filesystem::path> floor_plan_file;  // loaded at start (demo), replacing the stored plan
+  /// The maps besides the default one (the --db file), one SQLite file each; default: "<db>.maps" beside it.
+  std::filesystem::path maps_dir;
   bool help = false;
   bool print_network = false;
 };

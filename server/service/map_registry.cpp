@@ -22,6 +22,12 @@ std::vector<std::filesystem::path> sqlite_files(const std::filesystem::path& db)
   return {db, db.string() + "-wal", db.string() + "-shm"};
 }
 
+// Where a removed map's file waits for its last holder: renamed with the removal's prefix, in the same directory.
+std::filesystem::path removed_file(const std::filesystem::path& data_dir, const std::string& removed_as,
+                                   const std::filesystem::path& file) {
+  return data_dir / (removed_as + file.filename().string());
+}
+
 }  // namespace
 
 bool valid_map_id(std::string_view id) {
@@ -49,8 +55,8 @@ MapInstance::~MapInstance() = default;
 
 MapRegistry::MapRegistry(MapRegistryOptions options, common::Diagnostics& diagnostics)
     : options_(std::move(options)), diagnostics_(diagnostics) {
-  std::filesystem::create_directories(options_.data_dir);
   std::vector<std::string> found;
+  if (!std::filesystem::exists(options_.data_dir)) return;
   for (const auto& entry : std::filesystem::directory_iterator(options_.data_dir)) {
     const auto name = entry.path().filename().string();
     if (name.starts_with(kRemovedPrefix)) {
@@ -60,7 +66,11 @@ MapRegistry::MapRegistry(MapRegistryOptions options, common::Diagnostics& diagno
     }
     if (!entry.is_regular_file() || !name.ends_with(kMapSuffix)) continue;
     const auto id = name.substr(0, name.size() - kMapSuffix.size());
-    if (valid_map_id(id)) found.push_back(id);
+    if (id == kDefaultMapId)
+      diagnostics_.report(common::Severity::warning, "maps",
+                          "'" + entry.path().string() + "' not opened: the default map is the --db file");
+    else if (valid_map_id(id))
+      found.push_back(id);
   }
   std::sort(found.begin(), found.end());
   std::lock_guard lock(mutex_);
@@ -76,19 +86,19 @@ MapRegistry::MapRegistry(MapRegistryOptions options, common::Diagnostics& diagno
 
 std::shared_ptr<MapInstance> MapRegistry::open(const std::string& id) {
   const auto knowledge_base = "wm_kb_map" + std::to_string(++knowledge_bases_);
-  const auto data_dir = options_.data_dir;
-  // The last holder of a removed map takes its files with it, after the store has closed them.
-  return std::shared_ptr<MapInstance>(
-      new MapInstance(id, options_, knowledge_base, diagnostics_), [data_dir](MapInstance* map) {
-        const auto removed_as = map->removed_as;
-        const auto id = map->id;
-        delete map;
-        if (removed_as.empty()) return;
-        for (const auto& file : sqlite_files(map_file(data_dir, id))) {
-          std::error_code ignored;
-          std::filesystem::remove(data_dir / (removed_as + file.filename().string()), ignored);
-        }
-      });
+  // The last holder of a removed map takes its files with it, after the store has closed them. The registry may be
+  // gone by then: the deleter keeps what it needs.
+  return std::shared_ptr<MapInstance>(new MapInstance(id, options_, knowledge_base, diagnostics_),
+                                      [data_dir = options_.data_dir](MapInstance* map) {
+                                        const auto removed_as = map->removed_as;
+                                        const auto id = map->id;
+                                        delete map;
+                                        if (removed_as.empty()) return;
+                                        for (const auto& file : sqlite_files(map_file(data_dir, id))) {
+                                          std::error_code ignored;
+                                          std::filesystem::remove(removed_file(data_dir, removed_as, file), ignored);
+                                        }
+                                      });
 }
 
 std::vector<std::string> MapRegistry::ids() const {
@@ -107,8 +117,10 @@ std::shared_ptr<MapInstance> MapRegistry::find(const std::string& id) const {
 std::shared_ptr<MapInstance> MapRegistry::create(const std::string& id) {
   if (!valid_map_id(id))
     throw std::invalid_argument("map id '" + id + "': 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'");
+  if (id == kDefaultMapId) throw Conflict("the default map always exists");
   std::lock_guard lock(mutex_);
   if (maps_.count(id)) throw Conflict("map '" + id + "' exists");
+  std::filesystem::create_directories(options_.data_dir);
   auto map = open(id);
   maps_.emplace(id, map);
   return map;
@@ -129,7 +141,7 @@ void MapRegistry::remove(const std::string& id) {
   // left). A request that still holds the map ends against it, into the renamed files: it came before the removal.
   for (const auto& file : sqlite_files(map_file(options_.data_dir, id))) {
     std::error_code missing;  // -wal and -shm may not exist
-    std::filesystem::rename(file, options_.data_dir / (removed_as + file.filename().string()), missing);
+    std::filesystem::rename(file, removed_file(options_.data_dir, removed_as, file), missing);
   }
   map->removed_as = removed_as;
 }

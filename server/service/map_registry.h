@@ -16,6 +16,10 @@
 
 namespace wm::service {
 
+/// The map a server always has: its routes are today's (/api/v1/scans, ...) and its store the one wmd was started
+/// with (--db); the registry holds the others, and never one of this id.
+inline constexpr std::string_view kDefaultMapId = "default";
+
 /// Whether `id` may name a map: 1–32 of [a-z0-9_-], starting with a letter or a digit (it goes into URLs and file
 /// names as it is).
 bool valid_map_id(std::string_view id);
@@ -49,9 +53,9 @@ struct MapInstance {
 /// meanwhile stays whole until that request ends and only then takes its files with it. Thread-safe.
 class MapRegistry {
  public:
-  /// Opens every map whose file is in options.data_dir (creating the directory when missing) and removes what an
-  /// interrupted removal left; a map that does not open is reported to `diagnostics` and left out.
-  /// @throw std::filesystem::filesystem_error when the directory cannot be made or read.
+  /// Opens every map whose file is in options.data_dir and removes what an interrupted removal left; a map that does
+  /// not open is reported to `diagnostics` and left out. The directory is made by the first create().
+  /// @throw std::filesystem::filesystem_error when the directory cannot be read.
   MapRegistry(MapRegistryOptions options, common::Diagnostics& diagnostics);
   MapRegistry(const MapRegistry&) = delete;
   MapRegistry& operator=(const MapRegistry&) = delete;
@@ -60,7 +64,8 @@ class MapRegistry {
   std::vector<std::string> ids() const;
   /// The map `id`, or nullptr when there is none.
   std::shared_ptr<MapInstance> find(const std::string& id) const;
-  /// A new, empty map. @throw std::invalid_argument for an id valid_map_id refuses; Conflict when it exists.
+  /// A new, empty map. @throw std::invalid_argument for an id valid_map_id refuses; Conflict when it exists or is
+  /// kDefaultMapId; std::filesystem::filesystem_error when the directory cannot be made.
   std::shared_ptr<MapInstance> create(const std::string& id);
   /// Removes map `id`: it is found no more at once, and its files are renamed aside so that a crash leaves no map
   /// behind (the next start removes them); they go when the last request that holds the map ends (such a request

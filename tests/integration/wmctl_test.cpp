@@ -139,7 +139,8 @@ TEST(WmctlUsageTest, AnUnknownFlagIsRefusedWithTheCommandsUsage) {
     const auto r = run_command(offline(spec.name + " " + spec.operands + " --no-such-flag 1"));
     EXPECT_EQ(r.status, 2) << spec.name << ": " << r.output;
     EXPECT_NE(r.output.find("'--no-such-flag'"), std::string::npos) << r.output;
-    EXPECT_NE(r.output.find("usage: wmctl [--server URL] [--token TOKEN] [--json] " + spec.name), std::string::npos)
+    EXPECT_NE(r.output.find("usage: wmctl [--server URL] [--map ID] [--token TOKEN] [--json] " + spec.name),
+              std::string::npos)
         << r.output;
     for (const auto& [flag, value] : spec.flags) EXPECT_NE(r.output.find(flag), std::string::npos) << r.output;
   }

@@ -582,8 +582,8 @@ std::string format_table(const std::vector<TruthResult>& results) {
   char line[512];
   const char* header = "%-11s %-5s %6s %7s %9s %7s %10s %10s %8s %10s %10s %9s %15s %8s %20s\n";
   std::snprintf(line, sizeof line, header, "building", "noise", "scans", "route_m", "precision", "recall", "recall_all",
-                "redundancy",
-                "el/wall", "demolished", "false_miss", "new_found", "table_cm,deg", "table_el", "people_m el/el/miss");
+                "redundancy", "el/wall", "demolished", "false_miss", "new_found", "table_cm,deg", "table_el",
+                "people_m el/el/miss");
   out << line;
   MappingScore worst_map{1, 1, 1, 0, 0};
   std::optional<double> worst_demolished, worst_false, worst_people_missing;
@@ -628,16 +628,15 @@ std::string format_table(const std::vector<TruthResult>& results) {
     }
     std::snprintf(line, sizeof line, header, r.building.c_str(), pose_noise_name(r.pose_noise),
                   std::to_string(r.scans).c_str(), fixed(r.route_m, 0).c_str(), fixed(m.precision, 3).c_str(),
-                  fixed(m.recall, 3).c_str(), fixed(m.recall_all, 3).c_str(), fixed(m.redundancy, 3).c_str(), fixed(m.elements_per_wall, 2).c_str(),
-                  demolished.c_str(), false_missing.c_str(), new_found.c_str(), table.c_str(), table_el.c_str(),
-                  people.c_str());
+                  fixed(m.recall, 3).c_str(), fixed(m.recall_all, 3).c_str(), fixed(m.redundancy, 3).c_str(),
+                  fixed(m.elements_per_wall, 2).c_str(), demolished.c_str(), false_missing.c_str(), new_found.c_str(),
+                  table.c_str(), table_el.c_str(), people.c_str());
     out << line;
   }
   if (!results.empty()) {
     std::snprintf(line, sizeof line, header, "worst", "", "", "", fixed(worst_map.precision, 3).c_str(),
                   fixed(worst_map.recall, 3).c_str(), fixed(worst_map.recall_all, 3).c_str(),
-                  fixed(worst_map.redundancy, 3).c_str(),
-                  fixed(worst_map.elements_per_wall, 2).c_str(),
+                  fixed(worst_map.redundancy, 3).c_str(), fixed(worst_map.elements_per_wall, 2).c_str(),
                   any_plan ? optional_fixed(worst_demolished, 3).c_str() : "-",
                   any_plan ? optional_fixed(worst_false, 3).c_str() : "-", any_plan ? fixed(worst_new, 3).c_str() : "-",
                   any_plan ? (fixed(worst_table_cm, 1) + "," + fixed(worst_table_deg, 1)).c_str() : "-",

@@ -42,7 +42,8 @@ struct MappingScore {
   double redundancy = 0;         // share of element length on a part of a line another element already covers
   double elements_per_wall = 0;  // elements covering ≥ 10 cm of it, over walls and partitions seen over ≥ 2 m
   std::size_t elements = 0;
-  double element_length_m = 0, seen_length_m = 0, seen_short_m = 0;  // seen_short_m: on walls shorter than kShortestLineM
+  double element_length_m = 0, seen_length_m = 0,
+         seen_short_m = 0;  // seen_short_m: on walls shorter than kShortestLineM
   std::size_t walls_seen_2m = 0;
   double people_element_m = 0;  // element length within 0.3 m of a person's track, on no true line [m]
 };

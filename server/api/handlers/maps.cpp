@@ -1,0 +1,76 @@
+// The maps one server holds: GET/POST /api/v1/maps, GET/DELETE /api/v1/maps/{map}. Each map's own resources are
+// today's routes under /api/v1/maps/{map}/ (split off in the router); the default map's are also today's routes.
+#include "server/api/access.h"
+#include "server/api/api_error.h"
+#include "server/api/handlers.h"
+#include "server/api/request.h"
+#include "server/api/response.h"
+
+namespace wm::api {
+namespace {
+
+constexpr const char* kIdRule = "a map id is 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'";
+
+// What a list shows of one map: where it is and how far it has come.
+nlohmann::json map_summary(const std::string& id, const service::WorldPorts& world) {
+  const auto state = world.map.snapshot();
+  return {{"id", id},
+          {"default", id == service::kDefaultMapId},
+          {"href", id == service::kDefaultMapId ? "/api/v1" : "/api/v1/maps/" + id},
+          {"version", state->version},
+          {"plan_name", state->plan_name},
+          {"objects", state->objects.size()},
+          {"elements", state->elements.size()},
+          {"observations", state->last_observation_seq},
+          {"robots", world.robots.robots().size()}};
+}
+
+// The id in the path, checked before anything is looked up: "a/b" (a deeper path no route has) is refused here too.
+std::string path_map_id(const Call& call) {
+  if (!service::valid_map_id(call.param)) throw bad_request("map", kIdRule);
+  return call.param;
+}
+
+}  // namespace
+
+Response get_maps(const Call& call) {
+  nlohmann::json list = nlohmann::json::array();
+  // The default map is the one this call's ports reach (GET /api/v1/maps is no map's own route).
+  list.push_back(map_summary(std::string(service::kDefaultMapId), call.world));
+  if (call.maps)
+    for (const auto& id : call.maps->ids())
+      if (const auto map = call.maps->find(id)) list.push_back(map_summary(id, service::WorldPorts(map->world)));
+  return json_response(call.request, {{"maps", std::move(list)}});
+}
+
+Response post_maps(const Call& call) {
+  require_token(call.request, call.options);
+  const auto body = parse_json_object(call.request);
+  require_known_keys(body, {"id"});
+  const auto id = string_field(body, "id", 64);
+  if (!service::valid_map_id(id)) throw bad_request("id", kIdRule);
+  if (!call.maps) throw ApiError(409, "maps_disabled", "this server holds only its default map");
+  const auto map = call.maps->create(id);
+  return json_response(call.request, map_summary(id, service::WorldPorts(map->world)),
+                       boost::beast::http::status::created);
+}
+
+Response get_map_entry(const Call& call) {
+  const auto id = path_map_id(call);
+  if (id == service::kDefaultMapId) return json_response(call.request, map_summary(id, call.world));
+  const auto map = call.maps ? call.maps->find(id) : nullptr;
+  if (!map) throw ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
+  return json_response(call.request, map_summary(id, service::WorldPorts(map->world)));
+}
+
+Response delete_map(const Call& call) {
+  require_token(call.request, call.options);
+  const auto id = path_map_id(call);
+  if (id == service::kDefaultMapId)
+    throw ApiError(409, "default_map", "the default map cannot be deleted (it is the --db file)");
+  if (!call.maps) throw ApiError(404, "map_not_found", "no map '" + id + "'");
+  call.maps->remove(id);
+  return json_response(call.request, {{"deleted", id}});
+}
+
+}  // namespace wm::api

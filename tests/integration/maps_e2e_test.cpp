@@ -1,0 +1,276 @@
+// Several maps in one wmd: made, listed, kept apart, kept across a restart, deleted; the routes of one map under
+// /api/v1/maps/{map}/ against hostile ids and paths; two real drives replayed at once into two maps, each equal to
+// the same drive replayed alone.
+#include <filesystem>
+#include <future>
+#include <map>
+#include <set>
+
+#include "e2e_fixture.h"
+#include "logs/carmen_log_reader.h"
+#include "logs/scan_body.h"
+#include "tools/raycast/raycast.h"
+
+namespace wm::testing {
+namespace {
+
+json segment(double x0, double y0, double x1, double y1) { return {{"p0", {x0, y0}}, {"p1", {x1, y1}}}; }
+
+std::set<std::string> map_ids(const json& list) {
+  std::set<std::string> ids;
+  for (const auto& m : list["maps"]) ids.insert(m["id"].get<std::string>());
+  return ids;
+}
+
+class MapsTest : public ServerFixture {
+ protected:
+  std::filesystem::path maps_dir() const { return dir_.path() / "wm.db.maps"; }
+};
+
+TEST_F(MapsTest, MapsAreMadeListedKeptApartAcrossARestartAndDeleted) {
+  EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"default"}));
+  EXPECT_FALSE(std::filesystem::exists(maps_dir())) << "made only when the first map is";
+
+  const json made = send_json("POST", "/api/v1/maps", {{"id", "floor2"}}, 201);
+  EXPECT_EQ(made["id"], "floor2");
+  EXPECT_EQ(made["href"], "/api/v1/maps/floor2");
+  EXPECT_TRUE(std::filesystem::exists(maps_dir() / "floor2.db"));
+  EXPECT_EQ(call("POST", "/api/v1/maps", json{{"id", "floor2"}}.dump()).status, 409);
+  EXPECT_EQ(call("POST", "/api/v1/maps", json{{"id", "default"}}.dump()).status, 409);
+
+  // The plan and an observation go to floor2 only.
+  send_json("PUT", "/api/v1/maps/floor2/floorplan", lab_plan());
+  const json added = send_json("POST", "/api/v1/maps/floor2/primitives",
+                               {{"source", "robot-2"}, {"segments", {segment(10, 3, 13, 3.02)}}});
+  ASSERT_EQ(added["decisions"].size(), 1u);
+  EXPECT_EQ(added["decisions"][0]["action"], "add");
+  // The default map gets an observation of its own, elsewhere.
+  send_json("POST", "/api/v1/primitives", {{"source", "robot-1"}, {"segments", {segment(0, 0, 0, 4)}}});
+
+  const json floor2 = get_json("/api/v1/maps/floor2/map");
+  const json default_map = get_json("/api/v1/map");
+  EXPECT_EQ(floor2["objects"].size(), 2u);
+  EXPECT_EQ(floor2["elements"].size(), 1u);
+  EXPECT_EQ(default_map["objects"].size(), 0u);
+  ASSERT_EQ(default_map["elements"].size(), 1u);
+  EXPECT_DOUBLE_EQ(default_map["elements"][0]["p1"][1].get<double>(), 4.0);
+  // "default" under /api/v1/maps/ is the default map.
+  EXPECT_EQ(get_json("/api/v1/maps/default/elements"), get_json("/api/v1/elements"));
+  // Each map's robots, decisions and health are its own.
+  EXPECT_EQ(get_json("/api/v1/maps/floor2/robots")["robots"][0]["id"], "robot-2");
+  EXPECT_EQ(get_json("/api/v1/robots")["robots"][0]["id"], "robot-1");
+  EXPECT_EQ(get_json("/api/v1/maps/floor2/health")["objects"], 2);
+  EXPECT_EQ(get_json("/api/v1/health")["objects"], 0);
+
+  const json list = get_json("/api/v1/maps");
+  ASSERT_EQ(list["maps"].size(), 2u);
+  EXPECT_EQ(list["maps"][0]["id"], "default");
+  EXPECT_EQ(list["maps"][1]["id"], "floor2");
+  EXPECT_EQ(list["maps"][1]["objects"], 2);
+  EXPECT_EQ(list["maps"][1]["elements"], 1);
+  EXPECT_EQ(list["maps"][1]["robots"], 1);
+
+  restart();
+  EXPECT_EQ(get_json("/api/v1/maps/floor2/map")["elements"], floor2["elements"]);
+  EXPECT_EQ(get_json("/api/v1/maps/floor2/map")["objects"], floor2["objects"]);
+  EXPECT_EQ(get_json("/api/v1/map")["elements"], default_map["elements"]);
+
+  // A delete takes the map and its file; the default map is untouched.
+  EXPECT_EQ(send_json("DELETE", "/api/v1/maps/floor2", json(nullptr))["deleted"], "floor2");
+  EXPECT_EQ(call("GET", "/api/v1/maps/floor2/map").status, 404);
+  EXPECT_EQ(call("GET", "/api/v1/maps/floor2").status, 404);
+  EXPECT_EQ(call("DELETE", "/api/v1/maps/floor2").status, 404);
+  EXPECT_FALSE(std::filesystem::exists(maps_dir() / "floor2.db"));
+  EXPECT_EQ(get_json("/api/v1/map")["elements"], default_map["elements"]);
+  EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"default"}));
+  // Made again under the same id, it is a new, empty map (its cached map bytes are not the old map's).
+  send_json("POST", "/api/v1/maps", {{"id", "floor2"}}, 201);
+  EXPECT_TRUE(get_json("/api/v1/maps/floor2/map")["elements"].empty());
+  restart();
+  EXPECT_TRUE(get_json("/api/v1/maps/floor2/map")["elements"].empty());
+}
+
+// Hostile ids and paths: each is refused with its status and a JSON error, and nothing is made or changed.
+TEST_F(MapsTest, BadIdsUnknownMapsAndServerRoutesUnderAMapAreRefusedAndChangeNothing) {
+  send_json("POST", "/api/v1/maps", {{"id", "a"}}, 201);
+  const auto files_before = [&] {
+    std::set<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(maps_dir()))
+      names.insert(entry.path().filename().string());
+    return names;
+  };
+  const auto before = files_before();
+  for (const json& bad : {json{{"id", "Floor2"}}, json{{"id", ""}}, json{{"id", "-x"}}, json{{"id", "_x"}},
+                          json{{"id", "a/b"}}, json{{"id", "../etc"}}, json{{"id", std::string(33, 'a')}},
+                          json{{"id", "a b"}}, json{{"id", "é"}}, json{{"id", 7}}, json{{"id", nullptr}},
+                          json{{"name", "x"}}, json{{"id", "x"}, {"extra", 1}}, json::array(), json("x")}) {
+    const auto r = call("POST", "/api/v1/maps", bad.dump());
+    EXPECT_EQ(r.status, 400) << bad.dump() << " -> " << r.body;
+    EXPECT_EQ(json::parse(r.body)["error"], "bad_request") << bad.dump();
+  }
+  EXPECT_EQ(call("POST", "/api/v1/maps", "{not json").status, 400);
+  EXPECT_EQ(files_before(), before);
+
+  // Under a map: a bad id is 400, an unknown map 404, and the map's own routes only.
+  for (const std::string& target :
+       std::vector<std::string>{"/api/v1/maps/Bad/map", "/api/v1/maps/-x/map", "/api/v1/maps/%2e%2e/map",
+                                "/api/v1/maps/" + std::string(33, 'a') + "/map"}) {
+    const auto r = call("GET", target);
+    EXPECT_EQ(r.status, 400) << target << " -> " << r.body;
+  }
+  EXPECT_EQ(call("GET", "/api/v1/maps/nope/map").status, 404);
+  EXPECT_EQ(json::parse(call("GET", "/api/v1/maps/nope/map").body)["error"], "map_not_found");
+  EXPECT_EQ(call("POST", "/api/v1/maps/nope/scans", "{}").status, 404);
+  EXPECT_EQ(call("GET", "/api/v1/maps/nope").status, 404);
+  EXPECT_EQ(call("GET", "/api/v1/maps/Bad").status, 400);
+  for (const std::string server_wide : {"/api/v1/maps/a/maps", "/api/v1/maps/a/network", "/api/v1/maps/a/events",
+                                        "/api/v1/maps/a/", "/api/v1/maps/a/web/index.html", "/api/v1/maps/a/x"})
+    EXPECT_EQ(call("GET", server_wide).status, 404) << server_wide;
+  const auto wrong_method = call("DELETE", "/api/v1/maps/a/scans");
+  EXPECT_EQ(wrong_method.status, 405);
+  EXPECT_EQ(json::parse(wrong_method.body)["detail"], "allowed: POST");
+  EXPECT_EQ(call("DELETE", "/api/v1/maps/default").status, 409);
+  EXPECT_EQ(call("DELETE", "/api/v1/maps/Bad").status, 400);
+  // A bad body to a map's route is that route's 400, and leaves the map as it was.
+  EXPECT_EQ(call("POST", "/api/v1/maps/a/primitives", R"({"segments": [{"p0": [0, "x"], "p1": [1, 1]}]})").status, 400);
+  EXPECT_TRUE(get_json("/api/v1/maps/a/elements")["elements"].empty());
+  EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"a", "default"}));
+  EXPECT_EQ(files_before(), before);
+}
+
+class MapsTokenTest : public MapsTest {
+ protected:
+  void SetUp() override {
+    extra_args_ = {"--token", "s3cret"};
+    MapsTest::SetUp();
+  }
+};
+
+TEST_F(MapsTokenTest, MakingAndDeletingMapsAndWritingToThemNeedTheToken) {
+  EXPECT_EQ(call("POST", "/api/v1/maps", json{{"id", "b"}}.dump()).status, 401);
+  EXPECT_FALSE(std::filesystem::exists(maps_dir() / "b.db"));
+  EXPECT_EQ(client_->request("POST", "/api/v1/maps", json{{"id", "b"}}.dump(), "application/json", "s3cret").status,
+            201);
+  EXPECT_EQ(call("POST", "/api/v1/maps/b/primitives", json{{"segments", {segment(0, 0, 1, 0)}}}.dump()).status, 401);
+  EXPECT_EQ(call("DELETE", "/api/v1/maps/b").status, 401);
+  EXPECT_EQ(call("GET", "/api/v1/maps/b/map").status, 200);  // reads need no token
+  EXPECT_EQ(client_->request("DELETE", "/api/v1/maps/b", "", "application/json", "s3cret").status, 200);
+}
+
+// wmctl --map sends every map command to that map; `wmctl maps` lists, makes and deletes them.
+TEST_F(MapsTest, WmctlWorksOnTheMapItIsGiven) {
+  const auto wmctl_at = [&](const std::string& args) { return run_command(wmctl(server_->url(), args)); };
+  auto r = wmctl_at("maps create lift-b");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto plan = dir_.path() / "plan.json";
+  std::ofstream(plan) << json(lab_plan()).dump();
+  r = wmctl_at("--map lift-b floorplan load " + plan.string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(get_json("/api/v1/maps/lift-b/floorplan")["objects"].size(), 2u);
+  EXPECT_TRUE(get_json("/api/v1/floorplan")["objects"].empty());
+  r = wmctl_at("--json --map lift-b health");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(json::parse(r.output.substr(r.output.find('{')))["objects"], 2);
+  r = wmctl_at("maps");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("lift-b: plan 'lab-e2e', 2 objects"), std::string::npos) << r.output;
+  EXPECT_EQ(wmctl_at("--map Nope map").status, 2);  // not an id: refused before any request
+  EXPECT_EQ(wmctl_at("--map nope map").status, 1);  // no such map: the server's 404
+  r = wmctl_at("maps delete lift-b");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"default"}));
+}
+
+// What a replay left in a map, comparable between maps: its elements and its decisions (without the map's name).
+struct MapContent {
+  json elements;
+  std::vector<json> decisions;
+};
+
+class MapsReplayTest : public MapsTest {
+ protected:
+  void SetUp() override {
+    extra_args_ = {"--sync", "normal"};
+    MapsTest::SetUp();
+  }
+
+  // The Intel log's first scans, with wmctl replay --map (sequential, as a robot posts).
+  void replay_intel(const std::string& map) {
+    const auto log = real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected.log.gz");
+    const auto r = run_command(
+        wmctl(server_->url(), "--map " + map + " --json replay " + log.string() + " --limit 300 --source intel"));
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+
+  // A drive through GDC1 ray-cast from its plan, posted one scan at a time.
+  void replay_gdc1(const std::string& map) {
+    const auto lines =
+        raycast::read_vectormap(real_data("amrl-vectormaps/GDC1.vectormap.json", "plans/GDC1.vectormap.json").string());
+    raycast::DriveOptions drive;
+    drive.step_m = 0.6;
+    const auto scans = raycast::simulate_scans(lines, raycast::gdc1_route(), drive);
+    ASSERT_GT(scans.size(), 100u);
+    client::HttpClient client(server_->url());
+    double stamp = 0;
+    for (const auto& scan : scans) {
+      auto body = logs::laser_scan_body(scan, "gdc1-robot", stamp += 0.5);
+      body["pose_cov"] = {{1e-4, 0, 0}, {0, 1e-4, 0}, {0, 0, 1.2e-5}};
+      const auto r = client.request("POST", "/api/v1/maps/" + map + "/scans", body.dump());
+      ASSERT_EQ(r.status, 200) << r.body;
+    }
+  }
+
+  MapContent content(const std::string& map) {
+    MapContent c;
+    c.elements = get_json("/api/v1/maps/" + map + "/elements")["elements"];
+    std::int64_t since = 0;
+    for (;;) {
+      const json page = get_json("/api/v1/maps/" + map + "/decisions?since=" + std::to_string(since) + "&limit=1000");
+      if (page["decisions"].empty()) break;
+      for (auto d : page["decisions"]) {
+        since = d["seq"].get<std::int64_t>();
+        c.decisions.push_back(std::move(d));
+      }
+    }
+    return c;
+  }
+};
+
+void expect_same(const MapContent& a, const MapContent& b, const std::string& what) {
+  std::printf("%s: %zu elements, %zu decisions\n", what.c_str(), a.elements.size(), a.decisions.size());
+  EXPECT_GT(a.elements.size(), 20u) << what;
+  EXPECT_EQ(a.elements, b.elements) << what;
+  ASSERT_EQ(a.decisions.size(), b.decisions.size()) << what;
+  for (std::size_t i = 0; i < a.decisions.size(); ++i) ASSERT_EQ(a.decisions[i], b.decisions[i]) << what << " #" << i;
+}
+
+TEST_F(MapsReplayTest, TwoMapsReplayedAtOnceEachEqualTheSameReplayAloneAndSurviveARestartAndADelete) {
+  for (const auto* id : {"intel", "gdc1", "intel-alone", "gdc1-alone"})
+    send_json("POST", "/api/v1/maps", {{"id", id}}, 201);
+  {
+    auto intel = std::async(std::launch::async, [&] { replay_intel("intel"); });
+    auto gdc1 = std::async(std::launch::async, [&] { replay_gdc1("gdc1"); });
+    intel.get();
+    gdc1.get();
+  }
+  replay_intel("intel-alone");
+  replay_gdc1("gdc1-alone");
+  const auto intel = content("intel"), gdc1 = content("gdc1");
+  expect_same(intel, content("intel-alone"), "intel");
+  expect_same(gdc1, content("gdc1-alone"), "gdc1");
+  // Nothing of one drive in the other's map, nor in the default map.
+  EXPECT_TRUE(get_json("/api/v1/elements")["elements"].empty());
+  EXPECT_EQ(get_json("/api/v1/maps/intel/robots")["robots"].size(), 1u);
+  EXPECT_EQ(get_json("/api/v1/maps/intel/robots")["robots"][0]["id"], "intel");
+
+  restart();
+  expect_same(content("intel"), intel, "intel after a restart");
+  expect_same(content("gdc1"), gdc1, "gdc1 after a restart");
+
+  send_json("DELETE", "/api/v1/maps/intel", json(nullptr));
+  expect_same(content("gdc1"), gdc1, "gdc1 after intel was deleted");
+  EXPECT_EQ(call("GET", "/api/v1/maps/intel/elements").status, 404);
+}
+
+}  // namespace
+}  // namespace wm::testing
