@@ -31,6 +31,7 @@ struct Call {
   const common::Diagnostics* diagnostics = nullptr;  // nullptr: the health answer has no "diagnostics"
   /// The map the request is about: kDefaultMapId for today's routes, {map} under /api/v1/maps/{map}/.
   std::string_view map_id = service::kDefaultMapId;
+  bool map_scoped = false;               // the path named the map (/api/v1/maps/{map}/...), rather than today's routes
   service::MapRegistry* maps = nullptr;  // the server's other maps; nullptr: it has only the default map
 };
 

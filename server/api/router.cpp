@@ -35,10 +35,13 @@ struct MapContext {
   std::shared_ptr<service::MapInstance> instance;  // null for the default map
   std::optional<service::WorldPorts> ports;        // the instance's
   std::shared_ptr<MapCache> cache;
+  bool scoped = false;  // named in the path
 };
 
-MapContext map_context(const std::string& id, Services& services) {
+MapContext map_context(const std::optional<std::string>& path_id, Services& services) {
   MapContext context;
+  context.scoped = path_id.has_value();
+  const auto id = path_id.value_or(std::string(service::kDefaultMapId));
   if (id == service::kDefaultMapId) {
     context.cache = services.map_cache;
     return context;
@@ -64,6 +67,7 @@ Call call_of(const Request& request, const Target& target, const RouteMatch& mat
             map.instance ? nullptr : services.shm,
             services.diagnostics};
   call.map_id = map.id;
+  call.map_scoped = map.scoped;
   call.maps = services.maps;
   return call;
 }
@@ -101,7 +105,7 @@ Response dispatch(const Request& request, Services& services) {
   const Target target = parse_target(target_of(request));
   if (const auto found = route_of(request.method(), target.path)) {
     const auto& [map_id, match] = *found;
-    const auto map = map_context(map_id.value_or(std::string(service::kDefaultMapId)), services);
+    const auto map = map_context(map_id, services);
     return match.route->handler(call_of(request, target, match, services, map));
   }
   const auto allow = allowed_methods_of(target.path);
@@ -159,7 +163,7 @@ std::optional<SharedResponse> answer_at_once(const Request& request, Services& s
   try {
     require_allowed_sender(request, services);
     const Target target = parse_target(raw);
-    const auto map = map_context(map_id.value_or(std::string(service::kDefaultMapId)), services);
+    const auto map = map_context(map_id, services);
     auto answer = match.route->at_once(call_of(request, target, match, services, map), shared);
     if (!answer) return std::nullopt;
     response = for_request_method(request, std::move(*answer));

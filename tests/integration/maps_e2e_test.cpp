@@ -1,10 +1,13 @@
 // Several maps in one wmd: made, listed, kept apart, kept across a restart, deleted; the routes of one map under
 // /api/v1/maps/{map}/ against hostile ids and paths; two real drives replayed at once into two maps, each equal to
 // the same drive replayed alone.
+#include <sqlite3.h>
+
 #include <filesystem>
 #include <future>
 #include <map>
 #include <set>
+#include <thread>
 
 #include "e2e_fixture.h"
 #include "logs/carmen_log_reader.h"
@@ -155,6 +158,63 @@ TEST_F(MapsTokenTest, MakingAndDeletingMapsAndWritingToThemNeedTheToken) {
   EXPECT_EQ(call("DELETE", "/api/v1/maps/b").status, 401);
   EXPECT_EQ(call("GET", "/api/v1/maps/b/map").status, 200);  // reads need no token
   EXPECT_EQ(client_->request("DELETE", "/api/v1/maps/b", "", "application/json", "s3cret").status, 200);
+}
+
+// A robot that takes the lift: heard on one floor, then on the next. The server-wide list shows it once, on the map
+// that heard from it last; each map keeps its own track of it.
+TEST_F(MapsTest, ARobotBelongsToTheMapThatHeardFromItLast) {
+  send_json("POST", "/api/v1/maps", {{"id", "floor2"}}, 201);
+  send_json("POST", "/api/v1/primitives", {{"source", "lifty"}, {"segments", {segment(0, 0, 0, 4)}}});
+  send_json("POST", "/api/v1/primitives", {{"source", "stays"}, {"segments", {segment(5, 0, 5, 4)}}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));  // last_seen is the wall clock
+  send_json("POST", "/api/v1/maps/floor2/primitives", {{"source", "lifty"}, {"segments", {segment(0, 0, 3, 0)}}});
+
+  const json all = get_json("/api/v1/robots")["robots"];
+  ASSERT_EQ(all.size(), 2u) << all.dump();
+  EXPECT_EQ(all[0]["id"], "lifty");
+  EXPECT_EQ(all[0]["map"], "floor2");
+  EXPECT_EQ(all[0]["maps"], json({"default", "floor2"}));
+  EXPECT_EQ(all[1]["id"], "stays");
+  EXPECT_EQ(all[1]["map"], "default");
+  const json ground = get_json("/api/v1/maps/default/robots")["robots"];
+  ASSERT_EQ(ground.size(), 2u);
+  EXPECT_EQ(ground[0]["map"], "default");
+  const json upstairs = get_json("/api/v1/maps/floor2/robots")["robots"];
+  ASSERT_EQ(upstairs.size(), 1u);
+  EXPECT_EQ(upstairs[0]["id"], "lifty");
+  EXPECT_EQ(upstairs[0]["primitives"], 1);
+}
+
+// One map's writer held up (another connection holds its SQLite file's write lock) does not hold up another
+// map: its scans are answered meanwhile, and the held map's request completes once the lock goes.
+TEST_F(MapsTest, AMapWhoseWriterIsHeldDoesNotHoldUpAnother) {
+  send_json("POST", "/api/v1/maps", {{"id", "held"}}, 201);
+  send_json("POST", "/api/v1/maps", {{"id", "free"}}, 201);
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((maps_dir() / "held.db").string().c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  auto held = std::async(std::launch::async, [&] {
+    client::HttpClient client(server_->url());
+    return client.request("POST", "/api/v1/maps/held/primitives",
+                          json{{"source", "r1"}, {"segments", {segment(0, 0, 0, 4)}}}.dump());
+  });
+  // The free map's answers while the held map's request waits (its store retries the lock for 5 s).
+  std::size_t answered = 0;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+  for (int i = 0; i < 200 && std::chrono::steady_clock::now() < until; ++i) {
+    const auto r = call("POST", "/api/v1/maps/free/primitives",
+                        json{{"source", "r2"}, {"segments", {segment(i, 0, i, 3)}}}.dump());
+    ASSERT_EQ(r.status, 200) << r.body;
+    ++answered;
+  }
+  EXPECT_EQ(held.wait_for(std::chrono::seconds(0)), std::future_status::timeout) << "the held map answered";
+  EXPECT_GE(answered, 20u);
+  ASSERT_EQ(sqlite3_exec(db, "COMMIT", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  const auto r = held.get();
+  EXPECT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(get_json("/api/v1/maps/held/elements")["elements"].size(), 1u);
+  EXPECT_EQ(get_json("/api/v1/maps/free/robots")["robots"][0]["primitives"], static_cast<int>(answered));
 }
 
 // wmctl --map sends every map command to that map; `wmctl maps` lists, makes and deletes them.

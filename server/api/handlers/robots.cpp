@@ -1,5 +1,8 @@
 // The robots the server has heard from: GET /api/v1/robots, GET /api/v1/robots/{id}, PUT /api/v1/robots/{id}/pose.
 #include <chrono>
+#include <map>
+#include <string>
+#include <vector>
 
 #include "server/api/access.h"
 #include "server/api/api_error.h"
@@ -25,12 +28,49 @@ const std::string& robot_id(const Call& call) {
   return call.param;
 }
 
+// Every robot of every map, once: on the map that heard from it last (a robot that took the lift has its track end on
+// one floor and start on the next), with the maps that know it.
+nlohmann::json robots_of_all_maps(const Call& call, double now) {
+  struct Latest {
+    service::RobotState robot;
+    std::string map;
+    std::vector<std::string> maps;
+  };
+  std::map<std::string, Latest> latest;
+  const auto take = [&](const std::string& map, const std::vector<service::RobotState>& robots) {
+    for (const auto& robot : robots) {
+      auto [it, fresh] = latest.try_emplace(robot.id, Latest{robot, map, {}});
+      it->second.maps.push_back(map);
+      if (!fresh && robot.last_seen_unix_s > it->second.robot.last_seen_unix_s)
+        it->second.robot = robot, it->second.map = map;
+    }
+  };
+  take(std::string(call.map_id), call.world.robots.robots());
+  for (const auto& id : call.maps->ids())
+    if (const auto map = call.maps->find(id)) take(id, map->world.robots());
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& [id, entry] : latest) {
+    auto robot = with_status(call, entry.robot, now);
+    robot["map"] = entry.map;
+    robot["maps"] = entry.maps;
+    list.push_back(std::move(robot));
+  }
+  return list;
+}
+
 }  // namespace
 
 Response get_robots(const Call& call) {
   const double now = now_unix_s();
   nlohmann::json list = nlohmann::json::array();
-  for (const auto& robot : call.world.robots.robots()) list.push_back(with_status(call, robot, now));
+  if (call.maps && !call.map_scoped) {
+    list = robots_of_all_maps(call, now);
+  } else {
+    for (const auto& robot : call.world.robots.robots()) {
+      list.push_back(with_status(call, robot, now));
+      list.back()["map"] = call.map_id;
+    }
+  }
   const auto& options = call.world.robots.robot_options();
   return json_response(call.request, {{"robots", std::move(list)},
                                       {"alive_s", options.alive_s},
