@@ -7,6 +7,8 @@
 //    with no extra arguments unless given): a refactor's wmd against the one before it;
 //  - raw SQLite (WAL, synchronous=FULL) inserting one Intel scan body per transaction, the fsync ceiling of a
 //    writer that commits every scan on its own, and 16 per transaction, what group commit could reach.
+// Maps: BM_IngestMaps feeds 1 or 4 maps of one wmd at once (4 robots each), and BM_IngestMapsBesideAHeldMap one
+// map while another map's writer is stuck on a write lock held from outside, against one map alone.
 // WM_BENCH_QUICK caps the log at 200 scans; WM_BENCH_LOG=FILE posts another CARMEN log's laser scans (the first
 // 2000).
 #include <benchmark/benchmark.h>
@@ -113,7 +115,8 @@ struct RobotTally {
 // Posts `bodies` in order on `connection`, retrying the same body after a 503; stops at the first other status,
 // at a connection error, or when another robot failed.
 void run_robot(Connection& connection, const std::vector<std::string>& bodies, RobotTally& tally,
-               std::atomic<bool>& failed, std::string& error, std::mutex& error_mutex) {
+               std::atomic<bool>& failed, std::string& error, std::mutex& error_mutex,
+               const std::string& target) {
   const auto fail = [&](const std::string& what) {
     const std::lock_guard lock(error_mutex);
     if (error.empty()) error = what;
@@ -124,14 +127,14 @@ void run_robot(Connection& connection, const std::vector<std::string>& bodies, R
       for (;;) {
         if (failed) return;
         const auto start = Clock::now();
-        const auto answer = connection.request(http::verb::post, "/api/v1/scans", body);
+        const auto answer = connection.request(http::verb::post, target, body);
         tally.latencies_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
         if (answer.status >= 200 && answer.status < 300) {
           ++tally.accepted;
           break;
         }
         if (answer.status != 503)
-          return fail("POST /api/v1/scans: " + std::to_string(answer.status) + " " + answer.body.substr(0, 300));
+          return fail("POST " + target + ": " + std::to_string(answer.status) + " " + answer.body.substr(0, 300));
         ++tally.retries;
         std::this_thread::sleep_for(kRetryPause);
       }
@@ -180,7 +183,7 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
       std::vector<std::thread> threads;
       for (std::size_t k = 0; k < tallies.size(); ++k)
         threads.emplace_back(run_robot, std::ref(*connections[k]), std::cref(bodies[k]), std::ref(tallies[k]),
-                             std::ref(failed), std::ref(error), std::ref(error_mutex));
+                             std::ref(failed), std::ref(error), std::ref(error_mutex), std::string("/api/v1/scans"));
       for (auto& t : threads) t.join();
       for (const auto& t : tallies) {
         accepted += t.accepted;
@@ -226,6 +229,79 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
   state.counters["p99_ms"] = latencies_ms.empty() ? 0.0 : latencies_ms[p99_index];
   // wmd's CPU per accepted scan, all threads: scans/s can reach at most cores / this, whatever else runs.
   state.counters["cpu_ms_per_scan"] = accepted == 0 ? 0.0 : 1000.0 * wmd_cpu_s / static_cast<double>(accepted);
+}
+
+// Several maps of one wmd busy at once: `maps` maps (m0, m1, ...), each fed the whole log by its own kRobotsPerMap
+// robots. With `held`, a map "held" beside them has its SQLite file's write lock taken by another connection for the
+// whole run and one robot posting to it, stuck: the figure to compare with one map alone is what a stalled floor
+// costs the others. Counters: scans/s over all maps, and wmd's CPU per scan.
+constexpr int kRobotsPerMap = 4;
+
+void ingest_maps(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans, bool held) {
+  const int maps = static_cast<int>(state.range(0));
+  const auto bodies = robot_bodies(*scans, kRobotsPerMap);
+  std::size_t accepted = 0;
+  double wmd_cpu_s = 0;
+  sqlite3* lock = nullptr;
+  try {
+    WmdProcess wmd({});
+    Connection admin(wmd.port());
+    std::vector<std::string> ids;
+    for (int m = 0; m < maps; ++m) ids.push_back("m" + std::to_string(m));
+    if (held) ids.push_back("held");
+    for (const auto& id : ids)
+      if (admin.request(http::verb::post, "/api/v1/maps", nlohmann::json{{"id", id}}.dump()).status != 201)
+        return state.SkipWithError(("POST /api/v1/maps " + id + " failed").c_str());
+    std::unique_ptr<Connection> stuck;
+    std::thread stuck_robot;
+    if (held) {
+      if (sqlite3_open((wmd.dir() / "bench.db.maps" / "held.db").string().c_str(), &lock) != SQLITE_OK ||
+          sqlite3_exec(lock, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) != SQLITE_OK)
+        return state.SkipWithError("cannot take the held map's write lock");
+      stuck = std::make_unique<Connection>(wmd.port());
+      stuck_robot = std::thread([&] {
+        try {
+          stuck->request(http::verb::post, "/api/v1/maps/held/scans", bodies[0][0]);
+        } catch (const std::exception&) {
+          // answered (a 503 after the store's 5 s) or cut when wmd stops: either way it stalled until then
+        }
+      });
+    }
+    std::vector<std::unique_ptr<Connection>> connections;
+    for (int k = 0; k < maps * kRobotsPerMap; ++k) connections.push_back(std::make_unique<Connection>(wmd.port()));
+    std::string error;
+    const double cpu_before = wmd.cpu_seconds();
+    for (auto _ : state) {
+      std::vector<RobotTally> tallies(connections.size());
+      std::atomic<bool> failed{false};
+      std::mutex error_mutex;
+      std::vector<std::thread> threads;
+      for (std::size_t k = 0; k < tallies.size(); ++k)
+        threads.emplace_back(run_robot, std::ref(*connections[k]), std::cref(bodies[k % kRobotsPerMap]),
+                             std::ref(tallies[k]), std::ref(failed), std::ref(error), std::ref(error_mutex),
+                             "/api/v1/maps/" + ids[k / kRobotsPerMap] + "/scans");
+      for (auto& t : threads) t.join();
+      for (const auto& t : tallies) accepted += t.accepted;
+      if (failed) break;
+    }
+    wmd_cpu_s = wmd.cpu_seconds() - cpu_before;
+    if (lock) {
+      sqlite3_exec(lock, "COMMIT", nullptr, nullptr, nullptr);
+      sqlite3_close(lock);
+      lock = nullptr;
+    }
+    if (stuck_robot.joinable()) stuck_robot.join();
+    if (!error.empty()) return state.SkipWithError(error.c_str());
+  } catch (const std::exception& e) {
+    if (lock) sqlite3_close(lock);
+    return state.SkipWithError(e.what());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(accepted));
+  state.counters["maps"] = maps;
+  state.counters["scans"] = static_cast<double>(accepted);
+  state.counters["cpu_ms_per_scan"] = accepted == 0 ? 0.0 : 1000.0 * wmd_cpu_s / static_cast<double>(accepted);
+  std::fprintf(stderr, "wmd CPU per scan, %d map(s) busy%s: %.3f ms\n", maps, held ? " beside a held one" : "",
+               accepted == 0 ? 0.0 : 1000.0 * wmd_cpu_s / static_cast<double>(accepted));
 }
 
 // A raw SQLite writer: `rows_per_transaction` inserts of `payload` per commit, WAL and synchronous=FULL as wmd's
@@ -316,5 +392,20 @@ int main(int argc, char** argv) {
          std::string(ingest_family(true)) + "/robots:" + std::to_string(robots) + "/iterations:1/real_time"});
   }
   ratios.push_back({"against raw SQLite, one commit per scan", "BM_SqliteCommit_1RowPerTxn/real_time"});
+  // Maps side by side: one, four, and one beside a map whose writer is held (against one map alone).
+  for (const int maps : {1, 4})
+    benchmark::RegisterBenchmark("BM_IngestMaps", ingest_maps, &scans, false)
+        ->ArgName("maps")
+        ->Arg(maps)
+        ->Iterations(1)
+        ->UseRealTime()
+        ->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("BM_IngestMapsBesideAHeldMap", ingest_maps, &scans, true)
+      ->ArgName("maps")
+      ->Arg(1)
+      ->Iterations(1)
+      ->UseRealTime()
+      ->Unit(benchmark::kMillisecond);
+  ratios.push_back({"against one map alone (4 robots)", "BM_IngestMaps/maps:1/iterations:1/real_time"});
   return wm::bench::run_with_ratios(argc, argv, ratios);
 }

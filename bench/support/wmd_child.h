@@ -146,6 +146,8 @@ class WmdProcess {
   WmdProcess& operator=(const WmdProcess&) = delete;
 
   unsigned short port() const { return *port_; }
+  /// Where its database is (bench.db, and the other maps in bench.db.maps/).
+  const fs::path& dir() const { return dir_.path(); }
 
   /// CPU time wmd has used so far, user and system, all threads [s] (from /proc; 0 when unreadable). What ingest costs
   /// in CPU does not depend on what else the machine runs, unlike its rate.
