@@ -115,8 +115,7 @@ struct RobotTally {
 // Posts `bodies` in order on `connection`, retrying the same body after a 503; stops at the first other status,
 // at a connection error, or when another robot failed.
 void run_robot(Connection& connection, const std::vector<std::string>& bodies, RobotTally& tally,
-               std::atomic<bool>& failed, std::string& error, std::mutex& error_mutex,
-               const std::string& target) {
+               std::atomic<bool>& failed, std::string& error, std::mutex& error_mutex, const std::string& target) {
   const auto fail = [&](const std::string& what) {
     const std::lock_guard lock(error_mutex);
     if (error.empty()) error = what;

@@ -110,7 +110,8 @@ int main(int argc, char** argv) {
           // The route table names the subprotocol each WebSocket speaks; none is the events stream.
           if (api::websocket_subprotocol(r) == foxglove::kSubprotocol) return foxglove_bridge.connect();
           return nullptr;
-        }};
+        },
+        [&services](const api::Request& r) { return api::map_events_hub(r, services); }};
     http::HttpServer server(cfg.http, std::move(handlers), diagnostics, &events);
     std::thread signal_waiter([&server, signals] {
       int signal = 0;

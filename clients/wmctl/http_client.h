@@ -21,7 +21,7 @@ struct HttpResult {
 };
 
 /// `target` as one map's: a map's own resource "/api/v1/X..." becomes "/api/v1/maps/{map}/X..."; the server's own
-/// (/api/v1/network, /api/v1/maps..., /api/v1/events), other paths, and every path for an empty map or "default"
+/// (/api/v1/network, /api/v1/maps...), other paths, and every path for an empty map or "default"
 /// stay as they are.
 std::string map_target(const std::string& map, const std::string& target);
 

@@ -1,7 +1,7 @@
 #pragma once
 
-// Requests to one map of several: "/api/v1/maps/{map}/scans" is "/api/v1/scans" of map {map}. The route table is
-// one; the path is split before it is looked up, and the handler gets the map's ports and map cache.
+// The map caches of one server's maps: a request under /api/v1/maps/{map}/ (split_map_path, routes.h) gets its map's
+// ports and its map cache.
 #include <map>
 #include <memory>
 #include <mutex>
@@ -14,16 +14,6 @@
 #include "server/service/map_registry.h"
 
 namespace wm::api {
-
-/// A path under /api/v1/maps/{map}/: the map's id (not yet validated) and the path as the default map's routes
-/// name it ("/api/v1/maps/floor2/grid/tiles" → {"floor2", "/api/v1/grid/tiles"}).
-struct MapScopedPath {
-  std::string map;
-  std::string path;
-};
-
-/// nullopt for a path that names no map's resource: "/api/v1/maps", "/api/v1/maps/{map}" itself, anything else.
-std::optional<MapScopedPath> split_map_path(std::string_view path);
 
 /// The map caches of the registry's maps, one per map instance (a map deleted and made again under the same id is
 /// another map, with versions of its own). A cache goes when its map has gone. Thread-safe.

@@ -133,8 +133,17 @@ bool is_websocket_upgrade(const Request& request) {
   return boost::beast::websocket::is_upgrade(request) && is_websocket_target(target_of(request));
 }
 
-std::optional<Response> authorize_events(const Request& request, const Services& services) {
+std::optional<Response> authorize_events(const Request& request, Services& services) {
   if (auto refusal = authorize_upgrade(request, services.options)) return refusal;
+  const auto raw = target_of(request);
+  if (const auto scoped = split_map_path(raw.substr(0, raw.find('?')))) {
+    try {
+      map_context(scoped->map, services);
+    } catch (...) {
+      const auto failure = http_error(std::current_exception());
+      return error_response(request.version(), false, failure.status, failure.error, failure.detail);
+    }
+  }
   const auto protocol = websocket_subprotocol(request);
   if (protocol.empty() || offers_subprotocol(request, protocol)) return std::nullopt;
   const auto target = target_of(request);
@@ -143,6 +152,15 @@ std::optional<Response> authorize_events(const Request& request, const Services&
                             " speaks the WebSocket subprotocol " + std::string(protocol) +
                             ": offer it in 'Sec-WebSocket-Protocol: " + std::string(protocol) +
                             "' (Foxglove Studio does)");
+}
+
+std::shared_ptr<events::EventHub> map_events_hub(const Request& request, Services& services) {
+  const auto raw = target_of(request);
+  const auto scoped = split_map_path(raw.substr(0, raw.find('?')));
+  if (!scoped || !services.maps || !service::valid_map_id(scoped->map)) return nullptr;
+  auto map = services.maps->find(scoped->map);
+  if (!map) return nullptr;
+  return std::shared_ptr<events::EventHub>(map, &map->events);
 }
 
 std::string_view websocket_subprotocol(const Request& request) {

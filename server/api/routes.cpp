@@ -141,18 +141,29 @@ std::string allowed_methods(std::string_view path) {
 bool is_websocket_target(std::string_view target) { return websocket_route(target) != nullptr; }
 
 const Route* websocket_route(std::string_view target) {
-  const auto path = target.substr(0, target.find('?'));
+  const auto raw_path = target.substr(0, target.find('?'));
+  const auto scoped = split_map_path(raw_path);
+  const std::string_view path = scoped ? std::string_view(scoped->path) : raw_path;
   std::string ignored;
   const auto it = std::find_if(kRoutes.begin(), kRoutes.end(), [&](const Route& route) {
-    return route.websocket && route.method == verb::get && pattern_matches(route.pattern, path, ignored);
+    return route.websocket && route.method == verb::get && pattern_matches(route.pattern, path, ignored) &&
+           (!scoped || is_per_map(route));
   });
   return it == kRoutes.end() ? nullptr : &*it;
 }
 
+std::optional<MapScopedPath> split_map_path(std::string_view path) {
+  constexpr std::string_view prefix = "/api/v1/maps/";
+  if (!path.starts_with(prefix)) return std::nullopt;
+  const auto rest = path.substr(prefix.size());
+  const auto slash = rest.find('/');
+  if (slash == std::string_view::npos || slash == 0) return std::nullopt;
+  return MapScopedPath{std::string(rest.substr(0, slash)), "/api/v1" + std::string(rest.substr(slash))};
+}
+
 bool is_per_map(const Route& route) {
-  constexpr std::array<std::string_view, 8> server_wide{
-      "/",         "/api/v1",    "/api/v1/network", "/api/v1/maps", "/api/v1/maps/{map}", "/api/v1/events",
-      "/foxglove", "/web/{path}"};
+  constexpr std::array<std::string_view, 7> server_wide{
+      "/", "/api/v1", "/api/v1/network", "/api/v1/maps", "/api/v1/maps/{map}", "/foxglove", "/web/{path}"};
   return std::find(server_wide.begin(), server_wide.end(), route.pattern) == server_wide.end();
 }
 

@@ -53,13 +53,25 @@ std::optional<RouteMatch> find_route(boost::beast::http::verb method, std::strin
 std::string allowed_methods(std::string_view path);
 /// Whether a GET upgrade of this target (path and query) is one the table names as a WebSocket.
 bool is_websocket_target(std::string_view target);
-/// The WebSocket route of a target (path and query), nullptr when it names none.
+/// The WebSocket route of a target (path and query), nullptr when it names none; under /api/v1/maps/{map}/ only a
+/// map's own (its events).
 const Route* websocket_route(std::string_view target);
 
 /// Whether a route is one map's resource, and so also answers under /api/v1/maps/{map}/ (the floor plan, scans,
 /// grid, health, ...); the server's own (the index, the network, the maps, the viewer's files, the WebSockets) are
 /// not.
 bool is_per_map(const Route& route);
+
+/// A path under /api/v1/maps/{map}/: the map's id (not yet validated) and the path as the default map's routes
+/// name it ("/api/v1/maps/floor2/grid/tiles" → {"floor2", "/api/v1/grid/tiles"}). The route table is one; such a path
+/// is split before the table is searched.
+struct MapScopedPath {
+  std::string map;
+  std::string path;
+};
+
+/// nullopt for a path that names no map's resource: "/api/v1/maps", "/api/v1/maps/{map}" itself, anything else.
+std::optional<MapScopedPath> split_map_path(std::string_view path);
 
 /// "METHOD PATTERN" of a route, as the index and the README list it.
 std::string route_name(const Route& route);

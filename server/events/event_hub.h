@@ -23,6 +23,7 @@ enum class EventKind {
   robot,         // a robot's pose or status
   change,        // a change was accepted, rejected or undone
   resync,        // this subscriber fell behind and lost events: everything is stale
+  map_removed,   // the map was deleted: nothing more comes
 };
 
 /// One event as a subscriber gets it: its kind, and its JSON text with "seq" spliced in.

@@ -181,7 +181,8 @@ void Bridge::Core::take_events() {
         elements_dirty_ = plan_dirty_ = decisions_dirty_ = true;
         break;
       case events::EventKind::change:
-      case events::EventKind::resync:  // the hub dropped events for us: everything
+      case events::EventKind::map_removed:  // a map other than the bridge's: never on its hub
+      case events::EventKind::resync:       // the hub dropped events for us: everything
         elements_dirty_ = plan_dirty_ = decisions_dirty_ = grid_dirty_ = robots_dirty_ = true;
         break;
     }

@@ -123,7 +123,8 @@ class HandlerPool {
 // One live-events WebSocket: forwards the hub's events in order; reads only to notice the close.
 class EventSession : public std::enable_shared_from_this<EventSession> {
  public:
-  EventSession(tcp::socket&& socket, events::EventHub& hub) : ws_(std::move(socket)), hub_(hub) {}
+  EventSession(tcp::socket&& socket, events::EventHub& hub, std::shared_ptr<events::EventHub> owner = nullptr)
+      : ws_(std::move(socket)), owner_(std::move(owner)), hub_(hub) {}
   ~EventSession() {
     if (subscriber_) hub_.unsubscribe(subscriber_);
   }
@@ -187,6 +188,7 @@ class EventSession : public std::enable_shared_from_this<EventSession> {
   }
 
   websocket::stream<beast::tcp_stream> ws_;
+  std::shared_ptr<events::EventHub> owner_;  // keeps a map's hub while the stream runs (null: the server's)
   events::EventHub& hub_;
   std::shared_ptr<events::EventHub::Subscriber> subscriber_;
   beast::flat_buffer buffer_;
@@ -369,13 +371,15 @@ class Session : public std::enable_shared_from_this<Session> {
         if (auto refusal = handlers_.authorize_upgrade(parser_->get())) return write(std::move(*refusal));
       }
       auto endpoint = handlers_.open_websocket ? handlers_.open_websocket(parser_->get()) : nullptr;
-      if (endpoint || hub_) {
+      auto map_hub = !endpoint && handlers_.events_hub ? handlers_.events_hub(parser_->get()) : nullptr;
+      if (endpoint || map_hub || hub_) {
         stream_.expires_never();
         if (endpoint) {
           std::make_shared<EndpointSession>(stream_.release_socket(), std::move(endpoint), diagnostics_)
               ->run(parser_->release());
         } else {
-          std::make_shared<EventSession>(stream_.release_socket(), *hub_)->run(parser_->release());
+          auto& hub = map_hub ? *map_hub : *hub_;
+          std::make_shared<EventSession>(stream_.release_socket(), hub, std::move(map_hub))->run(parser_->release());
         }
         return;
       }

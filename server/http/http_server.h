@@ -59,6 +59,8 @@ class HttpServer {
     /// After authorize_upgrade allowed it: the endpoint that runs this WebSocket, or null for the live events (the
     /// `events` hub). Empty: every WebSocket is the events stream.
     std::function<std::shared_ptr<WebSocketEndpoint>(const api::Request&)> open_websocket;
+    /// For the live events of one map of several: its hub, kept while the stream runs; null (or empty): `events`.
+    std::function<std::shared_ptr<events::EventHub>(const api::Request&)> events_hub;
   };
   /// Binds and listens. WebSocket upgrades that `handlers.is_websocket` accepts run on the endpoint
   /// `handlers.open_websocket` gives, or else subscribe to `events` (when given). What the server recovers from (a

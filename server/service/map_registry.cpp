@@ -49,7 +49,7 @@ MapInstance::MapInstance(std::string map_id, const MapRegistryOptions& options, 
         rules_options.knowledge_base = std::move(knowledge_base);
         return rules_options;
       }()),
-      world(options.service, store, engine, diagnostics) {}
+      world(options.service, store, engine, diagnostics, &events) {}
 
 MapInstance::~MapInstance() = default;
 
@@ -144,6 +144,8 @@ void MapRegistry::remove(const std::string& id) {
     std::filesystem::rename(file, removed_file(options_.data_dir, removed_as, file), missing);
   }
   map->removed_as = removed_as;
+  // Those who follow the map's events learn why nothing more comes.
+  map->events.publish(events::EventKind::map_removed, R"({"type":"map_removed","map":")" + id + "\"}");
 }
 
 }  // namespace wm::service

@@ -11,6 +11,7 @@
 
 #include "common/diagnostics.h"
 #include "rules/engine.h"
+#include "server/events/event_hub.h"
 #include "server/service/world_service.h"
 #include "server/storage/store.h"
 
@@ -43,6 +44,7 @@ struct MapInstance {
   const std::string id;
   storage::Store store;
   rules::Engine engine;
+  events::EventHub events;  // the map's live events (/api/v1/maps/{map}/events)
   WorldService world;
   /// Set by MapRegistry::remove: the prefix its files were renamed with, to go when the last user lets go.
   std::string removed_as;

@@ -82,10 +82,11 @@ inline json lab_plan() {
 /// A client of GET /api/v1/events (the WebSocket): next() blocks for the next event.
 class EventClient {
  public:
-  explicit EventClient(int port) : ws_(ioc_) {
+  /// `target`: another map's events, /api/v1/maps/{map}/events.
+  explicit EventClient(int port, const std::string& target = "/api/v1/events") : ws_(ioc_) {
     boost::asio::ip::tcp::resolver resolver(ioc_);
     boost::asio::connect(ws_.next_layer(), resolver.resolve("127.0.0.1", std::to_string(port)));
-    ws_.handshake("127.0.0.1", "/api/v1/events");
+    ws_.handshake("127.0.0.1", target);
   }
   json next() {
     boost::beast::flat_buffer buffer;

@@ -126,9 +126,10 @@ TEST_F(MapsTest, BadIdsUnknownMapsAndServerRoutesUnderAMapAreRefusedAndChangeNot
   EXPECT_EQ(call("POST", "/api/v1/maps/nope/scans", "{}").status, 404);
   EXPECT_EQ(call("GET", "/api/v1/maps/nope").status, 404);
   EXPECT_EQ(call("GET", "/api/v1/maps/Bad").status, 400);
-  for (const std::string server_wide : {"/api/v1/maps/a/maps", "/api/v1/maps/a/network", "/api/v1/maps/a/events",
+  for (const std::string server_wide : {"/api/v1/maps/a/maps", "/api/v1/maps/a/network", "/api/v1/maps/a/foxglove",
                                         "/api/v1/maps/a/", "/api/v1/maps/a/web/index.html", "/api/v1/maps/a/x"})
     EXPECT_EQ(call("GET", server_wide).status, 404) << server_wide;
+  EXPECT_EQ(call("GET", "/api/v1/maps/a/events").status, 426);  // a map's WebSocket, asked for without an upgrade
   const auto wrong_method = call("DELETE", "/api/v1/maps/a/scans");
   EXPECT_EQ(wrong_method.status, 405);
   EXPECT_EQ(json::parse(wrong_method.body)["detail"], "allowed: POST");
@@ -215,6 +216,42 @@ TEST_F(MapsTest, AMapWhoseWriterIsHeldDoesNotHoldUpAnother) {
   EXPECT_EQ(r.status, 200) << r.body;
   EXPECT_EQ(get_json("/api/v1/maps/held/elements")["elements"].size(), 1u);
   EXPECT_EQ(get_json("/api/v1/maps/free/robots")["robots"][0]["primitives"], static_cast<int>(answered));
+}
+
+// Each map's live events are its own: a change on one map reaches the WebSocket of that map only, and a client
+// following a map that is deleted is told so.
+TEST_F(MapsTest, EachMapHasItsOwnEventsAndTheirClientsHearOfItsDeletion) {
+  send_json("POST", "/api/v1/maps", {{"id", "floor2"}}, 201);
+  EventClient floor2(server_->port(), "/api/v1/maps/floor2/events");
+  EventClient ground(server_->port());
+  EXPECT_EQ(floor2.next()["type"], "hello");
+  EXPECT_EQ(ground.next()["type"], "hello");
+  send_json("POST", "/api/v1/maps/floor2/primitives", {{"source", "r2"}, {"segments", {segment(0, 0, 0, 4)}}});
+  send_json("POST", "/api/v1/primitives", {{"source", "r1"}, {"segments", {segment(7, 0, 7, 5)}}});
+  const json upstairs = floor2.next_of("update");
+  ASSERT_EQ(upstairs["decisions"].size(), 1u) << upstairs.dump();
+  EXPECT_EQ(upstairs["decisions"][0]["observer"], "r2");
+  const json downstairs = ground.next_of("update");
+  ASSERT_EQ(downstairs["decisions"].size(), 1u) << downstairs.dump();
+  EXPECT_EQ(downstairs["decisions"][0]["observer"], "r1");
+
+  send_json("DELETE", "/api/v1/maps/floor2", json(nullptr));
+  EXPECT_EQ(floor2.next_of("map_removed")["map"], "floor2");
+  // No stream for a map there is not, or an id that is none.
+  const auto refused = raw_request(server_->port(), boost::beast::http::verb::get, "/api/v1/maps/floor2/events",
+                                   {{"Host", "127.0.0.1"},
+                                    {"Upgrade", "websocket"},
+                                    {"Connection", "Upgrade"},
+                                    {"Sec-WebSocket-Version", "13"},
+                                    {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
+  EXPECT_EQ(refused.result_int(), 404u) << refused.body();
+  const auto bad = raw_request(server_->port(), boost::beast::http::verb::get, "/api/v1/maps/Bad/events",
+                               {{"Host", "127.0.0.1"},
+                                {"Upgrade", "websocket"},
+                                {"Connection", "Upgrade"},
+                                {"Sec-WebSocket-Version", "13"},
+                                {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
+  EXPECT_EQ(bad.result_int(), 400u) << bad.body();
 }
 
 // wmctl --map sends every map command to that map; `wmctl maps` lists, makes and deletes them.
