@@ -286,6 +286,35 @@ class RmfImporter {
 
 }  // namespace
 
+std::vector<std::string> rmf_level_names(std::string_view yaml_text) {
+  if (const auto bad = common::invalid_utf8_offset(yaml_text)) {
+    const auto line = 1 + std::count(yaml_text.begin(), yaml_text.begin() + static_cast<std::ptrdiff_t>(*bad), '\n');
+    throw FloorPlanError("line " + std::to_string(line), "not UTF-8 (byte " + std::to_string(*bad) + ")");
+  }
+  try {
+    const YAML::Node root = YAML::Load(std::string(yaml_text));
+    const YAML::Node levels = root.IsMap() ? root["levels"] : YAML::Node();
+    if (!levels || !levels.IsMap() || levels.size() == 0) throw FloorPlanError("levels", "no levels in the building");
+    std::vector<std::pair<double, std::string>> by_elevation;
+    for (const auto& kv : levels) {
+      const auto name = kv.first.Scalar();
+      const auto elevation = kv.second.IsMap() ? kv.second["elevation"] : YAML::Node();
+      double height = 0;
+      if (elevation && !YAML::convert<double>::decode(elevation, height))
+        throw FloorPlanError("levels." + name + ".elevation", "not a number");
+      by_elevation.emplace_back(height, name);
+    }
+    std::stable_sort(by_elevation.begin(), by_elevation.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::vector<std::string> names;
+    for (auto& [height, name] : by_elevation) names.push_back(std::move(name));
+    return names;
+  } catch (const YAML::Exception& e) {
+    throw FloorPlanError(e.mark.is_null() ? std::string() : "line " + std::to_string(e.mark.line + 1),
+                         "malformed YAML: " + e.msg);
+  }
+}
+
 ImportResult import_rmf_building(std::string_view yaml_text, const RmfImportOptions& options) {
   if (options.metres_per_pixel && !(std::isfinite(*options.metres_per_pixel) && *options.metres_per_pixel > 0.0))
     throw std::invalid_argument("import_rmf_building: metres_per_pixel must be finite and > 0");

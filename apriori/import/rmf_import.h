@@ -48,4 +48,8 @@ struct RmfImportOptions {
 /// @throw std::invalid_argument for a non-positive or non-finite metres_per_pixel or model size.
 ImportResult import_rmf_building(std::string_view yaml_text, const RmfImportOptions& options = {});
 
+/// The levels of a building.yaml by elevation (then file order), lowest first: each imports as its own floor plan
+/// (RmfImportOptions::level). @throw FloorPlanError for text that is not UTF-8, malformed YAML or no levels.
+std::vector<std::string> rmf_level_names(std::string_view yaml_text);
+
 }  // namespace wm::apriori

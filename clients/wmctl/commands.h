@@ -11,6 +11,7 @@ int network(const Invocation& in);
 int maps_list(const Invocation& in);
 int maps_create(const Invocation& in);
 int maps_delete(const Invocation& in);
+int maps_import(const Invocation& in);
 int floorplan_load(const Invocation& in);
 int floorplan_show(const Invocation& in);
 int floorplan_align(const Invocation& in);

@@ -72,6 +72,16 @@ int maps_delete(const Invocation& in) {
                  [](const json& r) { std::cout << "deleted map " << r["deleted"].get<std::string>() << "\n"; });
 }
 
+int maps_import(const Invocation& in) {
+  const auto target = "/api/v1/maps?prefix=" + in.flag("--prefix").value_or("");
+  const auto answer = in.client.request("POST", target, read_file(in.operands[0]), "application/yaml", in.token);
+  return in.emit(parse_answer(answer), [](const json& r) {
+    for (const auto& m : r["maps"])
+      std::cout << "created map " << m["id"].get<std::string>() << " (level " << m["level"].get<std::string>() << ", "
+                << m["objects"] << " objects)\n";
+  });
+}
+
 int network(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/network")), [](const json& n) {
     std::cout << "network " << n["task_file"].get<std::string>() << "\n";

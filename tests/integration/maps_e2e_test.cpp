@@ -254,6 +254,72 @@ TEST_F(MapsTest, EachMapHasItsOwnEventsAndTheirClientsHearOfItsDeletion) {
   EXPECT_EQ(bad.result_int(), 400u) << bad.body();
 }
 
+// The RMF office as a building of two floors: its level L1 as drawn, and a level L2 3.5 m above it with the same
+// walls and doors and no furniture (the structure of a real multi-level building.yaml: one "levels" map, each level
+// with its own vertices, walls, doors, models, measurements and elevation).
+std::string two_level_office() {
+  const std::string office = slurp(real_data("rmf-office/office.building.yaml", "plans/rmf-office.building.yaml"));
+  const auto l1 = office.find("\n  L1:\n"), lifts = office.find("\nlifts:");
+  EXPECT_NE(l1, std::string::npos);
+  EXPECT_NE(lifts, std::string::npos);
+  std::string l2 = office.substr(l1, lifts - l1);
+  l2.replace(l2.find("\n  L1:\n"), 7, "\n  L2:\n");
+  l2.replace(l2.find("    elevation: 0"), 16, "    elevation: 3.5");
+  const auto models = l2.find("\n    models:"), vertices = l2.find("\n    vertices:");
+  EXPECT_LT(models, vertices);
+  l2.erase(models, vertices - models);
+  return office.substr(0, lifts) + l2 + office.substr(lifts);
+}
+
+TEST_F(MapsTest, ABuildingOfSeveralLevelsImportsAsAMapPerLevel) {
+  const auto building = two_level_office();
+  auto r = call("POST", "/api/v1/maps?prefix=office", building, "application/yaml");
+  ASSERT_EQ(r.status, 201) << r.body;
+  const json made = json::parse(r.body)["maps"];
+  ASSERT_EQ(made.size(), 2u);
+  EXPECT_EQ(made[0]["id"], "office-l1");
+  EXPECT_EQ(made[0]["level"], "L1");
+  EXPECT_EQ(made[1]["id"], "office-l2");
+  // The same level imported alone, as PUT /api/v1/floorplan?level= does, is what the level's map holds.
+  send_json("POST", "/api/v1/maps", {{"id", "alone"}}, 201);
+  r = call("PUT", "/api/v1/maps/alone/floorplan?level=L1", building, "application/yaml");
+  ASSERT_EQ(r.status, 200) << r.body;
+  const json l1 = get_json("/api/v1/maps/office-l1/floorplan"), alone = get_json("/api/v1/maps/alone/floorplan");
+  EXPECT_EQ(l1["objects"], alone["objects"]);
+  const json l2 = get_json("/api/v1/maps/office-l2/floorplan");
+  std::size_t furniture = 0, walls_l1 = 0, walls_l2 = 0;
+  for (const auto& o : l1["objects"]) {
+    furniture += o["kind"] == "furniture";
+    walls_l1 += o["kind"] == "wall";
+  }
+  for (const auto& o : l2["objects"]) {
+    EXPECT_NE(o["kind"], "furniture");
+    walls_l2 += o["kind"] == "wall";
+  }
+  EXPECT_GT(furniture, 0u);
+  EXPECT_GT(walls_l1, 20u);
+  EXPECT_EQ(walls_l1, walls_l2);
+  EXPECT_EQ(made[1]["objects"], l2["objects"].size());
+
+  // All or nothing: a second import under the same prefix is refused whole, and a broken level makes no map.
+  r = call("POST", "/api/v1/maps?prefix=office", building, "application/yaml");
+  EXPECT_EQ(r.status, 409) << r.body;
+  std::string broken = building;
+  broken.replace(broken.rfind("    measurements:"), 17, "    measurementz:");  // L2 loses its scale
+  r = call("POST", "/api/v1/maps?prefix=other", broken, "application/yaml");
+  EXPECT_EQ(r.status, 400) << r.body;
+  for (const auto& [body, query] :
+       std::vector<std::pair<std::string, std::string>>{{building, ""},
+                                                        {building, "?prefix=Bad"},
+                                                        {"levels: {}", "?prefix=x"},
+                                                        {"{{{", "?prefix=x"},
+                                                        {std::string("levels:\n  L\xff: {}\n"), "?prefix=x"}}) {
+    r = call("POST", "/api/v1/maps" + query, body, "application/yaml");
+    EXPECT_EQ(r.status, 400) << query << " " << r.body;
+  }
+  EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"alone", "default", "office-l1", "office-l2"}));
+}
+
 // wmctl --map sends every map command to that map; `wmctl maps` lists, makes and deletes them.
 TEST_F(MapsTest, WmctlWorksOnTheMapItIsGiven) {
   const auto wmctl_at = [&](const std::string& args) { return run_command(wmctl(server_->url(), args)); };
@@ -273,9 +339,15 @@ TEST_F(MapsTest, WmctlWorksOnTheMapItIsGiven) {
   EXPECT_NE(r.output.find("lift-b: plan 'lab-e2e', 2 objects"), std::string::npos) << r.output;
   EXPECT_EQ(wmctl_at("--map Nope map").status, 2);  // not an id: refused before any request
   EXPECT_EQ(wmctl_at("--map nope map").status, 1);  // no such map: the server's 404
+  const auto building = dir_.path() / "office.building.yaml";
+  std::ofstream(building) << two_level_office();
+  r = wmctl_at("maps import " + building.string() + " --prefix hq");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("created map hq-l2 (level L2"), std::string::npos) << r.output;
+  EXPECT_EQ(wmctl_at("maps import " + building.string()).status, 2);  // --prefix is required
   r = wmctl_at("maps delete lift-b");
   ASSERT_EQ(r.status, 0) << r.output;
-  EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"default"}));
+  EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"default", "hq-l1", "hq-l2"}));
 }
 
 // What a replay left in a map, comparable between maps: its elements and its decisions (without the map's name).

@@ -1,5 +1,9 @@
 // The maps one server holds: GET/POST /api/v1/maps, GET/DELETE /api/v1/maps/{map}. Each map's own resources are
 // today's routes under /api/v1/maps/{map}/ (split off in the router); the default map's are also today's routes.
+#include <string>
+#include <vector>
+
+#include "apriori/import/rmf_import.h"
 #include "server/api/access.h"
 #include "server/api/api_error.h"
 #include "server/api/handlers.h"
@@ -43,13 +47,71 @@ Response get_maps(const Call& call) {
   return json_response(call.request, {{"maps", std::move(list)}});
 }
 
+namespace {
+
+// A map id from a building level's name: "L1" → "<prefix>-l1"; characters an id has not become '-'.
+std::string level_map_id(const std::string& prefix, const std::string& level) {
+  std::string id = prefix + "-";
+  for (const char c : level) {
+    const char lower = c >= 'A' && c <= 'Z' ? static_cast<char>(c - 'A' + 'a') : c;
+    id += (lower >= 'a' && lower <= 'z') || (lower >= '0' && lower <= '9') || lower == '_' ? lower : '-';
+  }
+  if (!service::valid_map_id(id))
+    throw bad_request("level", "level '" + level + "' makes the map id '" + id + "': " + kIdRule);
+  return id;
+}
+
+// An Open-RMF building.yaml: a map per level, "<prefix>-<level>", each with its level's plan loaded. All levels are
+// imported before any map is made, and the maps made are taken back when one fails: all or nothing.
+Response post_building(const Call& call) {
+  const auto prefix = call.target.param("prefix");
+  if (!prefix || !service::valid_map_id(*prefix)) throw bad_request("prefix", "?prefix=ID: " + std::string(kIdRule));
+  struct Level {
+    std::string name, id;
+    apriori::ImportResult imported;
+  };
+  std::vector<Level> levels;
+  for (const auto& name : apriori::rmf_level_names(call.request.body())) {
+    apriori::RmfImportOptions options;
+    options.level = name;
+    options.limits = call.options.plan_limits;
+    options.name = name;
+    levels.push_back({name, level_map_id(*prefix, name), apriori::import_rmf_building(call.request.body(), options)});
+  }
+  for (const auto& level : levels)
+    if (level.id == service::kDefaultMapId || call.maps->find(level.id))
+      throw ApiError(409, "conflict", "map '" + level.id + "' exists (level '" + level.name + "')");
+  std::vector<std::string> made;
+  nlohmann::json answer = nlohmann::json::array();
+  try {
+    for (auto& level : levels) {
+      const auto map = call.maps->create(level.id);
+      made.push_back(level.id);
+      const auto objects = level.imported.plan.objects.size();
+      map->world.load_floor_plan(std::move(level.imported.plan));
+      auto entry = map_summary(level.id, service::WorldPorts(map->world));
+      entry["level"] = level.name;
+      entry["imported_objects"] = objects;
+      answer.push_back(std::move(entry));
+    }
+  } catch (...) {
+    for (const auto& id : made) call.maps->remove(id);
+    throw;
+  }
+  return json_response(call.request, {{"maps", std::move(answer)}}, boost::beast::http::status::created);
+}
+
+}  // namespace
+
 Response post_maps(const Call& call) {
   require_token(call.request, call.options);
+  if (!call.maps) throw ApiError(409, "maps_disabled", "this server holds only its default map");
+  if (has_content_type(call.request, "application/yaml") || has_content_type(call.request, "application/x-yaml"))
+    return post_building(call);
   const auto body = parse_json_object(call.request);
   require_known_keys(body, {"id"});
   const auto id = string_field(body, "id", 64);
   if (!service::valid_map_id(id)) throw bad_request("id", kIdRule);
-  if (!call.maps) throw ApiError(409, "maps_disabled", "this server holds only its default map");
   const auto map = call.maps->create(id);
   return json_response(call.request, map_summary(id, service::WorldPorts(map->world)),
                        boost::beast::http::status::created);
