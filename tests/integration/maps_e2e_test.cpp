@@ -3,6 +3,8 @@
 // the same drive replayed alone.
 #include <sqlite3.h>
 
+#include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <future>
 #include <map>
@@ -318,6 +320,54 @@ TEST_F(MapsTest, ABuildingOfSeveralLevelsImportsAsAMapPerLevel) {
     EXPECT_EQ(r.status, 400) << query << " " << r.body;
   }
   EXPECT_EQ(map_ids(get_json("/api/v1/maps")), (std::set<std::string>{"alone", "default", "office-l1", "office-l2"}));
+}
+
+// A map deleted while a robot posts to it: every scan is answered 200 (it came before the delete, and is in the map
+// that goes) or 404 map_not_found (after), never anything else, in that order; the map's files go, and the same id
+// made again is an empty map.
+TEST_F(MapsTest, AMapDeletedDuringAReplayAnswersEachScanWholeOrNotFound) {
+  send_json("POST", "/api/v1/maps", {{"id", "doomed"}}, 201);
+  const auto log = real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected.log.gz");
+  logs::CarmenLogReader reader(log);
+  std::vector<std::string> bodies;
+  while (auto scan = reader.next()) {
+    bodies.push_back(logs::laser_scan_body(scan->scan, "intel", scan->timestamp_s).dump());
+    if (bodies.size() == 300) break;
+  }
+  std::atomic<std::size_t> accepted{0};
+  auto replay = std::async(std::launch::async, [&] {
+    client::HttpClient client(server_->url());
+    std::vector<int> statuses;
+    for (const auto& body : bodies) {
+      const auto r = client.request("POST", "/api/v1/maps/doomed/scans", body);
+      statuses.push_back(r.status);
+      if (r.status == 200) ++accepted;
+      if (r.status != 200) {
+        EXPECT_EQ(json::parse(r.body)["error"], "map_not_found") << r.body;
+      }
+    }
+    return statuses;
+  });
+  while (accepted < 50) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  send_json("DELETE", "/api/v1/maps/doomed", json(nullptr));
+  const auto statuses = replay.get();
+  const auto first_refused = std::find(statuses.begin(), statuses.end(), 404);
+  ASSERT_NE(first_refused, statuses.end()) << "the delete came after the whole replay";
+  EXPECT_GE(first_refused - statuses.begin(), 50);
+  EXPECT_TRUE(std::all_of(statuses.begin(), first_refused, [](int s) { return s == 200; }));
+  EXPECT_TRUE(std::all_of(first_refused, statuses.end(), [](int s) { return s == 404; }));
+  // Its files are gone once the last request let go of it (the test's requests have all ended).
+  const auto left = [&] {
+    std::size_t n = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(maps_dir()))
+      n += entry.path().filename().string().find("doomed") != std::string::npos;
+    return n;
+  };
+  for (int i = 0; i < 100 && left() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(left(), 0u);
+  send_json("POST", "/api/v1/maps", {{"id", "doomed"}}, 201);
+  EXPECT_TRUE(get_json("/api/v1/maps/doomed/elements")["elements"].empty());
+  EXPECT_TRUE(get_json("/api/v1/maps/doomed/robots")["robots"].empty());
 }
 
 // wmctl --map sends every map command to that map; `wmctl maps` lists, makes and deletes them.
