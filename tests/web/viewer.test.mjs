@@ -95,7 +95,7 @@ const viewer = () => ctx.page.evaluate(() => {
   return {
     ready: v.ready, connection: v.connection, syncs: v.syncs, lastEventSeq: v.lastEventSeq, lastDecision: v.lastDecision,
     drawn: v.drawn, counts: v.counts, grid: v.grid, recentHighlights: v.recentHighlights, mapVersion: v.mapVersion,
-    selection: v.selection,
+    selection: v.selection, map: v.map,
   };
 });
 
@@ -310,6 +310,31 @@ test('the viewer shows the grid, the plan and the elements, follows live decisio
     ctx.screenshotSaved = true;
     assert.ok(fs.statSync(file).size > 10000, `screenshot ${file}`);
     console.log(`screenshot: ${file}`);
+  });
+
+  await t.test('the map picker lists the server\'s maps, shows the one the URL names and switches to another', async () => {
+    await postJson(base, '/api/v1/maps', { id: 'floor2' });
+    await postJson(base, '/api/v1/maps/floor2/primitives', {
+      source: 'robot-2',
+      segments: [{ p0: [0, 0], p1: [0, 4] }, { p0: [2, 0], p1: [5, 0] }],
+    });
+    await page.goto(`${base}/?map=floor2`);
+    await page.waitForFunction(() => window.worldmodelViewer?.ready && window.worldmodelViewer.connection === 'open');
+    await page.waitForFunction(() => window.worldmodelViewer.drawn.elements === 2);
+    const shown = await viewer();
+    assert.equal(shown.map, 'floor2');
+    assert.equal(shown.drawn.objects, 0, 'floor2 has no plan: nothing of the default map\'s');
+    await page.waitForFunction(() => document.querySelectorAll('#map-picker option').length === 2);
+    assert.deepEqual(await page.$$eval('#map-picker option', (o) => o.map((x) => x.value)), ['default', 'floor2']);
+    assert.equal(await page.$eval('#map-picker', (s) => s.value), 'floor2');
+    // A decision on floor2 reaches the page through floor2's events.
+    await postJson(base, '/api/v1/maps/floor2/primitives', { source: 'robot-2', segments: [{ p0: [9, 0], p1: [9, 3] }] });
+    await page.waitForFunction(() => window.worldmodelViewer.drawn.elements === 3);
+    await Promise.all([page.waitForNavigation(), page.selectOption('#map-picker', 'default')]);
+    await page.waitForFunction(() => window.worldmodelViewer?.ready);
+    assert.equal(new URL(page.url()).searchParams.get('map'), null);
+    assert.equal((await viewer()).map, 'default');
+    await expectDrawnEqualsApi('back on the default map');
   });
 
   assert.deepEqual(ctx.pageErrors, [], 'no uncaught error in the page');

@@ -27,26 +27,52 @@ export function apiBaseFromLocation(location) {
   return location.origin;
 }
 
+/** Map ids: what the server accepts (1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'). */
+const MAP_ID = /^[a-z0-9][a-z0-9_-]{0,31}$/;
+
+/** The map the page shows: `?map=ID` when it is a map id, else the default map. */
+export function mapFromLocation(location) {
+  const given = new URLSearchParams(location.search).get('map');
+  return given && MAP_ID.test(given) ? given : 'default';
+}
+
 /**
- * ws(s)://host/api/v1/events for an http(s) API origin. A server started with --token needs the token on
+ * A path of the API as one map's: "/api/v1/X" becomes "/api/v1/maps/{map}/X" (the default map's too, so that a list
+ * such as the robots is that map's own), except the server's own resources (the maps, the network).
+ */
+export function mapPath(path, map = 'default') {
+  const prefix = '/api/v1/';
+  if (!path.startsWith(prefix)) return path;
+  const first = path.slice(prefix.length).split(/[/?]/, 1)[0];
+  if (first === 'maps' || first === 'network') return path;
+  return `${prefix}maps/${encodeURIComponent(map)}/${path.slice(prefix.length)}`;
+}
+
+/**
+ * ws(s)://host/api/v1/events (of the map `map`) for an http(s) API origin. A server started with --token needs the token on
  * the upgrade, and a browser cannot set headers on a WebSocket: a `token` given to the page
  * (`/?token=...`) is passed on as `?token=`.
  */
-export function eventsUrl(base, token = '') {
-  const url = new URL('/api/v1/events', base);
+export function eventsUrl(base, token = '', map = 'default') {
+  const url = new URL(mapPath('/api/v1/events', map), base);
   url.protocol = url.protocol === 'https:' ? 'wss:' : 'ws:';
   if (token) url.searchParams.set('token', token);
   return url.href;
 }
 
 export class Api {
-  constructor(base) {
+  /** `map`: the map every request is about (the server's own resources aside). */
+  constructor(base, map = 'default') {
     this.base = base;
+    this.mapId = map;
   }
 
   url(path) {
-    return new URL(path, this.base).href;
+    return new URL(mapPath(path, this.mapId), this.base).href;
   }
+
+  /** The server's maps (GET /api/v1/maps). */
+  maps() { return this.json('/api/v1/maps'); }
 
   async fetchOk(path, cache = 'no-store', init = {}) {
     const res = await fetch(this.url(path), { cache, ...init });

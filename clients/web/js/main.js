@@ -7,7 +7,7 @@
 // Events that arrive while a sync is running are buffered and applied after it (updates at or below the synced
 // map version are skipped, the rest are idempotent upserts).
 
-import { Api, ApiError, apiBaseFromLocation, EventStream, eventsUrl } from './api.js';
+import { Api, ApiError, apiBaseFromLocation, EventStream, eventsUrl, mapFromLocation } from './api.js';
 import {
   changeCentre, ChangeList, decisionErrorText, loadToken, RefreshThrottle, saveToken,
 } from './changes.js';
@@ -21,7 +21,7 @@ import {
 
 const $ = (id) => document.getElementById(id);
 
-const api = new Api(apiBaseFromLocation(window.location));
+const api = new Api(apiBaseFromLocation(window.location), mapFromLocation(window.location));
 const model = new WorldModel();
 const status = new StatusPanel();
 const rates = { events: new RateMeter(), scans: new RateMeter(), decisions: new RateMeter() };
@@ -411,6 +411,8 @@ $('fit-button').addEventListener('click', () => view.fit());
 /** Read-only numbers for tests and curious people: what was drawn, and where things are on screen. */
 const hook = {
   get ready() { return state.ready; },
+  /** The map shown (?map=ID; "default" without it). */
+  get map() { return api.mapId; },
   get connection() { return state.connection; },
   get syncs() { return state.syncs; },
   get deltaSyncs() { return state.deltaSyncs; },
@@ -452,7 +454,31 @@ Object.defineProperty(window, 'worldmodelViewer', { value: Object.freeze(hook), 
 
 renderLegend();
 updateReadout();
-const stream = new EventStream(eventsUrl(api.base, new URLSearchParams(location.search).get('token') ?? ''), {
+/** The map picker: the server's maps; choosing one loads the page on it, and the URL keeps it (?map=ID). */
+async function fillMapPicker() {
+  const picker = $('map-picker');
+  try {
+    const { maps } = await api.maps();
+    picker.replaceChildren(...maps.map((m) => {
+      const option = document.createElement('option');
+      option.value = m.id;
+      option.textContent = `${m.id}${m.plan_name ? ` (${m.plan_name})` : ''}`;
+      option.selected = m.id === api.mapId;
+      return option;
+    }));
+  } catch {
+    picker.replaceChildren(new Option(api.mapId, api.mapId, true, true));
+  }
+  picker.addEventListener('change', () => {
+    const params = new URLSearchParams(location.search);
+    if (picker.value === 'default') params.delete('map'); else params.set('map', picker.value);
+    const query = params.toString();
+    location.search = query ? `?${query}` : '';
+  });
+}
+
+fillMapPicker();
+const stream = new EventStream(eventsUrl(api.base, new URLSearchParams(location.search).get('token') ?? '', api.mapId), {
   onEvent,
   onState: (s) => {
     state.connection = s;

@@ -2,7 +2,9 @@
 import assert from 'node:assert/strict';
 import { test } from 'node:test';
 
-import { apiBaseFromLocation, EventStream, eventsUrl } from '../../../clients/web/js/api.js';
+import {
+  apiBaseFromLocation, EventStream, eventsUrl, mapFromLocation, mapPath,
+} from '../../../clients/web/js/api.js';
 
 test('the API origin is the page origin unless ?api= names an http(s) origin', () => {
   const page = (search) => ({ origin: 'http://127.0.0.1:8080', search });
@@ -10,9 +12,26 @@ test('the API origin is the page origin unless ?api= names an http(s) origin', (
   assert.equal(apiBaseFromLocation(page('?api=http://127.0.0.1:9000/ignored/path')), 'http://127.0.0.1:9000');
   assert.equal(apiBaseFromLocation(page('?api=javascript:alert(1)')), 'http://127.0.0.1:8080');
   assert.equal(apiBaseFromLocation(page('?api=not a url')), 'http://127.0.0.1:8080');
-  assert.equal(eventsUrl('http://127.0.0.1:9000'), 'ws://127.0.0.1:9000/api/v1/events');
-  assert.equal(eventsUrl('https://example.test'), 'wss://example.test/api/v1/events');
-  assert.equal(eventsUrl('http://127.0.0.1:9000', 's3cr&t'), 'ws://127.0.0.1:9000/api/v1/events?token=s3cr%26t');
+  assert.equal(eventsUrl('http://127.0.0.1:9000'), 'ws://127.0.0.1:9000/api/v1/maps/default/events');
+  assert.equal(eventsUrl('https://example.test', '', 'floor2'), 'wss://example.test/api/v1/maps/floor2/events');
+  assert.equal(eventsUrl('http://127.0.0.1:9000', 's3cr&t'),
+    'ws://127.0.0.1:9000/api/v1/maps/default/events?token=s3cr%26t');
+});
+
+test('the page shows the map ?map= names, when it is a map id, and asks for that map\'s resources', () => {
+  const page = (search) => ({ origin: 'http://127.0.0.1:8080', search });
+  assert.equal(mapFromLocation(page('')), 'default');
+  assert.equal(mapFromLocation(page('?map=floor-2_b')), 'floor-2_b');
+  for (const bad of ['Floor2', '-x', '_x', '../x', 'a/b', 'a'.repeat(33), '', 'x%2Fy']) {
+    assert.equal(mapFromLocation(page(`?map=${bad}`)), 'default', bad);
+  }
+  assert.equal(mapPath('/api/v1/map?since=3', 'floor2'), '/api/v1/maps/floor2/map?since=3');
+  assert.equal(mapPath('/api/v1/grid/tiles/bayes/0/1', 'default'), '/api/v1/maps/default/grid/tiles/bayes/0/1');
+  assert.equal(mapPath('/api/v1/robots', 'floor2'), '/api/v1/maps/floor2/robots');
+  // The server's own resources stay where they are.
+  assert.equal(mapPath('/api/v1/maps', 'floor2'), '/api/v1/maps');
+  assert.equal(mapPath('/api/v1/network', 'floor2'), '/api/v1/network');
+  assert.equal(mapPath('/web/style.css', 'floor2'), '/web/style.css');
 });
 
 class FakeSocket {
