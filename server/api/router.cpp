@@ -46,8 +46,7 @@ MapContext map_context(const std::optional<std::string>& path_id, Services& serv
     context.cache = services.map_cache;
     return context;
   }
-  if (!service::valid_map_id(id))
-    throw bad_request("map", "a map id is 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'");
+  if (!service::valid_map_id(id)) throw bad_request("map", std::string(service::kMapIdRule));
   context.instance = services.maps ? services.maps->find(id) : nullptr;
   if (!context.instance) throw ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
   context.id = id;
@@ -85,21 +84,6 @@ std::optional<std::pair<std::optional<std::string>, RouteMatch>> route_of(http::
   return std::pair{std::optional<std::string>(), std::move(*match)};
 }
 
-// The methods a path takes, under a map only those of a map's routes.
-std::string allowed_methods_of(std::string_view path) {
-  const auto scoped = split_map_path(path);
-  if (!scoped) return allowed_methods(path);
-  std::string allow;
-  for (const auto method : {http::verb::get, http::verb::put, http::verb::post, http::verb::delete_}) {
-    const auto match = find_route(method, scoped->path);
-    if (!match || !is_per_map(*match->route)) continue;
-    const auto name = http::to_string(method);
-    allow += (allow.empty() ? "" : ", ") + std::string(name.data(), name.size());
-    if (method == http::verb::get) allow += ", HEAD";
-  }
-  return allow;
-}
-
 Response dispatch(const Request& request, Services& services) {
   require_allowed_sender(request, services);
   const Target target = parse_target(target_of(request));
@@ -108,7 +92,7 @@ Response dispatch(const Request& request, Services& services) {
     const auto map = map_context(map_id, services);
     return match.route->handler(call_of(request, target, match, services, map));
   }
-  const auto allow = allowed_methods_of(target.path);
+  const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");
   auto response =
       error_response(request.version(), request.keep_alive(), 405, "method_not_allowed", "allowed: " + allow);

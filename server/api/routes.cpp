@@ -123,10 +123,12 @@ std::optional<RouteMatch> find_route(verb method, std::string_view path) {
 }
 
 std::string allowed_methods(std::string_view path) {
+  const auto scoped = split_map_path(path);
+  if (scoped) path = scoped->path;
   std::vector<verb> methods;
   std::string ignored;
   for (const auto& route : kRoutes)
-    if (pattern_matches(route.pattern, path, ignored) &&
+    if (pattern_matches(route.pattern, path, ignored) && (!scoped || is_per_map(route)) &&
         std::find(methods.begin(), methods.end(), route.method) == methods.end())
       methods.push_back(route.method);
   std::string allow;
@@ -158,7 +160,9 @@ std::optional<MapScopedPath> split_map_path(std::string_view path) {
   const auto rest = path.substr(prefix.size());
   const auto slash = rest.find('/');
   if (slash == std::string_view::npos || slash == 0) return std::nullopt;
-  return MapScopedPath{std::string(rest.substr(0, slash)), "/api/v1" + std::string(rest.substr(slash))};
+  std::string route_path("/api/v1");
+  route_path.append(rest.substr(slash));  // appended, not "literal" + string: GCC 12 warns falsely (-Wrestrict) there
+  return MapScopedPath{std::string(rest.substr(0, slash)), std::move(route_path)};
 }
 
 bool is_per_map(const Route& route) {

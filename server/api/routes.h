@@ -49,7 +49,7 @@ struct RouteMatch {
 /// The route for a method and a decoded path, nullopt when none. HEAD finds the GET route.
 std::optional<RouteMatch> find_route(boost::beast::http::verb method, std::string_view path);
 /// The methods of the routes whose pattern matches `path`, in table order without repeats ("GET, PUT"); empty
-/// when no route has this path.
+/// when no route has this path. Under /api/v1/maps/{map}/ only a map's own routes count.
 std::string allowed_methods(std::string_view path);
 /// Whether a GET upgrade of this target (path and query) is one the table names as a WebSocket.
 bool is_websocket_target(std::string_view target);

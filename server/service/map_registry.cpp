@@ -115,8 +115,7 @@ std::shared_ptr<MapInstance> MapRegistry::find(const std::string& id) const {
 }
 
 std::shared_ptr<MapInstance> MapRegistry::create(const std::string& id) {
-  if (!valid_map_id(id))
-    throw std::invalid_argument("map id '" + id + "': 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'");
+  if (!valid_map_id(id)) throw std::invalid_argument("map id '" + id + "': " + std::string(kMapIdRule));
   if (id == kDefaultMapId) throw Conflict("the default map always exists");
   std::lock_guard lock(mutex_);
   if (maps_.count(id)) throw Conflict("map '" + id + "' exists");

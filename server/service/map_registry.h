@@ -21,6 +21,10 @@ namespace wm::service {
 /// with (--db); the registry holds the others, and never one of this id.
 inline constexpr std::string_view kDefaultMapId = "default";
 
+/// What valid_map_id accepts, as refusals say it.
+inline constexpr std::string_view kMapIdRule =
+    "a map id is 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'";
+
 /// Whether `id` may name a map: 1–32 of [a-z0-9_-], starting with a letter or a digit (it goes into URLs and file
 /// names as it is).
 bool valid_map_id(std::string_view id);

@@ -240,19 +240,17 @@ TEST_F(MapsTest, EachMapHasItsOwnEventsAndTheirClientsHearOfItsDeletion) {
   send_json("DELETE", "/api/v1/maps/floor2", json(nullptr));
   EXPECT_EQ(floor2.next_of("map_removed")["map"], "floor2");
   // No stream for a map there is not, or an id that is none.
-  const auto refused = raw_request(server_->port(), boost::beast::http::verb::get, "/api/v1/maps/floor2/events",
-                                   {{"Host", "127.0.0.1"},
-                                    {"Upgrade", "websocket"},
-                                    {"Connection", "Upgrade"},
-                                    {"Sec-WebSocket-Version", "13"},
-                                    {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
+  const auto upgrade = [&](const std::string& target) {
+    return raw_request(server_->port(), boost::beast::http::verb::get, target,
+                       {{"Host", "127.0.0.1"},
+                        {"Upgrade", "websocket"},
+                        {"Connection", "Upgrade"},
+                        {"Sec-WebSocket-Version", "13"},
+                        {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
+  };
+  const auto refused = upgrade("/api/v1/maps/floor2/events");
   EXPECT_EQ(refused.result_int(), 404u) << refused.body();
-  const auto bad = raw_request(server_->port(), boost::beast::http::verb::get, "/api/v1/maps/Bad/events",
-                               {{"Host", "127.0.0.1"},
-                                {"Upgrade", "websocket"},
-                                {"Connection", "Upgrade"},
-                                {"Sec-WebSocket-Version", "13"},
-                                {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
+  const auto bad = upgrade("/api/v1/maps/Bad/events");
   EXPECT_EQ(bad.result_int(), 400u) << bad.body();
 }
 

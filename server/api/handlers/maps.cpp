@@ -13,7 +13,7 @@
 namespace wm::api {
 namespace {
 
-constexpr const char* kIdRule = "a map id is 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'";
+const std::string kIdRule(service::kMapIdRule);
 
 // What a list shows of one map: where it is and how far it has come.
 nlohmann::json map_summary(const std::string& id, const service::WorldPorts& world) {
@@ -27,6 +27,13 @@ nlohmann::json map_summary(const std::string& id, const service::WorldPorts& wor
           {"elements", state->elements.size()},
           {"observations", state->last_observation_seq},
           {"robots", world.robots.robots().size()}};
+}
+
+// A map of the registry. @throw ApiError 404 when there is none.
+std::shared_ptr<service::MapInstance> find_map(const Call& call, const std::string& id) {
+  auto map = call.maps ? call.maps->find(id) : nullptr;
+  if (!map) throw ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
+  return map;
 }
 
 // The id in the path, checked before anything is looked up: "a/b" (a deeper path no route has) is refused here too.
@@ -120,9 +127,7 @@ Response post_maps(const Call& call) {
 Response get_map_entry(const Call& call) {
   const auto id = path_map_id(call);
   if (id == service::kDefaultMapId) return json_response(call.request, map_summary(id, call.world));
-  const auto map = call.maps ? call.maps->find(id) : nullptr;
-  if (!map) throw ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
-  return json_response(call.request, map_summary(id, service::WorldPorts(map->world)));
+  return json_response(call.request, map_summary(id, service::WorldPorts(find_map(call, id)->world)));
 }
 
 Response delete_map(const Call& call) {
