@@ -52,7 +52,10 @@ cmake --build build/fusion-only -j"$jobs"
 
 phase "full build"
 # WM_BUILD_ROS=ON: the ROS bridge's tests run (setup.sh ros installed ROS 1), or say "skipped" when ROS is missing.
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_WERROR=ON -DWM_BUILD_ROS=ON "${launcher[@]}" >/dev/null
+# -g1 (line tables and functions, no variables): a failing test's backtrace names the line, and the build takes
+# about a quarter less time than with -g. A developer who wants variables in gdb reconfigures build/ with -g.
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" \
+  -DWM_WERROR=ON -DWM_BUILD_ROS=ON "${launcher[@]}" >/dev/null
 cmake --build build -j"$jobs"
 
 phase "tests"

@@ -10,6 +10,8 @@ wmd -> ROS: the Bayes grid as a latched nav_msgs/OccupancyGrid on /map, the Demp
 visualization_msgs/MarkerArray, every decision as a rosout line, and the bridge's counters as JSON on
 ~status.
 
+With ~map set, every request goes to that map of wmd (/api/v1/maps/MAP/...): one bridge per floor or site.
+
 Every setting is a private ROS parameter (~name) or a command-line flag (--name, which wins); see --help.
 The counters (scans placed, skipped for want of tf, dropped, ...) are published on ~status, logged every
 status_log_period seconds and printed at exit.
@@ -23,6 +25,7 @@ import collections
 import http.client
 import json
 import math
+import re
 import sys
 import threading
 import time
@@ -63,10 +66,14 @@ class Option:
 
 
 OBSERVER_DEFAULT = "ros-robot"
+# wmd's rule for a map id (it goes into URLs and file names).
+MAP_ID = re.compile(r"[a-z0-9][a-z0-9_-]{0,31}")
 
 OPTIONS = (
     Option("server", str, "http://127.0.0.1:8080", "wmd's base URL"),
     Option("token", str, "", "wmd's --token: sent as 'Authorization: Bearer TOKEN' (empty: none)"),
+    Option("map", str, "", "wmd's map the robot works on: requests go to /api/v1/maps/MAP/... "
+                            "(1-32 of a-z 0-9 _ -, not starting with _ or -; empty: the default map's routes)"),
     Option("scan_topic", str, "scan", "sensor_msgs/LaserScan topic to post"),
     Option("map_frame", str, "map", "tf frame of wmd's world: scans are placed in it, grids and markers are in it"),
     Option("observer", str, OBSERVER_DEFAULT, "robot id sent as the scans' observer (1-128 of A-Z a-z 0-9 . _ : -)"),
@@ -137,6 +144,9 @@ def resolve_settings(cli: argparse.Namespace) -> dict[str, Any]:
             raise ValueError(f"observer {settings['observer']!r} and its old name source {settings['source']!r} "
                              "differ: give one")
         settings["observer"] = settings["source"]
+    if settings["map"] and not MAP_ID.fullmatch(settings["map"]):
+        raise ValueError(f"map {settings['map']!r}: a map id is 1-32 of a-z, 0-9, '_' and '-', not starting "
+                         "with '_' or '-'")
     for name in ("tf_queue_size", "buffer_size", "poll_period", "grid_max_rate", "http_timeout", "retry_initial"):
         if not settings[name] > 0:
             raise ValueError(f"{name} must be positive, not {settings[name]}")
@@ -227,10 +237,19 @@ class HttpError(Exception):
         super().__init__(f"HTTP {status} {self.code}: {self.detail}")
 
 
-class WmdClient:
-    """One keep-alive connection to wmd. Not thread-safe: each thread has its own."""
+def map_path(map_id: str, path: str) -> str:
+    """`path` (a route of one map, /api/v1/...) on the map `map_id`: /api/v1/maps/MAP/...; empty: unchanged (the
+    default map's routes)."""
+    prefix = "/api/v1/"
+    if not map_id or not path.startswith(prefix):
+        return path
+    return f"/api/v1/maps/{map_id}/{path[len(prefix):]}"
 
-    def __init__(self, base_url: str, token: str, timeout_s: float):
+
+class WmdClient:
+    """One keep-alive connection to wmd, on one map. Not thread-safe: each thread has its own."""
+
+    def __init__(self, base_url: str, token: str, timeout_s: float, map_id: str = ""):
         url = urllib.parse.urlsplit(base_url)
         if url.scheme not in ("http", "https") or not url.hostname:
             raise ValueError(f"server: not an http(s) URL: {base_url!r}")
@@ -239,6 +258,7 @@ class WmdClient:
         self._port = url.port
         self._prefix = url.path.rstrip("/")
         self._timeout_s = timeout_s
+        self._map_id = map_id
         self._headers = {"Authorization": f"Bearer {token}"} if token else {}
         self._conn: Optional[http.client.HTTPConnection] = None
 
@@ -253,6 +273,7 @@ class WmdClient:
         if body is not None:
             all_headers["Content-Type"] = "application/json"
         all_headers.update(headers or {})
+        path = map_path(self._map_id, path)
         # A kept-alive connection the server closed meanwhile fails on first use: that one gets a fresh
         # connection at once (safe for posts too, they carry an Idempotency-Key); a fresh one failing means wmd
         # is not there.
@@ -494,7 +515,7 @@ class ScanSender:
     def __init__(self, settings: dict, counters: Counters):
         self._s = settings
         self._counters = counters
-        self._client = WmdClient(settings["server"], settings["token"], settings["http_timeout"])
+        self._client = WmdClient(settings["server"], settings["token"], settings["http_timeout"], settings["map"])
         self._queue: collections.deque[tuple[str, bytes]] = collections.deque()
         self._cond = threading.Condition()
         self._stop_at: Optional[float] = None  # monotonic deadline once asked to stop
@@ -592,7 +613,7 @@ class WorldPublisher:
     def __init__(self, settings: dict, counters: Counters):
         self._s = settings
         self._counters = counters
-        self._client = WmdClient(settings["server"], settings["token"], settings["http_timeout"])
+        self._client = WmdClient(settings["server"], settings["token"], settings["http_timeout"], settings["map"])
         self._stop = threading.Event()
         self._lock = threading.Lock()  # guards the state that status() reads
         self._layers = [layer.strip() for layer in settings["grid_layers"].split(",") if layer.strip()]

@@ -111,6 +111,31 @@ class ConversionTest(unittest.TestCase):
         both = bridge.parse_command_line(["--source", "r7", "--observer", "r8"])
         self.assertEqual((both.source, both.observer), ("r7", "r8"))
 
+    def test_map_paths(self):
+        self.assertEqual(bridge.map_path("", "/api/v1/scans"), "/api/v1/scans")
+        self.assertEqual(bridge.map_path("floor-2", "/api/v1/scans"), "/api/v1/maps/floor-2/scans")
+        self.assertEqual(bridge.map_path("f2", "/api/v1/grid?layer=bayes&format=json"),
+                         "/api/v1/maps/f2/grid?layer=bayes&format=json")
+        self.assertEqual(bridge.map_path("f2", "/other"), "/other")
+
+    def test_map_ids_follow_wmds_rule(self):
+        for good in ("a", "floor-2", "0_x", "z" * 32):
+            self.assertTrue(bridge.MAP_ID.fullmatch(good), good)
+        for bad in ("", "-a", "_a", "A", "a/b", "a b", "z" * 33, "a.b", "..", "é"):
+            self.assertFalse(bridge.MAP_ID.fullmatch(bad), bad)
+
+    def test_a_bad_map_is_refused_at_start(self):
+        original = rospy.get_param
+        rospy.get_param = lambda name, default=None: default  # no ROS master: the defaults
+        try:
+            self.assertEqual(bridge.resolve_settings(bridge.parse_command_line(["--map", "floor-2"]))["map"], "floor-2")
+            self.assertEqual(bridge.resolve_settings(bridge.parse_command_line([]))["map"], "")
+            for bad in ("Floor2", "../x", "-a"):
+                with self.assertRaisesRegex(ValueError, "map id"):
+                    bridge.resolve_settings(bridge.parse_command_line(["--map=" + bad]))
+        finally:
+            rospy.get_param = original
+
     def test_command_line(self):
         cli = bridge.parse_command_line(["--server", "http://h:1", "--log-decisions", "false", "--buffer-size", "7"])
         self.assertEqual((cli.server, cli.log_decisions, cli.buffer_size, cli.token), ("http://h:1", False, 7, None))
@@ -172,6 +197,21 @@ class SenderTest(unittest.TestCase):
             ("/api/v1/scans", "k-3", "Bearer t0k", b'{"a": 3}')])
         c = counters.snapshot()
         self.assertEqual((c["scans_posted"], c["post_retries"], c["scans_rejected"], c["scans_dropped"]), (2, 2, 1, 0))
+
+    def test_a_map_sends_every_scan_to_that_map(self):
+        fake = FakeWmd([503])
+        threading.Thread(target=fake.serve_forever, daemon=True).start()
+        try:
+            sender, counters = self.sender(f"http://127.0.0.1:{fake.server_address[1]}", map="floor-2")
+            sender.start()
+            sender.enqueue("k-1", b'{"a": 1}')
+            sender.stop()
+        finally:
+            fake.shutdown()
+            fake.server_close()
+        self.assertEqual([(path, key) for path, key, _, _ in fake.requests],
+                         [("/api/v1/maps/floor-2/scans", "k-1")] * 2)
+        self.assertEqual(counters.snapshot()["scans_posted"], 1)
 
     def test_overflow_and_what_is_left_at_exit_are_dropped(self):
         port = unused_port()  # nothing listens: connection refused

@@ -2,8 +2,8 @@
 """End-to-end test of the ROS 1 bridge (clients/ros/wm_ros_bridge.py), real components only: a roscore on a free
 port, a wmd on a free port, the bridge started through its launch file (clients/ros/launch/bridge.launch), and a
 bag converted from a real CARMEN log (tests/data/carmen/intel-corrected-excerpt.log.gz) played with
-`rosbag play --clock`. wmd is killed (SIGKILL) in the middle of the bag and started again on the same port and
-database.
+`rosbag play --clock`. The bridge works on a map of wmd's own (its map parameter), and the default map must hear
+nothing. wmd is killed (SIGKILL) in the middle of the bag and started again on the same port and database.
 
     test_ros_bridge.py [--wmd PATH] [--keep DIR] [unittest options]
 
@@ -49,6 +49,7 @@ LOG = REPO / "tests/data/carmen/intel-corrected-excerpt.log.gz"
 SKIP_TF_EVERY = 7          # scans 6, 13, 20, 27, 34 have no tf: 5 of the excerpt's 35
 PLAY_RATE = 10             # the excerpt's 98 s of log in ~10 s
 SOURCE = "intel"
+MAP = "floor-1"           # the bridge's map (its ~map parameter); the default map must hear nothing
 LAYERS = ("bayes", "ds_belief", "ds_plausibility", "ds_conflict")
 TOPICS = {"bayes": "/map", "ds_belief": "/map_ds_belief", "ds_plausibility": "/map_ds_plausibility",
           "ds_conflict": "/map_ds_conflict"}
@@ -81,6 +82,11 @@ def ros_missing() -> str | None:
     except ImportError as error:
         return f"{error} (under {sys.executable})"
     return None
+
+
+def on_map(path: str) -> str:
+    """A route of the bridge's map: /api/v1/X -> /api/v1/maps/MAP/X."""
+    return "/api/v1/maps/" + MAP + path[len("/api/v1"):]
 
 
 def free_port() -> int:
@@ -262,14 +268,16 @@ class Scenario:
         rospy.Subscriber("/wm_ros_bridge/status", String, self.on_status)
 
         self.wmd.start()
-        self.wmd.request("PUT", "/api/v1/floorplan", PLAN)
-        self.instance_before = self.wmd.get("/api/v1/map")["server_instance"]
-        self.decisions_before = self.wmd.get("/api/v1/health")["last_decision_seq"]
+        # The bridge works on a map of its own (its map parameter): every request goes there, none to the default.
+        self.wmd.request("POST", "/api/v1/maps", {"id": MAP})
+        self.wmd.request("PUT", on_map("/api/v1/floorplan"), PLAN)
+        self.instance_before = self.wmd.get(on_map("/api/v1/map"))["server_instance"]
+        self.decisions_before = self.wmd.get(on_map("/api/v1/health"))["last_decision_seq"]
 
         self.bridge = self.spawn("bridge", [
             "/usr/bin/roslaunch", "--wait", "worldmodel_ros", "bridge.launch", f"server:={self.wmd.url}",
-            f"observer:={SOURCE}", f"tf_max_gap:={TF_MAX_GAP}", f"tf_wait:={TF_WAIT}", "poll_period:=0.2",
-            "grid_max_rate:=2"])
+            f"observer:={SOURCE}", f"map:={MAP}", f"tf_max_gap:={TF_MAX_GAP}", f"tf_wait:={TF_WAIT}",
+            "poll_period:=0.2", "grid_max_rate:=2"])
         wait_until(lambda: self.bridge_status().get("server_instance") == self.instance_before, 30,
                    "the bridge to reach wmd")
 
@@ -284,7 +292,7 @@ class Scenario:
         time.sleep(DOWN_S)
         self.before_restart = self.bridge_status()
         self.wmd.start()
-        self.instance_after = self.wmd.get("/api/v1/map")["server_instance"]
+        self.instance_after = self.wmd.get(on_map("/api/v1/map"))["server_instance"]
         if self.player.wait(90) != 0:
             raise AssertionError(f"rosbag play exited with {self.player.returncode}")
 
@@ -295,9 +303,9 @@ class Scenario:
                    f"the bridge to take all {total} scans and post them")
         # ... and the bridge publishing what wmd holds now, which no longer moves.
         def caught_up():
-            revision = self.wmd.get("/api/v1/grid/tiles")["revision"]
-            version = self.wmd.get("/api/v1/map")["version"]
-            seq = self.wmd.get("/api/v1/health")["last_decision_seq"]
+            revision = self.wmd.get(on_map("/api/v1/grid/tiles"))["revision"]
+            version = self.wmd.get(on_map("/api/v1/map"))["version"]
+            seq = self.wmd.get(on_map("/api/v1/health"))["last_decision_seq"]
             s = self.bridge_status()
             if (s.get("grid_revisions") == {layer: revision for layer in LAYERS} and s.get("map_version") == version
                     and s.get("decision_seq") == seq and s.get("server_instance") == self.instance_after):
@@ -307,12 +315,16 @@ class Scenario:
 
         self.grids = {layer: self.latest(TOPICS[layer], OccupancyGrid) for layer in LAYERS}
         self.markers = self.latest("/worldmodel/markers", MarkerArray)
-        self.wmd_grids = {layer: self.wmd.get(f"/api/v1/grid?layer={layer}&format=json") for layer in LAYERS}
-        self.wmd_map = self.wmd.get("/api/v1/map")
-        self.wmd_tiles = self.wmd.get("/api/v1/grid/tiles")
-        self.wmd_robot = self.wmd.get(f"/api/v1/robots/{SOURCE}")
-        self.wmd_decisions = self.wmd.get(f"/api/v1/decisions?since={self.decisions_before}&limit=10000")
+        self.wmd_grids = {layer: self.wmd.get(on_map(f"/api/v1/grid?layer={layer}&format=json"))
+                          for layer in LAYERS}
+        self.wmd_map = self.wmd.get(on_map("/api/v1/map"))
+        self.wmd_tiles = self.wmd.get(on_map("/api/v1/grid/tiles"))
+        self.wmd_robot = self.wmd.get(on_map(f"/api/v1/robots/{SOURCE}"))
+        self.wmd_decisions = self.wmd.get(
+            on_map(f"/api/v1/decisions?since={self.decisions_before}&limit=10000"))
         self.final_status = self.bridge_status()
+        self.default_map = self.wmd.get("/api/v1/map")
+        self.default_tiles = self.wmd.get("/api/v1/grid/tiles")
 
         self.stop_group(self.bridge)  # SIGINT: the bridge drains and prints its final counters
         self.bridge_output = (self.workdir / "bridge.out").read_text()
@@ -463,6 +475,11 @@ class RosBridgeTest(unittest.TestCase):
         self.assertEqual([int(seq) for seq, *_ in logged], [d["seq"] for d in recorded])
         for (seq, action, target, rule), d in zip(logged, recorded):
             self.assertEqual((action, target, rule), (d["action"], d["element"] or d["object"] or "-", d["rule"]))
+
+    def test_the_default_map_heard_nothing(self):
+        s = self.scenario
+        self.assertGreater(len(s.wmd_map["elements"]), 0)
+        self.assertEqual((len(s.default_map["elements"]), s.default_tiles["revision"]), (0, 0))
 
     def test_final_counters_printed_at_exit(self):
         s = self.scenario
