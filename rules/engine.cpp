@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -159,24 +160,35 @@ struct Engine::Impl {
   std::vector<std::string> rule_files() const;
 };
 
-std::vector<std::string> Engine::Impl::rule_files() const {
+namespace {
+
+// The rule files directly in `dir` by name (see EngineOptions). A missing directory is an error unless
+// `missing_is_empty`.
+std::map<std::string, std::filesystem::path> rule_files_in(const std::filesystem::path& dir, bool missing_is_empty) {
+  std::map<std::string, std::filesystem::path> found;
   std::error_code ec;
-  std::vector<std::string> names;
-  std::filesystem::directory_iterator it(options.rules_dir, ec);
-  if (ec) {
-    throw RuleError(options.rules_dir.string() + ":0: cannot read the rules directory: " + ec.message());
-  }
+  if (missing_is_empty && !std::filesystem::exists(dir, ec)) return found;
+  std::filesystem::directory_iterator it(dir, ec);
+  if (ec) throw RuleError(dir.string() + ":0: cannot read the rules directory: " + ec.message());
   for (const auto& entry : it) {
     const std::string name = entry.path().filename().string();
     if (name.empty() || name.front() == '.' || entry.path().extension() != ".pl") continue;
     std::error_code type_ec;
     if (!entry.is_regular_file(type_ec)) continue;
-    names.push_back(name);
+    found.emplace(name, entry.path());
   }
-  std::sort(names.begin(), names.end());
-  std::vector<std::string> paths;
-  paths.reserve(names.size());
-  for (const auto& name : names) paths.push_back((options.rules_dir / name).string());
+  return found;
+}
+
+}  // namespace
+
+std::vector<std::string> Engine::Impl::rule_files() const {
+  auto files = rule_files_in(options.rules_dir, false);
+  if (!options.map_rules_dir.empty())
+    for (auto& [name, path] : rule_files_in(options.map_rules_dir, true)) files[name] = std::move(path);
+  std::vector<std::string> paths;  // sorted by file name: the map's files in their places
+  paths.reserve(files.size());
+  for (const auto& [name, path] : files) paths.push_back(path.string());
   return paths;
 }
 
@@ -347,6 +359,10 @@ RulesStatus Engine::status() const {
   std::lock_guard lock(impl_->status_mutex);
   return impl_->status;
 }
+
+const std::filesystem::path& Engine::rules_dir() const { return impl_->options.rules_dir; }
+
+const std::filesystem::path& Engine::map_rules_dir() const { return impl_->options.map_rules_dir; }
 
 void Engine::set_elements(const std::vector<ElementFacts>& elements) {
   require_attached("set_elements");

@@ -23,6 +23,10 @@ struct EngineOptions {
   /// [a-z0-9_]. Engines with different knowledge bases live side by side in one process (one per map), each with
   /// its own facts and active rules; two with the same one cannot.
   std::string knowledge_base = "wm_kb";
+  /// One map's own rule files (empty: none): every regular `*.pl` file directly in it is loaded with the shared
+  /// ones, and one named like a shared file replaces it (a map with glass walls swaps one file). The whole set is
+  /// loaded sorted by name. The directory may not exist (yet): then the shared files alone.
+  std::filesystem::path map_rules_dir{};
 };
 
 /// The knowledge base: owns the process-wide SWI-Prolog runtime, the floor-plan facts and the active
@@ -72,6 +76,10 @@ class Engine {
   RulesStatus reload();
 
   RulesStatus status() const;
+
+  /// Where this engine's rule files come from: the shared directory, then the map's own (empty when none).
+  const std::filesystem::path& rules_dir() const;
+  const std::filesystem::path& map_rules_dir() const;
 
   /// Decides many queries in one Prolog call (one time limit around the batch, the inference limit per
   /// query); each result as decide() gives it, including fallbacks. Same exceptions as decide().

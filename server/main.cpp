@@ -69,7 +69,9 @@ int main(int argc, char** argv) {
   common::Diagnostics diagnostics("wmd: ");
   try {
     storage::Store store(cfg.store);
-    rules::Engine engine(cfg.rules);
+    auto default_rules = cfg.rules;
+    default_rules.map_rules_dir = service::map_rules_dir(cfg.rules.rules_dir, service::kDefaultMapId);
+    rules::Engine engine(default_rules);
     events::EventHub events;
     service::WorldService world(cfg.service, store, engine, diagnostics, &events);
     if (cfg.floor_plan_file) {

@@ -30,6 +30,10 @@ std::filesystem::path removed_file(const std::filesystem::path& data_dir, const 
 
 }  // namespace
 
+std::filesystem::path map_rules_dir(const std::filesystem::path& rules_dir, std::string_view map_id) {
+  return rules_dir / "maps" / std::string(map_id);
+}
+
 bool valid_map_id(std::string_view id) {
   if (id.empty() || id.size() > 32) return false;
   const auto allowed = [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-'; };
@@ -47,6 +51,7 @@ MapInstance::MapInstance(std::string map_id, const MapRegistryOptions& options, 
       engine([&] {
         auto rules_options = options.rules;
         rules_options.knowledge_base = std::move(knowledge_base);
+        rules_options.map_rules_dir = map_rules_dir(options.rules.rules_dir, id);
         return rules_options;
       }()),
       world(options.service, store, engine, diagnostics, &events) {}

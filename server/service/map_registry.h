@@ -25,6 +25,10 @@ inline constexpr std::string_view kDefaultMapId = "default";
 inline constexpr std::string_view kMapIdRule =
     "a map id is 1-32 of a-z, 0-9, '_' and '-', not starting with '_' or '-'";
 
+/// A map's own rule files, loaded with the shared ones (rules::EngineOptions::map_rules_dir):
+/// `<rules_dir>/maps/<id>`.
+std::filesystem::path map_rules_dir(const std::filesystem::path& rules_dir, std::string_view map_id);
+
 /// Whether `id` may name a map: 1–32 of [a-z0-9_-], starting with a letter or a digit (it goes into URLs and file
 /// names as it is).
 bool valid_map_id(std::string_view id);

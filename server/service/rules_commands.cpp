@@ -7,9 +7,27 @@
 
 namespace wm::service {
 
+std::vector<std::filesystem::path> RulesCommands::watched_dirs(const std::filesystem::path& shared) const {
+  std::vector<std::filesystem::path> dirs{shared};
+  const auto& own = parts_.engine.map_rules_dir();
+  if (own.empty()) return dirs;
+  // The directories between the shared one and the map's own too: creating them is how its first file comes.
+  const auto below = own.lexically_relative(shared);
+  if (!below.empty() && *below.begin() != "..") {
+    auto dir = shared;
+    for (const auto& part : below) {
+      dir /= part;
+      dirs.push_back(dir);
+    }
+  } else {
+    dirs.push_back(own);
+  }
+  return dirs;
+}
+
 RulesCommands::RulesCommands(RulesParts parts, const std::optional<std::filesystem::path>& watch_dir)
     : parts_(parts), reader_(std::make_unique<PrologWorker>(parts.engine, 64, "knowledge-base query")) {
-  if (watch_dir) watcher_ = std::make_unique<RulesWatcher>(*watch_dir, [this] { on_files_changed(); });
+  if (watch_dir) watcher_ = std::make_unique<RulesWatcher>(watched_dirs(*watch_dir), [this] { on_files_changed(); });
 }
 
 RulesCommands::~RulesCommands() {

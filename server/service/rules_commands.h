@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "common/diagnostics.h"
 #include "rules/engine.h"
@@ -53,6 +54,8 @@ class RulesCommands {
  private:
   /// A watched rule file changed: reload, and tell the diagnostics how it went (a rejected edit is no error).
   void on_files_changed();
+  /// What the watcher watches: the shared directory, and the map's own rules directory with the ones between.
+  std::vector<std::filesystem::path> watched_dirs(const std::filesystem::path& shared) const;
 
   RulesParts parts_;
   std::unique_ptr<PrologWorker> reader_;  // queries and dry runs

@@ -5,7 +5,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <future>
 #include <map>
 #include <set>
@@ -161,6 +163,79 @@ TEST_F(MapsTokenTest, MakingAndDeletingMapsAndWritingToThemNeedTheToken) {
   EXPECT_EQ(call("DELETE", "/api/v1/maps/b").status, 401);
   EXPECT_EQ(call("GET", "/api/v1/maps/b/map").status, 200);  // reads need no token
   EXPECT_EQ(client_->request("DELETE", "/api/v1/maps/b", "", "application/json", "s3cret").status, 200);
+}
+
+// wmd on a private copy of the shipped rules: a map's own rule files go in rules/maps/<id>/.
+class MapsOwnRulesTest : public MapsTest {
+ protected:
+  void SetUp() override {
+    const auto rules = dir_.path() / "rules";
+    std::filesystem::create_directories(rules);
+    std::filesystem::copy_file(std::filesystem::path(WM_RULES_DIR) / "world_model.pl", rules / "world_model.pl");
+    rules_dir_ = rules.string();
+    MapsTest::SetUp();
+  }
+
+  // Waits until `target` (a rules status) reaches `generation`; the status then.
+  json rules_at(const std::string& target, int generation) {
+    json rules;
+    for (int i = 0; i < 300; ++i) {
+      rules = get_json(target);
+      if (rules["generation"].get<int>() >= generation) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return rules;
+  }
+
+  // The rule that decided a view of 2 m of the plan's solid wall from `x`: each call a stretch of its own, as a view of
+  // a stretch that an earlier view added as an element would match that element.
+  std::string wall_rule(const std::string& map_prefix, double x) {
+    const json answer = send_json("POST", map_prefix + "/primitives",
+                                  {{"source", "robot-7"}, {"segments", {segment(x, 10.004, x + 2, 9.998)}}});
+    return answer["decisions"].at(0)["rule"].get<std::string>();
+  }
+};
+
+// Each map takes the shared rules and its own files beside them, followed live; no other map sees them.
+TEST_F(MapsOwnRulesTest, AMapsOwnRuleFilesDecideOnThatMapOnlyAndAreFollowedLive) {
+  send_json("POST", "/api/v1/maps", {{"id", "floor2"}}, 201);
+  send_json("PUT", "/api/v1/floorplan", lab_plan());
+  send_json("PUT", "/api/v1/maps/floor2/floorplan", lab_plan());
+  EXPECT_EQ(wall_rule("/api/v1/maps/floor2", 0.5), "solid_confirmed");
+
+  const auto own = dir_.path() / "rules" / "maps" / "floor2";
+  std::filesystem::create_directories(own);
+  std::ofstream(own / "50_floor2.pl")
+      << "override(observation(_, _, _, _), element(_, O, _), add, floor2_no_walls, \"floor 2 confirms nothing\") "
+         ":-\n    attribute(O, solid).\n";
+  const json floor2 = rules_at("/api/v1/maps/floor2/rules", 2);
+  ASSERT_EQ(floor2["generation"], 2) << floor2.dump();
+  ASSERT_EQ(floor2["files"].size(), 2u) << floor2.dump();
+  EXPECT_EQ(wall_rule("/api/v1/maps/floor2", 5), "floor2_no_walls");
+  EXPECT_EQ(wall_rule("/api/v1", 5), "solid_confirmed");
+  EXPECT_EQ(get_json("/api/v1/rules")["files"].size(), 1u);
+
+  // A broken edit of the map's file is refused with its path; the map's previous rules stay.
+  std::ofstream(own / "50_floor2.pl") << "override(broken :-\n";
+  json refused;
+  for (int i = 0; i < 300; ++i) {
+    refused = get_json("/api/v1/maps/floor2/rules");
+    if (!refused["last_error"].get<std::string>().empty()) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  EXPECT_NE(refused["last_error"].get<std::string>().find("50_floor2.pl"), std::string::npos) << refused.dump();
+  EXPECT_EQ(refused["generation"], 2);
+  EXPECT_EQ(wall_rule("/api/v1/maps/floor2", 10), "floor2_no_walls");
+
+  // Still the map's after a restart; and the default map has a directory of its own too.
+  std::filesystem::remove(own / "50_floor2.pl");
+  std::filesystem::create_directories(dir_.path() / "rules" / "maps" / "default");
+  std::ofstream(dir_.path() / "rules" / "maps" / "default" / "50_default.pl")
+      << "override(observation(_, _, _, _), element(_, O, _), add, default_no_walls, \"default\") "
+         ":-\n    attribute(O, solid).\n";
+  restart();
+  EXPECT_EQ(wall_rule("/api/v1/maps/floor2", 15), "solid_confirmed");
+  EXPECT_EQ(wall_rule("/api/v1", 10), "default_no_walls");
 }
 
 // A robot that takes the lift: heard on one floor, then on the next. The server-wide list shows it once, on the map

@@ -5,10 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <thread>
 
 #include "server/service/service_test_helpers.h"
 #include "server/service/world_service.h"
@@ -90,6 +92,57 @@ TEST(RulesCommandsTest, ADryRunAsksTheLoggedDecisionsAgainWithTheCandidateAndCha
   const auto next = s.world.post_primitives(one_line({2, -1}, {2, 1}), "{}", std::nullopt);
   ASSERT_EQ(next.decisions.size(), 1u);
   EXPECT_EQ(next.decisions[0].rule, "solid_confirmed");
+}
+
+// Waits up to 10 s for the rules' generation to pass `generation`; the status then.
+rules::RulesStatus next_generation(WorldService& world, std::int64_t generation) {
+  for (int i = 0; i < 200 && world.rules_status().generation <= generation; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  return world.rules_status();
+}
+
+TEST(RulesCommandsTest, TheWatcherFollowsAMapsOwnRulesDirectoryFromWhenItIsMadeUntilItGoes) {
+  testing::TempDir dir;
+  const auto shared = dir.path() / "rules";
+  std::filesystem::create_directories(shared);
+  std::filesystem::copy_file(WM_SOURCE_DIR "/rules/prolog/world_model.pl", shared / "world_model.pl");
+  rules::EngineOptions engine_options{shared};
+  engine_options.map_rules_dir = shared / "maps" / "floor2";  // not there yet
+  storage::Store store{{(dir.path() / "world.db").string(), false}};
+  rules::Engine engine{engine_options};
+  common::Diagnostics diagnostics{"", nullptr};
+  ServiceOptions options;
+  options.watch_rules_dir = shared;
+  WorldService world{options, store, engine, diagnostics};
+  world.load_floor_plan(wall_plan());
+  ASSERT_EQ(world.post_primitives(one_line({2, -1}, {2, 1}), "{}", std::nullopt).decisions.at(0).rule,
+            "solid_confirmed");
+
+  // As a person would: make the directories and save a file at once.
+  std::filesystem::create_directories(engine_options.map_rules_dir);
+  std::ofstream(engine_options.map_rules_dir / "50_floor2.pl")
+      << "override(observation(_, _, _, _), element(_, O, _), add, floor2_no_walls, \"floor 2\") :-\n"
+         "    attribute(O, solid).\n";
+  const auto taken = next_generation(world, 1);
+  ASSERT_EQ(taken.generation, 2) << taken.last_error;
+  EXPECT_EQ(taken.files.size(), 2u);
+  EXPECT_EQ(world.post_primitives(one_line({2, -1}, {2, 1}), "{}", std::nullopt).decisions.at(0).rule,
+            "floor2_no_walls");
+
+  // A file of the map edited: followed as the shared ones are.
+  std::ofstream(engine_options.map_rules_dir / "50_floor2.pl")
+      << "override(observation(_, _, _, _), element(_, O, _), add, floor2_edited, \"floor 2\") :-\n"
+         "    attribute(O, solid).\n";
+  ASSERT_EQ(next_generation(world, 2).generation, 3);
+  EXPECT_EQ(world.post_primitives(one_line({2, -1}, {2, 1}), "{}", std::nullopt).decisions.at(0).rule, "floor2_edited");
+
+  // The map's directory removed: the shared rules alone again.
+  std::filesystem::remove_all(shared / "maps");
+  const auto gone = next_generation(world, 3);
+  ASSERT_EQ(gone.generation, 4) << gone.last_error;
+  EXPECT_EQ(gone.files.size(), 1u);
+  EXPECT_EQ(world.post_primitives(one_line({2, -1}, {2, 1}), "{}", std::nullopt).decisions.at(0).rule,
+            "solid_confirmed");
 }
 
 }  // namespace
