@@ -15,6 +15,7 @@
 #include "server/api/router.h"
 #include "server/config/server_config.h"
 #include "server/foxglove/bridge.h"
+#include "server/foxglove/map_bridges.h"
 #include "server/http/http_server.h"
 #include "server/service/map_registry.h"
 #include "server/service/world_service.h"
@@ -102,16 +103,24 @@ int main(int argc, char** argv) {
         {"wmd (worldmodel)",
          services.map_cache->instance(),
          {{"api", "/api/v1"}, {"map_frame", "map"}, {"robot_frames", "<robot id>/base_link"}}});
+    // The other maps' Foxglove clients (/foxglove?map=ID): a bridge per map while it has clients.
+    foxglove::MapBridges map_bridges(
+        cfg.foxglove, maps, diagnostics,
+        {"wmd (worldmodel)", {}, {{"map_frame", "map"}, {"robot_frames", "<robot id>/base_link"}}},
+        [&services](const std::shared_ptr<service::MapInstance>& map) {
+          return services.map_caches->of(map)->instance();
+        });
     http::HttpServer::Handlers handlers{
         [&services](const api::Request& r) { return api::handle_request(r, services); },
         [](const api::Request& r) { return api::handler_lane(r); },
         [](const api::Request& r) { return api::is_websocket_upgrade(r); },
         [&services](const api::Request& r) { return api::authorize_events(r, services); },
         [&services](const api::Request& r) { return api::answer_at_once(r, services); },
-        [&foxglove_bridge](const api::Request& r) -> std::shared_ptr<http::WebSocketEndpoint> {
+        [&foxglove_bridge, &map_bridges](const api::Request& r) -> std::shared_ptr<http::WebSocketEndpoint> {
           // The route table names the subprotocol each WebSocket speaks; none is the events stream.
-          if (api::websocket_subprotocol(r) == foxglove::kSubprotocol) return foxglove_bridge.connect();
-          return nullptr;
+          if (api::websocket_subprotocol(r) != foxglove::kSubprotocol) return nullptr;
+          if (const auto map = api::foxglove_map(r)) return map_bridges.connect(*map);
+          return foxglove_bridge.connect();
         },
         [&services](const api::Request& r) { return api::map_events_hub(r, services); }};
     http::HttpServer server(cfg.http, std::move(handlers), diagnostics, &events);

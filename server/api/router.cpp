@@ -129,6 +129,15 @@ std::optional<Response> authorize_events(const Request& request, Services& servi
     }
   }
   const auto protocol = websocket_subprotocol(request);
+  if (!protocol.empty()) {
+    // The map of a Foxglove client (/foxglove?map=ID), refused as a map route's would be.
+    try {
+      if (const auto map = parse_target(raw).param("map")) map_context(*map, services);
+    } catch (...) {
+      const auto failure = http_error(std::current_exception());
+      return error_response(request.version(), false, failure.status, failure.error, failure.detail);
+    }
+  }
   if (protocol.empty() || offers_subprotocol(request, protocol)) return std::nullopt;
   const auto target = target_of(request);
   return error_response(request.version(), false, 400, "subprotocol_required",
@@ -145,6 +154,16 @@ std::shared_ptr<events::EventHub> map_events_hub(const Request& request, Service
   auto map = services.maps->find(scoped->map);
   if (!map) return nullptr;
   return std::shared_ptr<events::EventHub>(map, &map->events);
+}
+
+std::optional<std::string> foxglove_map(const Request& request) {
+  try {
+    auto map = parse_target(target_of(request)).param("map");
+    if (!map || *map == service::kDefaultMapId) return std::nullopt;
+    return map;
+  } catch (...) {
+    return std::nullopt;
+  }
 }
 
 std::string_view websocket_subprotocol(const Request& request) {

@@ -40,14 +40,18 @@ bool is_websocket_upgrade(const Request& request);
 
 /// Decides a WebSocket upgrade (see authorize_upgrade in server/api/access.h), then, for a route that speaks a
 /// subprotocol (GET /foxglove), that the request offers it. nullopt: upgrade; otherwise the refusal to send (421, 403,
-/// 401, or 400 subprotocol_required; under /api/v1/maps/{map}/ also 400 for a bad id, 404 for no such map). Never
-/// throws.
+/// 401, or 400 subprotocol_required; under /api/v1/maps/{map}/, and for /foxglove?map=ID, also 400 for a bad id, 404
+/// for no such map). Never throws.
 std::optional<Response> authorize_events(const Request& request, Services& services);
 
 /// The live events of the map an upgrade names (/api/v1/maps/{map}/events), owned with the map so that they outlive
 /// its deletion while the stream runs; nullptr for the default map's (the server's own hub) or a map there is not
 /// (authorize_events refused it). Never throws.
 std::shared_ptr<events::EventHub> map_events_hub(const Request& request, Services& services);
+
+/// The map a Foxglove upgrade names (/foxglove?map=ID): nullopt for none or the default map (the server's own
+/// bridge), or a query that does not parse (authorize_events refused it). Never throws.
+std::optional<std::string> foxglove_map(const Request& request);
 
 /// The subprotocol the WebSocket route of this request speaks (the route table's); empty for the events stream or a
 /// request that names no WebSocket route.

@@ -180,13 +180,22 @@ void Bridge::Core::take_events() {
       case events::EventKind::georeference:
         elements_dirty_ = plan_dirty_ = decisions_dirty_ = true;
         break;
+      case events::EventKind::map_removed:
+        // The bridge's map was deleted: each client is told, then closed; the map goes when the last has gone.
+        for (const auto& client : live_clients()) client->push_last(status_json(StatusLevel::error, removed_text()));
+        break;
       case events::EventKind::change:
-      case events::EventKind::map_removed:  // a map other than the bridge's: never on its hub
-      case events::EventKind::resync:       // the hub dropped events for us: everything
+      case events::EventKind::resync:  // the hub dropped events for us: everything
         elements_dirty_ = plan_dirty_ = decisions_dirty_ = grid_dirty_ = robots_dirty_ = true;
         break;
     }
   }
+}
+
+std::string Bridge::Core::removed_text() const {
+  const auto map = info.metadata.find("map");
+  return "the map" + (map == info.metadata.end() ? std::string() : " '" + map->second + "'") +
+         " was deleted (GET /api/v1/maps lists the maps)";
 }
 
 Clock::time_point Bridge::Core::next_wake() const {

@@ -182,7 +182,7 @@ void FoxgloveClient::push_text(std::string text) {
   std::function<void()> wake;
   {
     std::lock_guard lock(mutex_);
-    if (closed_) return;
+    if (closed_ || ending_) return;
     if (text_bytes_ + text.size() > kMaxQueuedTextBytes) {
       ++dropped_text_;
       return;
@@ -194,16 +194,30 @@ void FoxgloveClient::push_text(std::string text) {
   if (wake) wake();
 }
 
+void FoxgloveClient::push_last(std::string text) {
+  std::function<void()> wake;
+  {
+    std::lock_guard lock(mutex_);
+    if (closed_ || ending_) return;
+    ending_ = true;
+    http::WebSocketFrame last{false, std::move(text), nullptr};
+    last.close_after = true;
+    queue_.push_back({std::move(last), 0, false});
+    wake = wake_;
+  }
+  if (wake) wake();
+}
+
 bool FoxgloveClient::subscribed(std::uint32_t channel) const {
   std::lock_guard lock(mutex_);
-  if (behind_ || closed_) return false;
+  if (behind_ || closed_ || ending_) return false;
   return std::any_of(subscriptions_.begin(), subscriptions_.end(),
                      [&](const auto& entry) { return entry.second.active && entry.second.channel == channel; });
 }
 
 bool FoxgloveClient::push_data_locked(std::uint32_t subscription, const Payload& payload, std::uint64_t stamp_ns,
                                       Delivery delivery, bool initial) {
-  if (closed_) return false;
+  if (closed_ || ending_) return false;
   if (behind_) {
     ++dropped_;
     ++core_->dropped;

@@ -91,6 +91,10 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
   /// dropped past kMaxQueuedTextBytes (serverInfo and advertise come first and are far below it).
   void push_text(std::string text);
 
+  /// The last message: `text` (a status), after what is queued, then the transport closes the connection. Nothing
+  /// is queued after it (the map the client followed was deleted).
+  void push_last(std::string text);
+
   /// Whether it has an active subscription to the channel and keeps up: one that fell behind gets the current state
   /// when it reads again, so nothing needs to be made for it meanwhile.
   bool subscribed(std::uint32_t channel) const;
@@ -125,6 +129,7 @@ class FoxgloveClient final : public http::WebSocketEndpoint, public std::enable_
   bool behind_ = false;
   std::uint64_t dropped_ = 0;  // since it last caught up
   bool closed_ = false;
+  bool ending_ = false;                         // push_last was called: nothing more is queued
   std::map<std::uint32_t, Sub> subscriptions_;  // by the client's subscription id
 };
 
@@ -205,6 +210,8 @@ struct Bridge::Core {
   void publish(std::uint32_t channel, const Payload& payload, std::uint64_t stamp_ns);
   void follow_clients();
   void take_events();
+  // What a client is told when the bridge's map was deleted.
+  std::string removed_text() const;
   void produce();
   Clock::time_point next_wake() const;
 

@@ -24,7 +24,7 @@ import foxgloveSchemas from '@foxglove/schemas/jsonschema.js';
 import Ajv from 'ajv';
 import WebSocket from 'ws';
 
-import { getJson, putJson, startWmd } from '../web/lib/wmd.mjs';
+import { getJson, postJson, putJson, request, startWmd } from '../web/lib/wmd.mjs';
 
 const { FoxgloveClient } = foxglove;
 const here = path.dirname(fileURLToPath(import.meta.url));
@@ -145,6 +145,7 @@ class View {
     });
     this.client.on('status', (status) => this.statuses.push({ status, order: ++this.order }));
     this.client.on('message', (event) => this.onMessage(event));
+    this.closed = new Promise((resolve) => ws.on('close', (code) => resolve(code)));
   }
 
   onMessage({ subscriptionId, timestamp, data }) {
@@ -193,10 +194,10 @@ class View {
 }
 
 /** Differences between the grid of a View and GET /api/v1/grid (values there are rounded to 4 decimals). */
-async function gridDifferences(base, view) {
+async function gridDifferences(base, view, api = '/api/v1') {
   const latest = view.latest.get('/grid');
   if (!latest) return ['no /grid message yet'];
-  const rest = await getJson(base, '/api/v1/grid');
+  const rest = await getJson(base, `${api}/grid`);
   const ours = decodeGrid(latest.message);
   const problems = [];
   if (ours.x0 !== rest.origin[0] || ours.y0 !== rest.origin[1]) problems.push(`origin ${ours.x0},${ours.y0} vs ${rest.origin}`);
@@ -215,8 +216,8 @@ async function gridDifferences(base, view) {
 }
 
 /** Differences between the scenes of a View and GET /api/v1/map. */
-async function sceneDifferences(base, view) {
-  const map = await getJson(base, '/api/v1/map');
+async function sceneDifferences(base, view, api = '/api/v1') {
+  const map = await getJson(base, `${api}/map`);
   const problems = [];
   const elements = view.scenes.get('/map/elements') || new Map();
   if (elements.size !== map.elements.length) problems.push(`${elements.size} element entities for ${map.elements.length} elements`);
@@ -250,8 +251,8 @@ async function sceneDifferences(base, view) {
 }
 
 /** Differences between the poses and transforms of a View and GET /api/v1/robots. */
-async function poseDifferences(base, view) {
-  const { robots } = await getJson(base, '/api/v1/robots');
+async function poseDifferences(base, view, api = '/api/v1') {
+  const { robots } = await getJson(base, `${api}/robots`);
   const problems = [];
   if (robots.length === 0) problems.push('no robot yet');
   for (const r of robots.filter((robot) => robot.pose)) {
@@ -277,8 +278,8 @@ async function poseDifferences(base, view) {
 }
 
 /** Differences between the log of a View and GET /api/v1/decisions (every decision, in order). */
-async function logDifferences(base, view) {
-  const { decisions } = await getJson(base, '/api/v1/decisions?limit=10000');
+async function logDifferences(base, view, api = '/api/v1') {
+  const { decisions } = await getJson(base, `${api}/decisions?limit=10000`);
   const ours = new Map();
   for (const log of view.logs) {
     const m = /^decision (\d+): (\S+)/.exec(log.message);
@@ -543,5 +544,84 @@ describe('a token, a small queue and a subscriber that stops reading', () => {
     });
     assert.deepEqual(slow.invalid, []);
     slow.close();
+  });
+});
+
+describe('a Foxglove client of another map (/foxglove?map=ID)', () => {
+  const ctx = {};
+  const api = '/api/v1/maps/floor2';
+
+  before(async () => {
+    ctx.dir = fs.mkdtempSync(path.join(os.tmpdir(), 'wm-foxglove-maps-test-'));
+    ctx.wmd = await startWmd({ wmdPath, repo, dir: ctx.dir, extraArgs: ['--no-shm'] });
+    ctx.base = ctx.wmd.url;
+    ctx.ws = `${ctx.base.replace('http', 'ws')}/foxglove`;
+    await postJson(ctx.base, '/api/v1/maps', { id: 'floor2' });
+  });
+
+  after(async () => {
+    const stopped = ctx.wmd ? await ctx.wmd.stop() : { code: 0 };
+    if (ctx.dir) fs.rmSync(ctx.dir, { recursive: true, force: true });
+    assert.equal(stopped.code, 0, `wmd stopped with ${stopped.code ?? stopped.signal}:\n${ctx.wmd?.output()}`);
+  });
+
+  test('it follows that map only, every channel equal to the map\'s REST API; a delete tells it and closes it', async () => {
+    const floor2 = await View.open(`${ctx.ws}?map=floor2`);
+    const main = await View.open(ctx.ws);
+    const again = await View.open(`${ctx.ws}?map=floor2`);  // a second client of the same map's bridge
+    assert.equal(floor2.serverInfo.metadata.map, 'floor2');
+    assert.equal(floor2.serverInfo.metadata.api, api);
+    assert.equal(floor2.serverInfo.sessionId, (await getJson(ctx.base, `${api}/map`)).server_instance);
+    assert.notEqual(floor2.serverInfo.sessionId, main.serverInfo.sessionId);
+
+    await putJson(ctx.base, `${api}/floorplan`, JSON.parse(fs.readFileSync(planPath, 'utf8')));
+    await replay(ctx.base, ['--map', 'floor2']);
+    for (const view of [floor2, again]) {
+      await waitFor('the grid', () => gridDifferences(ctx.base, view, api));
+      await waitFor('the scenes', () => sceneDifferences(ctx.base, view, api));
+      await waitFor('the poses', () => poseDifferences(ctx.base, view, api));
+      await waitFor('the decision log', () => logDifferences(ctx.base, view, api));
+      assert.deepEqual(view.invalid, []);
+    }
+    assert.ok(floor2.scenes.get('/map/elements').size > 0);
+    // The default map heard nothing: its client has an empty scene and no robot.
+    await waitFor('the default map\'s scenes', () => sceneDifferences(ctx.base, main));
+    assert.equal(main.scenes.get('/map/elements').size, 0);
+    assert.equal(main.topic('/robots/intel/pose'), undefined);
+    assert.ok(floor2.topic('/robots/intel/pose') || floor2.transforms.size > 0);
+
+    // Deleted while its clients follow it: each is told why, then closed; the default map's client stays.
+    await request(ctx.base, 'DELETE', '/api/v1/maps/floor2');
+    for (const view of [floor2, again]) {
+      await view.closed;
+      const last = view.statuses.at(-1);
+      assert.equal(last?.status.level, 2);
+      assert.match(last.status.message, /the map 'floor2' was deleted/);
+    }
+    assert.equal(main.ws.readyState, WebSocket.OPEN);
+    main.close();
+  });
+
+  test('a bad or unknown map is refused before the upgrade with a JSON error', async () => {
+    const refusal = (url) => new Promise((resolve, reject) => {
+      const ws = new WebSocket(url, [kSubprotocol]);
+      ws.on('unexpected-response', (_req, res) => {
+        let body = '';
+        res.on('data', (d) => { body += d; });
+        res.on('end', () => resolve({ status: res.statusCode, body: JSON.parse(body) }));
+      });
+      ws.on('open', () => reject(new Error(`${url} opened`)));
+      ws.on('error', () => {});
+    });
+    for (const [map, status] of [['Floor2', 400], ['-x', 400], ['a%2Fb', 400], ['..', 400], ['x'.repeat(33), 400],
+      ['nosuchmap', 404], ['floor2', 404]]) {
+      const refused = await refusal(`${ctx.ws}?map=${map}`);
+      assert.equal(refused.status, status, `map=${map}`);
+      assert.ok(refused.body.error, `map=${map}`);
+    }
+    // map=default is the server's own bridge.
+    const main = await View.open(`${ctx.ws}?map=default`);
+    assert.equal(main.serverInfo.metadata.api, '/api/v1');
+    main.close();
   });
 });
