@@ -86,6 +86,9 @@ int main(int argc, char** argv) {
     api::Services services{cfg.api, world};
     services.diagnostics = &diagnostics;
     services.maps = &maps;
+    // The other maps' shared-memory exports, each made when its map is first used (after `maps`: gone before it).
+    std::optional<api::MapExports> map_exports;
+    if (cfg.shm.enabled) services.map_exports = &map_exports.emplace(cfg.shm, diagnostics);
     // Before the HTTP server, which hands it to handlers, and after the world it reads.
     std::optional<shm::SharedMapExport> shared_memory;
     if (cfg.shm.enabled) {

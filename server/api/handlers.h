@@ -19,6 +19,8 @@
 
 namespace wm::api {
 
+class MapExports;  // server/api/map_scope.h
+
 /// One request as a handler sees it.
 struct Call {
   const Request& request;
@@ -27,12 +29,13 @@ struct Call {
   const ApiOptions& options;
   const service::WorldPorts& world;  // the service's ports: map, ingest, plan, rules, grid, robots
   MapCache& map_cache;
-  const shm::SharedMapExport* shm = nullptr;         // nullptr when wmd runs with --no-shm, and for other maps
+  const shm::SharedMapExport* shm = nullptr;         // the map's export; nullptr when wmd runs with --no-shm
   const common::Diagnostics* diagnostics = nullptr;  // nullptr: the health answer has no "diagnostics"
   /// The map the request is about: kDefaultMapId for today's routes, {map} under /api/v1/maps/{map}/.
   std::string_view map_id = service::kDefaultMapId;
   bool map_scoped = false;               // the path named the map (/api/v1/maps/{map}/...), rather than today's routes
   service::MapRegistry* maps = nullptr;  // the server's other maps; nullptr: it has only the default map
+  MapExports* map_exports = nullptr;     // their shared-memory exports; nullptr: none (--no-shm)
 };
 
 using Handler = Response (*)(const Call&);

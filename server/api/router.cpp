@@ -35,7 +35,8 @@ struct MapContext {
   std::shared_ptr<service::MapInstance> instance;  // null for the default map
   std::optional<service::WorldPorts> ports;        // the instance's
   std::shared_ptr<MapCache> cache;
-  bool scoped = false;  // named in the path
+  std::shared_ptr<const shm::SharedMapExport> shm;  // the instance's, held while the call runs
+  bool scoped = false;                              // named in the path
 };
 
 MapContext map_context(const std::optional<std::string>& path_id, Services& services) {
@@ -52,6 +53,7 @@ MapContext map_context(const std::optional<std::string>& path_id, Services& serv
   context.id = id;
   context.ports.emplace(context.instance->world);
   context.cache = services.map_caches->of(context.instance);
+  if (services.map_exports) context.shm = services.map_exports->of(context.instance, context.cache->instance());
   return context;
 }
 
@@ -63,11 +65,12 @@ Call call_of(const Request& request, const Target& target, const RouteMatch& mat
             services.options,
             map.ports ? *map.ports : services.world,
             *map.cache,
-            map.instance ? nullptr : services.shm,
+            map.instance ? map.shm.get() : services.shm,
             services.diagnostics};
   call.map_id = map.id;
   call.map_scoped = map.scoped;
   call.maps = services.maps;
+  call.map_exports = services.map_exports;
   return call;
 }
 

@@ -25,6 +25,8 @@ struct Services {
   /// The maps besides the default one, served under /api/v1/maps/{map}/; nullptr: only the default map.
   service::MapRegistry* maps = nullptr;
   std::shared_ptr<MapCaches> map_caches = std::make_shared<MapCaches>();  // the map's bytes, per map of `maps`
+  /// The shared-memory exports of `maps`' maps; nullptr when wmd runs with --no-shm.
+  MapExports* map_exports = nullptr;
 };
 
 /// The answer to a request whose route is marked at_once, when it can be given on the calling (I/O) thread without

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <future>
+#include <optional>
 #include <thread>
 
 #include "e2e_fixture.h"
@@ -183,6 +184,45 @@ TEST_F(ShmTest, NothingIsLeftInDevShmAfterACleanStopOrAKillAndARestart) {
   EXPECT_TRUE(in_dev_shm(third));
   ASSERT_EQ(server_->stop(), 0);
   EXPECT_FALSE(in_dev_shm(third));
+}
+
+// Each map has a segment of its own, found through its own route, holding that map only; a deleted map's goes.
+TEST_F(ShmTest, EachMapHasASegmentOfItsOwnThatGoesWithIt) {
+  send_json("POST", "/api/v1/maps", {{"id", "floor2"}}, 201);
+  const auto log = real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected.log.gz");
+  ASSERT_EQ(run_command(wmctl(server_->url(), "--map floor2 replay " + log.string() + " --limit 150")).status, 0);
+  const auto floor2_name = get_json("/api/v1/maps/floor2/shm").at("name").get<std::string>();
+  const auto default_name = segment_name();
+  EXPECT_NE(floor2_name, default_name);
+  EXPECT_TRUE(in_dev_shm(floor2_name));
+
+  const auto revision = get_json("/api/v1/maps/floor2/grid").at("revision").get<std::int64_t>();
+  ASSERT_GT(revision, 0);
+  std::optional<shm::Reader> floor2;
+  for (int i = 0; i < 500; ++i) {
+    floor2.emplace(get_json("/api/v1/maps/floor2/shm").at("name").get<std::string>());
+    if (static_cast<std::int64_t>(floor2->grid_revision()) == revision && floor2->read_map().version >= 0) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_EQ(static_cast<std::int64_t>(floor2->grid_revision()), revision);
+  const auto http_map = get_json("/api/v1/maps/floor2/map");
+  EXPECT_EQ(floor2->read_map().version, http_map.at("version").get<std::int64_t>());
+  EXPECT_EQ(floor2->read_map().elements.size(), http_map.at("elements").size());
+  EXPECT_GT(http_map.at("elements").size(), 0u);
+  // The default map's segment holds the default map: nothing was posted to it.
+  shm::Reader main_segment(default_name);
+  EXPECT_EQ(main_segment.grid_revision(), 0u);
+  EXPECT_EQ(main_segment.read_map().elements.size(), 0u);
+  // wmctl on the map compares that map's tiles with its segment.
+  const auto check = run_command(wmctl(server_->url(), "--map floor2 shm"));
+  EXPECT_EQ(check.status, 0) << check.output;
+  EXPECT_NE(check.output.find("tiles equal bit for bit"), std::string::npos) << check.output;
+
+  EXPECT_EQ(send_json("DELETE", "/api/v1/maps/floor2", json(nullptr))["deleted"], "floor2");
+  EXPECT_FALSE(in_dev_shm(floor2_name)) << "a deleted map's segment goes with it";
+  EXPECT_EQ(floor2->state(), shm::SegmentState::stopped);
+  EXPECT_TRUE(in_dev_shm(default_name));
+  EXPECT_EQ(call("GET", "/api/v1/maps/floor2/shm").status, 404);
 }
 
 class NoShmTest : public ServerFixture {

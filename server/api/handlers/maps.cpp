@@ -7,6 +7,7 @@
 #include "server/api/access.h"
 #include "server/api/api_error.h"
 #include "server/api/handlers.h"
+#include "server/api/map_scope.h"
 #include "server/api/request.h"
 #include "server/api/response.h"
 
@@ -136,7 +137,10 @@ Response delete_map(const Call& call) {
   if (id == service::kDefaultMapId)
     throw ApiError(409, "default_map", "the default map cannot be deleted (it is the --db file)");
   if (!call.maps) throw ApiError(404, "map_not_found", "no map '" + id + "'");
+  const auto map = call.maps->find(id);
   call.maps->remove(id);
+  // Its segment goes now (readers see it stopped), not when the last request that holds the map ends.
+  if (map && call.map_exports) call.map_exports->forget(map.get());
   return json_response(call.request, {{"deleted", id}});
 }
 
