@@ -1,8 +1,10 @@
 // Requests to the maps and to one map's routes (/api/v1/maps, /api/v1/maps/{map}/...), through the api's router
 // onto real maps: a MapRegistry in a temporary directory with two maps on the shipped rules, one of them standing
-// in as the default map. The first byte picks the method, the rest is the target. Expected: every request answered
-// (handle_request never throws) with a status other than 500, and a JSON error body for every refusal. Writes need
-// a token the inputs do not have, so the maps stay as made and each input meets the same server.
+// in as the default map, with their shared-memory exports. The first byte picks the method, the rest is the target.
+// Expected: every request answered (handle_request never throws) with a status other than 500, and a JSON error body
+// for every refusal. Writes need a token the inputs do not have, so the maps stay as made and each input meets the
+// same server. A GET target is also tried as a Foxglove WebSocket upgrade: authorize_events and foxglove_map never
+// throw, and an upgrade allowed with a map named in its query names a map the server has.
 #include <unistd.h>
 
 #include <array>
@@ -38,9 +40,12 @@ class MapsFixture {
     api_options.token = "fuzz-token-not-in-any-input";
     services_ = std::make_unique<api::Services>(api::Services{api_options, home_->world});
     services_->maps = registry_.get();
+    exports_ = std::make_unique<api::MapExports>(shm::ShmOptions{}, diagnostics_);
+    services_->map_exports = exports_.get();
   }
   ~MapsFixture() {
     services_.reset();
+    exports_.reset();
     home_.reset();
     registry_.reset();
     std::error_code ignored;
@@ -53,6 +58,7 @@ class MapsFixture {
   common::Diagnostics diagnostics_;
   std::unique_ptr<service::MapRegistry> registry_;
   std::shared_ptr<service::MapInstance> home_;
+  std::unique_ptr<api::MapExports> exports_;
   std::unique_ptr<api::Services> services_;
 };
 
@@ -82,6 +88,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const auto body = nlohmann::json::parse(response.body(), nullptr, false);
     if (!body.is_object() || !body.contains("error"))
       fuzz::fail("a refusal without a JSON error for " + target + ": " + response.body());
+  }
+  if (request.method() == http::verb::get) {
+    api::Request upgrade{http::verb::get, target, 11};
+    upgrade.set(http::field::host, "127.0.0.1:8080");
+    upgrade.set(http::field::connection, "Upgrade");
+    upgrade.set(http::field::upgrade, "websocket");
+    upgrade.set(http::field::sec_websocket_version, "13");
+    upgrade.set(http::field::sec_websocket_key, "dGhlIHNhbXBsZSBub25jZQ==");
+    upgrade.set(http::field::sec_websocket_protocol, "foxglove.websocket.v1");
+    upgrade.set(http::field::authorization, "Bearer fuzz-token-not-in-any-input");
+    const auto refusal = api::authorize_events(upgrade, fixture.services());
+    const auto map = api::foxglove_map(upgrade);
+    if (!refusal && map && api::websocket_subprotocol(upgrade) == "foxglove.websocket.v1" &&
+        !fixture.services().maps->find(*map))
+      fuzz::fail("a Foxglove upgrade allowed for a map there is not: " + target);
   }
   return 0;
 }

@@ -444,6 +444,37 @@ TEST_F(MapsTest, AMapDeletedDuringAReplayAnswersEachScanWholeOrNotFound) {
 }
 
 // wmctl --map sends every map command to that map; `wmctl maps` lists, makes and deletes them.
+// Two buildings of one site, the real AMRL plans of GDC1 and AHG2, as two maps: each holds its own plan, the same
+// objects as that plan loaded alone into the default map, and the other's routes do not see it.
+TEST_F(MapsTest, ASiteHoldsGDC1AndAHG2AsTwoMaps) {
+  const auto wmctl_at = [&](const std::string& args) { return run_command(wmctl(server_->url(), args)); };
+  const auto gdc1 = real_data("amrl-vectormaps/GDC1.vectormap.json", "plans/GDC1.vectormap.json");
+  const auto ahg2 = real_data("amrl-vectormaps/AHG2.vectormap.json", "plans/AHG2.vectormap.json");
+  for (const auto& [id, plan] : {std::pair{"gdc1", gdc1}, std::pair{"ahg2", ahg2}}) {
+    ASSERT_EQ(wmctl_at(std::string("maps create ") + id).status, 0);
+    const auto r = wmctl_at(std::string("--map ") + id + " floorplan load " + plan.string());
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  const json on_gdc1 = get_json("/api/v1/maps/gdc1/floorplan"), on_ahg2 = get_json("/api/v1/maps/ahg2/floorplan");
+  EXPECT_GT(on_gdc1["objects"].size(), 100u);
+  EXPECT_GT(on_ahg2["objects"].size(), 100u);
+  EXPECT_NE(on_gdc1["objects"], on_ahg2["objects"]);
+  EXPECT_TRUE(get_json("/api/v1/floorplan")["objects"].empty());
+  // Each as the same plan loaded alone.
+  for (const auto& [id, plan] : {std::pair{"gdc1", gdc1}, std::pair{"ahg2", ahg2}}) {
+    ASSERT_EQ(wmctl_at("floorplan load " + plan.string()).status, 0);
+    EXPECT_EQ(get_json("/api/v1/floorplan")["objects"],
+              get_json(std::string("/api/v1/maps/") + id + "/floorplan")["objects"])
+        << id;
+  }
+  const json list = get_json("/api/v1/maps");
+  ASSERT_EQ(list["maps"].size(), 3u);
+  EXPECT_EQ(list["maps"][1]["id"], "ahg2");
+  EXPECT_EQ(list["maps"][1]["objects"], on_ahg2["objects"].size());
+  EXPECT_EQ(list["maps"][2]["id"], "gdc1");
+  EXPECT_EQ(list["maps"][2]["objects"], on_gdc1["objects"].size());
+}
+
 TEST_F(MapsTest, WmctlWorksOnTheMapItIsGiven) {
   const auto wmctl_at = [&](const std::string& args) { return run_command(wmctl(server_->url(), args)); };
   auto r = wmctl_at("maps create lift-b");
