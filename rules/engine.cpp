@@ -360,8 +360,6 @@ RulesStatus Engine::status() const {
   return impl_->status;
 }
 
-const std::filesystem::path& Engine::rules_dir() const { return impl_->options.rules_dir; }
-
 const std::filesystem::path& Engine::map_rules_dir() const { return impl_->options.map_rules_dir; }
 
 void Engine::set_elements(const std::vector<ElementFacts>& elements) {

@@ -77,8 +77,7 @@ class Engine {
 
   RulesStatus status() const;
 
-  /// Where this engine's rule files come from: the shared directory, then the map's own (empty when none).
-  const std::filesystem::path& rules_dir() const;
+  /// The map's own rules directory (EngineOptions::map_rules_dir; empty when none).
   const std::filesystem::path& map_rules_dir() const;
 
   /// Decides many queries in one Prolog call (one time limit around the batch, the inference limit per

@@ -180,22 +180,19 @@ void Bridge::Core::take_events() {
       case events::EventKind::georeference:
         elements_dirty_ = plan_dirty_ = decisions_dirty_ = true;
         break;
-      case events::EventKind::map_removed:
+      case events::EventKind::map_removed: {
         // The bridge's map was deleted: each client is told, then closed; the map goes when the last has gone.
-        for (const auto& client : live_clients()) client->push_last(status_json(StatusLevel::error, removed_text()));
+        const auto map = info.metadata.find("map");
+        const auto last = map_deleted_status(map == info.metadata.end() ? std::string_view() : map->second);
+        for (const auto& client : live_clients()) client->push_last(last);
         break;
+      }
       case events::EventKind::change:
       case events::EventKind::resync:  // the hub dropped events for us: everything
         elements_dirty_ = plan_dirty_ = decisions_dirty_ = grid_dirty_ = robots_dirty_ = true;
         break;
     }
   }
-}
-
-std::string Bridge::Core::removed_text() const {
-  const auto map = info.metadata.find("map");
-  return "the map" + (map == info.metadata.end() ? std::string() : " '" + map->second + "'") +
-         " was deleted (GET /api/v1/maps lists the maps)";
 }
 
 Clock::time_point Bridge::Core::next_wake() const {
@@ -228,6 +225,11 @@ void Bridge::Core::produce() {
     if (decisions_dirty_) attempt("decisions", [this] { produce_decisions(); });
   }
 }
+std::string map_deleted_status(std::string_view map) {
+  return status_json(StatusLevel::error, "the map" + (map.empty() ? std::string() : " '" + std::string(map) + "'") +
+                                             " was deleted (GET /api/v1/maps lists the maps)");
+}
+
 // --- Bridge ---
 
 Bridge::Bridge(const FoxgloveOptions& options, service::WorldPorts world, events::EventHub& hub,

@@ -4,6 +4,8 @@
 // once, and hands them to every client subscribed to their channel, each through a bounded queue of its own.
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <string_view>
 
 #include "common/diagnostics.h"
 #include "server/events/event_hub.h"
@@ -48,6 +50,9 @@ struct BridgeStats {
 /// A new subscription gets the current state at once: the grid, the whole scene (a deletion of everything, then
 /// every entity), the poses and transforms, the last initial_decisions decisions; then changes as they happen
 /// (scene updates carry only the entities that changed and deletions of those removed).
+/// The last status a client of a deleted map gets (an error naming the map; `map` empty: the server's own).
+std::string map_deleted_status(std::string_view map);
+
 class Bridge {
  public:
   /// `world` and `hub` must outlive the bridge and every connection it made; `diagnostics` (what the bridge's thread

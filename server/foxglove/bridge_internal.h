@@ -210,8 +210,6 @@ struct Bridge::Core {
   void publish(std::uint32_t channel, const Payload& payload, std::uint64_t stamp_ns);
   void follow_clients();
   void take_events();
-  // What a client is told when the bridge's map was deleted.
-  std::string removed_text() const;
   void produce();
   Clock::time_point next_wake() const;
 

@@ -37,8 +37,7 @@ class MapClient final : public http::WebSocketEndpoint {
 // A client of a map deleted after its upgrade was allowed: told so, then closed.
 class GoneClient final : public http::WebSocketEndpoint {
  public:
-  explicit GoneClient(const std::string& id)
-      : text_(status_json(StatusLevel::error, "the map '" + id + "' was deleted (GET /api/v1/maps lists the maps)")) {}
+  explicit GoneClient(const std::string& id) : text_(map_deleted_status(id)) {}
 
   std::string_view subprotocol() const override { return kSubprotocol; }
   void open(std::function<void()> wake) override { wake(); }
@@ -88,13 +87,6 @@ std::shared_ptr<http::WebSocketEndpoint> MapBridges::connect(const std::string& 
     for (auto it = bridges_.begin(); it != bridges_.end();) it = it->second.expired() ? bridges_.erase(it) : ++it;
   }
   return std::make_shared<MapClient>(bridge, bridge->bridge.connect());
-}
-
-std::size_t MapBridges::live_bridges() const {
-  std::lock_guard lock(mutex_);
-  std::size_t live = 0;
-  for (const auto& [id, bridge] : bridges_) live += bridge.expired() ? 0 : 1;
-  return live;
 }
 
 }  // namespace wm::foxglove

@@ -35,9 +35,6 @@ class MapBridges {
   /// was allowed).
   std::shared_ptr<http::WebSocketEndpoint> connect(const std::string& id);
 
-  /// The bridges that have clients now (tests).
-  std::size_t live_bridges() const;
-
   struct MapBridge;
 
  private:

@@ -98,7 +98,7 @@ void RulesWatcher::loop() {
       }
     }
     // A directory that appeared since: watched from now, and what is already in it counts.
-    if (changed || ready > 0) changed = watch_the_missing() || changed;
+    if (ready > 0 && watch_the_missing()) changed = true;
     if (changed) {
       pending = true;
       quiet_since = std::chrono::steady_clock::now();

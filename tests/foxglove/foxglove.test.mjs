@@ -82,6 +82,29 @@ async function waitFor(what, check, timeoutMs = 20000) {
   }
 }
 
+/**
+ * An upgrade the server must refuse: resolves with its {status, body} (the JSON error); rejects if it opens, or if
+ * the connection ends without an answer (with the client's error, so that it is never left pending).
+ */
+function refusal(url, protocols, headers) {
+  return new Promise((resolve, reject) => {
+    const ws = new WebSocket(url, protocols, { headers });
+    let failure = null;
+    ws.on('unexpected-response', (_req, res) => {
+      let body = '';
+      res.on('data', (d) => { body += d; });
+      res.on('end', () => resolve({ status: res.statusCode, body: JSON.parse(body) }));
+      res.on('error', (error) => reject(new Error(`${url}: the refusal's body did not arrive: ${error.message}`)));
+    });
+    ws.on('open', () => reject(new Error(`${url} opened`)));
+    ws.on('error', (error) => {
+      failure = error;
+      reject(new Error(`${url}: no answer: ${error.message}`));
+    });
+    ws.on('close', () => reject(new Error(`${url}: closed without an answer${failure ? ` (${failure.message})` : ''}`)));
+  });
+}
+
 const hexColor = (c) => '#' + [c.r, c.g, c.b].map((v) => Math.round(v * 255).toString(16).padStart(2, '0')).join('');
 const yaw = (q) => 2 * Math.atan2(q.z, q.w);
 const angleDiff = (a, b) => Math.abs(Math.atan2(Math.sin(a - b), Math.cos(a - b)));
@@ -484,16 +507,6 @@ describe('a token, a small queue and a subscriber that stops reading', () => {
     const plain = await fetch(`${ctx.base}/foxglove`);
     assert.equal(plain.status, 426);
     assert.match((await plain.json()).detail, /Sec-WebSocket-Protocol: foxglove\.websocket\.v1/);
-    const refusal = (url, protocols, headers) => new Promise((resolve, reject) => {
-      const ws = new WebSocket(url, protocols, { headers });
-      ws.on('unexpected-response', (_req, res) => {
-        let body = '';
-        res.on('data', (d) => { body += d; });
-        res.on('end', () => resolve({ status: res.statusCode, body: JSON.parse(body) }));
-      });
-      ws.on('open', () => reject(new Error(`${url} opened`)));
-      ws.on('error', () => {});
-    });
     const noToken = await refusal(ctx.ws, [kSubprotocol]);
     assert.equal(noToken.status, 401);
     assert.equal(noToken.body.error, 'unauthorized');
@@ -603,19 +616,9 @@ describe('a Foxglove client of another map (/foxglove?map=ID)', () => {
   });
 
   test('a bad or unknown map is refused before the upgrade with a JSON error', async () => {
-    const refusal = (url) => new Promise((resolve, reject) => {
-      const ws = new WebSocket(url, [kSubprotocol]);
-      ws.on('unexpected-response', (_req, res) => {
-        let body = '';
-        res.on('data', (d) => { body += d; });
-        res.on('end', () => resolve({ status: res.statusCode, body: JSON.parse(body) }));
-      });
-      ws.on('open', () => reject(new Error(`${url} opened`)));
-      ws.on('error', () => {});
-    });
     for (const [map, status] of [['Floor2', 400], ['-x', 400], ['a%2Fb', 400], ['..', 400], ['x'.repeat(33), 400],
       ['nosuchmap', 404], ['floor2', 404]]) {
-      const refused = await refusal(`${ctx.ws}?map=${map}`);
+      const refused = await refusal(`${ctx.ws}?map=${map}`, [kSubprotocol]);
       assert.equal(refused.status, status, `map=${map}`);
       assert.ok(refused.body.error, `map=${map}`);
     }

@@ -116,6 +116,13 @@ class ServerFixture : public ::testing::Test {
     server_ = std::make_unique<WmdProcess>(args);
     client_ = std::make_unique<client::HttpClient>(server_->url());
   }
+  // Before start(): wmd runs on a private copy of the shipped rules in dir_/rules, which the test may edit.
+  void use_rules_copy() {
+    const auto rules = dir_.path() / "rules";
+    std::filesystem::create_directories(rules);
+    std::filesystem::copy_file(std::filesystem::path(WM_RULES_DIR) / "world_model.pl", rules / "world_model.pl");
+    rules_dir_ = rules.string();
+  }
   void restart() {
     ASSERT_EQ(server_->stop(), 0) << server_->output();
     start();

@@ -169,10 +169,7 @@ TEST_F(MapsTokenTest, MakingAndDeletingMapsAndWritingToThemNeedTheToken) {
 class MapsOwnRulesTest : public MapsTest {
  protected:
   void SetUp() override {
-    const auto rules = dir_.path() / "rules";
-    std::filesystem::create_directories(rules);
-    std::filesystem::copy_file(std::filesystem::path(WM_RULES_DIR) / "world_model.pl", rules / "world_model.pl");
-    rules_dir_ = rules.string();
+    use_rules_copy();
     MapsTest::SetUp();
   }
 

@@ -34,10 +34,7 @@ const char* kWallPrimitive = R"({"source": "robot-7", "segments": [{"p0": [3, 10
 class RulesLiveTest : public ServerFixture {
  protected:
   void SetUp() override {
-    const auto rules = dir_.path() / "rules";
-    std::filesystem::create_directories(rules);
-    std::filesystem::copy_file(std::filesystem::path(WM_RULES_DIR) / "world_model.pl", rules / "world_model.pl");
-    rules_dir_ = rules.string();
+    use_rules_copy();
     extra_args_ = {"--allow-dry-run-without-token"};  // the dry-run tests run without a token
     ServerFixture::SetUp();
     send_json("PUT", "/api/v1/floorplan", lab_plan());
