@@ -35,23 +35,28 @@ std::vector<wm::fusion::RangeReading> readings(const wm::fusion::LaserScan& scan
   return r;
 }
 
-void BM_ScanLineExtraction(benchmark::State& state) {
+// The same without the bend test (ScanLineOptions::split_bends), for its cost.
+void extract(benchmark::State& state, bool split_bends) {
   const auto& all = scans();
   std::vector<std::vector<wm::fusion::RangeReading>> prepared;
   for (const auto& s : all) prepared.push_back(readings(s));
   const Eigen::Matrix3d pose_cov = Eigen::Vector3d(9e-4, 9e-4, 7.6e-5).asDiagonal();
+  wm::fusion::ScanLineOptions options;
+  options.split_bends = split_bends;
   std::size_t i = 0, segments = 0;
   for (auto _ : state) {
     const auto k = i++ % all.size();
-    const auto lines =
-        wm::fusion::extract_scan_lines(prepared[k], all[k].sensor_pose, pose_cov, wm::fusion::ScanLineOptions{});
+    const auto lines = wm::fusion::extract_scan_lines(prepared[k], all[k].sensor_pose, pose_cov, options);
     segments += lines.size();
     benchmark::DoNotOptimize(lines);
   }
   state.SetItemsProcessed(state.iterations());
   state.counters["segments_per_scan"] = static_cast<double>(segments) / static_cast<double>(state.iterations());
 }
+void BM_ScanLineExtraction(benchmark::State& state) { extract(state, true); }
 BENCHMARK(BM_ScanLineExtraction);
+void BM_ScanLineExtractionWithoutBendTest(benchmark::State& state) { extract(state, false); }
+BENCHMARK(BM_ScanLineExtractionWithoutBendTest);
 
 void BM_BayesGridInsertSameScan(benchmark::State& state) {
   const auto& all = scans();
@@ -67,6 +72,8 @@ BENCHMARK(BM_BayesGridInsertSameScan);
 }  // namespace
 
 int main(int argc, char** argv) {
-  return wm::bench::run_with_ratios(argc, argv,
-                                    {{"against a Bayes grid insert of the same scan", "BM_BayesGridInsertSameScan"}});
+  return wm::bench::run_with_ratios(
+      argc, argv,
+      {{"against a Bayes grid insert of the same scan", "BM_BayesGridInsertSameScan"},
+       {"against the extraction without the bend test", "BM_ScanLineExtractionWithoutBendTest"}});
 }

@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <span>
@@ -69,6 +70,78 @@ std::optional<std::size_t> step_at(const std::vector<Eigen::Vector2d>& points, c
   return best;
 }
 
+// Where a piece that passes the straightness test is two lines meeting at a shallow bend (two facets of a curved
+// wall 6–9° apart, a wall meeting another at a slight angle): one line fitted to both tilts to split the difference,
+// so no point lies far from it, yet the shorter side runs off the longer side's line by more than split_distance_m
+// at its far end. The index k (its point shared by both sides) where two lines of at least kMinSide points each fit
+// [first, last) best, when their directions differ by more than 4σ of their difference and by enough that the
+// shorter side's end lies split_distance_m off the longer side's line. nullopt when there is no such bend.
+std::optional<std::size_t> bend_at(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
+                                   Piece piece, const Eigen::Vector2d& normal, const ScanLineOptions& options) {
+  constexpr std::size_t kMinSide = 5;
+  const std::size_t n = piece.last - piece.first;
+  if (n < 2 * kMinSide) return std::nullopt;
+  const Eigen::Vector2d origin = points[piece.first];
+  std::vector<Eigen::Vector2d> sum(n + 1, Eigen::Vector2d::Zero());
+  std::vector<Eigen::Matrix2d> sum_sq(n + 1, Eigen::Matrix2d::Zero());
+  double sigma = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d p = points[piece.first + i] - origin;
+    sum[i + 1] = sum[i] + p;
+    sum_sq[i + 1] = sum_sq[i] + p * p.transpose();
+    sigma = std::max(sigma, normal_sigma(covs[piece.first + i], normal));
+  }
+  // The direction of a side's points and the spread along it (Σ (t − t̄)², the larger eigenvalue of its scatter).
+  struct Side {
+    Eigen::Vector2d direction;
+    double spread_sq;
+  };
+  const auto side = [](const Eigen::Matrix2d& scatter) {
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(scatter);
+    return Side{eigen.eigenvectors().col(1), eigen.eigenvalues()(1)};
+  };
+  // The smaller eigenvalue of a 2×2 scatter in closed form: the loop runs over every point of every straight piece.
+  const auto residual_sq = [](const Eigen::Matrix2d& m) {
+    const double half_trace = 0.5 * (m(0, 0) + m(1, 1)), half_diff = 0.5 * (m(0, 0) - m(1, 1));
+    return std::max(0.0, half_trace - std::sqrt(half_diff * half_diff + m(0, 1) * m(0, 1)));
+  };
+  const auto left_scatter = [&](std::size_t k) {
+    const double nl = static_cast<double>(k + 1);
+    return Eigen::Matrix2d(sum_sq[k + 1] - sum[k + 1] * sum[k + 1].transpose() / nl);
+  };
+  const auto right_scatter = [&](std::size_t k) {
+    const double nr = static_cast<double>(n - k);
+    const Eigen::Vector2d s = sum[n] - sum[k];
+    return Eigen::Matrix2d(sum_sq[n] - sum_sq[k] - s * s.transpose() / nr);
+  };
+  // The bend is where two lines fit best (least residual, the corner point on both sides); it is one when the sides'
+  // directions differ by more than 4σ and the shorter side's far end runs split_distance_m off the longer's line.
+  std::optional<std::size_t> best;
+  double best_residual = std::numeric_limits<double>::infinity();
+  for (std::size_t k = kMinSide - 1; k + kMinSide <= n; ++k) {
+    const double residual = residual_sq(left_scatter(k)) + residual_sq(right_scatter(k));
+    if (residual < best_residual) {
+      best_residual = residual;
+      best = k;
+    }
+  }
+  if (!best) return std::nullopt;
+  const Side best_left = side(left_scatter(*best)), best_right = side(right_scatter(*best));
+  if (best_left.spread_sq <= 0 || best_right.spread_sq <= 0) return std::nullopt;
+  const std::size_t k = *best;
+  const double angle = std::acos(std::min(1.0, std::abs(best_left.direction.dot(best_right.direction))));
+  // σ across the lines: the noise model's, or what the two sides' own residuals show when that is more (a scanner
+  // noisier than its model must not see bends in a straight wall).
+  const double scatter = std::sqrt(best_residual / (static_cast<double>(n) + 1.0 - 4.0));
+  const double sigma_angle =
+      std::max(sigma, scatter) * std::sqrt(1.0 / best_left.spread_sq + 1.0 / best_right.spread_sq);
+  const double left_length = (points[piece.first + k] - points[piece.first]).norm();
+  const double right_length = (points[piece.last - 1] - points[piece.first + k]).norm();
+  const double off_m = std::min(left_length, right_length) * std::sin(angle);
+  if (angle <= 4.0 * sigma_angle || off_m <= options.split_distance_m) return std::nullopt;
+  return piece.first + k;
+}
+
 // Splits [first, last) while some point lies farther than the threshold from the piece's least-squares line,
 // at the interior point farthest from the chord between the end points (the corner, for an L). Testing
 // against the fitted line rather than the chord keeps long noisy walls whole: the chord is off by the
@@ -96,6 +169,11 @@ void split(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::
   if (straight) {
     if (const auto k = options.split_steps ? step_at(points, covs, piece, normal, options) : std::nullopt) {
       split(points, covs, {piece.first, *k}, options, out);
+      split(points, covs, {*k, piece.last}, options, out);
+      return;
+    }
+    if (const auto k = options.split_bends ? bend_at(points, covs, piece, normal, options) : std::nullopt) {
+      split(points, covs, {piece.first, *k + 1}, options, out);
       split(points, covs, {*k, piece.last}, options, out);
       return;
     }
@@ -328,6 +406,7 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
       if (!refit || !on_line(points, covs, refit->piece, refit->segment.line, options)) continue;
       // Two faces the step test split apart stay apart, however well their lines agree.
       if (options.split_steps && step_at(points, covs, refit->piece, refit->segment.line.normal(), options)) continue;
+      if (options.split_bends && bend_at(points, covs, refit->piece, refit->segment.line.normal(), options)) continue;
       segments[k] = *refit;
       segments.erase(segments.begin() + static_cast<std::ptrdiff_t>(k + 1));
       merged = true;

@@ -57,6 +57,11 @@ struct ScanLineOptions {
   /// proud) precision rose 0.976 → 0.981 (low pose noise) and 0.959 → 0.964 (high); on the CARMEN logs recall fell
   /// by 0.007 at most (edmonton, acapulco). false: only the split's test.
   bool split_steps = true;
+  /// A piece that passes both tests is also split where two lines meeting at a point fit it with directions more
+  /// than 4σ apart and the shorter side's end more than split_distance_m off the longer side's line: the facets of
+  /// a curved wall 6–9° apart, or a shallow corner, seen as one piece give a line through the bend that no return
+  /// lies far from, which the map then stretches past the corner. false: no such test.
+  bool split_bends = true;
   double merge_chi2 = 5.991;    // χ², 2 dof (95 %): adjacent segments whose lines agree are merged
   double sigma_range_m = 0.01;  // range noise per reading, plus sigma_range_relative · range
   double sigma_range_relative = 0.0;
