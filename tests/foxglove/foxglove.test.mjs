@@ -531,6 +531,7 @@ describe('a token, a small queue and a subscriber that stops reading', () => {
     const slow = await View.open(`${ctx.ws}?token=${token}`);
     await waitFor('the first grid', async () => (slow.latest.get('/grid') ? [] : ['no grid']));
     slow.ws.pause();  // stops reading the socket: the kernel's buffers fill, then the server's queue for it
+    const pausedAt = Date.now();
     const withPaused = [];
     for (const [i, offset] of ['40,0', '0,40', '40,40'].entries())
       withPaused.push(await replay(ctx.base, ['--rate', '30', '--offset', offset, '--source', `paused-${i}`], token));
@@ -538,6 +539,13 @@ describe('a token, a small queue and a subscriber that stops reading', () => {
     console.log(`# replay of the excerpt at 30 scans/s: ${without.seconds.toFixed(2)} s alone, ${seconds.toFixed(2)} s `
       + 'on average with a paused Foxglove subscriber');
     assert.ok(seconds < 2 * without.seconds + 3, `${seconds} s with a paused subscriber, ${without.seconds} s without`);
+    // Its queue overflows only once the kernel's socket buffers (megabytes on loopback) are full: grid messages fill
+    // them at 2 Hz at most, so replay on for 8 s in all, however fast or slow this server runs (a sanitizer build on
+    // a loaded machine sends fewer grids per replay).
+    for (let i = 0; Date.now() - pausedAt < 8000 && i < 20; ++i) {
+      const offset = `${(i % 2) * 40},${(Math.floor(i / 2) % 2) * 40}`;  // over the same four places: the grid stays as big
+      await replay(ctx.base, ['--rate', '30', '--offset', offset, '--source', `more-${i}`], token);
+    }
 
     const before = slow.order;
     slow.ws.resume();
