@@ -23,4 +23,9 @@ inline ApiError bad_request(const std::string& path, const std::string& message)
   return ApiError(400, "bad_request", path.empty() ? message : path + ": " + message);
 }
 
+/// 404 for a map id that names no map of the registry (the default map always exists).
+inline ApiError map_not_found(const std::string& id) {
+  return ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
+}
+
 }  // namespace wm::api

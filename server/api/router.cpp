@@ -49,7 +49,7 @@ MapContext map_context(const std::optional<std::string>& path_id, Services& serv
   }
   if (!service::valid_map_id(id)) throw bad_request("map", std::string(service::kMapIdRule));
   context.instance = services.maps ? services.maps->find(id) : nullptr;
-  if (!context.instance) throw ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
+  if (!context.instance) throw map_not_found(id);
   context.id = id;
   context.ports.emplace(context.instance->world);
   context.cache = services.map_caches->of(context.instance);

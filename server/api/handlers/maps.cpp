@@ -33,7 +33,7 @@ nlohmann::json map_summary(const std::string& id, const service::WorldPorts& wor
 // A map of the registry. @throw ApiError 404 when there is none.
 std::shared_ptr<service::MapInstance> find_map(const Call& call, const std::string& id) {
   auto map = call.maps ? call.maps->find(id) : nullptr;
-  if (!map) throw ApiError(404, "map_not_found", "no map '" + id + "' (GET /api/v1/maps lists them)");
+  if (!map) throw map_not_found(id);
   return map;
 }
 
@@ -136,7 +136,7 @@ Response delete_map(const Call& call) {
   const auto id = path_map_id(call);
   if (id == service::kDefaultMapId)
     throw ApiError(409, "default_map", "the default map cannot be deleted (it is the --db file)");
-  if (!call.maps) throw ApiError(404, "map_not_found", "no map '" + id + "'");
+  if (!call.maps) throw map_not_found(id);
   const auto map = call.maps->find(id);
   call.maps->remove(id);
   // Its segment goes now (readers see it stopped), not when the last request that holds the map ends.
