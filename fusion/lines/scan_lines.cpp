@@ -26,45 +26,69 @@ double normal_sigma(const Eigen::Matrix2d& q, const Eigen::Vector2d& normal) {
   return std::sqrt(normal.dot(q * normal));
 }
 
+// The sums the step and bend tests share, built once per piece: prefix sums of its points (about its first point,
+// for precision) and of their outer products, so that the scatter of any run of the piece costs O(1), and the largest
+// σ of its points across the piece's line.
+class PieceSums {
+ public:
+  PieceSums(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs, Piece piece,
+            const Eigen::Vector2d& normal)
+      : first_(piece.first),
+        sum_(piece.last - piece.first + 1, Eigen::Vector2d::Zero()),
+        sum_sq_(piece.last - piece.first + 1, Eigen::Matrix2d::Zero()) {
+    const Eigen::Vector2d origin = points[piece.first];
+    for (std::size_t i = 0; i + piece.first < piece.last; ++i) {
+      const Eigen::Vector2d p = points[piece.first + i] - origin;
+      sum_[i + 1] = sum_[i] + p;
+      sum_sq_[i + 1] = sum_sq_[i] + p * p.transpose();
+      sigma_ = std::max(sigma_, normal_sigma(covs[piece.first + i], normal));
+    }
+  }
+
+  std::size_t first() const { return first_; }
+  std::size_t size() const { return sum_.size() - 1; }
+  double sigma() const { return sigma_; }  // the largest σ across the line [m]
+  // The mean of the piece's points a..b−1 (counted from its first point), about its first point.
+  Eigen::Vector2d mean(std::size_t a, std::size_t b) const { return (sum_[b] - sum_[a]) / static_cast<double>(b - a); }
+  // Σ (p − p̄)(p − p̄)ᵀ over the piece's points a..b−1.
+  Eigen::Matrix2d scatter(std::size_t a, std::size_t b) const {
+    const Eigen::Vector2d s = sum_[b] - sum_[a];
+    return sum_sq_[b] - sum_sq_[a] - s * s.transpose() / static_cast<double>(b - a);
+  }
+
+ private:
+  std::size_t first_;
+  std::vector<Eigen::Vector2d> sum_;
+  std::vector<Eigen::Matrix2d> sum_sq_;
+  double sigma_ = 0;
+};
+
 // Where a piece that passes the straightness test is two parallel surfaces side by side (a door frame 8 cm proud of
 // the wall, seen from the side: no range jump, and a line fitted to both lies within 4 cm of every point): the
-// index k that best splits [first, last) into two runs of at least kMinSide points fitted by two parallel lines
+// index k that best splits the piece into two runs of at least kMinSide points fitted by two parallel lines
 // (one direction, two offsets), when their offsets differ by more than twice split_distance_m (and 4σ of that
 // difference) and each side lies along the common direction. nullopt when there is no such step.
-std::optional<std::size_t> step_at(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
-                                   Piece piece, const Eigen::Vector2d& normal, const ScanLineOptions& options) {
+std::optional<std::size_t> step_at(const PieceSums& sums, const ScanLineOptions& options) {
   constexpr std::size_t kMinSide = 3;
-  const std::size_t n = piece.last - piece.first;
+  const std::size_t n = sums.size();
   if (n < 2 * kMinSide) return std::nullopt;
-  // Prefix sums (about the first point, for precision) of p and p·pᵀ, and the largest σ across the line.
-  const Eigen::Vector2d origin = points[piece.first];
-  std::vector<Eigen::Vector2d> sum(n + 1, Eigen::Vector2d::Zero());
-  std::vector<Eigen::Matrix2d> sum_sq(n + 1, Eigen::Matrix2d::Zero());
-  double sigma = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d p = points[piece.first + i] - origin;
-    sum[i + 1] = sum[i] + p;
-    sum_sq[i + 1] = sum_sq[i] + p * p.transpose();
-    sigma = std::max(sigma, normal_sigma(covs[piece.first + i], normal));
-  }
   std::optional<std::size_t> best;
   double best_excess = 1.0;
   for (std::size_t k = kMinSide; k + kMinSide <= n; ++k) {
     const double nl = static_cast<double>(k), nr = static_cast<double>(n - k);
-    const Eigen::Vector2d ml = sum[k] / nl, mr = (sum[n] - sum[k]) / nr;
-    const Eigen::Matrix2d left = sum_sq[k] - nl * ml * ml.transpose();
-    const Eigen::Matrix2d right = sum_sq[n] - sum_sq[k] - nr * mr * mr.transpose();
+    const Eigen::Matrix2d left = sums.scatter(0, k), right = sums.scatter(k, n);
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eigen(left + right);
     const Eigen::Vector2d across = eigen.eigenvectors().col(0);
-    const double offset = std::abs(across.dot(ml - mr));
-    const double threshold = std::max(2.0 * options.split_distance_m, 4.0 * sigma * std::sqrt(1.0 / nl + 1.0 / nr));
+    const double offset = std::abs(across.dot(sums.mean(0, k) - sums.mean(k, n)));
+    const double threshold =
+        std::max(2.0 * options.split_distance_m, 4.0 * sums.sigma() * std::sqrt(1.0 / nl + 1.0 / nr));
     // Each side must itself lie along the common direction (its own RMS spread across it under a quarter of the
     // offset): the two sides of a bend spread about it, and a bend is the split's business, not a step's.
     const double most_spread_sq = 0.0625 * offset * offset;
     if (offset / threshold > best_excess && across.dot(left * across) / nl < most_spread_sq &&
         across.dot(right * across) / nr < most_spread_sq) {
       best_excess = offset / threshold;
-      best = piece.first + k;
+      best = sums.first() + k;
     }
   }
   return best;
@@ -74,23 +98,13 @@ std::optional<std::size_t> step_at(const std::vector<Eigen::Vector2d>& points, c
 // wall 6–9° apart, a wall meeting another at a slight angle): one line fitted to both tilts to split the difference,
 // so no point lies far from it, yet the shorter side runs off the longer side's line by more than split_distance_m
 // at its far end. The index k (its point shared by both sides) where two lines of at least kMinSide points each fit
-// [first, last) best, when their directions differ by more than 4σ of their difference and by enough that the
-// shorter side's end lies split_distance_m off the longer side's line. nullopt when there is no such bend.
-std::optional<std::size_t> bend_at(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
-                                   Piece piece, const Eigen::Vector2d& normal, const ScanLineOptions& options) {
+// the piece best, when their directions differ by more than 4σ of their difference and by enough that the shorter
+// side's end lies split_distance_m off the longer side's line. nullopt when there is no such bend.
+std::optional<std::size_t> bend_at(const std::vector<Eigen::Vector2d>& points, const PieceSums& sums,
+                                   const ScanLineOptions& options) {
   constexpr std::size_t kMinSide = 5;
-  const std::size_t n = piece.last - piece.first;
+  const std::size_t n = sums.size();
   if (n < 2 * kMinSide) return std::nullopt;
-  const Eigen::Vector2d origin = points[piece.first];
-  std::vector<Eigen::Vector2d> sum(n + 1, Eigen::Vector2d::Zero());
-  std::vector<Eigen::Matrix2d> sum_sq(n + 1, Eigen::Matrix2d::Zero());
-  double sigma = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector2d p = points[piece.first + i] - origin;
-    sum[i + 1] = sum[i] + p;
-    sum_sq[i + 1] = sum_sq[i] + p * p.transpose();
-    sigma = std::max(sigma, normal_sigma(covs[piece.first + i], normal));
-  }
   // The direction of a side's points and the spread along it (Σ (t − t̄)², the larger eigenvalue of its scatter).
   struct Side {
     Eigen::Vector2d direction;
@@ -105,41 +119,50 @@ std::optional<std::size_t> bend_at(const std::vector<Eigen::Vector2d>& points, c
     const double half_trace = 0.5 * (m(0, 0) + m(1, 1)), half_diff = 0.5 * (m(0, 0) - m(1, 1));
     return std::max(0.0, half_trace - std::sqrt(half_diff * half_diff + m(0, 1) * m(0, 1)));
   };
-  const auto left_scatter = [&](std::size_t k) {
-    const double nl = static_cast<double>(k + 1);
-    return Eigen::Matrix2d(sum_sq[k + 1] - sum[k + 1] * sum[k + 1].transpose() / nl);
-  };
-  const auto right_scatter = [&](std::size_t k) {
-    const double nr = static_cast<double>(n - k);
-    const Eigen::Vector2d s = sum[n] - sum[k];
-    return Eigen::Matrix2d(sum_sq[n] - sum_sq[k] - s * s.transpose() / nr);
-  };
   // The bend is where two lines fit best (least residual, the corner point on both sides); it is one when the sides'
   // directions differ by more than 4σ and the shorter side's far end runs split_distance_m off the longer's line.
   std::optional<std::size_t> best;
   double best_residual = std::numeric_limits<double>::infinity();
   for (std::size_t k = kMinSide - 1; k + kMinSide <= n; ++k) {
-    const double residual = residual_sq(left_scatter(k)) + residual_sq(right_scatter(k));
+    const double residual = residual_sq(sums.scatter(0, k + 1)) + residual_sq(sums.scatter(k, n));
     if (residual < best_residual) {
       best_residual = residual;
       best = k;
     }
   }
   if (!best) return std::nullopt;
-  const Side best_left = side(left_scatter(*best)), best_right = side(right_scatter(*best));
-  if (best_left.spread_sq <= 0 || best_right.spread_sq <= 0) return std::nullopt;
   const std::size_t k = *best;
+  const Side best_left = side(sums.scatter(0, k + 1)), best_right = side(sums.scatter(k, n));
+  if (best_left.spread_sq <= 0 || best_right.spread_sq <= 0) return std::nullopt;
   const double angle = std::acos(std::min(1.0, std::abs(best_left.direction.dot(best_right.direction))));
   // σ across the lines: the noise model's, or what the two sides' own residuals show when that is more (a scanner
   // noisier than its model must not see bends in a straight wall).
   const double scatter = std::sqrt(best_residual / (static_cast<double>(n) + 1.0 - 4.0));
   const double sigma_angle =
-      std::max(sigma, scatter) * std::sqrt(1.0 / best_left.spread_sq + 1.0 / best_right.spread_sq);
-  const double left_length = (points[piece.first + k] - points[piece.first]).norm();
-  const double right_length = (points[piece.last - 1] - points[piece.first + k]).norm();
+      std::max(sums.sigma(), scatter) * std::sqrt(1.0 / best_left.spread_sq + 1.0 / best_right.spread_sq);
+  const std::size_t first = sums.first(), corner = first + k, last = first + n - 1;
+  const double left_length = (points[corner] - points[first]).norm();
+  const double right_length = (points[last] - points[corner]).norm();
   const double off_m = std::min(left_length, right_length) * std::sin(angle);
   if (angle <= 4.0 * sigma_angle || off_m <= options.split_distance_m) return std::nullopt;
-  return piece.first + k;
+  return corner;
+}
+
+// Where the step test, then the bend test, would split a straight piece: {index, whether it is a step}. A step's
+// index starts the second side; a bend's index is the corner both sides share.
+struct Cut {
+  std::size_t index;
+  bool step;
+};
+std::optional<Cut> straight_cut(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::Matrix2d>& covs,
+                                Piece piece, const Eigen::Vector2d& normal, const ScanLineOptions& options) {
+  if (!options.split_steps && !options.split_bends) return std::nullopt;
+  const PieceSums sums(points, covs, piece, normal);
+  if (options.split_steps)
+    if (const auto k = step_at(sums, options)) return Cut{*k, true};
+  if (options.split_bends)
+    if (const auto k = bend_at(points, sums, options)) return Cut{*k, false};
+  return std::nullopt;
 }
 
 // Splits [first, last) while some point lies farther than the threshold from the piece's least-squares line,
@@ -167,14 +190,9 @@ void split(const std::vector<Eigen::Vector2d>& points, const std::vector<Eigen::
                std::max(options.split_distance_m, 4.0 * normal_sigma(covs[i], normal));
   }
   if (straight) {
-    if (const auto k = options.split_steps ? step_at(points, covs, piece, normal, options) : std::nullopt) {
-      split(points, covs, {piece.first, *k}, options, out);
-      split(points, covs, {*k, piece.last}, options, out);
-      return;
-    }
-    if (const auto k = options.split_bends ? bend_at(points, covs, piece, normal, options) : std::nullopt) {
-      split(points, covs, {piece.first, *k + 1}, options, out);
-      split(points, covs, {*k, piece.last}, options, out);
+    if (const auto cut = straight_cut(points, covs, piece, normal, options)) {
+      split(points, covs, {piece.first, cut->step ? cut->index : cut->index + 1}, options, out);
+      split(points, covs, {cut->index, piece.last}, options, out);
       return;
     }
     out.push_back(piece);
@@ -404,9 +422,9 @@ std::vector<LineSegment> extract_scan_lines(const std::vector<RangeReading>& rea
       const Piece joined{a.piece.first, std::max(a.piece.last, b.piece.last)};
       auto refit = fit_piece(points, covs, joined, options);
       if (!refit || !on_line(points, covs, refit->piece, refit->segment.line, options)) continue;
-      // Two faces the step test split apart stay apart, however well their lines agree.
-      if (options.split_steps && step_at(points, covs, refit->piece, refit->segment.line.normal(), options)) continue;
-      if (options.split_bends && bend_at(points, covs, refit->piece, refit->segment.line.normal(), options)) continue;
+      // Two faces the step test split apart, or two facets the bend test did, stay apart however well their lines
+      // agree.
+      if (straight_cut(points, covs, refit->piece, refit->segment.line.normal(), options)) continue;
       segments[k] = *refit;
       segments.erase(segments.begin() + static_cast<std::ptrdiff_t>(k + 1));
       merged = true;
