@@ -1,5 +1,6 @@
 #include "server/world/update.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +31,63 @@ bool within_extent(const ObjectState& object, const fusion::LineSegment& edge, c
       gap_m + 3.0 * std::sqrt(std::max(0.0, j.dot(object.body.pose_cov() * j))) + overrun_share * seen.length_m();
   const double ta = edge.line.coordinate_along(seen.p0()), tb = edge.line.coordinate_along(seen.p1());
   return std::min(ta, tb) >= edge.t0_m - slack && std::max(ta, tb) <= edge.t1_m + slack;
+}
+
+// The extent an element keeps after taking in `seen`, a view tilted from its fused line by more than
+// tilted_view_sigmas of the view's own direction σ: its extent before, and the view only where it runs within
+// tilted_view_offset_m of the fused line. A far view across a shallow bend (two facets of a curved wall a few
+// degrees apart, too few returns on the short side for the scan-line split to find) gates onto the facet it mostly
+// lies on; its line is fused in, but the part running off along the next facet is not that element's wall. nullopt:
+// the view agrees with the line, and the fused extent stands.
+std::optional<std::pair<double, double>> tilted_view_extent(const fusion::LineSegment& before,
+                                                            const fusion::LineSegment& fused,
+                                                            const fusion::LineSegment& seen,
+                                                            const WorldOptions& options) {
+  const double angle = std::abs(std::remainder(seen.line.phi_rad - fused.line.phi_rad, std::numbers::pi));
+  if (!(angle > options.tilted_view_sigmas * std::sqrt(std::max(0.0, seen.line.cov(1, 1))))) return std::nullopt;
+  const double ta = fused.line.coordinate_along(before.p0()), tb = fused.line.coordinate_along(before.p1());
+  std::pair<double, double> extent{std::min(ta, tb), std::max(ta, tb)};
+  if (const auto stretch = update_internal::stretch_within(fused.line, seen, options.tilted_view_offset_m)) {
+    extent.first = std::min(extent.first, stretch->first);
+    extent.second = std::max(extent.second, stretch->second);
+  }
+  return extent;
+}
+
+// The extent of `number` after taking in `seen`, cut where the view runs off its line onto another element's: a far
+// view across a shallow bend (two facets of a curved wall a few degrees apart) gates onto the facet it mostly lies
+// on, and its far end, lying on the next facet's element rather than this one's line, would carry this element along
+// that facet. Cut at the two lines' crossing, never inside the extent it had before. Elements crossing at a steep
+// angle do not cut: past a T the view's end lies on this element's line, not on the crossing wall's.
+std::pair<double, double> cut_at_neighbours(const WorldState& state, std::int64_t number,
+                                            const fusion::LineSegment& before, const fusion::LineSegment& fused,
+                                            const fusion::LineSegment& seen, const WorldOptions& options) {
+  const double ta = fused.line.coordinate_along(before.p0()), tb = fused.line.coordinate_along(before.p1());
+  const double old_t0 = std::min(ta, tb), old_t1 = std::max(ta, tb);
+  double t0 = fused.t0_m, t1 = fused.t1_m;
+  for (const Eigen::Vector2d& end : {seen.p0(), seen.p1()}) {
+    const double t_end = fused.line.coordinate_along(end);
+    if (t_end <= old_t1 && t_end >= old_t0) continue;  // this end does not stretch the element
+    const double off_self = std::abs(fused.line.signed_distance(end));
+    for (const auto other_number : state.elements.near(Box::of(seen))) {
+      if (other_number == number) continue;
+      const fusion::LineSegment& other = state.elements.at(other_number).segment;
+      const double off_other = std::abs(other.line.signed_distance(end));
+      const double t_on_other = other.line.coordinate_along(end);
+      if (off_other >= off_self || off_other > options.tilted_view_offset_m ||
+          t_on_other < other.t0_m - options.match.max_gap_m || t_on_other > other.t1_m + options.match.max_gap_m)
+        continue;
+      // Where the two lines cross: n₁·x = ρ₁, n₂·x = ρ₂.
+      Eigen::Matrix2d normals;
+      normals << fused.line.normal().transpose(), other.line.normal().transpose();
+      if (std::abs(normals.determinant()) < 1e-6) continue;  // parallel: a join's business, not a corner
+      const Eigen::Vector2d crossing = normals.inverse() * Eigen::Vector2d(fused.line.rho_m, other.line.rho_m);
+      const double t_cross = fused.line.coordinate_along(crossing);
+      if (t_end > old_t1 && t_cross < t1) t1 = std::max(old_t1, t_cross);
+      if (t_end < old_t0 && t_cross > t0) t0 = std::min(old_t0, t_cross);
+    }
+  }
+  return {t0, t1};
 }
 
 }  // namespace
@@ -322,8 +380,16 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
         }
         record.explanation += " (a grid line on an element from scans or a client: its extent taken in, not its line)";
       } else {
+        const fusion::LineSegment before = element.segment;
         element.moments += fusion::SegmentMoments::of(seen);
         element.segment = fused_and_refit(fusion::fuse(element.segment, seen, options.fusion), element.moments);
+        if (const auto extent = tilted_view_extent(before, element.segment, seen, options)) {
+          element.segment.t0_m = extent->first;
+          element.segment.t1_m = extent->second;
+        }
+        const auto cut = cut_at_neighbours(state, ref->element, before, element.segment, seen, options);
+        element.segment.t0_m = cut.first;
+        element.segment.t1_m = cut.second;
         // An element that faces both ways keeps doing so; one whose side was not known learns it.
         if (!element.facing_rad && !element.both_ways) element.facing_rad = observation.segments[i].facing_rad;
       }

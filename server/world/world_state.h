@@ -70,6 +70,13 @@ struct WorldOptions {
   /// Two elements may be joined while together they lie within this many times the RMS scatter of the less
   /// straight one (or max_straightness_rms_m): two sets with the scatter of noisy views, a few cm apart.
   double join_scatter_factor = 1.5;
+  /// A merged view whose direction differs from the element's fused line by more than tilted_view_sigmas of its own
+  /// direction σ stretches the element only where it runs within tilted_view_offset_m of that line [m]: a far view
+  /// across a shallow bend otherwise carries the element past the corner along the next facet. A merged view whose
+  /// end lies within tilted_view_offset_m of another element's line (and nearer to it) stretches the element only up
+  /// to where the two lines cross.
+  double tilted_view_sigmas = 2.0;
+  double tilted_view_offset_m = 0.03;
   /// Elements seen from opposite sides (Element::facing_rad) are the two faces of a wall, kept apart, unless they
   /// lie this close to each other where they overlap [m]: then they are one thin surface (a partition, a board, a
   /// wall drawn as a single line) and are joined into one element that faces both ways.

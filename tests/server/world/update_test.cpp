@@ -164,6 +164,52 @@ TEST(UpdateTest, CollinearWallsAcrossADoorwayStayApart) {
   EXPECT_EQ(result.state.elements.at(2).support, 1);
 }
 
+TEST(UpdateTest, AViewAcrossAShallowBendDoesNotStretchTheElementPastIt) {
+  WorldOptions options;
+  JoiningRules rules;
+  // A facet along y = 0 from x = 0 to 3, seen well from near by; the next facet turns off it by 7° at x = 3.
+  const Eigen::Vector2d near_by(1.5, 2.0), far_off(2.5, 9.0);
+  WorldState state;
+  for (int k = 0; k < 4; ++k)
+    state = apply_observation(state, view_from({0, 0}, {3, 0}, near_by, 0.01, 0.005), k + 1, options, std::ref(rules))
+                .state;
+  ASSERT_EQ(state.elements.size(), 1u);
+  const std::int64_t facet = (*state.elements.begin()).first;
+  // A far view with too few returns past the corner to be split there: one line from x = 2 on the facet to 0.5 m
+  // along the next one, tilted by 2.3°, uncertain in direction by 0.9°. It gates onto the facet and is merged.
+  const Eigen::Vector2d past_corner = Eigen::Vector2d(3, 0) + 0.5 * Eigen::Vector2d(std::cos(0.122), -std::sin(0.122));
+  const auto across =
+      apply_observation(state, view_from({2, 0}, past_corner, far_off, 0.02, 0.015), 5, options, std::ref(rules));
+  ASSERT_EQ(across.decisions.at(0).action, rules::Action::merge);
+  ASSERT_EQ(across.decisions.at(0).element, element_id(facet));
+  const auto& merged = across.state.elements.at(facet).segment;
+  // The element keeps its end at the corner: the view runs 3 cm off its line before x = 2.8.
+  EXPECT_LT(std::max(merged.p0().x(), merged.p1().x()), 3.02);
+  EXPECT_LT(std::abs(merged.line.signed_distance(Eigen::Vector2d(3, 0))), 0.02);
+  // A view as uncertain in direction as it is tilted (1.7°) is fused in whole; where the next facet is already an
+  // element, the view's end lies on that element's line, and the element stops where the two lines cross.
+  const auto next =
+      apply_observation(state,
+                        view_from({3, 0}, {3 + 1.2 * std::cos(0.122), -1.2 * std::sin(0.122)}, near_by, 0.01, 0.005), 5,
+                        options, std::ref(rules))
+          .state;
+  ASSERT_EQ(next.elements.size(), 2u);
+  const auto uncertain =
+      apply_observation(next, view_from({2, 0}, past_corner, far_off, 0.02, 0.03), 6, options, std::ref(rules));
+  ASSERT_EQ(uncertain.decisions.at(0).action, rules::Action::merge);
+  ASSERT_EQ(uncertain.decisions.at(0).element, element_id(facet));
+  const auto& cut = uncertain.state.elements.at(facet).segment;
+  // (The fused line turned a little toward the view, so the lines cross 9 cm on; the whole view ran on to x = 3.5.)
+  EXPECT_LT(std::max(cut.p0().x(), cut.p1().x()), 3.12);
+  // The same view along the facet's own line (no bend) carries the element on to its end.
+  const auto along =
+      apply_observation(state, view_from({2, 0}, {3.5, 0}, far_off, 0.02, 0.015), 5, options, std::ref(rules));
+  ASSERT_EQ(along.decisions.at(0).action, rules::Action::merge);
+  EXPECT_NEAR(
+      std::max(along.state.elements.at(facet).segment.p0().x(), along.state.elements.at(facet).segment.p1().x()), 3.5,
+      1e-3);
+}
+
 TEST(UpdateTest, AnObservationThatBridgesTwoElementsJoinsThemIntoOne) {
   WorldOptions options;
   JoiningRules rules;
