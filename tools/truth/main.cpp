@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <exception>
 #include <numbers>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -11,14 +12,22 @@
 
 namespace {
 
+// A count given on the command line: digits only (std::stoul would take "-5" as 2^64 − 5, and "3x" as 3).
+std::size_t parse_count(const std::string& flag, const std::string& value) {
+  if (value.empty() || value.size() > 9 || value.find_first_not_of("0123456789") != std::string::npos)
+    throw std::invalid_argument(flag + ": a whole number from 0 to 999999999, not '" + value + "'");
+  return std::stoul(value);
+}
+
 const char* kUsage =
     "usage: wm-truth [--building gdc1|ahg2|rmf-office|barcelona|all] [--pose-noise low|high|both] [--seed N]\n"
     "                [--max-route M] [--step M] [--fov 360|270] [--demolished N] [--partitions N] [--people N]\n"
     "                [--table DX,DY,DTHETA_DEG|removed] [--no-plan] [--no-scan-alignment] [--data DIR]\n"
-    "                [--rules DIR]\n"
+    "                [--rules DIR] [--grid-extract-every N]\n"
     "  --max-route          drive only the first M metres of each route (default: all)\n"
     "  --no-plan            only the mapping figures (one replay per row instead of two)\n"
-    "  --no-scan-alignment  the server keeps each scan's posted pose (wmd --no-scan-alignment), for comparison\n";
+    "  --no-scan-alignment  the server keeps each scan's posted pose (wmd --no-scan-alignment), for comparison\n"
+    "  --grid-extract-every run the grid line extractor every N scans (wmd --grid-extract-every; default 0: never)\n";
 
 }  // namespace
 
@@ -54,9 +63,11 @@ int main(int argc, char** argv) {
         else
           throw std::invalid_argument("--pose-noise: low, high or both");
       } else if (flag == "--seed") {
-        options.seed = static_cast<unsigned>(std::stoul(value));
+        options.seed = static_cast<unsigned>(parse_count(flag, value));
       } else if (flag == "--max-route") {
         options.max_route_m = std::stod(value);
+      } else if (flag == "--grid-extract-every") {
+        options.service.ingest.grid_extract_every = parse_count(flag, value);
       } else if (flag == "--step") {
         options.laser.step_m = std::stod(value);
       } else if (flag == "--fov") {
@@ -64,11 +75,11 @@ int main(int argc, char** argv) {
         if (options.laser.field_of_view_deg <= 0 || options.laser.field_of_view_deg > 360)
           throw std::invalid_argument("--fov: (0, 360]");
       } else if (flag == "--demolished") {
-        options.edits.demolished = std::stoul(value);
+        options.edits.demolished = parse_count(flag, value);
       } else if (flag == "--partitions") {
-        options.edits.partitions = std::stoul(value);
+        options.edits.partitions = parse_count(flag, value);
       } else if (flag == "--people") {
-        options.edits.people = std::stoul(value);
+        options.edits.people = parse_count(flag, value);
       } else if (flag == "--table") {
         if (value == "removed") {
           options.edits.table_removed = true;
