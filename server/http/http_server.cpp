@@ -234,8 +234,14 @@ class EndpointSession : public std::enable_shared_from_this<EndpointSession> {
     std::weak_ptr<EndpointSession> weak = weak_from_this();
     opened_ = true;
     try {  // endpoints do not throw; should one (bad_alloc), its connection ends rather than the I/O thread
+      // The wake comes from the endpoint's thread (a Foxglove bridge's). The strong reference it takes moves into
+      // the posted handler, so the session's last reference is never let go on that thread: the session owns the
+      // endpoint, which may own that very thread (a map's bridge), and a thread cannot join itself.
       endpoint_->open([weak] {
-        if (auto self = weak.lock()) net::post(self->ws_.get_executor(), [self] { self->pump(); });
+        if (auto self = weak.lock()) {
+          auto executor = self->ws_.get_executor();
+          net::post(executor, [self = std::move(self)] { self->pump(); });
+        }
       });
     } catch (const std::exception& e) {
       diagnostics_.report(common::Severity::warning, "http", std::string("WebSocket not opened: ") + e.what());
