@@ -2,23 +2,24 @@
 
 #include <algorithm>
 #include <boost/asio/ip/address.hpp>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 
+#include "common/parse_number.h"
+
 namespace wm::config {
 namespace {
 
+// A numeric flag's value (wm::parse_number), its error as a ConfigError.
 template <typename T>
-T parse_number(const std::string& flag, const std::string& text, T min, T max) {
-  T value{};
-  auto [p, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || p != text.data() + text.size() || !(value >= min && value <= max))
-    throw ConfigError(flag + ": expected a number in [" + std::to_string(min) + ", " + std::to_string(max) +
-                      "], got '" + text + "'");
-  return value;
+T config_number(const std::string& flag, const std::string& text, T min, T max) {
+  try {
+    return parse_number<T>(flag, text, min, max);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(e.what());
+  }
 }
 
 // "a, B,c" → {"a", "b", "c"}: lower case (host names and origins compare without case), no empty items.
@@ -145,7 +146,7 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     else if (flag == "--maps-dir")
       c.maps_dir = value;
     else if (flag == "--port")
-      c.http.port = parse_number<unsigned short>(flag, value, 0, 65535);
+      c.http.port = config_number<unsigned short>(flag, value, 0, 65535);
     else if (flag == "--bind")
       c.http.bind_address = value;
     else if (flag == "--rules")
@@ -167,13 +168,13 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     } else if (flag == "--token")
       c.api.token = value;
     else if (flag == "--max-body-bytes")
-      c.http.max_body_bytes = parse_number<std::size_t>(flag, value, 1024, std::size_t{1} << 31);
+      c.http.max_body_bytes = config_number<std::size_t>(flag, value, 1024, std::size_t{1} << 31);
     else if (flag == "--threads")
-      c.http.threads = parse_number<int>(flag, value, 1, 64);
+      c.http.threads = config_number<int>(flag, value, 1, 64);
     else if (flag == "--handler-threads")
-      c.http.handler_threads = parse_number<int>(flag, value, 1, 256);
+      c.http.handler_threads = config_number<int>(flag, value, 1, 256);
     else if (flag == "--handler-queue")
-      c.http.handler_queue = parse_number<std::size_t>(flag, value, 1, 100000);
+      c.http.handler_queue = config_number<std::size_t>(flag, value, 1, 100000);
     else if (flag == "--allowed-hosts") {
       for (auto& host : comma_list(value)) {
         if (host.find('/') != std::string::npos)
@@ -191,36 +192,36 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     } else if (flag == "--gate-chi2")
       throw ConfigError("--gate-chi2: matching no longer uses a χ² gate on (ρ, φ); use --gate-sigmas N");
     else if (flag == "--gate-sigmas")
-      c.service.map.world.match.gate_sigmas = parse_number<double>(flag, value, 0.5, 10.0);
+      c.service.map.world.match.gate_sigmas = config_number<double>(flag, value, 0.5, 10.0);
     else if (flag == "--max-gap")
-      c.service.map.world.match.max_gap_m = parse_number<double>(flag, value, 0.0, 100.0);
+      c.service.map.world.match.max_gap_m = config_number<double>(flag, value, 0.0, 100.0);
     else if (flag == "--rule-inferences")
-      c.rules.inference_limit = parse_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
+      c.rules.inference_limit = config_number<std::int64_t>(flag, value, 1000, 1'000'000'000);
     else if (flag == "--rule-time-limit")
-      c.rules.time_limit_s = parse_number<double>(flag, value, 0.001, 60.0);
+      c.rules.time_limit_s = config_number<double>(flag, value, 0.001, 60.0);
     else if (flag == "--grid-flush-ms")
       c.service.grids.flush_interval =
-          std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 0, 86'400'000));
+          std::chrono::milliseconds(config_number<std::int64_t>(flag, value, 0, 86'400'000));
     else if (flag == "--network")
       c.service.ingest.network_file = std::filesystem::path(value);
     else if (flag == "--write-threads")
-      c.http.write_threads = parse_number<int>(flag, value, 1, 1024);
+      c.http.write_threads = config_number<int>(flag, value, 1, 1024);
     else if (flag == "--grid-extract-every")
-      c.service.ingest.grid_extract_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
+      c.service.ingest.grid_extract_every = config_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-trim-every")
-      c.service.ingest.grid_trim_every = parse_number<std::size_t>(flag, value, 0, 1'000'000);
+      c.service.ingest.grid_trim_every = config_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-resolution")
-      c.service.grids.grid.resolution_m = parse_number<double>(flag, value, 0.005, 10.0);
+      c.service.grids.grid.resolution_m = config_number<double>(flag, value, 0.005, 10.0);
     else if (flag == "--usable-range")
-      c.service.grids.grid.sensor.max_usable_range_m = parse_number<double>(flag, value, 0.1, 1000.0);
+      c.service.grids.grid.sensor.max_usable_range_m = config_number<double>(flag, value, 0.1, 1000.0);
     else if (flag == "--shm-max-mb")
-      c.shm.max_bytes = parse_number<std::uint64_t>(flag, value, 1, 1'048'576) << 20;
+      c.shm.max_bytes = config_number<std::uint64_t>(flag, value, 1, 1'048'576) << 20;
     else if (flag == "--shm-period-ms")
-      c.shm.period = std::chrono::milliseconds(parse_number<std::int64_t>(flag, value, 1, 10'000));
+      c.shm.period = std::chrono::milliseconds(config_number<std::int64_t>(flag, value, 1, 10'000));
     else if (flag == "--foxglove-queue-kb")
-      c.foxglove.max_queued_bytes = parse_number<std::size_t>(flag, value, 16, 4'194'304) << 10;
+      c.foxglove.max_queued_bytes = config_number<std::size_t>(flag, value, 16, 4'194'304) << 10;
     else if (flag == "--foxglove-max-clients")
-      c.foxglove.max_clients = parse_number<std::size_t>(flag, value, 1, 4096);
+      c.foxglove.max_clients = config_number<std::size_t>(flag, value, 1, 4096);
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";

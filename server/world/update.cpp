@@ -34,19 +34,18 @@ bool within_extent(const ObjectState& object, const fusion::LineSegment& edge, c
 }
 
 // The extent an element keeps after taking in `seen`, a view tilted from its fused line by more than
-// tilted_view_sigmas of the view's own direction σ: its extent before, and the view only where it runs within
-// tilted_view_offset_m of the fused line. A far view across a shallow bend (two facets of a curved wall a few
-// degrees apart, too few returns on the short side for the scan-line split to find) gates onto the facet it mostly
-// lies on; its line is fused in, but the part running off along the next facet is not that element's wall. nullopt:
-// the view agrees with the line, and the fused extent stands.
-std::optional<std::pair<double, double>> tilted_view_extent(const fusion::LineSegment& before,
+// tilted_view_sigmas of the view's own direction σ: its extent before (`kept`, projected on the fused line), and
+// the view only where it runs within tilted_view_offset_m of the fused line. A far view across a shallow bend (two
+// facets of a curved wall a few degrees apart, too few returns on the short side for the scan-line split to find)
+// gates onto the facet it mostly lies on; its line is fused in, but the part running off along the next facet is not
+// that element's wall. nullopt: the view agrees with the line, and the fused extent stands.
+std::optional<std::pair<double, double>> tilted_view_extent(const std::pair<double, double>& kept,
                                                             const fusion::LineSegment& fused,
                                                             const fusion::LineSegment& seen,
                                                             const WorldOptions& options) {
   const double angle = std::abs(std::remainder(seen.line.phi_rad - fused.line.phi_rad, std::numbers::pi));
   if (!(angle > options.tilted_view_sigmas * std::sqrt(std::max(0.0, seen.line.cov(1, 1))))) return std::nullopt;
-  const double ta = fused.line.coordinate_along(before.p0()), tb = fused.line.coordinate_along(before.p1());
-  std::pair<double, double> extent{std::min(ta, tb), std::max(ta, tb)};
+  std::pair<double, double> extent = kept;
   if (const auto stretch = update_internal::stretch_within(fused.line, seen, options.tilted_view_offset_m)) {
     extent.first = std::min(extent.first, stretch->first);
     extent.second = std::max(extent.second, stretch->second);
@@ -57,13 +56,13 @@ std::optional<std::pair<double, double>> tilted_view_extent(const fusion::LineSe
 // The extent of `number` after taking in `seen`, cut where the view runs off its line onto another element's: a far
 // view across a shallow bend (two facets of a curved wall a few degrees apart) gates onto the facet it mostly lies
 // on, and its far end, lying on the next facet's element rather than this one's line, would carry this element along
-// that facet. Cut at the two lines' crossing, never inside the extent it had before. Elements crossing at a steep
-// angle do not cut: past a T the view's end lies on this element's line, not on the crossing wall's.
+// that facet. Cut at the two lines' crossing, never inside the extent it had before (`kept`, projected on the fused
+// line). Elements crossing at a steep angle do not cut: past a T the view's end lies on this element's line, not on
+// the crossing wall's.
 std::pair<double, double> cut_at_neighbours(const WorldState& state, std::int64_t number,
-                                            const fusion::LineSegment& before, const fusion::LineSegment& fused,
+                                            const std::pair<double, double>& kept, const fusion::LineSegment& fused,
                                             const fusion::LineSegment& seen, const WorldOptions& options) {
-  const double ta = fused.line.coordinate_along(before.p0()), tb = fused.line.coordinate_along(before.p1());
-  const double old_t0 = std::min(ta, tb), old_t1 = std::max(ta, tb);
+  const auto [old_t0, old_t1] = kept;
   double t0 = fused.t0_m, t1 = fused.t1_m;
   for (const Eigen::Vector2d& end : {seen.p0(), seen.p1()}) {
     const double t_end = fused.line.coordinate_along(end);
@@ -383,11 +382,14 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
         const fusion::LineSegment before = element.segment;
         element.moments += fusion::SegmentMoments::of(seen);
         element.segment = fused_and_refit(fusion::fuse(element.segment, seen, options.fusion), element.moments);
-        if (const auto extent = tilted_view_extent(before, element.segment, seen, options)) {
+        const double ta = element.segment.line.coordinate_along(before.p0()),
+                     tb = element.segment.line.coordinate_along(before.p1());
+        const std::pair kept{std::min(ta, tb), std::max(ta, tb)};  // the extent before, on the fused line
+        if (const auto extent = tilted_view_extent(kept, element.segment, seen, options)) {
           element.segment.t0_m = extent->first;
           element.segment.t1_m = extent->second;
         }
-        const auto cut = cut_at_neighbours(state, ref->element, before, element.segment, seen, options);
+        const auto cut = cut_at_neighbours(state, ref->element, kept, element.segment, seen, options);
         element.segment.t0_m = cut.first;
         element.segment.t1_m = cut.second;
         // An element that faces both ways keeps doing so; one whose side was not known learns it.

@@ -11,6 +11,7 @@
 #include <sstream>
 #include <string>
 
+#include "common/parse_number.h"
 #include "tools/raycast/raycast.h"
 
 namespace {
@@ -59,11 +60,11 @@ int main(int argc, char** argv) {
         dy = f[1];
         dtheta = f[2] * std::numbers::pi / 180;
       } else if (flag == "--step") {
-        options.step_m = std::stod(value);
+        options.step_m = wm::parse_number<double>(flag, value, 0.001, 100);
       } else if (flag == "--beams") {
-        options.beams = std::stoi(value);
+        options.beams = wm::parse_number<int>(flag, value, 2, 100'000);
       } else if (flag == "--range") {
-        options.max_range_m = std::stod(value);
+        options.max_range_m = wm::parse_number<double>(flag, value, 0.1, 1000);
       } else if (flag != "--route") {
         throw std::invalid_argument("unknown flag " + flag);
       }

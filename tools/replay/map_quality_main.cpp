@@ -12,6 +12,7 @@
 #include <string>
 
 #include "apriori/import/amrl_import.h"
+#include "common/parse_number.h"
 #include "tools/replay/log_replay.h"
 
 int main(int argc, char** argv) {
@@ -31,12 +32,14 @@ int main(int argc, char** argv) {
   int status = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    if (arg == "--every" && i + 1 < argc) {
-      options.every = static_cast<std::size_t>(std::stoul(argv[++i]));
-      continue;
-    }
-    if (arg == "--grid-trim-every" && i + 1 < argc) {
-      options.service.ingest.grid_trim_every = static_cast<std::size_t>(std::stoul(argv[++i]));
+    if ((arg == "--every" || arg == "--grid-trim-every") && i + 1 < argc) {
+      try {
+        (arg == "--every" ? options.every : options.service.ingest.grid_trim_every) =
+            wm::parse_number<std::size_t>(arg, argv[++i], arg == "--every" ? 1 : 0, 1'000'000);
+      } catch (const std::invalid_argument& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return 2;
+      }
       continue;
     }
     if (arg == "--no-scan-alignment") {

@@ -8,15 +8,14 @@
 #include <string>
 #include <vector>
 
+#include "common/parse_number.h"
 #include "tools/truth/truth.h"
 
 namespace {
 
-// A count given on the command line: digits only (std::stoul would take "-5" as 2^64 − 5, and "3x" as 3).
+// A count on the command line: digits only, at most 999 999 999.
 std::size_t parse_count(const std::string& flag, const std::string& value) {
-  if (value.empty() || value.size() > 9 || value.find_first_not_of("0123456789") != std::string::npos)
-    throw std::invalid_argument(flag + ": a whole number from 0 to 999999999, not '" + value + "'");
-  return std::stoul(value);
+  return wm::parse_number<std::size_t>(flag, value, 0, 999'999'999);
 }
 
 const char* kUsage =
@@ -65,15 +64,13 @@ int main(int argc, char** argv) {
       } else if (flag == "--seed") {
         options.seed = static_cast<unsigned>(parse_count(flag, value));
       } else if (flag == "--max-route") {
-        options.max_route_m = std::stod(value);
+        options.max_route_m = wm::parse_number<double>(flag, value, 0, 1e6);
       } else if (flag == "--grid-extract-every") {
         options.service.ingest.grid_extract_every = parse_count(flag, value);
       } else if (flag == "--step") {
-        options.laser.step_m = std::stod(value);
+        options.laser.step_m = wm::parse_number<double>(flag, value, 0.01, 100);
       } else if (flag == "--fov") {
-        options.laser.field_of_view_deg = std::stod(value);
-        if (options.laser.field_of_view_deg <= 0 || options.laser.field_of_view_deg > 360)
-          throw std::invalid_argument("--fov: (0, 360]");
+        options.laser.field_of_view_deg = wm::parse_number<double>(flag, value, 1, 360);
       } else if (flag == "--demolished") {
         options.edits.demolished = parse_count(flag, value);
       } else if (flag == "--partitions") {
