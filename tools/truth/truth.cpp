@@ -216,6 +216,41 @@ void print_grid(const service::WorldService& world, const char* box) {
   }
 }
 
+// How far the posted and the placed poses are from the true ones, over the scans the server placed, and the scans
+// whose heading it made worse by more than the posted σ.
+void print_alignment(const Drive& drove, const ReplayOutcome& mapped) {
+  double posted_xy = 0, posted_th = 0, placed_xy = 0, placed_th = 0, worst_th = 0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < drove.scans.size() && i < mapped.placed.size(); ++i) {
+    if (!mapped.placed[i]) continue;
+    const auto& truth = drove.truth[i];
+    const auto& posted = drove.scans[i].sensor_pose;
+    const auto& placed = *mapped.placed[i];
+    const auto error = [&](const fusion::Pose2D& p) {
+      return std::pair{std::hypot(p.x_m - truth.x_m, p.y_m - truth.y_m),
+                       std::abs(std::remainder(p.theta_rad - truth.theta_rad, 2 * std::numbers::pi))};
+    };
+    const auto [pxy, pth] = error(posted);
+    const auto [axy, ath] = error(placed);
+    posted_xy += pxy * pxy;
+    posted_th += pth * pth;
+    placed_xy += axy * axy;
+    placed_th += ath * ath;
+    worst_th = std::max(worst_th, ath);
+    ++n;
+    if (ath > pth + 0.2 * kDeg)
+      std::fprintf(stderr, "alignment: scan %zu at (%.2f, %.2f) heading error %.2f deg posted, %.2f deg placed\n", i,
+                   truth.x_m, truth.y_m, pth / kDeg, ath / kDeg);
+  }
+  if (n == 0) return;
+  const double k = static_cast<double>(n);
+  std::fprintf(stderr,
+               "alignment: %zu scans, RMS error posted %.3f m / %.3f deg, placed %.3f m / %.3f deg, worst placed "
+               "heading %.3f deg\n",
+               n, std::sqrt(posted_xy / k), std::sqrt(posted_th / k) / kDeg, std::sqrt(placed_xy / k),
+               std::sqrt(placed_th / k) / kDeg, worst_th / kDeg);
+}
+
 }  // namespace
 
 const char* pose_noise_name(PoseNoise noise) { return noise == PoseNoise::low ? "low" : "high"; }
@@ -254,6 +289,10 @@ ReplayOutcome replay_scans(const std::vector<fusion::LaserScan>& scans, const Ei
       auto payload = logs::laser_scan_body(scan, request.observer, stamp).dump();
       request.scan = scan;
       const auto posted = world.post_scan(std::move(request), std::move(payload), std::nullopt);
+      if (posted.placement)
+        outcome.placed.push_back(posted.placement->placed);
+      else
+        outcome.placed.emplace_back();
       if (posted.lines && posted.placement) {
         placements.emplace(posted.lines->seq,
                            PlacedScan{static_cast<std::size_t>(&scan - scans.data()), *posted.placement});
@@ -568,6 +607,7 @@ TruthResult run_truth(const std::string& name, const TruthOptions& options) {
                       laser.sigma_theta_rad * laser.sigma_theta_rad)
           .asDiagonal();
   const auto mapped = replay_scans(drove.scans, pose_cov, std::nullopt, options);
+  if (std::getenv("WM_TRUTH_VERBOSE")) print_alignment(drove, mapped);
   result.mapping = score_mapping(*mapped.state, world, drove.coverage);
   if (options.with_plan) {
     const auto planned = replay_scans(drove.scans, pose_cov, building.plan, options);

@@ -79,6 +79,7 @@ TruthResult run_truth(const std::string& building, const TruthOptions& options);
 struct ReplayOutcome {
   std::shared_ptr<const world::WorldState> state;
   std::shared_ptr<const world::PlanReport> report;
+  std::vector<std::optional<fusion::Pose2D>> placed;  // per scan: where the server placed it (none: no lines)
 };
 
 /// Posts every scan (with its noisy pose and `pose_cov`) through WorldService::post_scan in a fresh store in a
