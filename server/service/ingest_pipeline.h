@@ -26,6 +26,7 @@
 #include "server/service/world_port.h"
 #include "server/storage/store.h"
 #include "server/world/grid_trim.h"
+#include "server/world/scan_continuations.h"
 
 namespace wm::service {
 
@@ -42,6 +43,11 @@ struct IngestOptions {
   /// calibration).
   bool align_scans = true;
   fusion::ScanAlignmentOptions scan_alignment;
+  /// A laser scan also gives views of the map's elements past their ends from returns too sparse for the extractor
+  /// (world::scan_continuations): a wall seen only at a grazing angle from afar, 0.5–1 m between returns, grows
+  /// along the line it is known to lie on. They are decided with the scan's own lines. false: no such views.
+  bool continue_lines = true;
+  fusion::LineContinuationOptions line_continuation;
   /// Run the grid line extractor (thinning + Hough) every this many scans (0: only on request), and its settings.
   std::size_t grid_extract_every = 0;
   fusion::GridLineOptions grid_lines;
@@ -178,6 +184,12 @@ class IngestPipeline {
   std::optional<PreparedUpdate> prepare_trim(const world::Box& region);
   /// The trim due at scan `scan_seq` (a multiple of grid_trim_every), decided and committed on the writer.
   void trim_now(std::int64_t scan_seq, const world::Box& region);
+  /// The views of the map's elements past their ends that a laser scan's sparse returns give (world frame, the
+  /// scan at its placed pose); `local` are its own lines in the sensor's frame.
+  std::vector<world::ScanContinuation> continuations(const fusion::LaserScan& laser,
+                                                     const std::vector<fusion::LineSegment>& local,
+                                                     const fusion::ScanLineOptions& line_options,
+                                                     const Eigen::Matrix3d& pose_cov) const;
   /// The grid trim's observer and the payload of its observation (what says at start that a trim was stored).
   static constexpr const char* kTrimObserver = "grid-trim";
   static std::string trim_payload(std::int64_t scan_seq) {

@@ -1,6 +1,7 @@
 // What the ingest's stages do to one request: its request id, a scan's lines, its events, the grid trim.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <variant>
 
 #include "fusion/grid/scan_geometry.h"
@@ -117,7 +118,45 @@ std::optional<PreparedUpdate> IngestPipeline::prepare_scan_lines(world::ScanObse
     const auto placed = fusion::transform_segment(segment, laser->sensor_pose, scan.pose_cov);
     observation.segments.push_back({placed, world::facing_toward(placed, viewpoint)});
   }
+  if (options_.continue_lines)
+    for (auto& view : continuations(*laser, local, line_options, scan.pose_cov)) {
+      world::ObservedSegment continued(view.segment, world::facing_toward(view.segment, viewpoint));
+      continued.continues = view.element;
+      observation.segments.push_back(std::move(continued));
+    }
   return writer_.prepare(head(), std::move(observation));
+}
+
+std::vector<world::ScanContinuation> IngestPipeline::continuations(const fusion::LaserScan& laser,
+                                                                   const std::vector<fusion::LineSegment>& local,
+                                                                   const fusion::ScanLineOptions& line_options,
+                                                                   const Eigen::Matrix3d& pose_cov) const {
+  auto options = options_.line_continuation;
+  options.bearing_step_rad = std::abs(laser.angle_increment_rad);
+  options.max_range_m = std::min(options.max_range_m, laser.range_max_m);
+  options.sigma_range_m = line_options.sigma_range_m;
+  options.sigma_range_relative = line_options.sigma_range_relative;
+  options.sigma_bearing_rad = line_options.sigma_bearing_rad;
+  std::vector<fusion::ContinuationBeam> beams;
+  beams.reserve(laser.ranges_m.size());
+  for (std::size_t i = 0; i < laser.ranges_m.size(); ++i) {
+    const double r = laser.ranges_m[i];
+    const double bearing = fusion::beam_bearing_rad(laser, i);
+    if (std::isfinite(r) && r >= laser.range_min_m && r < laser.range_max_m && r > 0) {
+      // A return on one of the scan's own lines is that line's: the continuation stops at it.
+      const Eigen::Vector2d p(r * std::cos(bearing), r * std::sin(bearing));
+      const bool claimed = std::any_of(local.begin(), local.end(), [&](const fusion::LineSegment& s) {
+        const double t = s.line.coordinate_along(p);
+        return t >= s.t0_m - line_options.split_distance_m && t <= s.t1_m + line_options.split_distance_m &&
+               std::abs(s.line.signed_distance(p)) <= line_options.split_distance_m;
+      });
+      beams.push_back(fusion::ContinuationBeam::at(bearing, r, claimed));
+    } else if (r >= laser.range_max_m) {
+      beams.push_back(fusion::ContinuationBeam::at(bearing, std::numeric_limits<double>::infinity()));
+    }
+  }
+  if (laser.angle_increment_rad < 0) std::reverse(beams.begin(), beams.end());  // in increasing bearing order
+  return world::scan_continuations(*head_, beams, laser.sensor_pose, pose_cov, options);
 }
 
 void IngestPipeline::add_scan_event(EventLog::Commit& live, const world::ScanObservation& scan, std::int64_t seq) {

@@ -260,6 +260,10 @@ std::string pose_text(const fusion::Pose2D& pose) {
 
 using namespace update_internal;
 
+std::string continuation_note(std::int64_t number) {
+  return "a continuation of " + element_id(number) + " through sparse grazing returns";
+}
+
 double facing_toward(const fusion::LineSegment& segment, const Eigen::Vector2d& viewpoint) {
   const double phi = segment.line.phi_rad;
   return segment.line.signed_distance(viewpoint) >= 0 ? phi
@@ -286,7 +290,14 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     const auto& seen = observation.segments[i].segment;
     // Matching runs against the map as changed by the earlier segments of the same request (rigid objects move
     // once, after the last segment).
-    Candidates candidates = collect_candidates(state, seen, observation.segments[i].facing_rad, options);
+    const auto continues = observation.segments[i].continues;
+    Candidates candidates;
+    if (!continues) {
+      candidates = collect_candidates(state, seen, observation.segments[i].facing_rad, options);
+    } else if (state.elements.contains(*continues)) {  // (an earlier segment may have joined it into another)
+      candidates.segments.push_back(state.elements.at(*continues).segment);
+      candidates.refs.push_back({std::nullopt, 0, *continues});
+    }
     auto match = fusion::best_match(candidates.segments, seen, options.match);
     if (grid_line && !found.ref[i] && !(match && candidates.refs[match->index].object)) {
       // A grid line is known to a cell across (and a short one fitted near a corner may lean by a degree): on a
@@ -347,6 +358,18 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
       make_fallback(record, decision.action, "rigid_adjust needs a matched CAD object");
     }
 
+    // A continuation only stretches (or confirms) the element it continues: it carries no line of its own. Its
+    // decisions say what they are, whatever the rules' explanation.
+    if (continues) {
+      if (record.action != rules::Action::confirm && record.action != rules::Action::ignore &&
+          !(record.action == rules::Action::merge && ref && !ref->object && ref->element == *continues)) {
+        record.explanation += " (not applied: a continuation only stretches the element it continues)";
+        record.action = rules::Action::ignore;
+        ref = nullptr;
+      }
+      record.explanation += " [" + continuation_note(*continues) + "]";
+    }
+
     // A grid line merged into an element that scans or a client made gives it its support and its extent, not its
     // line: the element's line, covariance and moments stay what its own views say (the grid knows the surface to
     // a cell, those views to a centimetre or two). The grid line's ends lie on the surface's ends to half a cell,
@@ -378,6 +401,12 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
           element.segment.t1_m = std::max(element.segment.t1_m, stretch->second);
         }
         record.explanation += " (a grid line on an element from scans or a client: its extent taken in, not its line)";
+      } else if (continues) {
+        if (const auto stretch = stretch_within(element.segment.line, seen, options.tilted_view_offset_m)) {
+          element.segment.t0_m = std::min(element.segment.t0_m, stretch->first);
+          element.segment.t1_m = std::max(element.segment.t1_m, stretch->second);
+        }
+        record.explanation += " (its extent taken in, not its line)";
       } else {
         const fusion::LineSegment before = element.segment;
         element.moments += fusion::SegmentMoments::of(seen);

@@ -22,7 +22,15 @@ struct ObservedSegment {
   /// Direction [rad] of the line's normal toward the sensor that saw it (see facing_toward); none when not known
   /// (posted segments, grid lines).
   std::optional<double> facing_rad;
+  /// The element whose line this view continues (world::scan_continuations): it says how far that line runs, not
+  /// where it lies, so it is matched to that element only and a merge takes in its extent, not its line; any other
+  /// answer of the rules is not applied.
+  std::optional<std::int64_t> continues;
 };
+
+/// What every decision about a continuation of element `number` (ObservedSegment::continues) says of it, in its
+/// explanation: "a continuation of eN through sparse grazing returns".
+std::string continuation_note(std::int64_t number);
 
 /// The direction [rad] of the normal of `segment`'s line that points to `viewpoint`'s side: which face of a wall a
 /// sensor at `viewpoint` saw.

@@ -125,15 +125,17 @@ TEST_F(FloorPlanAlignTest, AGdc1PlanDrawnElsewhereIsAlignedAndTheRulesThenConfir
   EXPECT_LT(before.count("delete") ? before.at("delete") : 0, lines_before / 10);
   EXPECT_EQ(before.count("rigid_adjust"), 0u);
 
-  // A preview changes nothing.
-  const auto preview = send_json("POST", "/api/v1/floorplan/align", {{"apply", false}});
+  // A preview changes nothing. (The search's wall-clock budget at its largest: a sanitizer build on a loaded machine
+  // ran past the default 10 s.)
+  const auto preview = send_json("POST", "/api/v1/floorplan/align", {{"apply", false}, {"time_budget_ms", 30000}});
   EXPECT_EQ(preview["verdict"], "preview") << preview.dump();
   EXPECT_FALSE(preview["applied"]);
   EXPECT_LT(worst_point_error(preview["best"], truth, walls), 0.05) << preview["best"].dump();
   EXPECT_EQ(get_json("/api/v1/floorplan")["placement"]["x"], 0.0);
 
   const auto aligned =
-      send_json("POST", "/api/v1/floorplan/align", {{"apply", true}, {"redecide", true}, {"source", "operator"}});
+      send_json("POST", "/api/v1/floorplan/align",
+                {{"apply", true}, {"redecide", true}, {"source", "operator"}, {"time_budget_ms", 30000}});
   ASSERT_EQ(aligned["verdict"], "applied") << aligned.dump();
   const auto& best = aligned["best"];
   EXPECT_LT(worst_point_error(best, truth, walls), 0.05) << best.dump();

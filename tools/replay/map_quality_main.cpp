@@ -19,10 +19,11 @@ int main(int argc, char** argv) {
   if (argc < 2) {
     std::fprintf(stderr,
                  "usage: wm-map-quality [--every K] [--rules DIR] [--pose-sigma XY,THETA] [--plan FILE] "
-                 "[--grid-trim-every N] [--no-scan-alignment] LOG...\n"
+                 "[--grid-trim-every N] [--no-scan-alignment] [--no-line-continuation] LOG...\n"
                  "  --plan: a floor plan (JSON, or an AMRL *.vectormap.json) loaded before each replay\n"
                  "  --grid-trim-every: as wmd's (default 10; 0: elements are not trimmed to the grid)\n"
-                 "  --no-scan-alignment: as wmd's (scans keep their posted poses)\n");
+                 "  --no-scan-alignment: as wmd's (scans keep their posted poses)\n"
+                 "  --no-line-continuation: no views of elements past their ends from sparse grazing returns\n");
     return 2;
   }
   wm::replay::LogReplayOptions options;
@@ -44,6 +45,10 @@ int main(int argc, char** argv) {
     }
     if (arg == "--no-scan-alignment") {
       options.service.ingest.align_scans = false;
+      continue;
+    }
+    if (arg == "--no-line-continuation") {
+      options.service.ingest.continue_lines = false;
       continue;
     }
     if (arg == "--pose-sigma" && i + 1 < argc) {

@@ -21,11 +21,12 @@ std::size_t parse_count(const std::string& flag, const std::string& value) {
 const char* kUsage =
     "usage: wm-truth [--building gdc1|ahg2|rmf-office|barcelona|all] [--pose-noise low|high|both] [--seed N]\n"
     "                [--max-route M] [--step M] [--fov 360|270] [--demolished N] [--partitions N] [--people N]\n"
-    "                [--table DX,DY,DTHETA_DEG|removed] [--no-plan] [--no-scan-alignment] [--data DIR]\n"
-    "                [--rules DIR] [--grid-extract-every N]\n"
+    "                [--table DX,DY,DTHETA_DEG|removed] [--no-plan] [--no-scan-alignment]\n"
+    "                [--no-line-continuation] [--data DIR] [--rules DIR] [--grid-extract-every N]\n"
     "  --max-route          drive only the first M metres of each route (default: all)\n"
     "  --no-plan            only the mapping figures (one replay per row instead of two)\n"
     "  --no-scan-alignment  the server keeps each scan's posted pose (wmd --no-scan-alignment), for comparison\n"
+    "  --no-line-continuation  no views of elements past their ends from sparse returns, for comparison\n"
     "  --grid-extract-every run the grid line extractor every N scans (wmd --grid-extract-every; default 0: never)\n";
 
 }  // namespace
@@ -46,6 +47,10 @@ int main(int argc, char** argv) {
       }
       if (flag == "--no-scan-alignment") {
         options.service.ingest.align_scans = false;
+        continue;
+      }
+      if (flag == "--no-line-continuation") {
+        options.service.ingest.continue_lines = false;
         continue;
       }
       if (i + 1 >= argc) throw std::invalid_argument(flag + " needs a value");

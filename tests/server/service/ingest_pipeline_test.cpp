@@ -80,6 +80,60 @@ TEST_F(IngestPipelineTest, WithScanLinesOffAScanOnlyFillsTheGrid) {
   EXPECT_TRUE(writer.snapshot()->elements.empty());
 }
 
+// A 720-beam scan from (x, 0) of one wall along y = 1.5 from x = −1 to x = 14 m: past x ≈ 8.5 m the laser meets it
+// at under 10°, its returns 0.25–0.75 m apart, and the scan-line extractor makes nothing of them.
+world::ScanObservation corridor_scan(double x) {
+  fusion::LaserScan scan;
+  scan.sensor_pose = {x, 0, 0};
+  scan.angle_min_rad = -std::numbers::pi;
+  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
+  scan.range_min_m = 0.05;
+  scan.range_max_m = 20;
+  for (int i = 0; i < 720; ++i) {
+    const double bearing = scan.angle_min_rad + i * scan.angle_increment_rad;
+    const double s = std::sin(bearing), c = std::cos(bearing);
+    const double range = s > 1e-9 ? 1.5 / s : 1e9;
+    const double at = x + range * c;
+    scan.ranges_m.push_back(at >= -1 && at <= 14 && range < 20 ? range : 20.0);
+  }
+  world::ScanObservation request;
+  request.observer = "robot-1";
+  request.scan = scan;
+  return request;
+}
+
+// The far end of the one element along the corridor wall [m].
+double wall_reach_x(const world::WorldState& state) {
+  double reach = -1e9;
+  for (const auto& [number, e] : state.elements)
+    if (std::abs(e.segment.p0().y() - 1.5) < 0.05 && std::abs(e.segment.p1().y() - 1.5) < 0.05)
+      reach = std::max({reach, e.segment.p0().x(), e.segment.p1().x()});
+  return reach;
+}
+
+TEST_F(IngestPipelineTest, AWallSeenAtAGrazingAngleGrowsAlongItsLineThroughTheSparseReturns) {
+  auto ingest = start();
+  ingest->post_scan(corridor_scan(0), "{\"scan\": 1}", std::nullopt);
+  const double extracted = wall_reach_x(*writer.snapshot());
+  EXPECT_LT(extracted, 9.5);  // the extractor's line ends where the returns fall apart
+  ingest->post_scan(corridor_scan(0.1), "{\"scan\": 2}", std::nullopt);
+  const auto state = writer.snapshot();
+  EXPECT_GT(wall_reach_x(*state), 11.0);  // the second scan carries it on along its line
+  EXPECT_LE(wall_reach_x(*state), 14.01);
+  std::size_t on_wall = 0;
+  for (const auto& [number, e] : state->elements) on_wall += std::abs(e.segment.p0().y() - 1.5) < 0.05 ? 1 : 0;
+  EXPECT_EQ(on_wall, 1u);  // one element, not a second one beside the first
+}
+
+TEST_F(IngestPipelineTest, WithoutLineContinuationTheGrazingReturnsAddNothing) {
+  IngestOptions options;
+  options.continue_lines = false;
+  auto ingest = start(options);
+  ingest->post_scan(corridor_scan(0), "{}", std::nullopt);
+  ingest->post_scan(corridor_scan(0.1), "{}", std::nullopt);
+  EXPECT_LT(wall_reach_x(*writer.snapshot()), 9.5);
+}
+
 TEST_F(IngestPipelineTest, AScanFromASensorTheNetworkDoesNotTakeIsRefusedAndChangesNothing) {
   IngestOptions options;
   options.network_file = std::filesystem::path(WM_SOURCE_DIR "/networks/laser_only.yaml");

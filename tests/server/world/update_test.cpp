@@ -210,6 +210,44 @@ TEST(UpdateTest, AViewAcrossAShallowBendDoesNotStretchTheElementPastIt) {
       1e-3);
 }
 
+TEST(UpdateTest, AContinuationStretchesOnlyTheElementItContinuesAndLeavesItsLine) {
+  WorldOptions options;
+  JoiningRules rules;
+  const Eigen::Vector2d sensor(1.0, -2.0);
+  WorldState state;
+  for (int k = 0; k < 3; ++k)
+    state =
+        apply_observation(state, view_from({0, 0}, {3, 0}, sensor, 0.01, 0.005), k + 1, options, std::ref(rules)).state;
+  ASSERT_EQ(state.elements.size(), 1u);
+  const std::int64_t wall = (*state.elements.begin()).first;
+  const auto line_before = state.elements.at(wall).segment.line;
+  // A continuation from x = 3 to 6, a little off the line (as a pose's error puts it): merged, its extent taken in,
+  // the element's line as it was.
+  auto continued = view_from({3, 0.004}, {6, 0.012}, sensor, 0.03, 0.01);
+  continued.segments[0].continues = wall;
+  const auto merged = apply_observation(state, continued, 4, options, std::ref(rules));
+  ASSERT_EQ(merged.decisions.at(0).action, rules::Action::merge);
+  const auto& grown = merged.state.elements.at(wall).segment;
+  EXPECT_NEAR(std::max(grown.p0().x(), grown.p1().x()), 6.0, 0.01);
+  EXPECT_EQ(grown.line.rho_m, line_before.rho_m);
+  EXPECT_EQ(grown.line.phi_rad, line_before.phi_rad);
+  EXPECT_NE(merged.decisions.at(0).explanation.find("continuation"), std::string::npos);
+  // A continuation is matched to its own element only: one of an element that is gone (joined away) is not added.
+  continued.segments[0].continues = wall + 100;
+  const auto orphan = apply_observation(state, continued, 4, options, std::ref(rules));
+  EXPECT_EQ(orphan.decisions.at(0).action, rules::Action::ignore);
+  EXPECT_EQ(orphan.state.elements.size(), 1u);
+  EXPECT_NEAR(
+      std::max(orphan.state.elements.at(wall).segment.p0().x(), orphan.state.elements.at(wall).segment.p1().x()), 3.0,
+      0.01);
+  // Rules that would add it or fuse its line get it ignored: it carries no line of its own.
+  FixedRules adding{"add", {}};
+  continued.segments[0].continues = wall;
+  const auto added = apply_observation(state, continued, 4, options, std::ref(adding));
+  EXPECT_EQ(added.decisions.at(0).action, rules::Action::ignore);
+  EXPECT_EQ(added.state.elements.size(), 1u);
+}
+
 TEST(UpdateTest, AnObservationThatBridgesTwoElementsJoinsThemIntoOne) {
   WorldOptions options;
   JoiningRules rules;
