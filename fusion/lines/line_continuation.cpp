@@ -48,16 +48,11 @@ std::optional<LineSegment> continue_line(std::span<const ContinuationBeam> beams
   validate(options);
   for (const auto& beam : beams)
     if (!std::isfinite(beam.bearing_rad)) throw std::invalid_argument("continue_line: a bearing is not finite");
-  // The line's normal points from the sensor toward it, so a beam meets it where n·u > 0.
-  LineFeature line = known.line;
-  double t_end = beyond_t1 ? known.t1_m : known.t0_m;
-  double outward = beyond_t1 ? 1.0 : -1.0;
-  if (line.rho_m < 0) {  // (−ρ, φ + π): the same line, its direction and coordinates reversed
-    line.rho_m = -line.rho_m;
-    line.phi_rad += std::numbers::pi;
-    t_end = -t_end;
-    outward = -outward;
-  }
+  // A segment's line is normalized (ρ ≥ 0): its normal points from the sensor toward it, so a beam meets it where
+  // n·u > 0.
+  const LineFeature& line = known.line;
+  const double t_end = beyond_t1 ? known.t1_m : known.t0_m;
+  const double outward = beyond_t1 ? 1.0 : -1.0;
   const double max_incidence = std::sin(options.max_incidence_rad);
   // The line runs through the sensor (no beam meets it), or lies too far for any beam within range to graze it.
   if (!(line.rho_m > 1e-3) || line.rho_m > options.max_range_m * max_incidence) return std::nullopt;

@@ -80,6 +80,15 @@ std::optional<ScanOutcome> IngestPipeline::replayed_scan(const std::optional<std
   return outcome;
 }
 
+namespace {
+
+// A reading that is a return: no return (>= range_max) and invalid readings carry no surface.
+bool is_return(const fusion::LaserScan& laser, double r) {
+  return std::isfinite(r) && r >= laser.range_min_m && r < laser.range_max_m && r > 0;
+}
+
+}  // namespace
+
 std::optional<PreparedUpdate> IngestPipeline::prepare_scan_lines(world::ScanObservation& scan,
                                                                  std::optional<ScanPlacement>& placement) {
   auto* laser = std::get_if<fusion::LaserScan>(&scan.scan);
@@ -87,9 +96,7 @@ std::optional<PreparedUpdate> IngestPipeline::prepare_scan_lines(world::ScanObse
   std::vector<fusion::RangeReading> readings;
   for (std::size_t i = 0; i < laser->ranges_m.size(); ++i) {
     const double r = laser->ranges_m[i];
-    // No return (>= range_max) and invalid readings carry no surface.
-    if (std::isfinite(r) && r >= laser->range_min_m && r < laser->range_max_m && r > 0)
-      readings.push_back({r, fusion::beam_bearing_rad(*laser, i)});
+    if (is_return(*laser, r)) readings.push_back({r, fusion::beam_bearing_rad(*laser, i)});
   }
   placement = ScanPlacement{laser->sensor_pose, laser->sensor_pose};
   auto line_options = options_.scan_lines;
@@ -142,8 +149,8 @@ std::vector<world::ScanContinuation> IngestPipeline::continuations(const fusion:
   for (std::size_t i = 0; i < laser.ranges_m.size(); ++i) {
     const double r = laser.ranges_m[i];
     const double bearing = fusion::beam_bearing_rad(laser, i);
-    if (std::isfinite(r) && r >= laser.range_min_m && r < laser.range_max_m && r > 0) {
-      // A return on one of the scan's own lines is that line's: the continuation stops at it.
+    if (is_return(laser, r)) {
+      // A return on one of the scan's own lines is that line's: the continuation steps over it.
       const Eigen::Vector2d p(r * std::cos(bearing), r * std::sin(bearing));
       const bool claimed = std::any_of(local.begin(), local.end(), [&](const fusion::LineSegment& s) {
         const double t = s.line.coordinate_along(p);

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "server/world/update_internal.h"
+
 namespace wm::world {
 namespace {
 
@@ -19,7 +21,7 @@ std::vector<ScanContinuation> scan_continuations(const WorldState& state,
   const double reach = options.max_range_m;
   const Box near{pose.x_m - reach, pose.y_m - reach, pose.x_m + reach, pose.y_m + reach};
   const Eigen::Vector2d sensor(pose.x_m, pose.y_m);
-  const double grazing_reach = options.max_range_m * std::sin(options.max_incidence_rad);
+  const double grazing_reach = options.max_range_m * std::sin(options.max_incidence_rad), range_sq = reach * reach;
   // Which element a return lies on (kSeveral: more than one), worked out for the returns a continuation reaches.
   constexpr std::int64_t kNotAsked = -3;
   std::vector<std::int64_t> owner(beams.size(), kNotAsked);
@@ -29,7 +31,8 @@ std::vector<ScanContinuation> scan_continuations(const WorldState& state,
     const Eigen::Vector2d p = pose.transform_point(beams[b].range_m * beams[b].direction);
     for (const auto number : state.elements.near(Box{p.x(), p.y(), p.x(), p.y()})) {
       const Element& element = state.elements.at(number);
-      if (element.origin == "grid" || std::abs(element.segment.line.signed_distance(p)) > kOnLineM) continue;
+      if (update_internal::made_by_grid(element) || std::abs(element.segment.line.signed_distance(p)) > kOnLineM)
+        continue;
       const double t = element.segment.line.coordinate_along(p);
       if (t < element.segment.t0_m - kPastEndM || t > element.segment.t1_m + kPastEndM) continue;
       owner[b] = owner[b] == kNone ? number : kSeveral;
@@ -41,8 +44,7 @@ std::vector<ScanContinuation> scan_continuations(const WorldState& state,
     const auto& segment = element.segment;
     // Only a line within max_range · sin(max_incidence) of the sensor is ever grazed within range, and only past an
     // end within range.
-    const double range_sq = reach * reach;
-    if (element.origin == "grid" || !Box::of(segment).overlaps(near) ||
+    if (update_internal::made_by_grid(element) || !Box::of(segment).overlaps(near) ||
         ((segment.p0() - sensor).squaredNorm() >= range_sq && (segment.p1() - sensor).squaredNorm() >= range_sq) ||
         std::abs(segment.line.signed_distance(sensor)) > grazing_reach)
       continue;

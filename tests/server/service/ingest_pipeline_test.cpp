@@ -83,23 +83,11 @@ TEST_F(IngestPipelineTest, WithScanLinesOffAScanOnlyFillsTheGrid) {
 // A 720-beam scan from (x, 0) of one wall along y = 1.5 from x = −1 to x = 14 m: past x ≈ 8.5 m the laser meets it
 // at under 10°, its returns 0.25–0.75 m apart, and the scan-line extractor makes nothing of them.
 world::ScanObservation corridor_scan(double x) {
-  fusion::LaserScan scan;
-  scan.sensor_pose = {x, 0, 0};
-  scan.angle_min_rad = -std::numbers::pi;
-  scan.angle_increment_rad = 2 * std::numbers::pi / 720;
-  scan.range_min_m = 0.05;
-  scan.range_max_m = 20;
-  for (int i = 0; i < 720; ++i) {
-    const double bearing = scan.angle_min_rad + i * scan.angle_increment_rad;
-    const double s = std::sin(bearing), c = std::cos(bearing);
+  return laser_scan(x, 0, 20, [&](double c, double s) {
     const double range = s > 1e-9 ? 1.5 / s : 1e9;
     const double at = x + range * c;
-    scan.ranges_m.push_back(at >= -1 && at <= 14 && range < 20 ? range : 20.0);
-  }
-  world::ScanObservation request;
-  request.observer = "robot-1";
-  request.scan = scan;
-  return request;
+    return at >= -1 && at <= 14 && range < 20 ? range : 20.0;
+  });
 }
 
 // The far end of the one element along the corridor wall [m].

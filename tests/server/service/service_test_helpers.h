@@ -72,28 +72,40 @@ inline world::Observation one_line(Eigen::Vector2d a, Eigen::Vector2d b) {
   return observation;
 }
 
-// A 720-beam laser scan from (x, y) inside the room [0, 10] × [0, 8] m, every beam ending on its walls.
-inline world::ScanObservation room_scan(double x, double y, std::string observer = "robot-1") {
+// A 720-beam laser scan from (x, y), heading 0, by robot-1 (or `observer`): each beam's range is
+// `range_of(cos, sin)` of its bearing.
+template <typename RangeOf>
+world::ScanObservation laser_scan(double x, double y, double range_max_m, RangeOf range_of,
+                                  std::string observer = "robot-1") {
   fusion::LaserScan scan;
   scan.sensor_pose = {x, y, 0};
   scan.angle_min_rad = -std::numbers::pi;
   scan.angle_increment_rad = 2 * std::numbers::pi / 720;
   scan.range_min_m = 0.05;
-  scan.range_max_m = 30;
+  scan.range_max_m = range_max_m;
   for (int i = 0; i < 720; ++i) {
     const double bearing = scan.angle_min_rad + i * scan.angle_increment_rad;
-    const double c = std::cos(bearing), s = std::sin(bearing);
-    double range = 1e9;
-    if (c > 1e-9) range = std::min(range, (10 - x) / c);
-    if (c < -1e-9) range = std::min(range, -x / c);
-    if (s > 1e-9) range = std::min(range, (8 - y) / s);
-    if (s < -1e-9) range = std::min(range, -y / s);
-    scan.ranges_m.push_back(range);
+    scan.ranges_m.push_back(range_of(std::cos(bearing), std::sin(bearing)));
   }
   world::ScanObservation request;
   request.observer = std::move(observer);
   request.scan = scan;
   return request;
+}
+
+// A 720-beam laser scan from (x, y) inside the room [0, 10] × [0, 8] m, every beam ending on its walls.
+inline world::ScanObservation room_scan(double x, double y, std::string observer = "robot-1") {
+  return laser_scan(
+      x, y, 30,
+      [&](double c, double s) {
+        double range = 1e9;
+        if (c > 1e-9) range = std::min(range, (10 - x) / c);
+        if (c < -1e-9) range = std::min(range, -x / c);
+        if (s > 1e-9) range = std::min(range, (8 - y) / s);
+        if (s < -1e-9) range = std::min(range, -y / s);
+        return range;
+      },
+      std::move(observer));
 }
 
 // A map writer on a fresh SQLite store with the shipped rules, and what it needs: the parts under the ingest.
