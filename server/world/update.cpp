@@ -421,6 +421,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
         const auto cut = cut_at_neighbours(state, ref->element, kept, element.segment, seen, options);
         element.segment.t0_m = cut.first;
         element.segment.t1_m = cut.second;
+        element.segment = stop_at_corners(state, ref->element, kept, element.segment, options);
         // An element that faces both ways keeps doing so; one whose side was not known learns it.
         if (!element.facing_rad && !element.both_ways) element.facing_rad = observation.segments[i].facing_rad;
       }
@@ -468,6 +469,7 @@ UpdateResult apply_observation(const WorldState& current, const Observation& obs
     }
     result.decisions.push_back(std::move(record));
     if (grown) join_neighbours(result, *grown, observation, observation_seq, options, decide);
+    if (grown && state.elements.contains(*grown)) cut_at_corners(result, *grown, observation, observation_seq, options);
     // The element a grid line merged into or became, unless a join took it into another one: a surface the grid saw.
     if (grid_line && grown && state.elements.contains(*grown)) grid_surfaces.insert(*grown);
   }

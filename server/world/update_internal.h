@@ -128,6 +128,32 @@ void make_fallback(DecisionRecord& record, std::string_view answered, const std:
 void join_neighbours(UpdateResult& result, std::int64_t number, const Observation& observation,
                      std::int64_t observation_seq, const WorldOptions& options, const Decide& decide);
 
+// Where segment `a` runs through its crossing with `b`'s line and on past it along `b` (a shallow bend between
+// WorldOptions::corner_min_angle_rad and corner_max_angle_rad, `b` running on from the corner the way a's shorter
+// side goes and covering it, that side within corner_overshoot_offset_m of b's line): what `a` keeps, up to the
+// corner. nullopt when a does not run past a corner with b.
+struct CornerCut {
+  fusion::LineSegment kept;
+  Eigen::Vector2d corner;
+  double overshoot_m = 0;
+  double angle_rad = 0;
+};
+std::optional<CornerCut> cut_past_corner(const fusion::LineSegment& a, const fusion::LineSegment& b,
+                                         const WorldOptions& options);
+
+// The extent of element `number` after a merge grew it to `grown`: not past a shallow corner with a neighbour
+// (cut_past_corner), and never less than it had before (`kept`, on grown's line: what it held is cut_at_corners'
+// to cut, with a decision).
+fusion::LineSegment stop_at_corners(const WorldState& state, std::int64_t number, const std::pair<double, double>& kept,
+                                    fusion::LineSegment grown, const WorldOptions& options);
+
+// After element `number` changed: it and its neighbours are cut back where one runs past a shallow corner along
+// the other (cut_past_corner), each cut a trim decision of rule corner_cut. A view that takes in a few returns
+// past a corner of two facets a few degrees apart, or an element made before its neighbour was seen, otherwise
+// runs on along the next facet.
+void cut_at_corners(UpdateResult& result, std::int64_t number, const Observation& observation,
+                    std::int64_t observation_seq, const WorldOptions& options);
+
 // A rigid object carried beyond its gate leaves its views unmatched (or matched to it at the old pose, the wrong
 // way). Several such views of one observation near a rigid object that its edges explain after one rigid
 // transform (fusion::find_by_shape: lengths and extents included, so the walls beside it do not count) are taken

@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -77,6 +78,13 @@ struct WorldOptions {
   /// to where the two lines cross.
   double tilted_view_sigmas = 2.0;
   double tilted_view_offset_m = 0.03;
+  /// Two elements whose lines cross at between corner_min_angle_rad and corner_max_angle_rad are two facets of a
+  /// bend: neither runs on past the corner along the other, as long as that part lies within
+  /// corner_overshoot_offset_m of the other's line [m] (further off it is a wall of its own). Under 3° the crossing
+  /// is too uncertain to cut at (1 cm across is 19 cm along); over 30° the corner is one the scan lines split at.
+  double corner_min_angle_rad = 3.0 * std::numbers::pi / 180.0;
+  double corner_max_angle_rad = 30.0 * std::numbers::pi / 180.0;
+  double corner_overshoot_offset_m = 0.05;
   /// Elements seen from opposite sides (Element::facing_rad) are the two faces of a wall, kept apart, unless they
   /// lie this close to each other where they overlap [m]: then they are one thin surface (a partition, a board, a
   /// wall drawn as a single line) and are joined into one element that faces both ways.
