@@ -1,4 +1,5 @@
 // Elements that run past a shallow corner onto the next facet's element are cut back to the corner.
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -6,8 +7,6 @@
 #include <optional>
 #include <string>
 #include <utility>
-
-#include <Eigen/LU>
 
 #include "server/world/update_internal.h"
 

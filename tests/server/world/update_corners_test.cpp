@@ -63,7 +63,7 @@ TEST(CornerCutTest, TwoFacetsOfAShallowBendEachEndAtTheCorner) {
           return e.segment;
       throw std::runtime_error("no element along that facet");
     };
-    const auto& a = facet_on(0), & b = facet_on(bend);
+    const auto &a = facet_on(0), &b = facet_on(bend);
     EXPECT_NEAR(std::max(a.p0().x(), a.p1().x()), 3.0, 1e-6);
     EXPECT_NEAR(std::min(a.p0().x(), a.p1().x()), 0.0, 1e-6);
     EXPECT_NEAR(std::min(b.p0().x(), b.p1().x()), 3.0, 1e-6);
@@ -83,8 +83,8 @@ TEST(CornerCutTest, TwoFacetsOfAShallowBendEachEndAtTheCorner) {
     EXPECT_NE(cuts[a_cut_first ? 1 : 0].explanation.find("ran 0.150 m"), std::string::npos);
     // Another view of the first facet running past the corner is merged, and the merge stops at the corner: nothing
     // to cut afterwards.
-    const auto again = apply_observation(state, view_from({0.5, 0}, {3.3, 0}, viewpoint, 0.01, 0.005), 3, options,
-                                         std::ref(rules));
+    const auto again =
+        apply_observation(state, view_from({0.5, 0}, {3.3, 0}, viewpoint, 0.01, 0.005), 3, options, std::ref(rules));
     ASSERT_EQ(again.decisions.at(0).action, rules::Action::merge);
     EXPECT_TRUE(corner_cuts(again.decisions).empty());
     const auto& merged = again.state.elements.at(*WorldState::element_number(*again.decisions.at(0).element)).segment;
@@ -113,9 +113,9 @@ TEST(CornerCutTest, WhatIsNoCornerOfTwoFacetsIsNotCut) {
     JoiningRules rules;
     rules.join_action = "ignore";  // two elements stay two, whatever the join gate says
     std::vector<DecisionRecord> decisions;
-    const auto state = add_views(WorldState{},
-                                 {view_from(c.a0, c.a1, {1, 3}, 0.01, 0.005), view_from(c.b0, c.b1, {1, 3}, 0.01, 0.005)},
-                                 options, rules, &decisions);
+    const auto state = add_views(
+        WorldState{}, {view_from(c.a0, c.a1, {1, 3}, 0.01, 0.005), view_from(c.b0, c.b1, {1, 3}, 0.01, 0.005)}, options,
+        rules, &decisions);
     EXPECT_TRUE(corner_cuts(decisions).empty()) << corner_cuts(decisions).front().explanation;
     double length = 0;
     for (const auto& [number, e] : state.elements) length += e.segment.length_m();
