@@ -28,13 +28,15 @@ double distance_to_segment(const Eigen::Vector2d& p, const fusion::LineSegment& 
   return (a + t * d - p).norm();
 }
 
-// After a carried object was found by its shape and moved there: the elements its earlier views became (seen one
-// side at a time, before two sides showed in one scan) lie on its edges now. They are views of the object, not walls:
-// each goes with a prune decision (rule object_found). An element lies on an edge when both its ends are within
-// 5 cm of the edge's line, its direction within 5° and at least 80 % of its length within the edge's extent plus
-// 10 cm: views that took in a corner's mixed returns make an element a little longer than the side, while a wall
-// that runs on past the object along the same line lies mostly beyond it.
-void absorb_elements(UpdateResult& result, std::size_t index, const Observation& observation,
+// After an object moved (found by its shape where it was carried, or adjusted by its views): the elements views of
+// it became (seen one side at a time before two sides showed in one scan, or a short view its few returns tilted
+// past the edge's gate) lie on its edges now. They are views of the object, not walls: each goes with a prune
+// decision (rule object_found). An element lies on an edge when both its ends are within 5 cm of the edge's line,
+// its direction within 5° (or, for one shorter than 0.57 m, what its ends' 5 cm allow: a 0.37 m view of a table's end
+// turned 6° by its few returns), and at least 80 % of its length within the edge's extent plus 10 cm: views that
+// took in a corner's mixed returns make an element a little longer than the side, while a wall that runs on past
+// the object along the same line lies mostly beyond it.
+void absorb_elements(UpdateResult& result, std::size_t index, bool by_shape, const Observation& observation,
                      std::int64_t observation_seq) {
   constexpr double kOffsetM = 0.05, kAngleRad = 0.0873, kBeyondM = 0.10, kOnShare = 0.8;
   WorldState& state = result.state;
@@ -53,7 +55,7 @@ void absorb_elements(UpdateResult& result, std::size_t index, const Observation&
     const auto& seg = element->segment;
     const bool on_an_edge = std::any_of(edges.begin(), edges.end(), [&](const fusion::LineSegment& edge) {
       const double angle = std::abs(std::remainder(seg.line.phi_rad - edge.line.phi_rad, std::numbers::pi));
-      if (angle > kAngleRad) return false;
+      if (angle > std::max(kAngleRad, std::atan2(kOffsetM, seg.length_m()))) return false;
       for (const Eigen::Vector2d& p : {seg.p0(), seg.p1()})
         if (std::abs(edge.line.signed_distance(p)) > kOffsetM) return false;
       const double ta = edge.line.coordinate_along(seg.p0()), tb = edge.line.coordinate_along(seg.p1());
@@ -64,7 +66,8 @@ void absorb_elements(UpdateResult& result, std::size_t index, const Observation&
     if (!on_an_edge) continue;
     remove_element(result, number, "object_found",
                    element->id() + " lies on an edge of " + object.plan->id +
-                       ", found again by its shape where it was carried: a view of it, not a wall",
+                       (by_shape ? ", found again by its shape where it was carried: a view of it, not a wall"
+                                 : ", where its last adjustment placed it: a view of it, not a wall"),
                    observation.observer, observation_seq)
         .object = object.plan->id;
   }
@@ -177,7 +180,7 @@ void apply_rigid(UpdateResult& result, std::size_t index, const PendingRigid& pe
     object.updated_version = state.version;
     state.objects.put(index, std::move(object));
     result.changed_objects.insert(index);
-    if (pending.by_shape) absorb_elements(result, index, observation, observation_seq);
+    absorb_elements(result, index, pending.by_shape, observation, observation_seq);
   } catch (const std::invalid_argument& e) {
     for (std::size_t j = 0; j < pending.records.size(); ++j) {
       DecisionRecord& record = result.decisions[pending.records[j]];
