@@ -35,7 +35,7 @@ std::optional<CornerCut> cut_past_corner(const fusion::LineSegment& a, const fus
   const Eigen::Vector2d end = past_t1 ? a.p1() : a.p0();
   if (overshoot < kShortestCornerCutM || overshoot * std::sin(angle) > options.corner_overshoot_offset_m)
     return std::nullopt;
-  // b runs on from the corner the way a's overshoot goes (a bend, not a crossing), and covers it.
+  // b runs on from the corner the way a's overshoot goes, further than back, and covers it.
   const double tb = b.line.coordinate_along(corner), tb_end = b.line.coordinate_along(end);
   const double gap = options.match.max_gap_m;
   if (tb < b.t0_m - gap || tb > b.t1_m + gap || tb_end < b.t0_m - gap || tb_end > b.t1_m + gap) return std::nullopt;
@@ -62,26 +62,29 @@ fusion::LineSegment stop_at_corners(const WorldState& state, std::int64_t number
 void cut_at_corners(UpdateResult& result, std::int64_t number, const Observation& observation,
                     std::int64_t observation_seq, const WorldOptions& options) {
   WorldState& state = result.state;
-  const TrimSource source{observation_seq, observation.observer, "element", observation.sensor,
-                          observation.received_at_unix_s};
-  const auto cut = [&](std::int64_t from, std::int64_t along, const CornerCut& c) {
-    const std::string along_id = state.elements.at(along).id();
+  // No at_unix_s: a neighbour cut here was not seen by this observation, and the grown element's time is already set.
+  const TrimSource source{observation_seq, observation.observer, "element", observation.sensor, std::nullopt};
+  const auto cut_if_past = [&](std::int64_t from, std::int64_t along) {
+    const Element& a = state.elements.at(from);
+    const Element& b = state.elements.at(along);
+    if (a.origin == "client" || !faces_agree(a.facing_rad, b.facing_rad)) return;
+    const auto c = cut_past_corner(a.segment, b.segment, options);
+    if (!c) return;
+    const std::string along_id = b.id();
     char text[256];
     std::snprintf(text, sizeof text,
-                  "element %s ran %.3f m past its corner with %s at (%.3f, %.3f) along %s (lines %.1f deg apart): "
-                  "cut at the corner",
-                  state.elements.at(from).id().c_str(), c.overshoot_m, along_id.c_str(), c.corner.x(), c.corner.y(),
-                  along_id.c_str(), c.angle_rad * 180.0 / std::numbers::pi);
-    trim_element(result, from, c.kept, "corner_cut", text, source);
+                  "element %s ran %.3f m past its corner with %s at (%.3f, %.3f) (lines %.1f deg apart): cut at the "
+                  "corner",
+                  a.id().c_str(), c->overshoot_m, along_id.c_str(), c->corner.x(), c->corner.y(),
+                  c->angle_rad * 180.0 / std::numbers::pi);
+    trim_element(result, from, c->kept, "corner_cut", text, source).matched_element = along_id;
   };
   const Box near = Box::of(state.elements.at(number).segment, options.match.max_gap_m);
   for (const auto other : state.elements.near(near)) {
     if (other == number || !state.elements.contains(other)) continue;
     if (!Box::of(state.elements.at(other).segment).overlaps(near)) continue;
-    if (const auto c = cut_past_corner(state.elements.at(other).segment, state.elements.at(number).segment, options))
-      cut(other, number, *c);
-    if (const auto c = cut_past_corner(state.elements.at(number).segment, state.elements.at(other).segment, options))
-      cut(number, other, *c);
+    cut_if_past(other, number);
+    cut_if_past(number, other);
   }
 }
 

@@ -1,8 +1,8 @@
 #pragma once
 
 // Shared by the files of the world update (update.cpp: matching and the decision loop; update_joins.cpp: joining
-// elements; update_rigid.cpp: rigid objects and the shape search; update_grid_lines.cpp: grid lines). Not part of
-// the module's interface.
+// elements; update_corners.cpp: elements cut back at shallow corners; update_rigid.cpp: rigid objects and the shape
+// search; update_grid_lines.cpp: grid lines). Not part of the module's interface.
 
 #include <cstddef>
 #include <cstdint>
@@ -130,8 +130,8 @@ void join_neighbours(UpdateResult& result, std::int64_t number, const Observatio
 
 // Where segment `a` runs through its crossing with `b`'s line and on past it along `b` (a shallow bend between
 // WorldOptions::corner_min_angle_rad and corner_max_angle_rad, `b` running on from the corner the way a's shorter
-// side goes and covering it, that side within corner_overshoot_offset_m of b's line): what `a` keeps, up to the
-// corner. nullopt when a does not run past a corner with b.
+// side goes, further than back, and covering it, that side at least 2 cm long and within corner_overshoot_offset_m
+// of b's line): what `a` keeps, up to the corner. nullopt when a does not run past a corner with b.
 struct CornerCut {
   fusion::LineSegment kept;
   Eigen::Vector2d corner;
@@ -147,9 +147,11 @@ std::optional<CornerCut> cut_past_corner(const fusion::LineSegment& a, const fus
 fusion::LineSegment stop_at_corners(const WorldState& state, std::int64_t number, const std::pair<double, double>& kept,
                                     fusion::LineSegment grown, const WorldOptions& options);
 
-// After element `number` changed: it and its neighbours are cut back where one runs past a shallow corner along
-// the other (cut_past_corner), each cut a trim decision of rule corner_cut. A view that takes in a few returns
-// past a corner of two facets a few degrees apart, or an element made before its neighbour was seen, otherwise
+// After element `number` grew (a merge, an add, a join into it): it and its neighbours are cut back where one runs
+// past a shallow corner along the other (cut_past_corner), each cut a trim decision of rule corner_cut whose
+// matched_element is the other. Elements a client posted are not cut (as the grid trim leaves them), and two
+// elements seen from opposite sides are not each other's corner (the two faces of a wall). A view that takes in a few
+// returns past a corner of two facets a few degrees apart, or an element made before its neighbour was seen, otherwise
 // runs on along the next facet.
 void cut_at_corners(UpdateResult& result, std::int64_t number, const Observation& observation,
                     std::int64_t observation_seq, const WorldOptions& options);

@@ -31,11 +31,11 @@ double distance_to_segment(const Eigen::Vector2d& p, const fusion::LineSegment& 
 // After an object moved (found by its shape where it was carried, or adjusted by its views): the elements views of
 // it became (seen one side at a time before two sides showed in one scan, or a short view its few returns tilted
 // past the edge's gate) lie on its edges now. They are views of the object, not walls: each goes with a prune
-// decision (rule object_found). An element lies on an edge when both its ends are within 5 cm of the edge's line,
-// its direction within 5° (or, for one shorter than 0.57 m, what its ends' 5 cm allow: a 0.37 m view of a table's end
-// turned 6° by its few returns), and at least 80 % of its length within the edge's extent plus 10 cm: views that
-// took in a corner's mixed returns make an element a little longer than the side, while a wall that runs on past
-// the object along the same line lies mostly beyond it.
+// decision (rule object_found). An element lies on an edge when it faces out of the object (or its facing is not
+// known), both its ends are within 5 cm of the edge's line, its direction within 5° (or, for one shorter than
+// 0.57 m, within atan(5 cm / its length): a 0.37 m view of a table's end turned 6° by its few returns), and at least
+// 80 % of its length within the edge's extent plus 10 cm: views that took in a corner's mixed returns make an element
+// a little longer than the side, while a wall that runs on past the object along the same line lies mostly beyond it.
 void absorb_elements(UpdateResult& result, std::size_t index, bool by_shape, const Observation& observation,
                      std::int64_t observation_seq) {
   constexpr double kOffsetM = 0.05, kAngleRad = 0.0873, kBeyondM = 0.10, kOnShare = 0.8;
@@ -49,11 +49,18 @@ void absorb_elements(UpdateResult& result, std::size_t index, bool by_shape, con
     const Box b = Box::of(edges.back(), kBeyondM);
     box = {std::min(box.x0, b.x0), std::min(box.y0, b.y0), std::max(box.x1, b.x1), std::max(box.y1, b.y1)};
   }
+  const Eigen::Vector2d centre = object.body.pose().transform_point(object.body.local_centroid());
   for (const auto number : state.elements.near(box)) {
     const Element* element = state.elements.find(number);
     if (!element) continue;
     const auto& seg = element->segment;
     const bool on_an_edge = std::any_of(edges.begin(), edges.end(), [&](const fusion::LineSegment& edge) {
+      // A view of the object's side was seen from outside it: a wall the object stands against, seen from the room
+      // beside it, faces the other way.
+      const Eigen::Vector2d n = edge.line.normal();
+      const double outward =
+          n.dot(0.5 * (edge.p0() + edge.p1()) - centre) >= 0 ? std::atan2(n.y(), n.x()) : std::atan2(-n.y(), -n.x());
+      if (!faces_agree(element->facing_rad, outward)) return false;
       const double angle = std::abs(std::remainder(seg.line.phi_rad - edge.line.phi_rad, std::numbers::pi));
       if (angle > std::max(kAngleRad, std::atan2(kOffsetM, seg.length_m()))) return false;
       for (const Eigen::Vector2d& p : {seg.p0(), seg.p1()})

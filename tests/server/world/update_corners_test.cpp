@@ -3,7 +3,10 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <iterator>
 #include <numbers>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -73,6 +76,8 @@ TEST(CornerCutTest, TwoFacetsOfAShallowBendEachEndAtTheCorner) {
     for (const auto& cut : cuts) {
       EXPECT_EQ(cut.action, rules::Action::trim);
       EXPECT_EQ(cut.origin, "element");
+      ASSERT_TRUE(cut.element && cut.matched_element);
+      EXPECT_NE(*cut.element, *cut.matched_element);
       ASSERT_EQ(cut.before.size(), 4u);
       ASSERT_EQ(cut.after.size(), 4u);
       EXPECT_NE(cut.explanation.find("past its corner"), std::string::npos) << cut.explanation;
@@ -120,6 +125,29 @@ TEST(CornerCutTest, WhatIsNoCornerOfTwoFacetsIsNotCut) {
     double length = 0;
     for (const auto& [number, e] : state.elements) length += e.segment.length_m();
     EXPECT_NEAR(length, (c.a1 - c.a0).norm() + (c.b1 - c.b0).norm(), 1e-6);
+  }
+  // The bend of the two facets above, but seen from either side of it (two faces, not a corner), or posted by a
+  // client (whose elements only the client changes, as the grid trim leaves them).
+  const auto first_part = [&](Eigen::Vector2d viewpoint, bool client) {
+    auto obs = view_from({0, 0}, {3.3, 0}, viewpoint, 0.01, 0.005, !client);
+    if (client) obs.origin = "client";
+    return obs;
+  };
+  const auto second_part = [&](Eigen::Vector2d viewpoint, bool client) {
+    auto obs = view_from(on_next_facet(-0.15, bend), on_next_facet(2.0, bend), viewpoint, 0.01, 0.005, !client);
+    if (client) obs.origin = "client";
+    return obs;
+  };
+  for (const bool client : {false, true}) {
+    SCOPED_TRACE(client ? "posted by a client" : "seen from either side");
+    WorldOptions options;
+    JoiningRules rules;
+    std::vector<DecisionRecord> decisions;
+    add_views(
+        WorldState{},
+        {first_part({1, 3}, client), second_part(client ? Eigen::Vector2d(1, 3) : Eigen::Vector2d(4, -3), client)},
+        options, rules, &decisions);
+    EXPECT_TRUE(corner_cuts(decisions).empty()) << corner_cuts(decisions).front().explanation;
   }
 }
 

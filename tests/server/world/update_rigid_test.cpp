@@ -198,7 +198,8 @@ TEST(RigidAdjustTest, ATableSeenOneSideAtATimeIsFoundAndItsSideElementsAreTakenB
 // A table already placed where it stands: a short view of its end, tilted 6° by its few returns, misses the edge's
 // gate and becomes an element (as on AHG2: 0.37 m of a 0.8 m side), and so does a wall piece on the line of its top
 // side, past its corner. At the table's next adjustment the view is taken back (it lies on the edge); the wall
-// piece, lying beyond the edge's end, stays.
+// piece, lying beyond the edge's end, stays, and so does a wall the table stands against: an element along its top
+// side seen from the room, facing into the table, not out of it.
 TEST(RigidAdjustTest, AShortTiltedViewOfATablesSideIsTakenBackAtItsNextAdjustment) {
   WorldOptions options;
   const auto table = far_table();
@@ -226,6 +227,16 @@ TEST(RigidAdjustTest, AShortTiltedViewOfATablesSideIsTakenBackAtItsNextAdjustmen
       {noisy_segment(pose.transform_point({0.75, 0.4}), pose.transform_point({2.2, 0.4}), rng)});
   state = apply_observation(state, odd_views, 9, options, rules).state;
   ASSERT_EQ(state.elements.size(), 2u) << "both views missed the table's edges";
+  Element behind;
+  behind.number = state.next_element_number++;
+  behind.segment = fusion::LineSegment::from_points(pose.transform_point({-0.6, 0.42}),
+                                                    pose.transform_point({0.6, 0.42}), Eigen::Matrix2d::Identity());
+  behind.segment.line.cov = midpoint_line_cov(behind.segment, 0.005, 0.005);
+  behind.moments = fusion::SegmentMoments::of(behind.segment);
+  behind.support = 20;
+  behind.facing_rad = pose.theta_rad - std::numbers::pi / 2;  // local −y: toward the table's centre
+  behind.origin = "scan";
+  state.elements.put(behind);
   // The bottom side, seen alone from in front of it: an ordinary adjustment, not a find by shape.
   Observation obs;
   obs.observer = "robot";
@@ -244,10 +255,12 @@ TEST(RigidAdjustTest, AShortTiltedViewOfATablesSideIsTakenBackAtItsNextAdjustmen
       taken_back.push_back(*d.element);
     }
   ASSERT_EQ(taken_back.size(), 1u);
-  ASSERT_EQ(adjusted.state.elements.size(), 1u);
-  const auto& wall = (*adjusted.state.elements.begin()).second;
-  EXPECT_NE(wall.id(), taken_back[0]);
-  EXPECT_GT(wall.segment.length_m(), 1.3) << "the wall piece past the corner stays";
+  ASSERT_EQ(adjusted.state.elements.size(), 2u);
+  EXPECT_TRUE(adjusted.state.elements.contains(behind.number)) << "the wall behind the table stays";
+  for (const auto& [number, wall] : adjusted.state.elements) {
+    EXPECT_NE(wall.id(), taken_back[0]);
+    EXPECT_GT(wall.segment.length_m(), 1.1) << "the wall pieces stay";
+  }
 }
 
 }  // namespace
