@@ -73,6 +73,20 @@ Observation table_scan(const apriori::PlanObject& table, const fusion::Pose2D& p
   return obs;
 }
 
+// Eight scans of `table` standing at `pose` from its four diagonals, 3 m from its centre (each sees two sides): where
+// it stands is known to a few mm, as after a drive past it.
+template <typename Rules>
+WorldState seen_from_its_diagonals(WorldState state, const apriori::PlanObject& table, const fusion::Pose2D& pose,
+                                   const WorldOptions& options, const Rules& rules, std::mt19937& rng) {
+  for (int scan = 0; scan < 8; ++scan) {
+    const double bearing = std::numbers::pi / 4 + scan * std::numbers::pi / 2;
+    const Eigen::Vector2d viewpoint =
+        Eigen::Vector2d(pose.x_m, pose.y_m) + 3.0 * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
+    state = apply_observation(state, table_scan(table, pose, viewpoint, rng), scan + 1, options, rules).state;
+  }
+  return state;
+}
+
 struct TableRun {
   double position_error_m = 0, angle_error_rad = 0;
   std::size_t elements = 0;
@@ -87,12 +101,7 @@ TableRun run_moved_table(double shift_m, double turn_rad, unsigned seed) {
   const fusion::Pose2D truth{kTablePose.x_m + shift_m * std::cos(0.5), kTablePose.y_m + shift_m * std::sin(0.5),
                              kTablePose.theta_rad + turn_rad};
   std::mt19937 rng(seed);
-  for (int scan = 0; scan < 8; ++scan) {
-    const double bearing = std::numbers::pi / 4 + scan * std::numbers::pi / 2;
-    const Eigen::Vector2d viewpoint =
-        Eigen::Vector2d(truth.x_m, truth.y_m) + 3.0 * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
-    state = apply_observation(state, table_scan(table, truth, viewpoint, rng), scan + 1, options, rules).state;
-  }
+  state = seen_from_its_diagonals(state, table, truth, options, rules, rng);
   const auto& pose = state.objects[0].body.pose();
   return {std::hypot(pose.x_m - truth.x_m, pose.y_m - truth.y_m),
           std::abs(std::remainder(pose.theta_rad - truth.theta_rad, 2 * std::numbers::pi)), state.elements.size()};
@@ -207,12 +216,7 @@ TEST(RigidAdjustTest, AShortTiltedViewOfATablesSideIsTakenBackAtItsNextAdjustmen
   auto state = apply_floor_plan(WorldState{}, rules.plan, options).state;
   std::mt19937 rng(7);
   const auto& pose = kTablePose;
-  for (int scan = 0; scan < 8; ++scan) {
-    const double bearing = std::numbers::pi / 4 + scan * std::numbers::pi / 2;
-    const Eigen::Vector2d viewpoint =
-        Eigen::Vector2d(pose.x_m, pose.y_m) + 3.0 * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
-    state = apply_observation(state, table_scan(table, pose, viewpoint, rng), scan + 1, options, rules).state;
-  }
+  state = seen_from_its_diagonals(state, table, pose, options, rules, rng);
   ASSERT_TRUE(state.elements.empty());
   const double tilt = 6 * kDeg, half = 0.185;
   Observation odd_views;
@@ -279,13 +283,8 @@ TEST(RigidAdjustTest, AFarViewThatRunsALittlePastACornerIsTheTablesSideAndAWallP
   auto state = apply_floor_plan(WorldState{}, rules.plan, options).state;
   std::mt19937 rng(5);
   const auto& pose = kTablePose;
-  // Seen close by from its four diagonals first: where it stands is known to a few mm, as after a drive past it.
-  for (int scan = 0; scan < 8; ++scan) {
-    const double bearing = std::numbers::pi / 4 + scan * std::numbers::pi / 2;
-    const Eigen::Vector2d viewpoint =
-        Eigen::Vector2d(pose.x_m, pose.y_m) + 3.0 * Eigen::Vector2d(std::cos(bearing), std::sin(bearing));
-    state = apply_observation(state, table_scan(table, pose, viewpoint, rng), scan + 1, options, rules).state;
-  }
+  // Seen close by first, as after a drive past it.
+  state = seen_from_its_diagonals(state, table, pose, options, rules, rng);
   ASSERT_TRUE(state.elements.empty());
   // The top side (local y = 0.4) from x = -0.5 to 0.85: 25 cm past the corner at 0.6.
   Observation far_view;
