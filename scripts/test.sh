@@ -66,8 +66,10 @@ ctest --test-dir build --output-on-failure -j"$jobs" --timeout 600
 # The sanitizer options are exported for the build too: gtest_discover_tests runs the test binaries.
 source tests/sanitizer/env.sh
 phase "sanitizer build (clang)"
-cmake -S . -B build/sanitize -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWM_SANITIZE=ON \
-  -DWM_FUZZ=ON -DWM_WERROR=OFF "${launcher[@]}" >/dev/null
+# -g1 (line tables only) as in the full build: a sanitizer report's stack names file and line, and the build, the
+# longest phase, takes about a fifth less time than with -g.
+cmake -S . -B build/sanitize -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DWM_SANITIZE=ON -DWM_FUZZ=ON -DWM_WERROR=OFF "${launcher[@]}" >/dev/null
 # The harnesses are the ones scripts/fuzz.sh runs (one list, there).
 read -r -a harnesses <<< "$(bash scripts/fuzz.sh --list)"
 cmake --build build/sanitize -j"$jobs" --target wmd wmctl apriori_tests logs_tests rules_tests server_tests integration_tests \
