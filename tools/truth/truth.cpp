@@ -526,14 +526,14 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
     score.people_missing_m = near_people;
   }
 
-  // New partitions: the share of their seen length that elements cover.
+  // New partitions: the share of their seen length (bins with at least kMinReturnsSeen returns) that elements cover.
   const auto cover = covering(elements, world.lines);
   double found_new = 0;
   std::size_t partitions_seen = 0;
   for (const int p : world.partitions) {
     double seen = 0, covered = 0;
     for (std::size_t b = 0; b < cover[p].size(); ++b) {
-      if (coverage.hits[p][b] == 0) continue;
+      if (coverage.hits[p][b] < kMinReturnsSeen) continue;
       seen += kBinM;
       covered += cover[p][b].empty() ? 0 : kBinM;
     }

@@ -135,6 +135,10 @@ inline constexpr double kMinDepthBeyondM = 0.15;
 /// A stretch of a demolished wall counts as seen through when this many beams went through it: the grid needs
 /// about three views of free space before a cell is free.
 inline constexpr std::uint32_t kMinBeamsThrough = 3;
+/// A stretch of a new partition counts as seen when this many returns fell on it over the whole drive, the count a
+/// demolished wall's stretch needs to count as seen through: one or two returns at a grazing angle, 0.3 m apart, are
+/// not a line to a line fitter, nor occupied to the grid.
+inline constexpr std::uint32_t kMinReturnsSeen = 3;
 
 struct Coverage {
   std::vector<std::vector<std::uint32_t>> hits;  // per BuiltWorld::lines, per kBinM bin: returns on it
