@@ -5,8 +5,8 @@
 #include <cstdlib>
 
 #include "fuzz/fuzz_support.h"
+#include "server/storage/database.h"
 #include "server/storage/scan_record.h"
-#include "server/storage/sqlite.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace wm;

@@ -7,6 +7,7 @@ packages=(
   swi-prolog-core swi-prolog-core-packages
   libgtest-dev libgmock-dev googletest libbenchmark-dev
   zlib1g-dev libyaml-cpp-dev curl python3 python3-ezdxf python3-numpy gdal-bin
+  libpq-dev postgresql-15 postgresql-15-postgis-3
 )
 # Extra packages for a purpose: `scripts/setup.sh bench` (benchmarks' baselines), `scripts/setup.sh web`
 # (the browser test: Debian's Chromium and Node.js for playwright-core), `scripts/setup.sh sanitize` (clang for

@@ -6,7 +6,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "server/storage/sqlite.h"
+#include "server/storage/database.h"
 
 namespace wm::storage {
 namespace {

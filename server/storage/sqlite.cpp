@@ -2,11 +2,73 @@
 
 #include <sqlite3.h>
 
-#include <cstring>
-
 namespace wm::storage {
 
-Connection::Connection(const std::string& path, bool create) {
+/// A statement compiled once per connection and SQL text: destroying it gives it back to its connection's cache (a
+/// statement still in use, e.g. the same SQL nested in a loop over its own rows, gets a fresh one of its own).
+class SqliteStatement final : public detail::StatementBackend {
+ public:
+  SqliteStatement(SqliteConnection& connection, const std::string& sql)
+      : connection_(connection), db_(connection.db_), sql_(sql) {
+    stmt_ = connection_.acquire(sql_, cached_);
+  }
+  ~SqliteStatement() override {
+    if (cached_)
+      connection_.release(sql_, stmt_);
+    else
+      sqlite3_finalize(stmt_);
+  }
+  SqliteStatement(const SqliteStatement&) = delete;
+  SqliteStatement& operator=(const SqliteStatement&) = delete;
+
+  void bind_int(int index, std::int64_t value) override { check(sqlite3_bind_int64(stmt_, index, value)); }
+  void bind_double(int index, double value) override { check(sqlite3_bind_double(stmt_, index, value)); }
+  void bind_text(int index, std::string_view value) override {
+    check(sqlite3_bind_text(stmt_, index, value.data(), static_cast<int>(value.size()), SQLITE_TRANSIENT));
+  }
+  void bind_blob(int index, const void* data, std::size_t bytes) override {
+    check(sqlite3_bind_blob(stmt_, index, data, static_cast<int>(bytes), SQLITE_TRANSIENT));
+  }
+  void bind_null(int index) override { check(sqlite3_bind_null(stmt_, index)); }
+
+  bool step() override {
+    const int rc = sqlite3_step(stmt_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    throw StorageError(std::string("sqlite step: ") + sqlite3_errmsg(db_) + " (in: " + sql_.substr(0, 80) + ")");
+  }
+  void reset() override {
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+
+  bool column_is_null(int column) const override { return sqlite3_column_type(stmt_, column) == SQLITE_NULL; }
+  std::int64_t column_int(int column) const override { return sqlite3_column_int64(stmt_, column); }
+  double column_double(int column) const override { return sqlite3_column_double(stmt_, column); }
+  std::string column_text(int column) const override {
+    const auto* text = sqlite3_column_text(stmt_, column);
+    return text ? std::string(reinterpret_cast<const char*>(text),
+                              static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column)))
+                : std::string();
+  }
+  const void* column_blob(int column) const override { return sqlite3_column_blob(stmt_, column); }
+  std::size_t column_bytes(int column) const override {
+    return static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column));
+  }
+
+ private:
+  void check(int rc) const {
+    if (rc != SQLITE_OK)
+      throw StorageError(std::string("sqlite bind: ") + sqlite3_errmsg(db_) + " (in: " + sql_.substr(0, 80) + ")");
+  }
+  SqliteConnection& connection_;
+  sqlite3* db_ = nullptr;
+  sqlite3_stmt* stmt_ = nullptr;
+  std::string sql_;
+  bool cached_ = false;
+};
+
+SqliteConnection::SqliteConnection(const std::string& path, bool create) {
   const int flags = SQLITE_OPEN_READWRITE | (create ? SQLITE_OPEN_CREATE : 0) | SQLITE_OPEN_FULLMUTEX;
   const int rc = sqlite3_open_v2(path.c_str(), &db_, flags, nullptr);
   if (rc != SQLITE_OK) {
@@ -20,12 +82,16 @@ Connection::Connection(const std::string& path, bool create) {
   sqlite3_busy_timeout(db_, 5000);
 }
 
-Connection::~Connection() {
+SqliteConnection::~SqliteConnection() {
   for (auto& [sql, statement] : statements_) sqlite3_finalize(statement.stmt);
   sqlite3_close_v2(db_);
 }
 
-sqlite3_stmt* Connection::acquire(const std::string& sql, bool& cached) {
+std::unique_ptr<detail::StatementBackend> SqliteConnection::prepare(const std::string& sql) {
+  return std::make_unique<SqliteStatement>(*this, sql);
+}
+
+sqlite3_stmt* SqliteConnection::acquire(const std::string& sql, bool& cached) {
   auto it = statements_.find(sql);
   if (it != statements_.end() && !it->second.in_use) {
     it->second.in_use = true;
@@ -43,14 +109,14 @@ sqlite3_stmt* Connection::acquire(const std::string& sql, bool& cached) {
   return stmt;
 }
 
-void Connection::release(const std::string& sql, sqlite3_stmt* stmt) {
+void SqliteConnection::release(const std::string& sql, sqlite3_stmt* stmt) {
   sqlite3_reset(stmt);  // its result repeats the last step's error, which the owner has seen
   sqlite3_clear_bindings(stmt);
   const auto it = statements_.find(sql);
   if (it != statements_.end() && it->second.stmt == stmt) it->second.in_use = false;
 }
 
-void Connection::exec(std::string_view sql) {
+void SqliteConnection::exec(std::string_view sql) {
   char* error = nullptr;
   const std::string text(sql);
   if (sqlite3_exec(db_, text.c_str(), nullptr, nullptr, &error) != SQLITE_OK) {
@@ -60,121 +126,12 @@ void Connection::exec(std::string_view sql) {
   }
 }
 
-Statement::Statement(Connection& connection, std::string_view sql)
-    : connection_(connection), db_(connection.handle()), sql_(sql) {
-  stmt_ = connection_.acquire(sql_, cached_);
+int SqliteConnection::schema_version() {
+  SqliteStatement s(*this, "PRAGMA user_version");
+  s.step();
+  return static_cast<int>(s.column_int(0));
 }
 
-Statement::~Statement() {
-  if (cached_)
-    connection_.release(sql_, stmt_);
-  else
-    sqlite3_finalize(stmt_);
-}
-
-void Statement::check(int rc, const char* what) const {
-  if (rc != SQLITE_OK)
-    throw StorageError(std::string("sqlite ") + what + ": " + sqlite3_errmsg(db_) + " (in: " + sql_.substr(0, 80) +
-                       ")");
-}
-
-Statement& Statement::bind(int index, std::int64_t value) {
-  check(sqlite3_bind_int64(stmt_, index, value), "bind");
-  return *this;
-}
-Statement& Statement::bind(int index, double value) {
-  check(sqlite3_bind_double(stmt_, index, value), "bind");
-  return *this;
-}
-Statement& Statement::bind(int index, std::string_view value) {
-  check(sqlite3_bind_text(stmt_, index, value.data(), static_cast<int>(value.size()), SQLITE_TRANSIENT), "bind");
-  return *this;
-}
-Statement& Statement::bind_blob(int index, const void* data, std::size_t bytes) {
-  check(sqlite3_bind_blob(stmt_, index, data, static_cast<int>(bytes), SQLITE_TRANSIENT), "bind");
-  return *this;
-}
-Statement& Statement::bind_null(int index) {
-  check(sqlite3_bind_null(stmt_, index), "bind");
-  return *this;
-}
-Statement& Statement::bind(int index, const std::optional<std::string>& value) {
-  return value ? bind(index, std::string_view(*value)) : bind_null(index);
-}
-Statement& Statement::bind(int index, const std::optional<double>& value) {
-  return value ? bind(index, *value) : bind_null(index);
-}
-Statement& Statement::bind(int index, const std::optional<std::int64_t>& value) {
-  return value ? bind(index, *value) : bind_null(index);
-}
-
-bool Statement::step() {
-  const int rc = sqlite3_step(stmt_);
-  if (rc == SQLITE_ROW) return true;
-  if (rc == SQLITE_DONE) return false;
-  throw StorageError(std::string("sqlite step: ") + sqlite3_errmsg(db_) + " (in: " + sql_.substr(0, 80) + ")");
-}
-
-void Statement::run() {
-  step();
-  reset();
-}
-
-void Statement::reset() {
-  sqlite3_reset(stmt_);
-  sqlite3_clear_bindings(stmt_);
-}
-
-std::int64_t Statement::column_int(int column) const { return sqlite3_column_int64(stmt_, column); }
-double Statement::column_double(int column) const { return sqlite3_column_double(stmt_, column); }
-std::string Statement::column_text(int column) const {
-  const auto* text = sqlite3_column_text(stmt_, column);
-  return text ? std::string(reinterpret_cast<const char*>(text),
-                            static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column)))
-              : std::string();
-}
-std::optional<std::string> Statement::column_optional_text(int column) const {
-  if (sqlite3_column_type(stmt_, column) == SQLITE_NULL) return std::nullopt;
-  return column_text(column);
-}
-std::optional<double> Statement::column_optional_double(int column) const {
-  if (sqlite3_column_type(stmt_, column) == SQLITE_NULL) return std::nullopt;
-  return column_double(column);
-}
-std::optional<std::int64_t> Statement::column_optional_int(int column) const {
-  if (sqlite3_column_type(stmt_, column) == SQLITE_NULL) return std::nullopt;
-  return column_int(column);
-}
-std::int64_t Connection::last_insert_rowid() const { return sqlite3_last_insert_rowid(db_); }
-
-const void* Statement::column_blob(int column) const { return sqlite3_column_blob(stmt_, column); }
-
-std::size_t Statement::column_bytes(int column) const {
-  return static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column));
-}
-
-std::vector<double> Statement::column_doubles(int column) const {
-  const auto bytes = static_cast<std::size_t>(sqlite3_column_bytes(stmt_, column));
-  std::vector<double> values(bytes / sizeof(double));
-  if (!values.empty()) std::memcpy(values.data(), sqlite3_column_blob(stmt_, column), values.size() * sizeof(double));
-  return values;
-}
-
-Transaction::Transaction(Connection& connection) : connection_(connection) { connection_.exec("BEGIN IMMEDIATE"); }
-
-Transaction::~Transaction() {
-  if (!done_) {
-    try {
-      connection_.exec("ROLLBACK");
-    } catch (const StorageError&) {
-      // The transaction may already be gone (SQLite rolls back on some errors itself).
-    }
-  }
-}
-
-void Transaction::commit() {
-  connection_.exec("COMMIT");
-  done_ = true;
-}
+void SqliteConnection::set_schema_version(int version) { exec("PRAGMA user_version = " + std::to_string(version)); }
 
 }  // namespace wm::storage

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <limits>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -11,20 +12,24 @@
 
 #include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
-#include "server/storage/sqlite.h"
+#include "server/storage/database.h"
 #include "server/world/scan_observation.h"
 #include "server/world/update.h"
 
 namespace wm::storage {
 
 struct StoreOptions {
-  std::string path;  // SQLite file; created when missing
+  /// A SQLite file (created when missing), or a PostgreSQL database's URI (postgresql://user@host:port/db?...;
+  /// a password in a file: PGPASSFILE, or PGPASSWORD in the environment, never on a command line).
+  std::string path;
   /// synchronous=FULL makes every acknowledged request survive a power loss (one fsync per commit,
   /// ~0.3 ms here); NORMAL survives process crashes only.
   bool synchronous_full = true;
   /// Request ids (Idempotency-Key) remembered: the newest this many; older ones are forgotten, and a retry
   /// that late is applied again. At ~100 bytes a row, 100 000 ids cost ~10 MB.
   std::int64_t request_ids_kept = 100000;
+  /// PostgreSQL only: the schema that holds this map's tables (created when missing, with PostGIS in `public`).
+  std::string postgres_schema = "worldmodel";
 };
 
 /// What a request that carried a client-supplied request id produced, kept (in the same transaction as its
@@ -68,7 +73,9 @@ struct ObservationEntry {
   std::string_view payload;
 };
 
-/// The world model's SQLite file: WAL, schema versioned by PRAGMA user_version with forward migrations.
+/// The world model's database: a SQLite file (WAL; the embedded default) or a schema of a PostgreSQL database (its
+/// elements and objects also as PostGIS geometries, for GIS tools). The same SQL for both; schema versioned (SQLite:
+/// PRAGMA user_version; PostgreSQL: table schema_version) with forward migrations.
 /// Writes are serialised on one connection, one transaction per applied request or group; decision-log reads use
 /// their own connection and may come from any thread.
 class Store {
@@ -78,6 +85,8 @@ class Store {
 
   static constexpr int kSchemaVersion = 11;
   int schema_version();
+  /// Which engine holds it.
+  Dialect dialect() const;
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
   world::WorldState load(const world::WorldOptions& options);
@@ -217,9 +226,9 @@ class Store {
   /// The writer connection serves the group commits, the grid flushes and the commands, which may come from
   /// different threads of the processing network: one at a time, a transaction never interleaved with another.
   std::recursive_mutex writer_mutex_;
-  Connection writer_;
+  std::unique_ptr<Connection> writer_;
   std::mutex reader_mutex_;
-  Connection reader_;
+  std::unique_ptr<Connection> reader_;
 };
 
 }  // namespace wm::storage

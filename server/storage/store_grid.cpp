@@ -27,14 +27,14 @@ std::optional<Store::StoredGrid> Store::load_grid() {
   std::lock_guard lock(writer_mutex_);
   StoredGrid grid;
   {
-    Statement s(writer_, "SELECT resolution, tile_size, through_scan_seq FROM grid_meta WHERE id = 1");
+    Statement s(*writer_, "SELECT resolution, tile_size, through_scan_seq FROM grid_meta WHERE id = 1");
     if (!s.step()) return std::nullopt;
     grid.resolution_m = s.column_double(0);
     grid.tile_size_cells = s.column_int(1);
     grid.through_scan_seq = s.column_int(2);
   }
   const auto cells = static_cast<std::size_t>(grid.tile_size_cells * grid.tile_size_cells);
-  Statement s(writer_, "SELECT tx, ty, log_odds, m_occupied, m_empty, conflict FROM grid_tiles ORDER BY tx, ty");
+  Statement s(*writer_, "SELECT tx, ty, log_odds, m_occupied, m_empty, conflict FROM grid_tiles ORDER BY tx, ty");
   while (s.step()) {
     fusion::OccupancyGrid::TileData data;
     data.log_odds = read_floats(s, 2, cells);
@@ -59,7 +59,7 @@ std::vector<std::uint32_t> read_counts(const Statement& s, int column) {
 
 std::vector<Store::StoredEdgeBeams> Store::load_edge_beams() {
   std::lock_guard lock(writer_mutex_);
-  Statement s(writer_, "SELECT object, edge, x0, y0, x1, y1, through, ended FROM edge_beams ORDER BY object, edge");
+  Statement s(*writer_, "SELECT object, edge, x0, y0, x1, y1, through, ended FROM edge_beams ORDER BY object, edge");
   std::vector<StoredEdgeBeams> result;
   while (s.step()) {
     StoredEdgeBeams row;
@@ -78,13 +78,13 @@ std::vector<Store::StoredEdgeBeams> Store::load_edge_beams() {
 
 void Store::flush_grid(const StoredGrid& changed) {
   std::lock_guard lock(writer_mutex_);
-  Transaction tx(writer_);
-  run(writer_,
+  Transaction tx(*writer_);
+  run(*writer_,
       "INSERT INTO grid_meta(id, resolution, tile_size, through_scan_seq) VALUES (1, ?1, ?2, ?3) "
       "ON CONFLICT(id) DO UPDATE SET resolution = excluded.resolution, tile_size = excluded.tile_size, "
       "through_scan_seq = excluded.through_scan_seq",
       changed.resolution_m, changed.tile_size_cells, changed.through_scan_seq);
-  Statement s(writer_,
+  Statement s(*writer_,
               "INSERT INTO grid_tiles(tx, ty, log_odds, m_occupied, m_empty, conflict) VALUES (?1, ?2, ?3, ?4, ?5, ?6) "
               "ON CONFLICT(tx, ty) DO UPDATE SET log_odds = excluded.log_odds, m_occupied = excluded.m_occupied, "
               "m_empty = excluded.m_empty, conflict = excluded.conflict");
@@ -96,7 +96,7 @@ void Store::flush_grid(const StoredGrid& changed) {
     bind_floats(s, 6, data.conflict);
     s.run();
   }
-  Statement beams(writer_,
+  Statement beams(*writer_,
                   "INSERT INTO edge_beams(object, edge, x0, y0, x1, y1, through, ended) "
                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8) ON CONFLICT(object, edge) DO UPDATE SET x0 = excluded.x0, "
                   "y0 = excluded.y0, x1 = excluded.x1, y1 = excluded.y1, through = excluded.through, "

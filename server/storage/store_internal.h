@@ -8,7 +8,7 @@
 #include <string_view>
 #include <vector>
 
-#include "server/storage/sqlite.h"
+#include "server/storage/database.h"
 
 namespace wm::storage::internal {
 

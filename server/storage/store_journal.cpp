@@ -38,18 +38,18 @@ JournaledScan journaled_scan(const Statement& s) {
 }  // namespace
 
 void Store::write_request(const RequestRecord& r) {
-  run(writer_,
+  run(*writer_,
       "INSERT INTO requests(request_id, kind, body_hash, seq, version, grid_revision, lines_seq, created_at) "
       "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
       std::string_view(r.request_id), std::string_view(r.kind), r.body_hash, r.seq, r.version, r.grid_revision,
       r.lines_seq, now_unix_s());
   // Bounded by count: rows are numbered in insertion order, so the oldest go in one range delete.
-  run(writer_, "DELETE FROM requests WHERE ord <= ?1", writer_.last_insert_rowid() - options_.request_ids_kept);
+  run(*writer_, "DELETE FROM requests WHERE ord <= (SELECT MAX(ord) FROM requests) - ?1", options_.request_ids_kept);
 }
 
 std::optional<RequestRecord> Store::find_request(const std::string& request_id) {
   std::lock_guard lock(writer_mutex_);
-  Statement s(writer_,
+  Statement s(*writer_,
               "SELECT kind, body_hash, seq, version, grid_revision, lines_seq FROM requests WHERE request_id = ?1");
   s.bind(1, std::string_view(request_id));
   if (!s.step()) return std::nullopt;
@@ -67,7 +67,7 @@ std::optional<RequestRecord> Store::find_request(const std::string& request_id) 
 void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines,
                         const std::optional<RequestRecord>& request) {
   std::lock_guard lock(writer_mutex_);
-  Transaction tx(writer_);
+  Transaction tx(*writer_);
   write_scan(scan, lines);
   if (request) write_request(*request);
   tx.commit();
@@ -75,7 +75,7 @@ void Store::commit_scan(const ScanEntry& scan, const std::optional<ObservationEn
 
 void Store::commit_batch(const std::vector<BatchEntry>& entries) {
   std::lock_guard lock(writer_mutex_);
-  Transaction tx(writer_);
+  Transaction tx(*writer_);
   for (const auto& entry : entries) {
     if (entry.scan)
       write_scan(*entry.scan, entry.observation);
@@ -88,7 +88,7 @@ void Store::commit_batch(const std::vector<BatchEntry>& entries) {
 
 void Store::write_scan(const ScanEntry& scan, const std::optional<ObservationEntry>& lines) {
   if (lines) write_observation(*lines);
-  Statement s(writer_,
+  Statement s(*writer_,
               "INSERT INTO scans(seq, observer, sensor, stamp, received_at, payload, lines_seq, scan) "
               "VALUES (?1, ?2, ?3, ?4, ?5, '', ?6, ?7)");
   const auto& observation = *scan.scan;
@@ -105,8 +105,8 @@ void Store::write_scan(const ScanEntry& scan, const std::optional<ObservationEnt
 
 void Store::commit_robot_pose(const RobotPoseEntry& pose) {
   std::lock_guard lock(writer_mutex_);
-  Transaction tx(writer_);
-  Statement s(writer_,
+  Transaction tx(*writer_);
+  Statement s(*writer_,
               "INSERT INTO robot_poses(robot, x, y, theta, cov, stamp, received_at, state) "
               "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
   bind_all(s, std::string_view(pose.robot), pose.x, pose.y, pose.theta);
@@ -134,7 +134,7 @@ std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) 
     r.last_seen = std::max(r.last_seen, last);
   };
   {
-    Statement s(writer_,
+    Statement s(*writer_,
                 "SELECT observer, sensor, COUNT(*), MIN(received_at), MAX(received_at) FROM scans "
                 "GROUP BY observer, sensor");
     while (s.step()) {
@@ -144,7 +144,7 @@ std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) 
     }
   }
   {
-    Statement s(writer_,
+    Statement s(*writer_,
                 "SELECT observer, COUNT(*), MIN(received_at), MAX(received_at) FROM observations "
                 "WHERE kind = 'client' GROUP BY observer");
     while (s.step()) {
@@ -154,7 +154,7 @@ std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) 
     }
   }
   {
-    Statement s(writer_, "SELECT robot, COUNT(*), MIN(received_at), MAX(received_at) FROM robot_poses GROUP BY robot");
+    Statement s(*writer_, "SELECT robot, COUNT(*), MIN(received_at), MAX(received_at) FROM robot_poses GROUP BY robot");
     while (s.step()) {
       auto& r = robot(s.column_text(0));
       r.poses = s.column_int(1);
@@ -163,7 +163,7 @@ std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) 
   }
   for (auto& [id, r] : robots) {
     if (!r.scans.empty()) {
-      Statement s(writer_,
+      Statement s(*writer_,
                   "SELECT seq, observer, stamp, scan, payload, received_at FROM scans WHERE observer = ?1 "
                   "ORDER BY seq DESC LIMIT 1");
       s.bind(1, std::string_view(id));
@@ -176,7 +176,7 @@ std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) 
         r.last_scan_received_at = s.column_double(5);
       }
     }
-    Statement s(writer_,
+    Statement s(*writer_,
                 "SELECT x, y, theta, cov, stamp, received_at, state FROM robot_poses WHERE robot = ?1 "
                 "ORDER BY seq DESC LIMIT ?2");
     s.bind(1, std::string_view(id));
@@ -195,12 +195,12 @@ std::vector<Store::RobotJournal> Store::robot_journal(std::size_t track_points) 
 
 std::int64_t Store::last_scan_seq() {
   std::lock_guard lock(writer_mutex_);
-  return query_int(writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans");
+  return query_int(*writer_, "SELECT COALESCE(MAX(seq), 0) FROM scans");
 }
 
 bool Store::has_observation(const std::string& observer, const std::string& payload) {
   std::lock_guard lock(writer_mutex_);
-  Statement s(writer_, "SELECT 1 FROM observations WHERE observer = ?1 AND payload = ?2 LIMIT 1");
+  Statement s(*writer_, "SELECT 1 FROM observations WHERE observer = ?1 AND payload = ?2 LIMIT 1");
   s.bind(1, std::string_view(observer));
   s.bind(2, std::string_view(payload));
   return s.step();
@@ -208,7 +208,7 @@ bool Store::has_observation(const std::string& observer, const std::string& payl
 
 std::vector<JournaledScan> Store::scans_after(std::int64_t after, std::size_t limit) {
   std::lock_guard lock(writer_mutex_);
-  Statement s(writer_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq > ?1 ORDER BY seq LIMIT ?2");
+  Statement s(*writer_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq > ?1 ORDER BY seq LIMIT ?2");
   s.bind(1, after);
   s.bind(2, static_cast<std::int64_t>(std::min<std::size_t>(limit, std::numeric_limits<std::int64_t>::max())));
   std::vector<JournaledScan> result;
@@ -218,7 +218,7 @@ std::vector<JournaledScan> Store::scans_after(std::int64_t after, std::size_t li
 
 std::optional<JournaledScan> Store::scan(std::int64_t seq) {
   std::lock_guard lock(reader_mutex_);
-  Statement s(reader_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq = ?1");
+  Statement s(*reader_, "SELECT seq, observer, stamp, scan, payload FROM scans WHERE seq = ?1");
   s.bind(1, seq);
   if (!s.step()) return std::nullopt;
   return journaled_scan(s);
@@ -226,7 +226,7 @@ std::optional<JournaledScan> Store::scan(std::int64_t seq) {
 
 std::int64_t Store::scans_missing_line_decisions() {
   std::lock_guard lock(reader_mutex_);
-  return query_int(reader_,
+  return query_int(*reader_,
                    "SELECT COUNT(*) FROM scans WHERE lines_seq IS NOT NULL AND NOT EXISTS "
                    "(SELECT 1 FROM decisions d WHERE d.observation_seq = scans.lines_seq)");
 }

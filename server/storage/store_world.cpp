@@ -24,7 +24,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
   std::lock_guard lock(writer_mutex_);
   world::WorldState state;
   {
-    Statement s(writer_, "SELECT key, value FROM meta");
+    Statement s(*writer_, "SELECT key, value FROM meta");
     while (s.step()) {
       const auto key = s.column_text(0);
       const auto value = s.column_int(1);
@@ -43,12 +43,12 @@ world::WorldState Store::load(const world::WorldOptions& options) {
     state.placement_cov = history.back().cov;
   }
   {
-    Statement s(writer_, "SELECT latitude, longitude, heading FROM georeference WHERE id = 1");
+    Statement s(*writer_, "SELECT latitude, longitude, heading FROM georeference WHERE id = 1");
     if (s.step())
       state.georeference = apriori::Georeference{s.column_double(0), s.column_double(1), s.column_double(2)};
   }
   {
-    Statement s(writer_, "SELECT name, plan_json FROM floor_plan WHERE id = 1");
+    Statement s(*writer_, "SELECT name, plan_json FROM floor_plan WHERE id = 1");
     if (s.step()) {
       const auto plan = apriori::parse_floor_plan_json(s.column_text(1));
       state.plan_name = plan.name;
@@ -57,7 +57,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
   }
   {
     Statement s(
-        writer_,
+        *writer_,
         "SELECT ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version FROM objects ORDER BY ord");
     while (s.step()) {
       const auto ord = static_cast<std::size_t>(s.column_int(0));
@@ -73,7 +73,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
     }
   }
   {
-    Statement s(writer_,
+    Statement s(*writer_,
                 "SELECT number, rho, phi, cov, t0, t1, support, source, observer, created_version, updated_version, "
                 "updated_at, moments, facing, both_ways FROM elements ORDER BY number");
     while (s.step()) {
@@ -109,7 +109,7 @@ world::WorldState Store::load(const world::WorldOptions& options) {
 }
 
 void Store::write_counters(const world::WorldState& state) {
-  Statement s(writer_,
+  Statement s(*writer_,
               "INSERT INTO meta(key, value) VALUES (?1, ?2) ON CONFLICT(key) DO UPDATE SET value = excluded.value");
   s.bind(1, std::string_view("version")).bind(2, state.version).run();
   s.bind(1, std::string_view("next_element_number")).bind(2, state.next_element_number).run();
@@ -119,7 +119,7 @@ void Store::write_counters(const world::WorldState& state) {
 
 void Store::write_objects(const world::UpdateResult& update) {
   Statement s(
-      writer_,
+      *writer_,
       "INSERT INTO objects(ord, id, x, y, theta, pose_cov, confirmations, adjustments, updated_version) "
       "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9) ON CONFLICT(ord) DO UPDATE SET id = excluded.id, x = excluded.x, "
       "y = excluded.y, theta = excluded.theta, pose_cov = excluded.pose_cov, confirmations = excluded.confirmations, "
@@ -136,7 +136,7 @@ void Store::write_objects(const world::UpdateResult& update) {
 
 void Store::insert_observation(std::int64_t seq, std::string_view kind, const std::string& observer, double stamp,
                                std::string_view payload) {
-  run(writer_,
+  run(*writer_,
       "INSERT INTO observations(seq, kind, observer, stamp, received_at, payload) VALUES (?1, ?2, ?3, ?4, ?5, ?6)", seq,
       kind, std::string_view(observer), stamp, now_unix_s(), payload);
 }
@@ -144,7 +144,7 @@ void Store::insert_observation(std::int64_t seq, std::string_view kind, const st
 void Store::commit_observation(const world::UpdateResult& update, const world::Observation& observation,
                                std::string_view payload_json, const std::optional<RequestRecord>& request) {
   std::lock_guard lock(writer_mutex_);
-  Transaction tx(writer_);
+  Transaction tx(*writer_);
   write_observation({update, observation, payload_json});
   if (request) write_request(*request);
   tx.commit();
@@ -156,7 +156,7 @@ void Store::write_observation(const ObservationEntry& entry) {
                      entry.observation.stamp_s, entry.payload);
   {
     Statement s(
-        writer_,
+        *writer_,
         "INSERT INTO elements(number, rho, phi, cov, t0, t1, support, source, observer, created_version, "
         "updated_version, updated_at, moments, facing, both_ways) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, "
         "?11, ?12, ?13, ?14, ?15) "
@@ -177,13 +177,13 @@ void Store::write_observation(const ObservationEntry& entry) {
     }
   }
   {
-    Statement s(writer_, "DELETE FROM elements WHERE number = ?1");
+    Statement s(*writer_, "DELETE FROM elements WHERE number = ?1");
     for (auto number : update.removed_elements) s.bind(1, number).run();
   }
   write_objects(update);
   {
     Statement s(
-        writer_,
+        *writer_,
         "INSERT INTO decisions(seq, observation_seq, idx, action, rule, explanation, element, object, "
         "mahalanobis_sq, fallback, observer, p0x, p0y, p1x, p1y, origin, sensor, matched_element, matched_object, "
         "observed, before, after) "
@@ -269,25 +269,26 @@ std::vector<world::DecisionRecord> Store::decisions(std::int64_t since_seq, std:
                                                     const std::optional<std::string>& element) {
   std::lock_guard lock(reader_mutex_);
   return select_decisions(
-      reader_, "WHERE seq > ?1 AND (?2 IS NULL OR element = ?2 OR matched_element = ?2) ORDER BY seq LIMIT ?3",
+      *reader_,
+      "WHERE seq > ?1 AND (CAST(?2 AS TEXT) IS NULL OR element = ?2 OR matched_element = ?2) ORDER BY seq LIMIT ?3",
       since_seq, element, static_cast<std::int64_t>(limit));
 }
 
 std::vector<world::DecisionRecord> Store::observation_decisions(std::int64_t observation_seq) {
   std::lock_guard lock(reader_mutex_);
-  return select_decisions(reader_, "WHERE observation_seq = ?1 ORDER BY seq", observation_seq);
+  return select_decisions(*reader_, "WHERE observation_seq = ?1 ORDER BY seq", observation_seq);
 }
 
 std::vector<world::DecisionRecord> Store::object_decisions(const std::string& object_id, std::size_t limit) {
   std::lock_guard lock(reader_mutex_);
-  return select_decisions(reader_, "WHERE object = ?1 OR matched_object = ?1 ORDER BY seq LIMIT ?2",
+  return select_decisions(*reader_, "WHERE object = ?1 OR matched_object = ?1 ORDER BY seq LIMIT ?2",
                           std::string_view(object_id), static_cast<std::int64_t>(limit));
 }
 
 std::vector<world::DecisionRecord> Store::latest_decisions(std::size_t count) {
   std::lock_guard lock(reader_mutex_);
   auto result =
-      select_decisions(reader_, "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1", static_cast<std::int64_t>(count));
+      select_decisions(*reader_, "WHERE idx >= 0 ORDER BY seq DESC LIMIT ?1", static_cast<std::int64_t>(count));
   std::reverse(result.begin(), result.end());
   return result;
 }

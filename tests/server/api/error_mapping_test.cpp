@@ -7,7 +7,7 @@
 #include "server/api/api_error.h"
 #include "server/json/codec_error.h"
 #include "server/service/service_errors.h"
-#include "server/storage/sqlite.h"
+#include "server/storage/database.h"
 
 namespace wm::api {
 namespace {

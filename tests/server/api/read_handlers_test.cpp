@@ -6,7 +6,7 @@
 #include <fstream>
 
 #include "server/api/handlers.h"
-#include "server/storage/sqlite.h"
+#include "server/storage/database.h"
 #include "tests/server/api/api_test_helpers.h"
 #include "tests/support/temp_dir.h"
 

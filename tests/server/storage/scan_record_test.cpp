@@ -9,7 +9,7 @@
 #include <cstring>
 #include <limits>
 
-#include "server/storage/sqlite.h"
+#include "server/storage/database.h"
 #include "server/storage/store.h"
 #include "support/temp_dir.h"
 

@@ -3,8 +3,14 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <cmath>
+#include <cstring>
 #include <limits>
+#include <memory>
 
+#include "server/storage/postgres.h"
+#include "server/storage/sqlite.h"
+#include "support/postgres_server.h"
 #include "support/temp_dir.h"
 
 namespace wm::storage {
@@ -29,9 +35,27 @@ world::UpdateResult add_element(const world::WorldState& state, std::int64_t seq
   });
 }
 
-TEST(StoreTest, NewFileHasCurrentSchemaAndEmptyWorld) {
-  testing::TempDir dir;
-  Store store({(dir.path() / "a.db").string(), true});
+// Each engine the store runs on: the same tests, a SQLite file or a schema of a private PostgreSQL server.
+enum class Engine { sqlite, postgresql };
+
+class StoreTest : public ::testing::TestWithParam<Engine> {
+ protected:
+  /// The options of this test's store: a file in its directory, or its own schema.
+  StoreOptions store_options() const {
+    StoreOptions options;
+    if (GetParam() == Engine::sqlite) {
+      options.path = (dir_.path() / "a.db").string();
+    } else {
+      options.path = testing::postgres().uri();
+      options.postgres_schema = testing::schema_for(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    }
+    return options;
+  }
+  testing::TempDir dir_;
+};
+
+TEST_P(StoreTest, NewFileHasCurrentSchemaAndEmptyWorld) {
+  Store store(store_options());
   EXPECT_EQ(store.schema_version(), Store::kSchemaVersion);
   const auto state = store.load(world::WorldOptions{});
   EXPECT_EQ(state.version, 0);
@@ -39,13 +63,12 @@ TEST(StoreTest, NewFileHasCurrentSchemaAndEmptyWorld) {
   EXPECT_TRUE(state.elements.empty());
 }
 
-TEST(StoreTest, WorldSurvivesReopenBitForBit) {
-  testing::TempDir dir;
-  const auto path = (dir.path() / "a.db").string();
+TEST_P(StoreTest, WorldSurvivesReopenBitForBit) {
+  const auto path = store_options();
   world::WorldOptions options;
   world::WorldState saved;
   {
-    Store store({path, true});
+    Store store(path);
     auto loaded = world::apply_floor_plan(world::WorldState{}, plan(), options);
     // Move the table as a rigid update would, so the stored pose differs from the drawn one.
     auto table = loaded.state.objects[1];
@@ -58,7 +81,7 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
                              R"({"segments": []})");
     saved = update.state;
   }
-  Store store({path, true});
+  Store store(path);
   const auto state = store.load(options);
   EXPECT_EQ(state.version, saved.version);
   EXPECT_EQ(state.next_element_number, 2);
@@ -90,11 +113,10 @@ TEST(StoreTest, WorldSurvivesReopenBitForBit) {
 
 // The side a wall was seen from keeps the two faces of a thick wall apart after a restart as before it; unknown
 // stays unknown (NULL), not 0 rad, and a thin surface seen from both sides stays so.
-TEST(StoreTest, AnElementsFacingSurvivesReopenAndUnknownStaysUnknown) {
-  testing::TempDir dir;
-  const auto path = (dir.path() / "a.db").string();
+TEST_P(StoreTest, AnElementsFacingSurvivesReopenAndUnknownStaysUnknown) {
+  const auto path = store_options();
   {
-    Store store({path, true});
+    Store store(path);
     auto update = add_element(world::WorldState{}, 1);
     auto element = update.state.elements.at(1);
     element.facing_rad = -1.25;
@@ -109,7 +131,7 @@ TEST(StoreTest, AnElementsFacingSurvivesReopenAndUnknownStaysUnknown) {
     third.state.elements.put(thin);
     store.commit_observation(third, world::Observation{"r", "scan", "laser", 0, 0, {}}, "{}");
   }
-  Store store({path, true});
+  Store store(path);
   const auto state = store.load(world::WorldOptions{});
   ASSERT_EQ(state.elements.size(), 3u);
   EXPECT_EQ(state.elements.at(1).facing_rad, std::optional<double>(-1.25));
@@ -119,9 +141,8 @@ TEST(StoreTest, AnElementsFacingSurvivesReopenAndUnknownStaysUnknown) {
   EXPECT_FALSE(state.elements.at(3).facing_rad.has_value());
 }
 
-TEST(StoreTest, FailedCommitLeavesNothingBehind) {
-  testing::TempDir dir;
-  Store store({(dir.path() / "a.db").string(), true});
+TEST_P(StoreTest, FailedCommitLeavesNothingBehind) {
+  Store store(store_options());
   auto update = add_element(world::WorldState{}, 1);
   store.commit_observation(update, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
   // The same observation sequence again violates the journal's primary key: the transaction rolls back.
@@ -154,9 +175,8 @@ RequestRecord request(const std::string& id, std::int64_t seq) {
   return RequestRecord{id, "primitives", 42, seq, seq, 0, std::nullopt};
 }
 
-TEST(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
-  testing::TempDir dir;
-  Store store({(dir.path() / "a.db").string(), true});
+TEST_P(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
+  Store store(store_options());
   const auto lines = add_element(world::WorldState{}, 1);
   const world::Observation observation{"r", "scan", "laser", 0, 0, {}};
   const RequestRecord record{"scan-1", "scan", -7, 1, lines.state.version, 1, 1};
@@ -200,9 +220,8 @@ TEST(StoreTest, AScanIsJournaledWithItsLinesAndItsRequestIdInOneCommit) {
   EXPECT_FALSE(store.scan(4));
 }
 
-TEST(StoreTest, AScanWhoseLinesFailToCommitLeavesNoJournalEntry) {
-  testing::TempDir dir;
-  Store store({(dir.path() / "a.db").string(), true});
+TEST_P(StoreTest, AScanWhoseLinesFailToCommitLeavesNoJournalEntry) {
+  Store store(store_options());
   const auto first = add_element(world::WorldState{}, 1);
   store.commit_observation(first, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
   // Lines with the observation sequence already taken: the line write fails, so the scan must not stay.
@@ -217,9 +236,8 @@ TEST(StoreTest, AScanWhoseLinesFailToCommitLeavesNoJournalEntry) {
   EXPECT_EQ(store.decisions(0, 10).size(), 1u);
 }
 
-TEST(StoreTest, ARequestIdIsKeptOnlyWithItsEffectAndOnlyOnce) {
-  testing::TempDir dir;
-  Store store({(dir.path() / "a.db").string(), true});
+TEST_P(StoreTest, ARequestIdIsKeptOnlyWithItsEffectAndOnlyOnce) {
+  Store store(store_options());
   auto update = add_element(world::WorldState{}, 1);
   store.commit_observation(update, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}", request("a", 1));
   // The effect fails (seq taken): the id is not stored either.
@@ -238,9 +256,8 @@ TEST(StoreTest, ARequestIdIsKeptOnlyWithItsEffectAndOnlyOnce) {
   EXPECT_EQ(store.find_request("a")->seq, 1);
 }
 
-TEST(StoreTest, OnlyTheNewestRequestIdsAreKept) {
-  testing::TempDir dir;
-  StoreOptions options{(dir.path() / "a.db").string(), true};
+TEST_P(StoreTest, OnlyTheNewestRequestIdsAreKept) {
+  StoreOptions options = store_options();
   options.request_ids_kept = 3;
   Store store(options);
   world::WorldState state;
@@ -255,7 +272,7 @@ TEST(StoreTest, OnlyTheNewestRequestIdsAreKept) {
   for (const auto* id : {"id-3", "id-4", "id-5"}) EXPECT_TRUE(store.find_request(id)) << id;
 }
 
-TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
+TEST(SqliteStoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   testing::TempDir dir;
   const auto path = (dir.path() / "a.db").string();
   { Store store({path, true}); }
@@ -294,32 +311,42 @@ TEST(StoreTest, MigratingASchema3FileLinksItsScansToTheirLineObservations) {
   EXPECT_EQ(journal[0].legacy_json, "{}");
 }
 
-TEST(StoreTest, RefusesADatabaseFromANewerVersion) {
-  testing::TempDir dir;
-  const auto path = (dir.path() / "a.db").string();
-  { Store store({path, true}); }
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db, "PRAGMA user_version = 99", nullptr, nullptr, nullptr), SQLITE_OK);
-  sqlite3_close(db);
+TEST_P(StoreTest, RefusesADatabaseFromANewerVersion) {
+  const auto options = store_options();
+  { Store store(options); }
+  if (GetParam() == Engine::sqlite) {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(options.path.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "PRAGMA user_version = 99", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+  } else {
+    PostgresConnection(options.path, options.postgres_schema, false).exec("UPDATE schema_version SET version = 99");
+  }
   try {
-    Store store({path, true});
+    Store store(options);
     FAIL() << "a newer schema must be refused";
   } catch (const StorageError& e) {
     EXPECT_NE(std::string(e.what()).find("newer"), std::string::npos);
   }
 }
 
-}  // namespace
-}  // namespace wm::storage
+INSTANTIATE_TEST_SUITE_P(Engines, StoreTest, ::testing::Values(Engine::sqlite, Engine::postgresql),
+                         [](const auto& info) { return info.param == Engine::sqlite ? "sqlite" : "postgresql"; });
 
-namespace wm::storage {
-namespace {
+// Statements are compiled once per connection and SQL text and reused; these pin down what reuse must not change,
+// on each engine.
+class StatementTest : public StoreTest {
+ protected:
+  std::unique_ptr<Connection> connect() const {
+    const auto options = store_options();
+    if (GetParam() == Engine::sqlite) return std::make_unique<SqliteConnection>(options.path, true);
+    return std::make_unique<PostgresConnection>(options.path, options.postgres_schema, true);
+  }
+};
 
-// Statements are compiled once per connection and SQL text and reused; these pin down what reuse must not change.
-TEST(SqliteStatementCacheTest, AReusedStatementStartsFreshAndANestedOneGetsItsOwn) {
-  const testing::TempDir dir;
-  Connection db((dir.path() / "cache.db").string(), true);
+TEST_P(StatementTest, AReusedStatementStartsFreshAndANestedOneGetsItsOwn) {
+  const auto connection = connect();
+  Connection& db = *connection;
   db.exec("CREATE TABLE t(k INTEGER PRIMARY KEY, v TEXT)");
   const std::string insert = "INSERT INTO t(k, v) VALUES (?1, ?2)";
   for (std::int64_t k = 1; k <= 3; ++k)
@@ -366,6 +393,55 @@ TEST(SqliteStatementCacheTest, AReusedStatementStartsFreshAndANestedOneGetsItsOw
     EXPECT_NE(std::string(e.what()).find("SELECT nope FROM t"), std::string::npos) << e.what();
   }
 }
+
+// What each engine gives back is what was bound: integers at their extremes, doubles to the last bit (and the
+// infinities), text with quotes, placeholders and characters beyond ASCII, bytes of every value, and
+// NULLs.
+TEST_P(StatementTest, ValuesComeBackExactly) {
+  const auto connection = connect();
+  Connection& db = *connection;
+  const bool postgresql = GetParam() == Engine::postgresql;
+  db.exec(std::string("CREATE TABLE v(k BIGINT PRIMARY KEY, i BIGINT, d DOUBLE PRECISION, t TEXT, b ") +
+          (postgresql ? "BYTEA" : "BLOB") + ")");
+  const std::vector<std::int64_t> integers{std::numeric_limits<std::int64_t>::min(), -1, 0,
+                                           std::numeric_limits<std::int64_t>::max()};
+  const std::vector<double> doubles{0.1,
+                                    1.0 / 3.0,
+                                    -2.5e-300,
+                                    std::numeric_limits<double>::denorm_min(),
+                                    std::numeric_limits<double>::max(),
+                                    std::numeric_limits<double>::infinity(),
+                                    -std::numeric_limits<double>::infinity()};  // (SQLite keeps NaN as NULL)
+  const std::string text = "it's \"?1\" $1 \\ Grüße 東京 ☃";
+  std::string bytes;
+  for (int value = 0; value < 256; ++value) bytes += static_cast<char>(value);
+  const std::string insert = "INSERT INTO v(k, i, d, t, b) VALUES (?1, ?2, ?3, ?4, ?5)";
+  for (std::size_t k = 0; k < doubles.size(); ++k) {
+    Statement s(db, insert);
+    s.bind(1, static_cast<std::int64_t>(k)).bind(2, integers[k % integers.size()]).bind(3, doubles[k]);
+    s.bind(4, std::string_view(text)).bind_blob(5, bytes.data(), bytes.size()).run();
+  }
+  Statement(db, insert).bind(1, std::int64_t{100}).bind_null(2).bind_null(3).bind_null(4).bind_null(5).run();
+  Statement s(db, "SELECT k, i, d, t, b FROM v ORDER BY k");
+  for (std::size_t k = 0; k < doubles.size(); ++k) {
+    ASSERT_TRUE(s.step());
+    EXPECT_EQ(s.column_int(1), integers[k % integers.size()]);
+    const double d = s.column_double(2);
+    EXPECT_EQ(std::memcmp(&d, &doubles[k], sizeof d), 0) << k << ": " << d << " for " << doubles[k];
+    EXPECT_EQ(s.column_text(3), text);
+    ASSERT_EQ(s.column_bytes(4), bytes.size());
+    EXPECT_EQ(std::string(static_cast<const char*>(s.column_blob(4)), s.column_bytes(4)), bytes);
+  }
+  ASSERT_TRUE(s.step());
+  EXPECT_EQ(s.column_optional_int(1), std::nullopt);
+  EXPECT_EQ(s.column_optional_double(2), std::nullopt);
+  EXPECT_EQ(s.column_optional_text(3), std::nullopt);
+  EXPECT_EQ(s.column_bytes(4), 0u);
+  EXPECT_FALSE(s.step());
+}
+
+INSTANTIATE_TEST_SUITE_P(Engines, StatementTest, ::testing::Values(Engine::sqlite, Engine::postgresql),
+                         [](const auto& info) { return info.param == Engine::sqlite ? "sqlite" : "postgresql"; });
 
 }  // namespace
 }  // namespace wm::storage

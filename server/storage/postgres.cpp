@@ -1,0 +1,273 @@
+#include "server/storage/postgres.h"
+
+#include <libpq-fe.h>
+
+#include <charconv>
+#include <cmath>
+#include <vector>
+
+namespace wm::storage {
+namespace {
+
+// The bytea type's OID (pg_type.h): its columns come as hex text.
+constexpr Oid kBytea = 17;
+
+// The store's SQL numbers its parameters ?1, ?2, … (SQLite); PostgreSQL's are $1, $2, …. Quoted text is left alone.
+std::string dollar_parameters(const std::string& sql) {
+  std::string out;
+  out.reserve(sql.size());
+  char quote = 0;
+  for (const char c : sql) {
+    if (quote) {
+      if (c == quote) quote = 0;
+    } else if (c == '\'' || c == '"') {
+      quote = c;
+    } else if (c == '?') {
+      out += '$';
+      continue;
+    }
+    out += c;
+  }
+  return out;
+}
+
+std::string error_text(const PGresult* result, pg_conn* conn) {
+  std::string message = result ? PQresultErrorMessage(result) : PQerrorMessage(conn);
+  while (!message.empty() && (message.back() == '\n' || message.back() == ' ')) message.pop_back();
+  return message;
+}
+
+void ignore_notice(void*, const char*) {}
+
+}  // namespace
+
+bool is_postgres_uri(std::string_view path) {
+  return path.starts_with("postgresql://") || path.starts_with("postgres://");
+}
+
+bool is_valid_schema_name(std::string_view name) {
+  if (name.empty() || name.size() > 63 || (name[0] >= '0' && name[0] <= '9')) return false;
+  for (const char c : name)
+    if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_')) return false;
+  return true;
+}
+
+/// A statement run as a server-side prepared statement (parsed once per connection; the server infers each
+/// parameter's type from where it stands), its parameters sent as numbers in text or as bytes (text and bytea), its
+/// rows read as text (bytea as hex, decoded on demand).
+class PostgresStatement final : public detail::StatementBackend {
+ public:
+  PostgresStatement(PostgresConnection& connection, std::string sql)
+      : connection_(connection), sql_(std::move(sql)), name_(connection.prepared(sql_)) {}
+  ~PostgresStatement() override { PQclear(result_); }
+  PostgresStatement(const PostgresStatement&) = delete;
+  PostgresStatement& operator=(const PostgresStatement&) = delete;
+
+  void bind_int(int index, std::int64_t value) override { set(index, std::to_string(value), 0); }
+  void bind_double(int index, double value) override {
+    if (std::isnan(value)) return set(index, "NaN", 0);
+    if (std::isinf(value)) return set(index, value > 0 ? "Infinity" : "-Infinity", 0);
+    char text[32];
+    const auto end = std::to_chars(text, text + sizeof text, value).ptr;  // the shortest text that reads back exact
+    set(index, std::string(text, end), 0);
+  }
+  // Text and bytes go as they are, with their length: a NUL in text is refused by the server, not cut short.
+  void bind_text(int index, std::string_view value) override { set(index, std::string(value), 1); }
+  void bind_blob(int index, const void* data, std::size_t bytes) override {
+    set(index, std::string(static_cast<const char*>(data), bytes), 1);
+  }
+  void bind_null(int index) override {
+    slot(index);
+    params_[static_cast<std::size_t>(index - 1)].reset();
+  }
+
+  bool step() override {
+    if (!result_) execute();
+    ++row_;
+    decoded_.assign(static_cast<std::size_t>(PQnfields(result_)), std::nullopt);
+    return row_ < PQntuples(result_);
+  }
+  void reset() override {
+    PQclear(result_);
+    result_ = nullptr;
+    row_ = -1;
+    params_.clear();
+    formats_.clear();
+  }
+
+  bool column_is_null(int column) const override { return PQgetisnull(result_, row_, column) != 0; }
+  std::int64_t column_int(int column) const override {
+    if (column_is_null(column)) return 0;
+    const char* text = PQgetvalue(result_, row_, column);
+    std::int64_t value = 0;
+    std::from_chars(text, text + PQgetlength(result_, row_, column), value);
+    return value;
+  }
+  double column_double(int column) const override {
+    if (column_is_null(column)) return 0;
+    const char* text = PQgetvalue(result_, row_, column);
+    const int length = PQgetlength(result_, row_, column);
+    const std::string_view value(text, static_cast<std::size_t>(length));
+    if (value == "Infinity") return HUGE_VAL;
+    if (value == "-Infinity") return -HUGE_VAL;
+    double number = 0;
+    std::from_chars(text, text + length, number);  // "NaN" reads as NaN
+    return number;
+  }
+  std::string column_text(int column) const override {
+    return std::string(PQgetvalue(result_, row_, column), static_cast<std::size_t>(PQgetlength(result_, row_, column)));
+  }
+  const void* column_blob(int column) const override {
+    const auto& bytes = blob(column);
+    return bytes.empty() ? nullptr : bytes.data();
+  }
+  std::size_t column_bytes(int column) const override {
+    // Text columns (a JSON payload) are read through column_bytes too: their length is the text's.
+    if (PQftype(result_, column) != kBytea) return static_cast<std::size_t>(PQgetlength(result_, row_, column));
+    return blob(column).size();
+  }
+
+ private:
+  void slot(int index) {
+    if (index < 1) throw StorageError("postgresql bind: parameter index " + std::to_string(index));
+    const auto n = static_cast<std::size_t>(index);
+    if (params_.size() < n) {
+      params_.resize(n);
+      formats_.resize(n, 0);
+    }
+  }
+  void set(int index, std::string value, int format) {
+    slot(index);
+    const auto i = static_cast<std::size_t>(index - 1);
+    params_[i] = std::move(value);
+    formats_[i] = format;
+  }
+
+  void execute() {
+    std::vector<const char*> values(params_.size());
+    std::vector<int> lengths(params_.size());
+    for (std::size_t i = 0; i < params_.size(); ++i) {
+      values[i] = params_[i] ? params_[i]->data() : nullptr;
+      lengths[i] = params_[i] ? static_cast<int>(params_[i]->size()) : 0;
+    }
+    result_ = PQexecPrepared(connection_.conn_, name_.c_str(), static_cast<int>(values.size()), values.data(),
+                             lengths.data(), formats_.data(), 0);
+    const auto status = PQresultStatus(result_);
+    if (status != PGRES_COMMAND_OK && status != PGRES_TUPLES_OK) {
+      const std::string message = error_text(result_, connection_.conn_);
+      PQclear(result_);
+      result_ = nullptr;
+      throw StorageError("postgresql: " + message + " (in: " + sql_.substr(0, 80) + ")");
+    }
+    row_ = -1;
+  }
+
+  // A bytea column's bytes (hex text "\x0a1b…" on the wire), decoded once per row.
+  const std::string& blob(int column) const {
+    auto& cached = decoded_[static_cast<std::size_t>(column)];
+    if (!cached) {
+      cached.emplace();
+      const char* text = PQgetvalue(result_, row_, column);
+      const auto length = static_cast<std::size_t>(PQgetlength(result_, row_, column));
+      if (PQftype(result_, column) != kBytea) {
+        cached->assign(text, length);
+      } else if (length >= 2 && text[0] == '\\' && text[1] == 'x') {
+        const auto nibble = [](char c) -> int { return c <= '9' ? c - '0' : (c | 0x20) - 'a' + 10; };
+        cached->resize((length - 2) / 2);
+        for (std::size_t i = 0; i < cached->size(); ++i)
+          (*cached)[i] = static_cast<char>(nibble(text[2 + 2 * i]) << 4 | nibble(text[3 + 2 * i]));
+      } else if (length > 0) {
+        throw StorageError("postgresql: bytea not in hex output format (bytea_output = 'escape'?)");
+      }
+    }
+    return *cached;
+  }
+
+  PostgresConnection& connection_;
+  std::string sql_;
+  const std::string& name_;
+  std::vector<std::optional<std::string>> params_;
+  std::vector<int> formats_;
+  PGresult* result_ = nullptr;
+  int row_ = -1;
+  mutable std::vector<std::optional<std::string>> decoded_;
+};
+
+PostgresConnection::PostgresConnection(const std::string& uri, const std::string& schema, bool create)
+    : schema_(schema) {
+  if (!is_valid_schema_name(schema))
+    throw StorageError("postgresql: '" + schema + "' is not a schema name the store uses ([a-z0-9_], at most 63)");
+  conn_ = PQconnectdb(uri.c_str());
+  if (PQstatus(conn_) != CONNECTION_OK) {
+    const std::string message = error_text(nullptr, conn_);
+    PQfinish(conn_);
+    conn_ = nullptr;
+    throw StorageError("cannot connect to postgresql: " + message);
+  }
+  PQsetNoticeProcessor(conn_, ignore_notice, nullptr);
+  try {
+    if (create) {
+      // PostGIS in `public`, once per database; two stores creating it at once race, and the loser finds it made.
+      for (int attempt = 0;; ++attempt) {
+        try {
+          exec("CREATE EXTENSION IF NOT EXISTS postgis WITH SCHEMA public");
+          break;
+        } catch (const StorageError&) {
+          if (attempt > 0) throw;
+        }
+      }
+      exec("CREATE SCHEMA IF NOT EXISTS " + schema_);
+    }
+    exec("SET search_path TO " + schema_ + ", public");
+  } catch (...) {
+    PQfinish(conn_);
+    throw;
+  }
+}
+
+PostgresConnection::~PostgresConnection() { PQfinish(conn_); }
+
+void PostgresConnection::exec(std::string_view sql) {
+  const std::string text(sql);
+  PGresult* result = PQexec(conn_, text.c_str());
+  const auto status = PQresultStatus(result);
+  if (status != PGRES_COMMAND_OK && status != PGRES_TUPLES_OK) {
+    const std::string message = error_text(result, conn_);
+    PQclear(result);
+    throw StorageError("postgresql: " + message + " (in: " + text.substr(0, 80) + ")");
+  }
+  PQclear(result);
+}
+
+std::unique_ptr<detail::StatementBackend> PostgresConnection::prepare(const std::string& sql) {
+  return std::make_unique<PostgresStatement>(*this, sql);
+}
+
+const std::string& PostgresConnection::prepared(const std::string& sql) {
+  const auto found = prepared_.find(sql);
+  if (found != prepared_.end()) return found->second;
+  const std::string name = "wm" + std::to_string(prepared_.size() + 1);
+  PGresult* result = PQprepare(conn_, name.c_str(), dollar_parameters(sql).c_str(), 0, nullptr);
+  if (PQresultStatus(result) != PGRES_COMMAND_OK) {
+    const std::string message = error_text(result, conn_);
+    PQclear(result);
+    throw StorageError("postgresql prepare: " + message + " (in: " + sql.substr(0, 80) + ")");
+  }
+  PQclear(result);
+  return prepared_.emplace(sql, name).first->second;
+}
+
+int PostgresConnection::schema_version() {
+  PostgresStatement s(*this, "SELECT to_regclass('schema_version') IS NOT NULL");
+  s.step();
+  if (s.column_text(0) != "t") return 0;
+  PostgresStatement v(*this, "SELECT MAX(version) FROM schema_version");
+  v.step();
+  return static_cast<int>(v.column_int(0));
+}
+
+void PostgresConnection::set_schema_version(int version) {
+  exec("DELETE FROM schema_version; INSERT INTO schema_version(version) VALUES (" + std::to_string(version) + ")");
+}
+
+}  // namespace wm::storage

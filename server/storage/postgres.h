@@ -1,0 +1,45 @@
+#pragma once
+
+// PostgreSQL, the store's engine beyond one machine (libpq, the PostgreSQL project's own client library). Each map
+// lives in a schema of its own in one database; a connection's search_path names it (and `public`, where PostGIS is).
+#include <string>
+#include <unordered_map>
+
+#include "server/storage/database.h"
+
+struct pg_conn;
+
+namespace wm::storage {
+
+/// Whether `path` names a PostgreSQL database (a postgresql:// or postgres:// connection URI) rather than a file.
+bool is_postgres_uri(std::string_view path);
+
+/// A schema name the store accepts: 1-63 of [a-z0-9_], starting with a letter or '_' (it is put into SQL as is).
+bool is_valid_schema_name(std::string_view name);
+
+/// One open PostgreSQL connection (RAII), with `schema` first on its search_path.
+class PostgresConnection final : public Connection {
+ public:
+  /// Connects, and when `create` makes the schema (and the PostGIS extension in `public`) if missing.
+  /// @throw StorageError (a message without the password).
+  PostgresConnection(const std::string& uri, const std::string& schema, bool create);
+  ~PostgresConnection() override;
+
+  Dialect dialect() const override { return Dialect::postgresql; }
+  void exec(std::string_view sql) override;
+  std::unique_ptr<detail::StatementBackend> prepare(const std::string& sql) override;
+  void begin() override { exec("BEGIN"); }
+  int schema_version() override;  // the row of table schema_version, 0 when there is none
+  void set_schema_version(int version) override;
+
+ private:
+  friend class PostgresStatement;
+  /// The name of the server-side prepared statement for `sql`, prepared on first use. @throw StorageError.
+  const std::string& prepared(const std::string& sql);
+
+  pg_conn* conn_ = nullptr;
+  std::string schema_;
+  std::unordered_map<std::string, std::string> prepared_;  // SQL text -> statement name
+};
+
+}  // namespace wm::storage
