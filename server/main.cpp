@@ -20,6 +20,7 @@
 #include "server/service/map_registry.h"
 #include "server/service/world_service.h"
 #include "server/shm/shared_map_export.h"
+#include "server/storage/postgres.h"
 #include "server/storage/store.h"
 
 #ifndef WM_DEFAULT_WEB_DIR
@@ -136,8 +137,11 @@ int main(int argc, char** argv) {
       std::cerr << "wmd: warning: no --token and --bind " << cfg.http.bind_address
                 << " (--insecure-no-token): anyone who reaches the port can change the map\n";
     const auto other_maps = maps.ids();
-    std::cout << "wmd: database " << cfg.store.path << ", rules " << cfg.rules.rules_dir.string() << "\n"
-              << "wmd: " << other_maps.size() << " other map(s) in " << cfg.maps_dir.string() << "\n"
+    const bool postgres = storage::is_postgres_uri(cfg.store.path);
+    std::cout << "wmd: database " << (postgres ? "postgresql schema " + cfg.store.postgres_schema : cfg.store.path)
+              << ", rules " << cfg.rules.rules_dir.string() << "\n"
+              << "wmd: " << other_maps.size() << " other map(s) in "
+              << (postgres ? std::string("postgresql schemas map_<id>") : cfg.maps_dir.string()) << "\n"
               << "wmd: listening on http://" << cfg.http.bind_address << ":" << server.port() << "/" << std::endl;
     server.run();
     pthread_kill(signal_waiter.native_handle(), SIGTERM);  // wakes the waiter when run() ended otherwise

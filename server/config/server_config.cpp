@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "common/parse_number.h"
+#include "server/storage/postgres.h"
 
 namespace wm::config {
 namespace {
@@ -37,11 +38,30 @@ std::vector<std::string> comma_list(const std::string& text) {
   return items;
 }
 
+// Whether a postgresql:// URI names a password: user:password@ before the host, or a password= parameter.
+bool uri_has_password(std::string_view uri) {
+  const auto scheme = uri.find("://");
+  const auto rest = uri.substr(scheme == std::string_view::npos ? 0 : scheme + 3);
+  const auto at = rest.find('@');
+  const auto slash = rest.find('/');
+  if (at != std::string_view::npos && (slash == std::string_view::npos || at < slash) &&
+      rest.substr(0, at).find(':') != std::string_view::npos)
+    return true;
+  const auto query = uri.find('?');
+  if (query == std::string_view::npos) return false;
+  const auto parameters = "&" + std::string(uri.substr(query + 1));
+  return parameters.find("&password=") != std::string::npos;
+}
+
 }  // namespace
 
 std::string usage() {
   return "usage: wmd [options]\n"
          "  --db FILE              SQLite file of the world model (default worldmodel.db; created if missing)\n"
+         "  --store URI            the world model in PostgreSQL (postgresql://user@host:port/database) instead of\n"
+         "                         a SQLite file; the password from PGPASSWORD or a password file (PGPASSFILE,\n"
+         "                         ~/.pgpass), never on the command line\n"
+         "  --store-schema NAME    the PostgreSQL schema that holds the map (default worldmodel; created if missing)\n"
          "  --maps-dir DIR         the other maps (POST /api/v1/maps), one SQLite file each (default: the --db file's\n"
          "                         name + '.maps', beside it; made when the first map is)\n"
          "  --port N               TCP port (default 8080; 0 picks a free one, printed at start)\n"
@@ -141,8 +161,10 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     if (i + 1 >= args.size())
       throw ConfigError(flag.rfind("--", 0) == 0 ? flag + ": missing value" : "unexpected argument '" + flag + "'");
     const std::string& value = args[++i];
-    if (flag == "--db")
+    if (flag == "--db" || flag == "--store")
       c.store.path = value;
+    else if (flag == "--store-schema")
+      c.store.postgres_schema = value;
     else if (flag == "--maps-dir")
       c.maps_dir = value;
     else if (flag == "--port")
@@ -230,6 +252,13 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     }
   }
   if (c.store.path.empty()) throw ConfigError("--db: must not be empty");
+  if (storage::is_postgres_uri(c.store.path) && uri_has_password(c.store.path))
+    throw ConfigError(
+        "--store: the URI carries a password, which other users can read on the command line; give it "
+        "in PGPASSWORD or a password file (PGPASSFILE, ~/.pgpass)");
+  if (!storage::is_valid_schema_name(c.store.postgres_schema))
+    throw ConfigError("--store-schema: '" + c.store.postgres_schema +
+                      "' is not 1-63 of [a-z0-9_-] (a letter or '_' first)");
   if (c.maps_dir.empty()) c.maps_dir = c.store.path + ".maps";
   boost::system::error_code bad_address;
   const auto bind = boost::asio::ip::make_address(c.http.bind_address, bad_address);

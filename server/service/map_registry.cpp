@@ -6,12 +6,15 @@
 #include <utility>
 
 #include "server/service/service_errors.h"
+#include "server/storage/postgres.h"
 
 namespace wm::service {
 namespace {
 
 constexpr std::string_view kMapSuffix = ".db";
 constexpr std::string_view kRemovedPrefix = ".removed-";
+// A map's schema when the maps are in PostgreSQL: map_<id>.
+constexpr std::string_view kMapSchemaPrefix = "map_";
 
 std::filesystem::path map_file(const std::filesystem::path& data_dir, const std::string& id) {
   return data_dir / (id + std::string(kMapSuffix));
@@ -26,6 +29,43 @@ std::vector<std::filesystem::path> sqlite_files(const std::filesystem::path& db)
 std::filesystem::path removed_file(const std::filesystem::path& data_dir, const std::string& removed_as,
                                    const std::filesystem::path& file) {
   return data_dir / (removed_as + file.filename().string());
+}
+
+bool in_postgres(const MapRegistryOptions& options) { return storage::is_postgres_uri(options.store.path); }
+
+std::string map_schema(const std::string& id) { return std::string(kMapSchemaPrefix) + id; }
+
+// The maps in a PostgreSQL database: its schemas named map_<id>. One a removal marked (and a crash kept from going)
+// is dropped now.
+std::vector<std::string> postgres_maps(const MapRegistryOptions& options, common::Diagnostics& diagnostics) {
+  storage::PostgresConnection catalog(options.store.path, "public", false);
+  std::vector<std::string> found;
+  storage::Statement s(catalog, "SELECT nspname FROM pg_namespace WHERE starts_with(nspname, ?1) ORDER BY nspname");
+  s.bind(1, kMapSchemaPrefix);
+  while (s.step()) {
+    const auto schema = s.column_text(0);
+    const auto id = schema.substr(kMapSchemaPrefix.size());
+    if (!valid_map_id(id) || id == kDefaultMapId) continue;
+    storage::Statement removed(catalog,
+                               "SELECT 1 FROM " + storage::quoted_schema(schema) + ".meta WHERE key = 'removed'");
+    if (removed.step()) {
+      catalog.exec("DROP SCHEMA " + storage::quoted_schema(schema) + " CASCADE");
+      diagnostics.report(common::Severity::info, "maps", "map '" + id + "', removed before a restart, dropped");
+      continue;
+    }
+    found.push_back(id);
+  }
+  return found;
+}
+
+// Drops a removed map's schema, after its store closed. A failure leaves the mark, and the next start drops it.
+void drop_postgres_map(const storage::StoreOptions& store, const std::string& id) {
+  try {
+    storage::PostgresConnection(store.path, "public", false)
+        .exec("DROP SCHEMA " + storage::quoted_schema(std::string(kMapSchemaPrefix) + id) + " CASCADE");
+  } catch (const storage::StorageError&) {
+    // The schema keeps its removal mark: the next start drops it.
+  }
 }
 
 }  // namespace
@@ -45,7 +85,10 @@ MapInstance::MapInstance(std::string map_id, const MapRegistryOptions& options, 
     : id(std::move(map_id)),
       store([&] {
         auto store_options = options.store;
-        store_options.path = map_file(options.data_dir, id).string();
+        if (in_postgres(options))
+          store_options.postgres_schema = map_schema(id);
+        else
+          store_options.path = map_file(options.data_dir, id).string();
         return store_options;
       }()),
       engine([&] {
@@ -61,6 +104,18 @@ MapInstance::~MapInstance() = default;
 MapRegistry::MapRegistry(MapRegistryOptions options, common::Diagnostics& diagnostics)
     : options_(std::move(options)), diagnostics_(diagnostics) {
   std::vector<std::string> found;
+  if (in_postgres(options_)) {
+    found = postgres_maps(options_, diagnostics_);
+    std::lock_guard lock(mutex_);
+    for (const auto& id : found) {
+      try {
+        maps_.emplace(id, open(id));
+      } catch (const std::exception& e) {
+        diagnostics_.report(common::Severity::error, "maps", "map '" + id + "' not opened: " + e.what());
+      }
+    }
+    return;
+  }
   if (!std::filesystem::exists(options_.data_dir)) return;
   for (const auto& entry : std::filesystem::directory_iterator(options_.data_dir)) {
     const auto name = entry.path().filename().string();
@@ -94,11 +149,15 @@ std::shared_ptr<MapInstance> MapRegistry::open(const std::string& id) {
   // The last holder of a removed map takes its files with it, after the store has closed them. The registry may be
   // gone by then: the deleter keeps what it needs.
   return std::shared_ptr<MapInstance>(new MapInstance(id, options_, knowledge_base, diagnostics_),
-                                      [data_dir = options_.data_dir](MapInstance* map) {
+                                      [data_dir = options_.data_dir, store = options_.store](MapInstance* map) {
                                         const auto removed_as = map->removed_as;
                                         const auto id = map->id;
                                         delete map;
                                         if (removed_as.empty()) return;
+                                        if (storage::is_postgres_uri(store.path)) {
+                                          drop_postgres_map(store, id);
+                                          return;
+                                        }
                                         for (const auto& file : sqlite_files(map_file(data_dir, id))) {
                                           std::error_code ignored;
                                           std::filesystem::remove(removed_file(data_dir, removed_as, file), ignored);
@@ -140,6 +199,14 @@ void MapRegistry::remove(const std::string& id) {
     map = std::move(found->second);
     maps_.erase(found);
     removed_as = std::string(kRemovedPrefix) + std::to_string(++removals_) + "-";
+  }
+  if (in_postgres(options_)) {
+    // Marked at once (a start drops a marked schema); a request that still holds the map ends against it, and the
+    // schema is dropped when the last one lets go.
+    map->store.mark_removed();
+    map->removed_as = removed_as;
+    map->events.publish(events::EventKind::map_removed, R"({"type":"map_removed","map":")" + id + "\"}");
+    return;
   }
   // Renamed aside at once: the map is gone from the directory whatever happens next (a start removes what a crash
   // left). A request that still holds the map ends against it, into the renamed files: it came before the removal.

@@ -46,10 +46,16 @@ bool is_postgres_uri(std::string_view path) {
 }
 
 bool is_valid_schema_name(std::string_view name) {
-  if (name.empty() || name.size() > 63 || (name[0] >= '0' && name[0] <= '9')) return false;
+  if (name.empty() || name.size() > 63 || !((name[0] >= 'a' && name[0] <= 'z') || name[0] == '_')) return false;
   for (const char c : name)
-    if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_')) return false;
+    if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-')) return false;
   return true;
+}
+
+std::string quoted_schema(const std::string& name) {
+  if (!is_valid_schema_name(name))
+    throw StorageError("postgresql: '" + name + "' is not a schema name the store uses (1-63 of [a-z0-9_-])");
+  return '"' + name + '"';
 }
 
 /// A statement run as a server-side prepared statement (parsed once per connection; the server infers each
@@ -195,8 +201,7 @@ class PostgresStatement final : public detail::StatementBackend {
 
 PostgresConnection::PostgresConnection(const std::string& uri, const std::string& schema, bool create)
     : schema_(schema) {
-  if (!is_valid_schema_name(schema))
-    throw StorageError("postgresql: '" + schema + "' is not a schema name the store uses ([a-z0-9_], at most 63)");
+  const std::string quoted = quoted_schema(schema);
   conn_ = PQconnectdb(uri.c_str());
   if (PQstatus(conn_) != CONNECTION_OK) {
     const std::string message = error_text(nullptr, conn_);
@@ -216,9 +221,9 @@ PostgresConnection::PostgresConnection(const std::string& uri, const std::string
           if (attempt > 0) throw;
         }
       }
-      exec("CREATE SCHEMA IF NOT EXISTS " + schema_);
+      exec("CREATE SCHEMA IF NOT EXISTS " + quoted);
     }
-    exec("SET search_path TO " + schema_ + ", public");
+    exec("SET search_path TO " + quoted + ", public");
   } catch (...) {
     PQfinish(conn_);
     throw;

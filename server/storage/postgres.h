@@ -14,8 +14,10 @@ namespace wm::storage {
 /// Whether `path` names a PostgreSQL database (a postgresql:// or postgres:// connection URI) rather than a file.
 bool is_postgres_uri(std::string_view path);
 
-/// A schema name the store accepts: 1-63 of [a-z0-9_], starting with a letter or '_' (it is put into SQL as is).
+/// A schema name the store accepts: 1-63 of [a-z0-9_-], starting with a letter or '_'.
 bool is_valid_schema_name(std::string_view name);
+/// `name` as a quoted SQL identifier. @throw StorageError when is_valid_schema_name refuses it.
+std::string quoted_schema(const std::string& name);
 
 /// One open PostgreSQL connection (RAII), with `schema` first on its search_path.
 class PostgresConnection final : public Connection {

@@ -209,6 +209,12 @@ class Store {
   /// Decisions about a CAD object (about the object or any of its edges), in order, at most `limit`.
   std::vector<world::DecisionRecord> object_decisions(const std::string& object_id, std::size_t limit);
 
+  /// Records, in its own transaction, that the map is removed: a start that finds the mark drops what is left of it
+  /// (PostgreSQL; a SQLite map's files are renamed aside instead).
+  void mark_removed();
+  /// Whether mark_removed ran on this database.
+  bool marked_removed();
+
   /// The `count` newest decisions about posted segments (not prunes), oldest first.
   std::vector<world::DecisionRecord> latest_decisions(std::size_t count);
 

@@ -108,6 +108,17 @@ world::WorldState Store::load(const world::WorldOptions& options) {
   return state;
 }
 
+void Store::mark_removed() {
+  std::lock_guard lock(writer_mutex_);
+  run(*writer_, "INSERT INTO meta(key, value) VALUES ('removed', 1) ON CONFLICT(key) DO UPDATE SET value = 1");
+}
+
+bool Store::marked_removed() {
+  std::lock_guard lock(writer_mutex_);
+  Statement s(*writer_, "SELECT 1 FROM meta WHERE key = 'removed'");
+  return s.step();
+}
+
 void Store::write_counters(const world::WorldState& state) {
   Statement s(*writer_,
               "INSERT INTO meta(key, value) VALUES (?1, ?2) ON CONFLICT(key) DO UPDATE SET value = excluded.value");
