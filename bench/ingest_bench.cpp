@@ -7,12 +7,16 @@
 //    with no extra arguments unless given): a refactor's wmd against the one before it;
 //  - raw SQLite (WAL, synchronous=FULL) inserting one Intel scan body per transaction, the fsync ceiling of a
 //    writer that commits every scan on its own, and 16 per transaction, what group commit could reach.
+// PostgreSQL: BM_IngestPostgres is the same ingest with wmd's store in a private PostgreSQL 15 server on this
+// machine (tests/support/postgres.sh; fsync on, synchronous_commit on), against BM_Ingest (SQLite) of the same run,
+// with PostgreSQL's own commit rate beside it (BM_PostgresCommit_1RowPerTxn: one scan body per transaction, libpq).
 // Maps: BM_IngestMaps feeds 1 or 4 maps of one wmd at once (4 robots each), and BM_IngestMapsBesideAHeldMap one
 // map while another map's writer is stuck on a write lock held from outside, against one map alone.
 // WM_BENCH_QUICK caps the log at 200 scans; WM_BENCH_LOG=FILE posts another CARMEN log's laser scans (the first
 // 2000).
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
+#include <libpq-fe.h>
 #include <signal.h>
 #include <sqlite3.h>
 #include <sys/prctl.h>
@@ -340,6 +344,87 @@ void sqlite_commits(benchmark::State& state, const std::string* payload, int row
 
 const char* ingest_family(bool baseline) { return baseline ? "BM_Ingest_Baseline" : "BM_Ingest"; }
 
+// A private PostgreSQL server for the run (tests/support/postgres.sh), started on first use, stopped at exit.
+class PostgresServer {
+ public:
+  PostgresServer() {
+    const std::string command = script() + " start " + dir_.path().string();
+    FILE* out = ::popen(command.c_str(), "r");
+    char line[512] = {};
+    const bool read = out && std::fgets(line, sizeof line, out) != nullptr;
+    const int status = out ? ::pclose(out) : -1;
+    uri_ = read ? std::string(line) : std::string();
+    while (!uri_.empty() && uri_.back() == '\n') uri_.pop_back();
+    if (status != 0 || uri_.empty()) throw std::runtime_error("PostgreSQL did not start: " + command);
+  }
+  ~PostgresServer() { [[maybe_unused]] const int ignored = std::system((script() + " stop " + dir_.path().string()).c_str()); }
+  PostgresServer(const PostgresServer&) = delete;
+  PostgresServer& operator=(const PostgresServer&) = delete;
+  const std::string& uri() const { return uri_; }
+
+ private:
+  static std::string script() { return std::string(WM_SOURCE_DIR) + "/tests/support/postgres.sh"; }
+  TempDir dir_;
+  std::string uri_;
+};
+
+const PostgresServer& postgres() {
+  static const auto server = std::make_unique<PostgresServer>();
+  return *server;
+}
+
+// BM_Ingest with the store in PostgreSQL, a fresh schema each run.
+void ingest_postgres(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans) {
+  static int runs = 0;
+  std::vector<std::string> args;
+  try {
+    args = {"--store", postgres().uri(), "--store-schema", "bench_" + std::to_string(::getpid()) + "_" +
+                                                                std::to_string(++runs)};
+  } catch (const std::exception& e) {
+    return state.SkipWithError(e.what());
+  }
+  const std::string binary = WM_WMD, label = "postgresql";
+  ingest(state, scans, &args, &binary, &label);
+}
+
+// A raw PostgreSQL writer: one insert of `payload` (bytea) per transaction, as the store commits a scan.
+void postgres_commits(benchmark::State& state, const std::string* payload) {
+  PGconn* conn = nullptr;
+  try {
+    conn = PQconnectdb(postgres().uri().c_str());
+  } catch (const std::exception& e) {
+    return state.SkipWithError(e.what());
+  }
+  const auto run = [&](const char* sql) {
+    PGresult* r = PQexec(conn, sql);
+    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    if (!ok) state.SkipWithError((std::string(sql) + ": " + PQerrorMessage(conn)).c_str());
+    PQclear(r);
+    return ok;
+  };
+  const std::string table = "raw_" + std::to_string(::getpid());
+  if (PQstatus(conn) == CONNECTION_OK &&
+      run(("CREATE TABLE " + table + "(id BIGSERIAL PRIMARY KEY, body BYTEA NOT NULL)").c_str())) {
+    const std::string insert = "INSERT INTO " + table + "(body) VALUES ($1)";
+    const char* values[] = {payload->data()};
+    const int lengths[] = {static_cast<int>(payload->size())}, formats[] = {1};
+    for (auto _ : state) {
+      if (!run("BEGIN")) break;
+      PGresult* r = PQexecParams(conn, insert.c_str(), 1, nullptr, values, lengths, formats, 0);
+      const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+      PQclear(r);
+      if (!ok || !run("COMMIT")) break;
+    }
+    run(("DROP TABLE " + table).c_str());
+  } else if (PQstatus(conn) != CONNECTION_OK) {
+    state.SkipWithError(PQerrorMessage(conn));
+  }
+  PQfinish(conn);
+  state.SetItemsProcessed(state.iterations());
+  state.counters["commits_per_s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -391,6 +476,19 @@ int main(int argc, char** argv) {
          std::string(ingest_family(true)) + "/robots:" + std::to_string(robots) + "/iterations:1/real_time"});
   }
   ratios.push_back({"against raw SQLite, one commit per scan", "BM_SqliteCommit_1RowPerTxn/real_time"});
+  // The store in PostgreSQL against the store in SQLite, and PostgreSQL's own commit rate.
+  benchmark::RegisterBenchmark("BM_PostgresCommit_1RowPerTxn", postgres_commits, &payload)->UseRealTime();
+  for (const int robots : {1, 4})
+    benchmark::RegisterBenchmark("BM_IngestPostgres", ingest_postgres, &scans)
+        ->ArgName("robots")
+        ->Arg(robots)
+        ->Iterations(1)
+        ->UseRealTime()
+        ->Unit(benchmark::kMillisecond);
+  for (const int robots : {1, 4})
+    ratios.push_back({"the PostgreSQL store against the SQLite store, " + std::to_string(robots) + " robots",
+                      "BM_Ingest/robots:" + std::to_string(robots) + "/iterations:1/real_time"});
+  ratios.push_back({"against raw PostgreSQL, one commit per scan", "BM_PostgresCommit_1RowPerTxn/real_time"});
   // Maps side by side: one, four, and one beside a map whose writer is held (against one map alone).
   for (const int maps : {1, 4})
     benchmark::RegisterBenchmark("BM_IngestMaps", ingest_maps, &scans, false)
