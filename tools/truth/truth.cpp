@@ -526,28 +526,38 @@ AsBuiltScore score_as_built(const ReplayOutcome& outcome, const Building& buildi
     score.people_missing_m = near_people;
   }
 
-  // New partitions: the share of their seen length (bins with at least kMinReturnsSeen returns) that elements cover.
-  const auto cover = covering(elements, world.lines);
+  // New partitions: the share of their seen length (bins with at least kMinReturnsSeen returns) that elements on them
+  // (within 5 cm and 3°) cover, a bin where its centre is within 5 cm of one: as the mapping recall asks, and a short
+  // last bin needs no element sample on it.
   double found_new = 0;
   std::size_t partitions_seen = 0;
   for (const int p : world.partitions) {
+    const auto& line = world.lines[static_cast<std::size_t>(p)];
+    std::vector<std::size_t> on;
+    for (std::size_t i = 0; i < elements.size(); ++i)
+      if (on_line(elements[i], line)) on.push_back(i);
     double seen = 0, covered = 0;
-    for (std::size_t b = 0; b < cover[p].size(); ++b) {
+    std::vector<bool> missed(coverage.hits[p].size(), false);
+    for (std::size_t b = 0; b < coverage.hits[p].size(); ++b) {
       if (coverage.hits[p][b] < kMinReturnsSeen) continue;
       seen += kBinM;
-      covered += cover[p][b].empty() ? 0 : kBinM;
+      const Vec c = bin_centre(line.p0, line.p1, b);
+      const bool covered_here = std::any_of(on.begin(), on.end(), [&](std::size_t i) {
+        return point_segment_distance(c, elements[i].p0, elements[i].p1) <= kOnLineM;
+      });
+      covered += covered_here ? kBinM : 0;
+      missed[b] = !covered_here;
     }
     if (seen > 0) {
       found_new += covered / seen;
       ++partitions_seen;
     }
     if (std::getenv("WM_TRUTH_VERBOSE")) {
-      const auto& line = world.lines[static_cast<std::size_t>(p)];
       std::fprintf(stderr,
                    "partition (%.2f, %.2f) to (%.2f, %.2f): %.2f m seen, %.2f m covered; uncovered bins:", line.p0.x(),
                    line.p0.y(), line.p1.x(), line.p1.y(), seen, covered);
-      for (std::size_t b = 0; b < cover[p].size(); ++b)
-        if (coverage.hits[p][b] > 0 && cover[p][b].empty()) std::fprintf(stderr, " %zu(%u)", b, coverage.hits[p][b]);
+      for (std::size_t b = 0; b < missed.size(); ++b)
+        if (missed[b]) std::fprintf(stderr, " %zu(%u)", b, coverage.hits[p][b]);
       std::fprintf(stderr, "\n");
     }
   }
