@@ -357,7 +357,9 @@ class PostgresServer {
     while (!uri_.empty() && uri_.back() == '\n') uri_.pop_back();
     if (status != 0 || uri_.empty()) throw std::runtime_error("PostgreSQL did not start: " + command);
   }
-  ~PostgresServer() { [[maybe_unused]] const int ignored = std::system((script() + " stop " + dir_.path().string()).c_str()); }
+  ~PostgresServer() {
+    [[maybe_unused]] const int ignored = std::system((script() + " stop " + dir_.path().string()).c_str());
+  }
   PostgresServer(const PostgresServer&) = delete;
   PostgresServer& operator=(const PostgresServer&) = delete;
   const std::string& uri() const { return uri_; }
@@ -378,8 +380,8 @@ void ingest_postgres(benchmark::State& state, const std::vector<wm::logs::LogSca
   static int runs = 0;
   std::vector<std::string> args;
   try {
-    args = {"--store", postgres().uri(), "--store-schema", "bench_" + std::to_string(::getpid()) + "_" +
-                                                                std::to_string(++runs)};
+    args = {"--store", postgres().uri(), "--store-schema",
+            "bench_" + std::to_string(::getpid()) + "_" + std::to_string(++runs)};
   } catch (const std::exception& e) {
     return state.SkipWithError(e.what());
   }

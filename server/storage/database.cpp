@@ -38,10 +38,7 @@ Statement& Statement::bind(int index, const std::optional<std::int64_t>& value) 
 
 bool Statement::step() { return backend_->step(); }
 
-void Statement::run() {
-  step();
-  reset();
-}
+void Statement::run() { backend_->run(); }
 
 void Statement::reset() { backend_->reset(); }
 

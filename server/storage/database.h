@@ -34,6 +34,12 @@ class StatementBackend {
   virtual void bind_blob(int index, const void* data, std::size_t bytes) = 0;
   virtual void bind_null(int index) = 0;
   virtual bool step() = 0;
+  /// Runs a statement whose rows nobody reads (an INSERT, UPDATE, DELETE), then resets it. An engine may send it
+  /// without waiting for its answer (PostgreSQL, inside a write transaction): its error then comes at the commit.
+  virtual void run() {
+    step();
+    reset();
+  }
   virtual void reset() = 0;
   virtual bool column_is_null(int column) const = 0;
   virtual std::int64_t column_int(int column) const = 0;
@@ -83,7 +89,8 @@ class Statement {
 
   /// Advances; true while a row is available. @throw StorageError.
   bool step();
-  /// Steps a statement that returns no rows, then resets it for reuse.
+  /// Runs a statement that returns no rows, then resets it for reuse. Inside a write transaction on PostgreSQL it
+  /// is sent without waiting: an error it meets is thrown by the commit (which then commits nothing).
   void run();
   void reset();
 

@@ -87,7 +87,24 @@ class PostgresStatement final : public detail::StatementBackend {
     params_[static_cast<std::size_t>(index - 1)].reset();
   }
 
+  void run() override {
+    if (!connection_.pipelining()) {
+      step();
+      reset();
+      return;
+    }
+    std::vector<const char*> values(params_.size());
+    std::vector<int> lengths(params_.size());
+    for (std::size_t i = 0; i < params_.size(); ++i) {
+      values[i] = params_[i] ? params_[i]->data() : nullptr;
+      lengths[i] = params_[i] ? static_cast<int>(params_[i]->size()) : 0;
+    }
+    connection_.send(name_, values, lengths, formats_, sql_);
+    reset();
+  }
+
   bool step() override {
+    if (connection_.pipelining()) connection_.finish_pipeline();  // a read needs its answer now
     if (!result_) execute();
     ++row_;
     decoded_.assign(static_cast<std::size_t>(PQnfields(result_)), std::nullopt);
@@ -191,7 +208,7 @@ class PostgresStatement final : public detail::StatementBackend {
 
   PostgresConnection& connection_;
   std::string sql_;
-  const std::string& name_;
+  std::string name_;
   std::vector<std::optional<std::string>> params_;
   std::vector<int> formats_;
   PGresult* result_ = nullptr;
@@ -232,7 +249,70 @@ PostgresConnection::PostgresConnection(const std::string& uri, const std::string
 
 PostgresConnection::~PostgresConnection() { PQfinish(conn_); }
 
+void PostgresConnection::begin() {
+  exec("BEGIN");
+  if (PQenterPipelineMode(conn_) != 1) throw StorageError("postgresql: " + error_text(nullptr, conn_));
+  pipelining_ = true;
+  first_sent_sql_.clear();
+}
+
+void PostgresConnection::send(const std::string& name, const std::vector<const char*>& values,
+                              const std::vector<int>& lengths, const std::vector<int>& formats,
+                              const std::string& sql) {
+  if (PQsendQueryPrepared(conn_, name.c_str(), static_cast<int>(values.size()), values.data(), lengths.data(),
+                          formats.data(), 0) != 1)
+    throw StorageError("postgresql: " + error_text(nullptr, conn_) + " (in: " + sql.substr(0, 80) + ")");
+  if (first_sent_sql_.empty()) first_sent_sql_ = sql;
+}
+
+void PostgresConnection::finish_pipeline() {
+  pipelining_ = false;
+  std::string error;
+  if (PQpipelineSync(conn_) != 1) error = error_text(nullptr, conn_);
+  // Each statement's results end with a null; the sync point's result ends the pipeline.
+  while (error.empty() || PQstatus(conn_) == CONNECTION_OK) {
+    PGresult* result = PQgetResult(conn_);
+    if (!result) {
+      if (PQstatus(conn_) != CONNECTION_OK) break;
+      continue;
+    }
+    const auto status = PQresultStatus(result);
+    if (status == PGRES_FATAL_ERROR && error.empty()) error = error_text(result, conn_);
+    PQclear(result);
+    if (status == PGRES_PIPELINE_SYNC) break;
+  }
+  if (PQstatus(conn_) != CONNECTION_OK && error.empty()) error = error_text(nullptr, conn_);
+  PQexitPipelineMode(conn_);
+  // Which statement failed is not known here: those prepared in this pipeline are prepared again (new names) on use.
+  if (!error.empty())
+    for (const auto& sql : prepared_in_pipeline_) prepared_.erase(sql);
+  prepared_in_pipeline_.clear();
+  if (!error.empty())
+    throw StorageError("postgresql: " + error + " (in a transaction from: " + first_sent_sql_.substr(0, 80) + ")");
+}
+
 void PostgresConnection::exec(std::string_view sql) {
+  // COMMIT ends the pipeline with it, in the same round trip; anything else waits for the pipeline's answers first.
+  if (pipelining_) {
+    if (sql == "COMMIT") {
+      if (PQsendQueryParams(conn_, "COMMIT", 0, nullptr, nullptr, nullptr, nullptr, 0) != 1) {
+        pipelining_ = false;
+        PQexitPipelineMode(conn_);
+        throw StorageError("postgresql: " + error_text(nullptr, conn_) + " (in: COMMIT)");
+      }
+      finish_pipeline();  // throws the first error: a failed write, or the commit's
+      return;
+    }
+    if (sql == "ROLLBACK") {
+      try {
+        finish_pipeline();
+      } catch (const StorageError&) {
+        // The write that failed is why the transaction rolls back.
+      }
+    } else {
+      finish_pipeline();
+    }
+  }
   const std::string text(sql);
   PGresult* result = PQexec(conn_, text.c_str());
   const auto status = PQresultStatus(result);
@@ -248,10 +328,17 @@ std::unique_ptr<detail::StatementBackend> PostgresConnection::prepare(const std:
   return std::make_unique<PostgresStatement>(*this, sql);
 }
 
-const std::string& PostgresConnection::prepared(const std::string& sql) {
+std::string PostgresConnection::prepared(const std::string& sql) {
   const auto found = prepared_.find(sql);
   if (found != prepared_.end()) return found->second;
-  const std::string name = "wm" + std::to_string(prepared_.size() + 1);
+  const std::string name = "wm" + std::to_string(++statements_made_);
+  if (pipelining_) {
+    // Prepared in the pipeline too; its answer comes with the others (a failure forgets it, see finish_pipeline).
+    if (PQsendPrepare(conn_, name.c_str(), dollar_parameters(sql).c_str(), 0, nullptr) != 1)
+      throw StorageError("postgresql prepare: " + error_text(nullptr, conn_) + " (in: " + sql.substr(0, 80) + ")");
+    prepared_in_pipeline_.push_back(sql);
+    return prepared_.emplace(sql, name).first->second;
+  }
   PGresult* result = PQprepare(conn_, name.c_str(), dollar_parameters(sql).c_str(), 0, nullptr);
   if (PQresultStatus(result) != PGRES_COMMAND_OK) {
     const std::string message = error_text(result, conn_);

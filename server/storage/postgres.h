@@ -4,6 +4,7 @@
 // lives in a schema of its own in one database; a connection's search_path names it (and `public`, where PostGIS is).
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "server/storage/database.h"
 
@@ -30,18 +31,30 @@ class PostgresConnection final : public Connection {
   Dialect dialect() const override { return Dialect::postgresql; }
   void exec(std::string_view sql) override;
   std::unique_ptr<detail::StatementBackend> prepare(const std::string& sql) override;
-  void begin() override { exec("BEGIN"); }
+  /// Begins a write transaction in libpq's pipeline mode: its writes (Statement::run) are sent without waiting for
+  /// their answers, which the commit collects, one round trip for the whole transaction instead of one per write.
+  void begin() override;
   int schema_version() override;  // the row of table schema_version, 0 when there is none
   void set_schema_version(int version) override;
 
  private:
   friend class PostgresStatement;
   /// The name of the server-side prepared statement for `sql`, prepared on first use. @throw StorageError.
-  const std::string& prepared(const std::string& sql);
+  std::string prepared(const std::string& sql);
+  bool pipelining() const { return pipelining_; }
+  /// Sends a prepared statement's run in the pipeline.
+  void send(const std::string& name, const std::vector<const char*>& values, const std::vector<int>& lengths,
+            const std::vector<int>& formats, const std::string& sql);
+  /// Ends the pipeline: waits for every answer sent, leaves pipeline mode. @throw StorageError with the first error.
+  void finish_pipeline();
 
   pg_conn* conn_ = nullptr;
   std::string schema_;
   std::unordered_map<std::string, std::string> prepared_;  // SQL text -> statement name
+  std::int64_t statements_made_ = 0;
+  bool pipelining_ = false;
+  std::vector<std::string> prepared_in_pipeline_;  // SQL texts
+  std::string first_sent_sql_;  // a pipelined statement, for the message of an error the commit meets
 };
 
 }  // namespace wm::storage

@@ -440,6 +440,52 @@ TEST_P(StatementTest, ValuesComeBackExactly) {
   EXPECT_FALSE(s.step());
 }
 
+// A transaction whose write fails commits nothing, however its writes were sent (PostgreSQL sends them without
+// waiting, and the failure comes at the commit), and the connection and its statements, those first made in the
+// failed transaction too, serve the next one.
+TEST_P(StatementTest, AFailedWriteInATransactionCommitsNothingAndTheNextTransactionWorks) {
+  const auto connection = connect();
+  Connection& db = *connection;
+  db.exec("CREATE TABLE t(k BIGINT PRIMARY KEY, v TEXT)");
+  Statement(db, "INSERT INTO t(k, v) VALUES (?1, 'first')").bind(1, std::int64_t{1}).run();
+  const auto count = [&] {
+    Statement s(db, "SELECT COUNT(*) FROM t");
+    s.step();
+    return s.column_int(0);
+  };
+  const std::string insert = "INSERT INTO t(k, v) VALUES (?1, ?2)";  // first made inside the failing transaction
+  try {
+    Transaction tx(db);
+    Statement(db, insert).bind(1, std::int64_t{2}).bind(2, std::string_view("two")).run();
+    Statement(db, insert).bind(1, std::int64_t{1}).bind(2, std::string_view("again")).run();  // the key is taken
+    Statement(db, "UPDATE t SET v = 'changed' WHERE k = ?1").bind(1, std::int64_t{1}).run();
+    tx.commit();
+    FAIL() << "a duplicate key must fail the transaction";
+  } catch (const StorageError& e) {
+    const std::string what = e.what();  // SQLite: "UNIQUE constraint failed"; PostgreSQL: "duplicate key value"
+    EXPECT_TRUE(what.find("UNIQUE") != std::string::npos || what.find("duplicate") != std::string::npos) << what;
+  }
+  EXPECT_EQ(count(), 1);
+  {
+    Transaction tx(db);
+    Statement(db, insert).bind(1, std::int64_t{2}).bind(2, std::string_view("two")).run();
+    // A read in the middle of a transaction sees its writes.
+    Statement s(db, "SELECT v FROM t WHERE k = ?1");
+    s.bind(1, std::int64_t{2});
+    ASSERT_TRUE(s.step());
+    EXPECT_EQ(s.column_text(0), "two");
+    Statement(db, insert).bind(1, std::int64_t{3}).bind(2, std::string_view("three")).run();
+    tx.commit();
+  }
+  EXPECT_EQ(count(), 3);
+  // A transaction left without a commit (an exception in the caller) rolls back.
+  {
+    Transaction tx(db);
+    Statement(db, insert).bind(1, std::int64_t{4}).bind(2, std::string_view("four")).run();
+  }
+  EXPECT_EQ(count(), 3);
+}
+
 INSTANTIATE_TEST_SUITE_P(Engines, StatementTest, ::testing::Values(Engine::sqlite, Engine::postgresql),
                          [](const auto& info) { return info.param == Engine::sqlite ? "sqlite" : "postgresql"; });
 
