@@ -250,10 +250,16 @@ PostgresConnection::PostgresConnection(const std::string& uri, const std::string
 PostgresConnection::~PostgresConnection() { PQfinish(conn_); }
 
 void PostgresConnection::begin() {
-  exec("BEGIN");
   if (PQenterPipelineMode(conn_) != 1) throw StorageError("postgresql: " + error_text(nullptr, conn_));
   pipelining_ = true;
-  first_sent_sql_.clear();
+  first_sent_sql_ = "BEGIN";
+  // BEGIN goes in the pipeline too: the whole transaction is one round trip.
+  if (PQsendQueryParams(conn_, "BEGIN", 0, nullptr, nullptr, nullptr, nullptr, 0) != 1) {
+    const std::string message = error_text(nullptr, conn_);
+    pipelining_ = false;
+    PQexitPipelineMode(conn_);
+    throw StorageError("postgresql: " + message + " (in: BEGIN)");
+  }
 }
 
 void PostgresConnection::send(const std::string& name, const std::vector<const char*>& values,
@@ -262,7 +268,7 @@ void PostgresConnection::send(const std::string& name, const std::vector<const c
   if (PQsendQueryPrepared(conn_, name.c_str(), static_cast<int>(values.size()), values.data(), lengths.data(),
                           formats.data(), 0) != 1)
     throw StorageError("postgresql: " + error_text(nullptr, conn_) + " (in: " + sql.substr(0, 80) + ")");
-  if (first_sent_sql_.empty()) first_sent_sql_ = sql;
+  if (first_sent_sql_ == "BEGIN") first_sent_sql_ = sql;
 }
 
 void PostgresConnection::finish_pipeline() {
