@@ -253,13 +253,25 @@ void PostgresConnection::begin() {
   if (PQenterPipelineMode(conn_) != 1) throw StorageError("postgresql: " + error_text(nullptr, conn_));
   pipelining_ = true;
   first_sent_sql_ = "BEGIN";
-  // BEGIN goes in the pipeline too: the whole transaction is one round trip.
-  if (PQsendQueryParams(conn_, "BEGIN", 0, nullptr, nullptr, nullptr, nullptr, 0) != 1) {
+  // BEGIN goes in the pipeline too: the whole transaction is one round trip, the fence's check included.
+  bool sent = PQsendQueryParams(conn_, "BEGIN", 0, nullptr, nullptr, nullptr, nullptr, 0) == 1;
+  if (sent && fence_) {
+    const std::string epoch = std::to_string(fence_->epoch);
+    const char* values[] = {fence_->map.c_str(), fence_->node.c_str(), epoch.c_str()};
+    sent = PQsendQueryParams(conn_, "SELECT wm_cluster.fence($1, $2, $3::bigint)", 3, nullptr, values, nullptr, nullptr,
+                             0) == 1;
+  }
+  if (!sent) {
     const std::string message = error_text(nullptr, conn_);
     pipelining_ = false;
     PQexitPipelineMode(conn_);
     throw StorageError("postgresql: " + message + " (in: BEGIN)");
   }
+}
+
+void PostgresConnection::set_fence(const Fence& fence) {
+  ensure_lease_schema(*this);
+  fence_ = fence;
 }
 
 void PostgresConnection::send(const std::string& name, const std::vector<const char*>& values,
@@ -274,6 +286,7 @@ void PostgresConnection::send(const std::string& name, const std::vector<const c
 void PostgresConnection::finish_pipeline() {
   pipelining_ = false;
   std::string error;
+  bool fenced = false;
   if (PQpipelineSync(conn_) != 1) error = error_text(nullptr, conn_);
   // Each statement's results end with a null; the sync point's result ends the pipeline.
   while (error.empty() || PQstatus(conn_) == CONNECTION_OK) {
@@ -283,7 +296,11 @@ void PostgresConnection::finish_pipeline() {
       continue;
     }
     const auto status = PQresultStatus(result);
-    if (status == PGRES_FATAL_ERROR && error.empty()) error = error_text(result, conn_);
+    if (status == PGRES_FATAL_ERROR && error.empty()) {
+      error = error_text(result, conn_);
+      const char* state = PQresultErrorField(result, PG_DIAG_SQLSTATE);
+      fenced = state && std::string_view(state) == "WM001";
+    }
     PQclear(result);
     if (status == PGRES_PIPELINE_SYNC) break;
   }
@@ -293,6 +310,7 @@ void PostgresConnection::finish_pipeline() {
   if (!error.empty())
     for (const auto& sql : prepared_in_pipeline_) prepared_.erase(sql);
   prepared_in_pipeline_.clear();
+  if (fenced) throw FencedError("postgresql: " + error);
   if (!error.empty())
     throw StorageError("postgresql: " + error + " (in a transaction from: " + first_sent_sql_.substr(0, 80) + ")");
 }

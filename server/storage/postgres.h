@@ -2,11 +2,13 @@
 
 // PostgreSQL, the store's engine beyond one machine (libpq, the PostgreSQL project's own client library). Each map
 // lives in a schema of its own in one database; a connection's search_path names it (and `public`, where PostGIS is).
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
 #include "server/storage/database.h"
+#include "server/storage/leases.h"
 
 struct pg_conn;
 
@@ -35,6 +37,9 @@ class PostgresConnection final : public Connection {
   /// their answers, which the commit collects, one round trip for the whole transaction instead of one per write.
   void begin() override;
   int schema_version() override;  // the row of table schema_version, 0 when there is none
+  /// From now on every write transaction begins by checking, in it, that `fence` still holds its map's lease
+  /// (wm_cluster.fence); one that does not commits nothing and throws FencedError.
+  void set_fence(const Fence& fence);
   void set_schema_version(int version) override;
 
  private:
@@ -53,6 +58,7 @@ class PostgresConnection final : public Connection {
   std::unordered_map<std::string, std::string> prepared_;  // SQL text -> statement name
   std::int64_t statements_made_ = 0;
   bool pipelining_ = false;
+  std::optional<Fence> fence_;
   std::vector<std::string> prepared_in_pipeline_;  // SQL texts
   std::string first_sent_sql_;  // a pipelined statement, for the message of an error the commit meets
 };

@@ -194,8 +194,12 @@ CREATE TABLE edge_beams(object TEXT NOT NULL, edge BIGINT NOT NULL, x0 DOUBLE PR
 };
 
 std::unique_ptr<Connection> open_connection(const StoreOptions& options, bool writer) {
-  if (is_postgres_uri(options.path))
-    return std::make_unique<PostgresConnection>(options.path, options.postgres_schema, writer);
+  if (is_postgres_uri(options.path)) {
+    auto connection = std::make_unique<PostgresConnection>(options.path, options.postgres_schema, writer);
+    if (writer && options.fence) connection->set_fence(*options.fence);
+    return connection;
+  }
+  if (options.fence) throw StorageError("a fence needs a PostgreSQL store");
   return std::make_unique<SqliteConnection>(options.path, writer);
 }
 

@@ -13,6 +13,7 @@
 #include "fusion/grid/beam_crossings.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "server/storage/database.h"
+#include "server/storage/leases.h"
 #include "server/world/scan_observation.h"
 #include "server/world/update.h"
 
@@ -30,6 +31,9 @@ struct StoreOptions {
   std::int64_t request_ids_kept = 100000;
   /// PostgreSQL only: the schema that holds this map's tables (created when missing, with PostGIS in `public`).
   std::string postgres_schema = "worldmodel";
+  /// PostgreSQL only, in a cluster: the map's lease this store writes under (leases.h); every write transaction
+  /// checks it and throws FencedError, committing nothing, once it is no longer held.
+  std::optional<Fence> fence = std::nullopt;
 };
 
 /// What a request that carried a client-supplied request id produced, kept (in the same transaction as its

@@ -110,7 +110,9 @@ world::WorldState Store::load(const world::WorldOptions& options) {
 
 void Store::mark_removed() {
   std::lock_guard lock(writer_mutex_);
+  Transaction tx(*writer_);
   run(*writer_, "INSERT INTO meta(key, value) VALUES ('removed', 1) ON CONFLICT(key) DO UPDATE SET value = 1");
+  tx.commit();
 }
 
 bool Store::marked_removed() {
