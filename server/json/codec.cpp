@@ -88,6 +88,10 @@ std::optional<std::string> observer_of(const json& doc) {
     if (it == doc.end()) continue;
     if (!it->is_string() || it->get<std::string>().empty() || it->get<std::string>().size() > 128)
       throw bad_request(key, "expected a non-empty string of at most 128 characters");
+    // A name is shown, logged and stored as text (PostgreSQL's text holds no NUL): no control characters.
+    const auto& name = it->get_ref<const std::string&>();
+    if (std::any_of(name.begin(), name.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; }))
+      throw bad_request(key, "expected a name without control characters");
     if (observer && *observer != it->get<std::string>())
       throw bad_request("source", "\"source\" is the older name of \"observer\": give one, or both the same");
     observer = it->get<std::string>();

@@ -53,6 +53,11 @@ TEST(CodecTest, TheObserverMayBeNamedObserverOrByItsOlderNameSource) {
   EXPECT_NE(refusal("{\"observer\": \"a\", \"source\": \"b\", " + segments + "}").find("older name"),
             std::string::npos);
   EXPECT_NE(refusal("{\"observer\": \"\", " + segments + "}").find("observer"), std::string::npos);
+  // No control characters in a name, NUL least of all (a PostgreSQL store could not keep it).
+  for (const std::string bad : {"a\\u0000b", "tab\\there", "line\\n", "del\\u007f"})
+    EXPECT_NE(refusal("{\"observer\": \"" + bad + "\", " + segments + "}").find("control characters"),
+              std::string::npos)
+        << bad;
   const std::string scan =
       R"("sensor": "laser", "pose": {"x": 0, "y": 0, "theta": 0}, "angle_min": 0, "angle_increment": 0.1, "ranges": [1, 2],)"
       R"("range_min": 0.1, "range_max": 30)";
