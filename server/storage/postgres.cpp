@@ -175,6 +175,17 @@ class PostgresStatement final : public detail::StatementBackend {
     }
     result_ = PQexecPrepared(connection_.conn_, name_.c_str(), static_cast<int>(values.size()), values.data(),
                              lengths.data(), formats_.data(), 0);
+    if (PQresultStatus(result_) == PGRES_FATAL_ERROR && PQstatus(connection_.conn_) != CONNECTION_OK &&
+        !connection_.in_transaction_) {
+      // The connection was gone (the server restarted). Outside a transaction a statement ran whole or not at all,
+      // and those run there may run twice (the store's reads; a lease taken twice has the later epoch): once more,
+      // on a new connection.
+      PQclear(result_);
+      connection_.reconnect_if_lost();
+      name_ = connection_.prepared(sql_);
+      result_ = PQexecPrepared(connection_.conn_, name_.c_str(), static_cast<int>(values.size()), values.data(),
+                               lengths.data(), formats_.data(), 0);
+    }
     const auto status = PQresultStatus(result_);
     if (status != PGRES_COMMAND_OK && status != PGRES_TUPLES_OK) {
       const std::string message = error_text(result_, connection_.conn_);
@@ -249,7 +260,25 @@ PostgresConnection::PostgresConnection(const std::string& uri, const std::string
 
 PostgresConnection::~PostgresConnection() { PQfinish(conn_); }
 
+void PostgresConnection::reconnect_if_lost() {
+  if (PQstatus(conn_) == CONNECTION_OK) return;
+  // Inside a transaction its writes went with the connection: it fails whole, never goes on in autocommit.
+  if (in_transaction_) throw StorageError("lost the connection to postgresql during a transaction");
+  // The server went away (a restart, a failover) and the operation that found out failed; this one starts afresh on a
+  // new connection: its prepared statements are gone with the old one.
+  PQreset(conn_);
+  if (PQstatus(conn_) != CONNECTION_OK)
+    throw StorageError("lost the connection to postgresql: " + error_text(nullptr, conn_));
+  PQsetNoticeProcessor(conn_, ignore_notice, nullptr);
+  prepared_.clear();
+  prepared_in_pipeline_.clear();
+  pipelining_ = false;
+  exec("SET search_path TO " + quoted_schema(schema_) + ", public");
+}
+
 void PostgresConnection::begin() {
+  reconnect_if_lost();
+  in_transaction_ = true;
   if (PQenterPipelineMode(conn_) != 1) throw StorageError("postgresql: " + error_text(nullptr, conn_));
   pipelining_ = true;
   first_sent_sql_ = "BEGIN";
@@ -317,6 +346,7 @@ void PostgresConnection::finish_pipeline() {
 
 void PostgresConnection::exec(std::string_view sql) {
   // COMMIT ends the pipeline with it, in the same round trip; anything else waits for the pipeline's answers first.
+  if (sql == "COMMIT" || sql == "ROLLBACK") in_transaction_ = false;  // ended, committed or not
   if (pipelining_) {
     if (sql == "COMMIT") {
       if (PQsendQueryParams(conn_, "COMMIT", 0, nullptr, nullptr, nullptr, nullptr, 0) != 1) {
@@ -337,6 +367,8 @@ void PostgresConnection::exec(std::string_view sql) {
       finish_pipeline();
     }
   }
+  if (sql == "ROLLBACK" && PQstatus(conn_) != CONNECTION_OK) return;  // gone with the connection
+  if (sql != "COMMIT" && sql != "ROLLBACK") reconnect_if_lost();
   const std::string text(sql);
   PGresult* result = PQexec(conn_, text.c_str());
   const auto status = PQresultStatus(result);
@@ -353,6 +385,7 @@ std::unique_ptr<detail::StatementBackend> PostgresConnection::prepare(const std:
 }
 
 std::string PostgresConnection::prepared(const std::string& sql) {
+  if (!pipelining_) reconnect_if_lost();
   const auto found = prepared_.find(sql);
   if (found != prepared_.end()) return found->second;
   const std::string name = "wm" + std::to_string(++statements_made_);
@@ -364,6 +397,11 @@ std::string PostgresConnection::prepared(const std::string& sql) {
     return prepared_.emplace(sql, name).first->second;
   }
   PGresult* result = PQprepare(conn_, name.c_str(), dollar_parameters(sql).c_str(), 0, nullptr);
+  if (PQresultStatus(result) != PGRES_COMMAND_OK && PQstatus(conn_) != CONNECTION_OK && !in_transaction_) {
+    PQclear(result);  // the connection was gone: once more on a new one (a prepare changes nothing)
+    reconnect_if_lost();
+    result = PQprepare(conn_, name.c_str(), dollar_parameters(sql).c_str(), 0, nullptr);
+  }
   if (PQresultStatus(result) != PGRES_COMMAND_OK) {
     const std::string message = error_text(result, conn_);
     PQclear(result);

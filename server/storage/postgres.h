@@ -52,12 +52,16 @@ class PostgresConnection final : public Connection {
             const std::vector<int>& formats, const std::string& sql);
   /// Ends the pipeline: waits for every answer sent, leaves pipeline mode. @throw StorageError with the first error.
   void finish_pipeline();
+  /// When the connection was lost (the server restarted), connects again before the next statement or transaction.
+  /// @throw StorageError when the server does not answer.
+  void reconnect_if_lost();
 
   pg_conn* conn_ = nullptr;
   std::string schema_;
   std::unordered_map<std::string, std::string> prepared_;  // SQL text -> statement name
   std::int64_t statements_made_ = 0;
   bool pipelining_ = false;
+  bool in_transaction_ = false;
   std::optional<Fence> fence_;
   std::vector<std::string> prepared_in_pipeline_;  // SQL texts
   std::string first_sent_sql_;  // a pipelined statement, for the message of an error the commit meets

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A private PostgreSQL 15 server for one test process: `postgres.sh start DIR` makes a cluster in DIR (an empty
 # directory), starts it on a free loopback port with its socket in DIR, creates the database `worldmodel` with
-# PostGIS, and prints its URI; `postgres.sh stop DIR` stops it. PostgreSQL refuses to run as root: as root, the
+# PostGIS, and prints its URI; `postgres.sh stop DIR` stops it; `postgres.sh restart DIR` restarts it (a database
+# that went away and came back). PostgreSQL refuses to run as root: as root, the
 # cluster belongs to the `postgres` system user (the Debian package makes it). The test command installs the
 # packages (scripts/setup.sh); a missing binary is an error here, never a skipped test.
 set -euo pipefail
@@ -37,5 +38,8 @@ case "$action" in
   stop)
     "${as_owner[@]}" "$bin/pg_ctl" -D "$dir/data" -m immediate -w stop >/dev/null 2>&1 || true
     ;;
-  *) echo "postgres.sh: start|stop" >&2; exit 2 ;;
+  restart)  # every connection is cut; the server comes back on the same port
+    "${as_owner[@]}" "$bin/pg_ctl" -D "$dir/data" -l "$dir/server.log" -m fast -w -t 60 restart >/dev/null
+    ;;
+  *) echo "postgres.sh: start|stop|restart" >&2; exit 2 ;;
 esac

@@ -41,6 +41,11 @@ class PostgresServer {
 
   /// postgresql://wm@127.0.0.1:PORT/worldmodel
   const std::string& uri() const { return uri_; }
+  /// Restarts the server: every open connection is cut. @throw std::runtime_error when it does not come back.
+  void restart() const {
+    const std::string command = script() + " restart " + dir_.path().string();
+    if (std::system(command.c_str()) != 0) throw std::runtime_error("the test PostgreSQL server did not restart");
+  }
 
  private:
   static std::string script() { return std::string(WM_SOURCE_DIR) + "/tests/support/postgres.sh"; }

@@ -330,6 +330,33 @@ TEST_P(StoreTest, RefusesADatabaseFromANewerVersion) {
   }
 }
 
+// A PostgreSQL server that restarts (every connection cut) costs the store at most the commit that found out; the
+// next one connects again, and nothing half-written is left.
+TEST(PostgresStoreTest, AStoreConnectsAgainAfterTheDatabaseRestarted) {
+  StoreOptions options;
+  options.path = testing::postgres().uri();
+  options.postgres_schema = "restarted";
+  Store store(options);
+  const auto first = add_element(world::WorldState{}, 1);
+  store.commit_observation(first, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
+  testing::postgres().restart();
+  const auto second = add_element(first.state, 2);
+  int failed = 0;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    try {
+      store.commit_observation(second, world::Observation{"r", "client", "unknown", 0, 0, {}}, "{}");
+      break;
+    } catch (const StorageError&) {
+      ++failed;  // the commit that found the connection gone
+    }
+  }
+  EXPECT_LE(failed, 1);
+  const auto state = store.load(world::WorldOptions{});
+  EXPECT_EQ(state.elements.size(), 2u);
+  EXPECT_EQ(state.last_observation_seq, 2);
+  EXPECT_EQ(store.decisions(0, 10).size(), 2u);
+}
+
 INSTANTIATE_TEST_SUITE_P(Engines, StoreTest, ::testing::Values(Engine::sqlite, Engine::postgresql),
                          [](const auto& info) { return info.param == Engine::sqlite ? "sqlite" : "postgresql"; });
 
