@@ -47,5 +47,26 @@ TEST(ServerConfigTest, TheReadmeSynopsisNamesEveryFlagOfTheUsage) {
   }
 }
 
+// --store takes a PostgreSQL URI, never with a password in it (the command line is readable by other users), and
+// --store-schema a name the store can put into SQL; --db stays a file.
+TEST(ServerConfigTest, AStoreUriWithAPasswordOrABadSchemaIsRefused) {
+  const std::filesystem::path rules = std::string(WM_SOURCE_DIR) + "/rules/prolog";
+  const auto parse = [&](std::vector<std::string> args) { return config::parse_command_line(args, rules); };
+  auto c = parse({"--store", "postgresql://wm@db.example:5432/site", "--store-schema", "floor-1"});
+  EXPECT_EQ(c.store.path, "postgresql://wm@db.example:5432/site");
+  EXPECT_EQ(c.store.postgres_schema, "floor-1");
+  EXPECT_EQ(parse({"--db", "a.db"}).store.path, "a.db");
+  for (const std::string uri :
+       {"postgresql://wm:secret@db.example/site", "postgres://wm:@db/site",
+        "postgresql://db.example/site?sslmode=require&password=secret", "postgresql://db.example/site?password=secret"})
+    EXPECT_THROW(parse({"--store", uri}), config::ConfigError) << uri;
+  // A colon after the host (its port) is not a password.
+  EXPECT_NO_THROW(parse({"--store", "postgresql://wm@db.example:5432/site?application_name=wmd"}));
+  for (const std::string& schema :
+       std::vector<std::string>{"", "Floor", "1floor", "a;drop", "a b", "x\"y", std::string(64, 'a')})
+    EXPECT_THROW(parse({"--store", "postgresql://wm@db/site", "--store-schema", schema}), config::ConfigError)
+        << schema;
+}
+
 }  // namespace
 }  // namespace wm::testing
