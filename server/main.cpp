@@ -70,6 +70,17 @@ int main(int argc, char** argv) {
   // What the parts below report as they run: echoed to stderr as before, and counted in GET /api/v1/health.
   common::Diagnostics diagnostics("wmd: ");
   try {
+    // On PostgreSQL every map is written under its lease (one node writes a map at a time); the keeper outlives the
+    // stores, and gives the leases back at a clean stop.
+    std::unique_ptr<storage::LeaseKeeper> leases;
+    if (storage::is_postgres_uri(cfg.store.path)) {
+      leases = std::make_unique<storage::LeaseKeeper>(
+          cfg.store.path, cfg.node_id, cfg.lease_ttl, [&diagnostics](const std::string& map, const std::string& why) {
+            diagnostics.report(common::Severity::error, "leases",
+                               "lost the lease of map schema '" + map + "': " + why + "; its writes are refused");
+          });
+      cfg.store.fence = leases->take(cfg.store.postgres_schema);
+    }
     storage::Store store(cfg.store);
     auto default_rules = cfg.rules;
     default_rules.map_rules_dir = service::map_rules_dir(cfg.rules.rules_dir, service::kDefaultMapId);
@@ -83,7 +94,9 @@ int main(int argc, char** argv) {
       world.load_floor_plan(std::move(plan));
     }
     // The other maps, each with its own store, knowledge base and writer (GET /api/v1/maps).
-    service::MapRegistry maps({cfg.maps_dir, cfg.store, cfg.rules, cfg.service}, diagnostics);
+    auto map_store = cfg.store;
+    map_store.fence.reset();  // each map has its own lease
+    service::MapRegistry maps({cfg.maps_dir, map_store, cfg.rules, cfg.service, leases.get()}, diagnostics);
     api::Services services{cfg.api, world};
     services.diagnostics = &diagnostics;
     services.maps = &maps;
@@ -138,7 +151,10 @@ int main(int argc, char** argv) {
                 << " (--insecure-no-token): anyone who reaches the port can change the map\n";
     const auto other_maps = maps.ids();
     const bool postgres = storage::is_postgres_uri(cfg.store.path);
-    std::cout << "wmd: database " << (postgres ? "postgresql schema " + cfg.store.postgres_schema : cfg.store.path)
+    std::cout << "wmd: database "
+              << (postgres ? "postgresql schema " + cfg.store.postgres_schema + " (node " + cfg.node_id + ", epoch " +
+                                 std::to_string(cfg.store.fence->epoch) + ")"
+                           : cfg.store.path)
               << ", rules " << cfg.rules.rules_dir.string() << "\n"
               << "wmd: " << other_maps.size() << " other map(s) in "
               << (postgres ? std::string("postgresql schemas map_<id>") : cfg.maps_dir.string()) << "\n"

@@ -9,6 +9,7 @@
 #include "server/json/codec_error.h"
 #include "server/service/service_errors.h"
 #include "server/storage/database.h"
+#include "server/storage/leases.h"
 
 namespace wm::api {
 namespace {
@@ -53,6 +54,9 @@ HttpError http_error(const std::exception_ptr& failure) {
     return {400, "bad_request", e.what()};
   } catch (const service::Busy& e) {
     return {503, "busy", e.what()};
+  } catch (const storage::FencedError& e) {
+    // This node no longer holds the map's lease: nothing was written; another node writes the map now.
+    return {503, "lease_lost", e.what()};
   } catch (const storage::StorageError& e) {
     return {503, "storage_error", e.what()};
   } catch (const std::invalid_argument& e) {

@@ -1,5 +1,7 @@
 #include "server/config/server_config.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <boost/asio/ip/address.hpp>
 #include <chrono>
@@ -62,6 +64,9 @@ std::string usage() {
          "                         a SQLite file; the password from PGPASSWORD or a password file (PGPASSFILE,\n"
          "                         ~/.pgpass), never on the command line\n"
          "  --store-schema NAME    the PostgreSQL schema that holds the map (default worldmodel; created if missing)\n"
+         "  --node-id ID           this wmd's name on the leases of the maps it writes in PostgreSQL (default: host\n"
+         "                         name and process id); one node writes a map at a time\n"
+         "  --lease-ttl-ms N       a map's lease runs N ms unless renewed (every N/3; default 3000)\n"
          "  --maps-dir DIR         the other maps (POST /api/v1/maps), one SQLite file each (default: the --db file's\n"
          "                         name + '.maps', beside it; made when the first map is)\n"
          "  --port N               TCP port (default 8080; 0 picks a free one, printed at start)\n"
@@ -165,6 +170,10 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.store.path = value;
     else if (flag == "--store-schema")
       c.store.postgres_schema = value;
+    else if (flag == "--node-id")
+      c.node_id = value;
+    else if (flag == "--lease-ttl-ms")
+      c.lease_ttl = std::chrono::milliseconds(config_number<std::int64_t>(flag, value, 300, 600'000));
     else if (flag == "--maps-dir")
       c.maps_dir = value;
     else if (flag == "--port")
@@ -256,6 +265,15 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     throw ConfigError(
         "--store: the URI carries a password, which other users can read on the command line; give it "
         "in PGPASSWORD or a password file (PGPASSFILE, ~/.pgpass)");
+  if (c.node_id.empty()) {
+    char host[256] = {};
+    ::gethostname(host, sizeof host - 1);
+    c.node_id = std::string(host) + "-" + std::to_string(::getpid());
+  }
+  if (c.node_id.size() > 128 || std::any_of(c.node_id.begin(), c.node_id.end(), [](char ch) {
+        return static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f;
+      }))
+    throw ConfigError("--node-id: at most 128 characters, no control characters");
   if (!storage::is_valid_schema_name(c.store.postgres_schema))
     throw ConfigError("--store-schema: '" + c.store.postgres_schema +
                       "' is not 1-63 of [a-z0-9_-] (a letter or '_' first)");

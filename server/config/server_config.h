@@ -1,5 +1,6 @@
 #pragma once
 
+#include <chrono>
 #include <filesystem>
 #include <optional>
 #include <stdexcept>
@@ -34,6 +35,10 @@ struct ServerConfig {
   std::optional<std::filesystem::path> floor_plan_file;  // loaded at start (demo), replacing the stored plan
   /// The maps besides the default one (the --db file), one SQLite file each; default: "<db>.maps" beside it.
   std::filesystem::path maps_dir;
+  /// PostgreSQL store: this node's name on the maps' leases (default: host name and process id), and the leases'
+  /// time to live (renewed every third of it; a node that stopped loses its maps after it).
+  std::string node_id;
+  std::chrono::milliseconds lease_ttl{3000};
   bool help = false;
   bool print_network = false;
 };

@@ -85,9 +85,10 @@ MapInstance::MapInstance(std::string map_id, const MapRegistryOptions& options, 
     : id(std::move(map_id)),
       store([&] {
         auto store_options = options.store;
-        if (in_postgres(options))
+        if (in_postgres(options)) {
           store_options.postgres_schema = map_schema(id);
-        else
+          if (options.leases) store_options.fence = options.leases->take(store_options.postgres_schema);
+        } else
           store_options.path = map_file(options.data_dir, id).string();
         return store_options;
       }()),
@@ -148,21 +149,23 @@ std::shared_ptr<MapInstance> MapRegistry::open(const std::string& id) {
   const auto knowledge_base = "wm_kb_map" + std::to_string(++knowledge_bases_);
   // The last holder of a removed map takes its files with it, after the store has closed them. The registry may be
   // gone by then: the deleter keeps what it needs.
-  return std::shared_ptr<MapInstance>(new MapInstance(id, options_, knowledge_base, diagnostics_),
-                                      [data_dir = options_.data_dir, store = options_.store](MapInstance* map) {
-                                        const auto removed_as = map->removed_as;
-                                        const auto id = map->id;
-                                        delete map;
-                                        if (removed_as.empty()) return;
-                                        if (storage::is_postgres_uri(store.path)) {
-                                          drop_postgres_map(store, id);
-                                          return;
-                                        }
-                                        for (const auto& file : sqlite_files(map_file(data_dir, id))) {
-                                          std::error_code ignored;
-                                          std::filesystem::remove(removed_file(data_dir, removed_as, file), ignored);
-                                        }
-                                      });
+  return std::shared_ptr<MapInstance>(
+      new MapInstance(id, options_, knowledge_base, diagnostics_),
+      [data_dir = options_.data_dir, store = options_.store, leases = options_.leases](MapInstance* map) {
+        const auto removed_as = map->removed_as;
+        const auto id = map->id;
+        delete map;
+        if (removed_as.empty()) return;
+        if (storage::is_postgres_uri(store.path)) {
+          drop_postgres_map(store, id);
+          if (leases) leases->give_back(map_schema(id));
+          return;
+        }
+        for (const auto& file : sqlite_files(map_file(data_dir, id))) {
+          std::error_code ignored;
+          std::filesystem::remove(removed_file(data_dir, removed_as, file), ignored);
+        }
+      });
 }
 
 std::vector<std::string> MapRegistry::ids() const {

@@ -39,6 +39,8 @@ struct MapRegistryOptions {
   storage::StoreOptions store;  // the path is the map's own
   rules::EngineOptions rules;   // the rules directory is shared; the knowledge base is the map's own
   ServiceOptions service;
+  /// PostgreSQL store: each map's store writes under its lease, taken when the map opens (nullptr: SQLite).
+  storage::LeaseKeeper* leases = nullptr;
 };
 
 /// One map: its store, its knowledge base and its world service, built in that order and gone in the reverse.

@@ -1,5 +1,7 @@
 #include "server/storage/leases.h"
 
+#include <cmath>
+
 #include "server/storage/postgres.h"
 
 namespace wm::storage {
@@ -73,6 +75,90 @@ std::vector<Lease> LeaseTable::leases() {
   std::vector<Lease> result;
   while (s.step()) result.push_back({s.column_text(0), s.column_text(1), s.column_int(2), s.column_double(3)});
   return result;
+}
+
+LeaseKeeper::LeaseKeeper(const std::string& uri, std::string node, std::chrono::milliseconds ttl,
+                         std::function<void(const std::string& map, const std::string& why)> on_lost)
+    : node_(std::move(node)), ttl_(ttl), on_lost_(std::move(on_lost)), table_(uri) {
+  renewer_ = std::thread([this] { renew_loop(); });
+}
+
+LeaseKeeper::~LeaseKeeper() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  renewer_.join();
+  for (const auto& [map, epoch] : held_) {
+    try {
+      table_.release(map, node_, epoch);
+    } catch (const StorageError&) {
+      // It expires by itself.
+    }
+  }
+}
+
+Fence LeaseKeeper::take(const std::string& map) {
+  std::unique_lock lock(mutex_);
+  auto epoch = table_.acquire(map, node_, ttl_);
+  if (!epoch) {
+    // A node that stopped (a crash, a restart of this one) leaves its lease to run out: wait for that once, at most
+    // one lease time. A node alive renews it meanwhile, and the map stays its own.
+    double left_s = 0;
+    for (const auto& lease : table_.leases())
+      if (lease.map == map) left_s = lease.expires_in_s;
+    if (left_s > 0 && left_s <= std::chrono::duration<double>(ttl_).count()) {
+      wake_.wait_for(lock, std::chrono::duration<double>(left_s + 0.05), [this] { return stopping_; });
+      epoch = table_.acquire(map, node_, ttl_);
+    }
+  }
+  if (!epoch) {
+    std::string holder = "another node";
+    for (const auto& lease : table_.leases())
+      if (lease.map == map)
+        holder = "node '" + lease.node + "' (epoch " + std::to_string(lease.epoch) + ") for another " +
+                 std::to_string(static_cast<int>(std::ceil(lease.expires_in_s))) + " s";
+    throw StorageError("map '" + map + "' is held by " + holder + ": one node writes a map at a time");
+  }
+  held_[map] = *epoch;
+  return Fence{map, node_, *epoch};
+}
+
+void LeaseKeeper::give_back(const std::string& map) {
+  std::lock_guard lock(mutex_);
+  const auto found = held_.find(map);
+  if (found == held_.end()) return;
+  try {
+    table_.release(map, node_, found->second);
+  } catch (const StorageError&) {
+    // It expires by itself.
+  }
+  held_.erase(found);
+}
+
+void LeaseKeeper::renew_loop() {
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    wake_.wait_for(lock, ttl_ / 3, [this] { return stopping_; });
+    if (stopping_) break;
+    for (auto it = held_.begin(); it != held_.end();) {
+      bool renewed = true;
+      try {
+        renewed = table_.renew(it->first, node_, it->second, ttl_);
+      } catch (const StorageError&) {
+        // The database did not answer: tried again next time, while the lease still runs (the fence refuses the
+        // map's commits once it has run out).
+      }
+      if (renewed) {
+        ++it;
+        continue;
+      }
+      const auto map = it->first;
+      it = held_.erase(it);
+      if (on_lost_) on_lost_(map, "its lease ran out or another node took it over");
+    }
+  }
 }
 
 }  // namespace wm::storage

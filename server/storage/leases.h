@@ -9,9 +9,15 @@
 // nothing more, and a node taking the lease over waits for a commit already under way. Times are the database
 // server's clock, so the nodes' clocks need not agree.
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "server/storage/database.h"
@@ -56,6 +62,39 @@ class LeaseTable {
 
  private:
   std::unique_ptr<Connection> connection_;
+};
+
+/// The leases one node holds, renewed every third of their time to live by a thread of its own. A lease that cannot
+/// be renewed is lost (the map's store is fenced from then on) and reported to `on_lost`. Thread-safe.
+class LeaseKeeper {
+ public:
+  /// @throw StorageError when the database cannot be reached.
+  LeaseKeeper(const std::string& uri, std::string node, std::chrono::milliseconds ttl,
+              std::function<void(const std::string& map, const std::string& why)> on_lost);
+  /// Gives every lease back.
+  ~LeaseKeeper();
+  LeaseKeeper(const LeaseKeeper&) = delete;
+  LeaseKeeper& operator=(const LeaseKeeper&) = delete;
+
+  /// Takes `map`'s lease: the fence its store writes under. A lease held by another node is waited for once, at most
+  /// its time to live (a node that stopped leaves it to run out). @throw StorageError naming the node that holds it.
+  Fence take(const std::string& map);
+  /// Gives `map`'s lease back (nothing when not held).
+  void give_back(const std::string& map);
+  const std::string& node() const { return node_; }
+
+ private:
+  void renew_loop();
+
+  const std::string node_;
+  const std::chrono::milliseconds ttl_;
+  const std::function<void(const std::string&, const std::string&)> on_lost_;
+  std::mutex mutex_;  // the table's connection and held_
+  LeaseTable table_;
+  std::map<std::string, std::int64_t> held_;  // map -> epoch
+  std::condition_variable wake_;
+  bool stopping_ = false;
+  std::thread renewer_;
 };
 
 /// Makes the lease table and the fence function when missing (idempotent; LeaseTable and a fenced store call it).

@@ -2,6 +2,8 @@
 // GDAL's PostgreSQL driver) read its elements from PostGIS as the API gives them; more maps are schemas of their own,
 // dropped when removed; and a URI with a password, or a database that does not answer, is refused at start with a
 // clear message.
+#include <signal.h>
+
 #include <chrono>
 #include <regex>
 #include <set>
@@ -127,6 +129,57 @@ TEST_F(PostgresStoreTest, AMapRemovedBeforeACrashIsDroppedAtTheNextStart) {
   start();
   EXPECT_EQ(call("GET", "/api/v1/maps/gone/elements").status, 404);
   EXPECT_EQ(query("SELECT COUNT(*) FROM pg_namespace WHERE nspname = 'map_gone'"), "0");
+}
+
+// One node writes a map at a time: a second wmd on the same map is refused while the first holds its lease; after
+// a clean stop it starts at once, after a kill -9 once the lease ran out (it waits), with the next epoch; and a node
+// stopped (SIGSTOP) past its lease and resumed commits nothing: its writes are answered 503 lease_lost.
+TEST_F(PostgresStoreTest, OneNodeWritesAMapAtATimeAndAPausedOwnerCommitsNothing) {
+  ASSERT_EQ(server_->stop(), 0);
+  const std::vector<std::string> common{"--port",         "0",     "--rules",        rules_dir_, "--store", uri_,
+                                        "--store-schema", schema_, "--lease-ttl-ms", "900"};
+  auto with = [&](std::vector<std::string> more) {
+    more.insert(more.begin(), common.begin(), common.end());
+    return more;
+  };
+  auto a = std::make_unique<WmdProcess>(with({"--node-id", "node-a"}));
+  const std::string second = std::string(WM_WMD_PATH) + " --port 0 --rules " + rules_dir_ + " --store " + uri_ +
+                             " --store-schema " + schema_ + " --node-id node-b";
+  const auto refused = run_command(second);  // after waiting one lease time for it, in vain: a renews it
+  EXPECT_EQ(refused.status, 1) << refused.output;
+  EXPECT_NE(refused.output.find("held by node 'node-a'"), std::string::npos) << refused.output;
+  ASSERT_EQ(a->stop(), 0);
+  // Released at a clean stop: b starts at once.
+  auto b = std::make_unique<WmdProcess>(with({"--node-id", "node-b"}));
+  EXPECT_NE(b->output().find("node node-b, epoch"), std::string::npos) << b->output();
+  b->crash();
+  a = std::make_unique<WmdProcess>(with({"--node-id", "node-a"}));  // waits for b's lease to run out
+  // Epochs: the fixture's own wmd 1, a 2, b 3, a again 4.
+  EXPECT_NE(a->output().find("node node-a, epoch 4"), std::string::npos) << a->output();
+  client::HttpClient to_a(a->url());
+  EXPECT_EQ(to_a.request("POST", "/api/v1/primitives",
+                         json{{"observer", "a"}, {"segments", {segment(0, 0, 3, 0)}}}.dump(), "application/json")
+                .status,
+            200);
+  // a is paused past its lease; b takes the map over and writes; a, resumed, commits nothing.
+  ::kill(a->pid(), SIGSTOP);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+  b = std::make_unique<WmdProcess>(with({"--node-id", "node-b"}));
+  client::HttpClient to_b(b->url());
+  EXPECT_EQ(to_b.request("POST", "/api/v1/primitives",
+                         json{{"observer", "b"}, {"segments", {segment(0, 5, 3, 5)}}}.dump(), "application/json")
+                .status,
+            200);
+  ::kill(a->pid(), SIGCONT);
+  const auto late =
+      to_a.request("POST", "/api/v1/primitives", json{{"observer", "a"}, {"segments", {segment(0, 9, 3, 9)}}}.dump(),
+                   "application/json");
+  EXPECT_EQ(late.status, 503) << late.body;
+  EXPECT_NE(late.body.find("lease_lost"), std::string::npos) << late.body;
+  EXPECT_EQ(query("SELECT COUNT(*) FROM " + schema_ + ".elements"), "2");
+  EXPECT_EQ(query("SELECT COUNT(*) FROM " + schema_ + ".observations WHERE observer = 'a'"), "1");
+  EXPECT_EQ(to_b.request("GET", "/api/v1/elements").status, 200);
+  a->crash();
 }
 
 TEST(PostgresStoreStartTest, APasswordOnTheCommandLineOrADatabaseThatDoesNotAnswerIsRefusedClearly) {

@@ -63,6 +63,7 @@ class WmdProcess {
   int port() const { return port_; }
   std::string url() const { return "http://127.0.0.1:" + std::to_string(port_); }
   const std::string& output() const { return output_; }
+  pid_t pid() const { return pid_; }
 
   /// SIGTERM and wait; returns the exit status (or -1 when not running).
   int stop() { return stop_with(SIGTERM); }
