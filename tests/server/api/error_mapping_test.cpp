@@ -8,6 +8,7 @@
 #include "server/json/codec_error.h"
 #include "server/service/service_errors.h"
 #include "server/storage/database.h"
+#include "server/storage/leases.h"
 
 namespace wm::api {
 namespace {
@@ -38,6 +39,7 @@ TEST(ErrorMappingTest, EveryModulesErrorHasItsStatusAndCode) {
       {mapped(service::RequestIdConflict("x")), 409, "request_id_conflict"},
       {mapped(service::Busy("x")), 503, "busy"},
       {mapped(storage::StorageError("x")), 503, "storage_error"},
+      {mapped(storage::FencedError("x")), 503, "lease_lost"},
       {mapped(std::invalid_argument("x")), 422, "rejected"},
       {mapped(std::runtime_error("x")), 500, "internal_error"},
       {http_error(std::make_exception_ptr(42)), 500, "internal_error"},
