@@ -35,6 +35,29 @@ bool in_postgres(const MapRegistryOptions& options) { return storage::is_postgre
 
 std::string map_schema(const std::string& id) { return std::string(kMapSchemaPrefix) + id; }
 
+// The maps in the data directory: its files <id>.db, sorted. What an interrupted removal left is removed.
+std::vector<std::string> sqlite_maps(const MapRegistryOptions& options, common::Diagnostics& diagnostics) {
+  std::vector<std::string> found;
+  if (!std::filesystem::exists(options.data_dir)) return found;
+  for (const auto& entry : std::filesystem::directory_iterator(options.data_dir)) {
+    const auto name = entry.path().filename().string();
+    if (name.starts_with(kRemovedPrefix)) {
+      std::error_code ignored;
+      std::filesystem::remove(entry.path(), ignored);  // a removal interrupted after its rename
+      continue;
+    }
+    if (!entry.is_regular_file() || !name.ends_with(kMapSuffix)) continue;
+    const auto id = name.substr(0, name.size() - kMapSuffix.size());
+    if (id == kDefaultMapId)
+      diagnostics.report(common::Severity::warning, "maps",
+                         "'" + entry.path().string() + "' not opened: the default map is the --db file");
+    else if (valid_map_id(id))
+      found.push_back(id);
+  }
+  std::sort(found.begin(), found.end());
+  return found;
+}
+
 // The maps in a PostgreSQL database: its schemas named map_<id>. One a removal marked (and a crash kept from going)
 // is dropped now.
 std::vector<std::string> postgres_maps(const MapRegistryOptions& options, common::Diagnostics& diagnostics) {
@@ -104,42 +127,14 @@ MapInstance::~MapInstance() = default;
 
 MapRegistry::MapRegistry(MapRegistryOptions options, common::Diagnostics& diagnostics)
     : options_(std::move(options)), diagnostics_(diagnostics) {
-  std::vector<std::string> found;
-  if (in_postgres(options_)) {
-    found = postgres_maps(options_, diagnostics_);
-    std::lock_guard lock(mutex_);
-    for (const auto& id : found) {
-      try {
-        maps_.emplace(id, open(id));
-      } catch (const std::exception& e) {
-        diagnostics_.report(common::Severity::error, "maps", "map '" + id + "' not opened: " + e.what());
-      }
-    }
-    return;
-  }
-  if (!std::filesystem::exists(options_.data_dir)) return;
-  for (const auto& entry : std::filesystem::directory_iterator(options_.data_dir)) {
-    const auto name = entry.path().filename().string();
-    if (name.starts_with(kRemovedPrefix)) {
-      std::error_code ignored;
-      std::filesystem::remove(entry.path(), ignored);  // a removal interrupted after its rename
-      continue;
-    }
-    if (!entry.is_regular_file() || !name.ends_with(kMapSuffix)) continue;
-    const auto id = name.substr(0, name.size() - kMapSuffix.size());
-    if (id == kDefaultMapId)
-      diagnostics_.report(common::Severity::warning, "maps",
-                          "'" + entry.path().string() + "' not opened: the default map is the --db file");
-    else if (valid_map_id(id))
-      found.push_back(id);
-  }
-  std::sort(found.begin(), found.end());
+  const auto found =
+      in_postgres(options_) ? postgres_maps(options_, diagnostics_) : sqlite_maps(options_, diagnostics_);
   std::lock_guard lock(mutex_);
   for (const auto& id : found) {
     try {
       maps_.emplace(id, open(id));
     } catch (const std::exception& e) {
-      // One map that does not open (a damaged file) leaves the others serving; its file stays for a person to look at.
+      // One map that does not open (a damaged file) leaves the others serving; its data stays for a person to look at.
       diagnostics_.report(common::Severity::error, "maps", "map '" + id + "' not opened: " + e.what());
     }
   }
