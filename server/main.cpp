@@ -1,7 +1,9 @@
 // wmd: the world-model server. Builds the object graph (store → knowledge base → world service → HTTP)
 // and passes references down; nothing global.
 #include <pthread.h>
+#include <unistd.h>
 
+#include <atomic>
 #include <boost/asio/ip/address.hpp>
 #include <csignal>
 #include <fstream>
@@ -16,7 +18,9 @@
 #include "server/config/server_config.h"
 #include "server/foxglove/bridge.h"
 #include "server/foxglove/map_bridges.h"
+#include "server/http/forward_client.h"
 #include "server/http/http_server.h"
+#include "server/service/cluster_member.h"
 #include "server/service/map_registry.h"
 #include "server/service/world_service.h"
 #include "server/shm/shared_map_export.h"
@@ -73,11 +77,16 @@ int main(int argc, char** argv) {
     // On PostgreSQL every map is written under its lease (one node writes a map at a time); the keeper outlives the
     // stores, and gives the leases back at a clean stop.
     std::unique_ptr<storage::LeaseKeeper> leases;
+    // A node of a cluster closes a map whose lease it lost (set while the member lives).
+    std::atomic<service::ClusterMember*> cluster_member = nullptr;
+    const bool in_cluster = !cfg.cluster_id.empty();
     if (storage::is_postgres_uri(cfg.store.path)) {
       leases = std::make_unique<storage::LeaseKeeper>(
-          cfg.store.path, cfg.node_id, cfg.lease_ttl, [&diagnostics](const std::string& map, const std::string& why) {
+          cfg.store.path, cfg.node_id, cfg.lease_ttl,
+          [&diagnostics, &cluster_member](const std::string& map, const std::string& why) {
             diagnostics.report(common::Severity::error, "leases",
                                "lost the lease of map schema '" + map + "': " + why + "; its writes are refused");
+            if (auto* member = cluster_member.load()) member->lease_lost(map);
           });
       cfg.store.fence = leases->take(cfg.store.postgres_schema);
     }
@@ -96,10 +105,28 @@ int main(int argc, char** argv) {
     // The other maps, each with its own store, knowledge base and writer (GET /api/v1/maps).
     auto map_store = cfg.store;
     map_store.fence.reset();  // each map has its own lease
-    service::MapRegistry maps({cfg.maps_dir, map_store, cfg.rules, cfg.service, leases.get()}, diagnostics);
+    service::MapRegistry maps({cfg.maps_dir, map_store, cfg.rules, cfg.service, leases.get(), in_cluster}, diagnostics);
+    // A cluster's node: takes maps over as nodes die (after the registry, which it fills; gone before it).
+    std::optional<service::ClusterMember> cluster;
+    std::optional<api::ClusterRouting> routing;
+    if (in_cluster) {
+      cluster.emplace(service::ClusterOptions{cfg.cluster_id, cfg.node_id, cfg.store.path, cfg.lease_ttl}, maps,
+                      *leases, diagnostics);
+      routing.emplace(
+          api::ClusterRouting{&*cluster, cfg.cluster_token,
+                              [timeout = std::chrono::milliseconds(cfg.http.read_timeout)](
+                                  const api::Request& request, const std::string& url) -> std::optional<api::Response> {
+                                try {
+                                  return http::forward_request(request, url, timeout);
+                                } catch (const http::ForwardError&) {
+                                  return std::nullopt;
+                                }
+                              }});
+    }
     api::Services services{cfg.api, world};
     services.diagnostics = &diagnostics;
     services.maps = &maps;
+    if (routing) services.cluster = &*routing;
     // The other maps' shared-memory exports, each made when its map is first used (after `maps`: gone before it).
     std::optional<api::MapExports> map_exports;
     if (cfg.shm.enabled) services.map_exports = &map_exports.emplace(cfg.shm, diagnostics);
@@ -139,8 +166,28 @@ int main(int argc, char** argv) {
           if (const auto map = api::foxglove_map(r)) return map_bridges.connect(*map);
           return foxglove_bridge.connect();
         },
-        [&services](const api::Request& r) { return api::map_events_hub(r, services); }};
+        [&services](const api::Request& r) { return api::map_events_hub(r, services); },
+        [&services](const api::Request& r) { return api::map_events_elsewhere(r, services); }};
     http::HttpServer server(cfg.http, std::move(handlers), diagnostics, &events);
+    if (cluster) {
+      // Joins once it can be reached: the first round takes maps nobody serves.
+      auto url = cfg.advertise_url;
+      if (url.empty()) {
+        const auto bind = boost::asio::ip::make_address(cfg.http.bind_address);
+        std::string host = bind.is_v6() ? "[" + bind.to_string() + "]" : bind.to_string();
+        if (bind.is_unspecified()) {
+          char name[256] = {};
+          ::gethostname(name, sizeof name - 1);
+          host = name;
+        }
+        url = "http://" + host + ":" + std::to_string(server.port());
+      }
+      while (!url.empty() && url.back() == '/') url.pop_back();
+      cluster_member = &*cluster;
+      cluster->start(url);
+      std::cout << "wmd: cluster " << cfg.cluster_id << ", node " << cfg.node_id << " at " << url << " serves "
+                << maps.ids().size() << " of " << maps.stored_ids().size() << " map(s)\n";
+    }
     std::thread signal_waiter([&server, signals] {
       int signal = 0;
       sigwait(&signals, &signal);
@@ -162,6 +209,8 @@ int main(int argc, char** argv) {
     server.run();
     pthread_kill(signal_waiter.native_handle(), SIGTERM);  // wakes the waiter when run() ended otherwise
     signal_waiter.join();
+    cluster_member = nullptr;
+    cluster.reset();  // leaves the cluster: stops taking maps over
     std::cout << "wmd: stopped" << std::endl;
     return 0;
   } catch (const std::exception& e) {

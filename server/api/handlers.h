@@ -13,6 +13,7 @@
 #include "server/api/http_types.h"
 #include "server/api/map_cache.h"
 #include "server/api/request.h"
+#include "server/service/cluster_member.h"
 #include "server/service/map_registry.h"
 #include "server/service/world_port.h"
 #include "server/shm/shared_map_export.h"
@@ -36,6 +37,7 @@ struct Call {
   bool map_scoped = false;               // the path named the map (/api/v1/maps/{map}/...), rather than today's routes
   service::MapRegistry* maps = nullptr;  // the server's other maps; nullptr: it has only the default map
   MapExports* map_exports = nullptr;     // their shared-memory exports; nullptr: none (--no-shm)
+  service::ClusterMember* cluster = nullptr;  // this node of a cluster; nullptr: no cluster
 };
 
 using Handler = Response (*)(const Call&);
@@ -49,6 +51,8 @@ Response get_health(const Call& call);
 Response get_network(const Call& call);
 Response get_index(const Call& call);  // GET /api/v1: the route table as JSON
 Response get_root(const Call& call);   // GET /: the viewer's index.html when served, else the index
+// handlers/cluster.cpp
+Response get_cluster(const Call& call);  // GET /api/v1/cluster: nodes, leases, epochs
 // handlers/floorplan.cpp
 Response get_floor_plan(const Call& call);
 Response put_floor_plan(const Call& call);

@@ -57,6 +57,66 @@ MapContext map_context(const std::optional<std::string>& path_id, Services& serv
   return context;
 }
 
+constexpr const char* kForwardedBy = "X-WM-Forwarded-By";
+constexpr const char* kClusterToken = "X-WM-Cluster-Token";
+
+// Compared in a time that does not depend on where the texts differ.
+bool same_secret(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  unsigned char differ = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) differ |= static_cast<unsigned char>(a[i] ^ b[i]);
+  return differ == 0;
+}
+
+// The map a request names that this node of a cluster may have to pass on: a map's own route, or the map itself
+// (GET/DELETE /api/v1/maps/{map}). nullopt: the default map, a server-wide route, or no cluster.
+std::optional<std::string> clustered_map(const std::optional<std::string>& path_id, const RouteMatch& match,
+                                         const Services& services) {
+  if (!services.cluster) return std::nullopt;
+  auto id = path_id;
+  if (!id && match.route->pattern == "/api/v1/maps/{map}") id = match.param;
+  if (!id || *id == service::kDefaultMapId || !service::valid_map_id(*id)) return std::nullopt;
+  return id;
+}
+
+// The answer for a map of the cluster that another node serves: that node's, the request passed on as it came. A
+// request another node passed on is never passed on again (503 map_moved: the client asks again). nullopt: this node
+// serves the map, or no node has it (404 as without a cluster).
+std::optional<Response> answer_elsewhere(const Request& request, const std::string& id, Services& services) {
+  if (services.maps && services.maps->find(id)) return std::nullopt;
+  auto& cluster = *services.cluster;
+  const auto forwarded_by = request.find(kForwardedBy);
+  if (forwarded_by != request.end()) {
+    const auto token = request.find(kClusterToken);
+    if (token == request.end() ||
+        !same_secret(std::string_view(token->value().data(), token->value().size()), cluster.token))
+      throw ApiError(403, "forbidden", "a request passed on by another node needs the cluster's token");
+    throw ApiError(503, "map_moved", "map '" + id + "' is not served by this node (any more): ask again");
+  }
+  std::optional<service::MapOwner> owner;
+  try {
+    owner = cluster.member->owner_of(id);
+  } catch (const std::exception& e) {
+    throw ApiError(503, "store_unavailable", std::string("the cluster's database does not answer: ") + e.what());
+  }
+  if (!owner) {
+    if (!cluster.member->has_map(id)) return std::nullopt;
+    throw ApiError(503, "map_unavailable",
+                   "map '" + id + "' waits for a node to take it over (its node stopped): ask again in a second");
+  }
+  if (owner->node == cluster.member->options().node_id || owner->url.empty())
+    throw ApiError(503, "map_unavailable", "map '" + id + "' is being opened: ask again in a second");
+  Request passed = request;
+  passed.set(kForwardedBy, cluster.member->options().node_id);
+  passed.set(kClusterToken, cluster.token);
+  auto answer = cluster.forward(passed, owner->url);
+  if (!answer)
+    throw ApiError(503, "map_unavailable",
+                   "the node serving map '" + id + "' (" + owner->url + ") did not answer: ask again in a second");
+  answer->keep_alive(request.keep_alive());
+  return answer;
+}
+
 Call call_of(const Request& request, const Target& target, const RouteMatch& match, const Services& services,
              const MapContext& map) {
   Call call{request,
@@ -71,6 +131,7 @@ Call call_of(const Request& request, const Target& target, const RouteMatch& mat
   call.map_scoped = map.scoped;
   call.maps = services.maps;
   call.map_exports = services.map_exports;
+  call.cluster = services.cluster ? services.cluster->member : nullptr;
   return call;
 }
 
@@ -92,6 +153,8 @@ Response dispatch(const Request& request, Services& services) {
   const Target target = parse_target(target_of(request));
   if (const auto found = route_of(request.method(), target.path)) {
     const auto& [map_id, match] = *found;
+    if (const auto clustered = clustered_map(map_id, match, services))
+      if (auto answer = answer_elsewhere(request, *clustered, services)) return std::move(*answer);
     const auto map = map_context(map_id, services);
     return match.route->handler(call_of(request, target, match, services, map));
   }
@@ -124,6 +187,7 @@ std::optional<Response> authorize_events(const Request& request, Services& servi
   if (auto refusal = authorize_upgrade(request, services.options)) return refusal;
   const auto raw = target_of(request);
   if (const auto scoped = split_map_path(raw.substr(0, raw.find('?')))) {
+    if (map_events_elsewhere(request, services)) return std::nullopt;  // told where the map is, then closed
     try {
       map_context(scoped->map, services);
     } catch (...) {
@@ -148,6 +212,24 @@ std::optional<Response> authorize_events(const Request& request, Services& servi
                             " speaks the WebSocket subprotocol " + std::string(protocol) +
                             ": offer it in 'Sec-WebSocket-Protocol: " + std::string(protocol) +
                             "' (Foxglove Studio does)");
+}
+
+std::optional<std::string> map_events_elsewhere(const Request& request, Services& services) {
+  if (!services.cluster || !services.maps) return std::nullopt;
+  const auto raw = target_of(request);
+  const auto scoped = split_map_path(raw.substr(0, raw.find('?')));
+  if (!scoped || !service::valid_map_id(scoped->map) || scoped->map == service::kDefaultMapId ||
+      services.maps->find(scoped->map))
+    return std::nullopt;
+  try {
+    const auto owner = services.cluster->member->owner_of(scoped->map);
+    if (!owner && !services.cluster->member->has_map(scoped->map)) return std::nullopt;  // 404 as without a cluster
+    const bool here = owner && owner->node == services.cluster->member->options().node_id;
+    return nlohmann::json{{"type", "map_moved"}, {"map", scoped->map}, {"owner", owner && !here ? owner->url : ""}}
+        .dump();
+  } catch (...) {
+    return std::nullopt;
+  }
 }
 
 std::shared_ptr<events::EventHub> map_events_hub(const Request& request, Services& services) {
@@ -179,6 +261,9 @@ std::optional<SharedResponse> answer_at_once(const Request& request, Services& s
   const auto found = route_of(request.method(), raw.substr(0, raw.find('?')));
   if (!found || !found->second.route->at_once) return std::nullopt;  // the common case: one lookup, nothing else
   const auto& [map_id, match] = *found;
+  // A map of the cluster another node serves is passed on from a handler lane.
+  if (const auto clustered = clustered_map(map_id, match, services))
+    if (!services.maps || !services.maps->find(*clustered)) return std::nullopt;
   // A path with escapes may decode to another route (or another placeholder's text): that one goes to its lane,
   // where the decoded path is looked up. Without them the decoded path is the raw one, and `match` stands.
   if (raw.substr(0, raw.find('?')).find_first_of("%+") != std::string_view::npos) return std::nullopt;

@@ -1,8 +1,10 @@
 #pragma once
 
 // The api's entry points for the transport: answer a request, say where it runs, decide a WebSocket upgrade.
+#include <functional>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include "common/diagnostics.h"
 #include "server/api/api_options.h"
@@ -10,10 +12,22 @@
 #include "server/api/map_cache.h"
 #include "server/api/map_scope.h"
 #include "server/api/response.h"
+#include "server/service/cluster_member.h"
 #include "server/service/world_port.h"
 #include "server/shm/shared_map_export.h"
 
 namespace wm::api {
+
+/// What a node of a cluster needs to answer for maps another node serves: who serves them, and a way to pass a request
+/// on to that node. A request passed on carries this node's id (X-WM-Forwarded-By) and the cluster's token
+/// (X-WM-Cluster-Token); a node that is passed a request for a map it does not serve answers 503 map_moved and never
+/// passes it on again.
+struct ClusterRouting {
+  service::ClusterMember* member = nullptr;
+  std::string token;  // node to node; never empty in a cluster
+  /// The other node's answer as it came; nullopt when no whole answer came (refused, reset, timed out).
+  std::function<std::optional<Response>(const Request&, const std::string& base_url)> forward;
+};
 
 /// What the handlers work on; built by main and passed down.
 struct Services {
@@ -27,6 +41,8 @@ struct Services {
   std::shared_ptr<MapCaches> map_caches = std::make_shared<MapCaches>();  // the map's bytes, per map of `maps`
   /// The shared-memory exports of `maps`' maps; nullptr when wmd runs with --no-shm.
   MapExports* map_exports = nullptr;
+  /// This node of a cluster, whose maps other nodes serve too; nullptr: no cluster.
+  ClusterRouting* cluster = nullptr;
 };
 
 /// The answer to a request whose route is marked at_once, when it can be given on the calling (I/O) thread without
@@ -45,6 +61,11 @@ bool is_websocket_upgrade(const Request& request);
 /// 401, or 400 subprotocol_required; under /api/v1/maps/{map}/, and for /foxglove?map=ID, also 400 for a bad id, 404
 /// for no such map). Never throws.
 std::optional<Response> authorize_events(const Request& request, Services& services);
+
+/// For the live events of a map another node of the cluster serves: the stream's one message, {"type":"map_moved",
+/// "map", "owner": its URL (empty: being taken over; ask again)}; nullopt when this node serves it or there is no
+/// cluster. Never throws.
+std::optional<std::string> map_events_elsewhere(const Request& request, Services& services);
 
 /// The live events of the map an upgrade names (/api/v1/maps/{map}/events), owned with the map so that they outlive
 /// its deletion while the stream runs; nullptr for the default map's (the server's own hub) or a map there is not

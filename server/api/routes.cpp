@@ -62,6 +62,7 @@ constexpr std::array kRoutes{
     // A map's own resources, "/api/v1/maps/{map}/...", are split off before the table is searched (map_scope.h).
     Route{verb::get, "/api/v1/maps/{map}", get_map_entry, Lane::read},
     Route{verb::delete_, "/api/v1/maps/{map}", delete_map, Lane::write},
+    Route{verb::get, "/api/v1/cluster", get_cluster, Lane::read},
     Route{verb::get, "/api/v1/events", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true},
     // Foxglove's protocol, outside /api/v1: it is versioned by its subprotocol, not by this API's version.
     Route{verb::get, "/foxglove", get_websocket_without_upgrade, Lane::immediate, "?token=TOKEN", true, nullptr,
@@ -166,8 +167,9 @@ std::optional<MapScopedPath> split_map_path(std::string_view path) {
 }
 
 bool is_per_map(const Route& route) {
-  constexpr std::array<std::string_view, 7> server_wide{
-      "/", "/api/v1", "/api/v1/network", "/api/v1/maps", "/api/v1/maps/{map}", "/foxglove", "/web/{path}"};
+  constexpr std::array<std::string_view, 8> server_wide{
+      "/",         "/api/v1",    "/api/v1/network", "/api/v1/maps", "/api/v1/maps/{map}", "/api/v1/cluster",
+      "/foxglove", "/web/{path}"};
   return std::find(server_wide.begin(), server_wide.end(), route.pattern) == server_wide.end();
 }
 

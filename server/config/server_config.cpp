@@ -6,7 +6,10 @@
 #include <boost/asio/ip/address.hpp>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
+#include <optional>
+#include <regex>
 #include <sstream>
 
 #include "common/parse_number.h"
@@ -67,6 +70,13 @@ std::string usage() {
          "  --node-id ID           this wmd's name on the leases of the maps it writes in PostgreSQL (default: host\n"
          "                         name and process id); one node writes a map at a time\n"
          "  --lease-ttl-ms N       a map's lease runs N ms unless renewed (every N/3; default 3000)\n"
+         "  --cluster-id ID        join the cluster ID of wmd nodes sharing the --store database: each map of\n"
+         "                         /api/v1/maps is served by one node, any node answers for it, a dead node's maps\n"
+         "                         are taken over; the node-to-node token from --cluster-token-file or the\n"
+         "                         environment (WM_CLUSTER_TOKEN); the node's own default map in schema\n"
+         "                         node_<node id> unless --store-schema\n"
+         "  --cluster-token-file F the node-to-node token (at least 16 characters), shared by the cluster's nodes\n"
+         "  --advertise URL        where the other nodes reach this one (default http://<bind address>:<port>)\n"
          "  --maps-dir DIR         the other maps (POST /api/v1/maps), one SQLite file each (default: the --db file's\n"
          "                         name + '.maps', beside it; made when the first map is)\n"
          "  --port N               TCP port (default 8080; 0 picks a free one, printed at start)\n"
@@ -128,6 +138,8 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
   c.rules.rules_dir = default_rules_dir;
   bool watch_rules = true;
   bool insecure_no_token = false;
+  bool schema_given = false;
+  std::optional<std::string> token_file;
   std::vector<std::string> extra_hosts;
   for (std::size_t i = 0; i < args.size(); ++i) {
     const std::string& flag = args[i];
@@ -168,8 +180,15 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
     const std::string& value = args[++i];
     if (flag == "--db" || flag == "--store")
       c.store.path = value;
-    else if (flag == "--store-schema")
+    else if (flag == "--store-schema") {
       c.store.postgres_schema = value;
+      schema_given = true;
+    } else if (flag == "--cluster-id")
+      c.cluster_id = value;
+    else if (flag == "--cluster-token-file")
+      token_file = value;
+    else if (flag == "--advertise")
+      c.advertise_url = value;
     else if (flag == "--node-id")
       c.node_id = value;
     else if (flag == "--lease-ttl-ms")
@@ -274,6 +293,39 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
         return static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f;
       }))
     throw ConfigError("--node-id: at most 128 characters, no control characters");
+  if (!c.cluster_id.empty() || token_file || !c.advertise_url.empty()) {
+    if (c.cluster_id.empty()) throw ConfigError("--cluster-token-file and --advertise go with --cluster-id");
+    if (!storage::is_postgres_uri(c.store.path))
+      throw ConfigError("--cluster-id: a cluster's nodes share a PostgreSQL database: give --store postgresql://…");
+    static const std::regex cluster_name("[A-Za-z0-9_.-]{1,64}");
+    if (!std::regex_match(c.cluster_id, cluster_name)) throw ConfigError("--cluster-id: 1-64 of [A-Za-z0-9_.-]");
+    if (token_file) {
+      std::ifstream in(*token_file, std::ios::binary);
+      if (!in) throw ConfigError("--cluster-token-file: cannot read '" + *token_file + "'");
+      std::getline(in, c.cluster_token);
+      while (!c.cluster_token.empty() && (c.cluster_token.back() == '\r' || c.cluster_token.back() == ' '))
+        c.cluster_token.pop_back();
+    } else if (const char* env = std::getenv("WM_CLUSTER_TOKEN")) {
+      c.cluster_token = env;
+    }
+    if (c.cluster_token.size() < 16)
+      throw ConfigError(
+          "--cluster-id: the nodes pass each other requests with a shared token of at least 16 characters: put it "
+          "in a file (--cluster-token-file) or WM_CLUSTER_TOKEN, never on the command line");
+    static const std::regex url_form(R"(http://([^/:]+|\[[^\]]+\]):(\d{1,5})/?)");
+    if (!c.advertise_url.empty() && !std::regex_match(c.advertise_url, url_form))
+      throw ConfigError("--advertise: expected http://HOST:PORT, got '" + c.advertise_url + "'");
+    if (!schema_given) {
+      // Each node's default map is its own: the cluster's maps are those of /api/v1/maps.
+      c.store.postgres_schema = "node_";
+      for (const char ch : c.node_id) {
+        const char lower = ch >= 'A' && ch <= 'Z' ? static_cast<char>(ch - 'A' + 'a') : ch;
+        c.store.postgres_schema +=
+            (lower >= 'a' && lower <= 'z') || (lower >= '0' && lower <= '9') || lower == '-' ? lower : '_';
+      }
+      c.store.postgres_schema.resize(std::min<std::size_t>(c.store.postgres_schema.size(), 63));
+    }
+  }
   if (!storage::is_valid_schema_name(c.store.postgres_schema))
     throw ConfigError("--store-schema: '" + c.store.postgres_schema +
                       "' is not 1-63 of [a-z0-9_-] (a letter or '_' first)");

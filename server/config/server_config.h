@@ -39,6 +39,12 @@ struct ServerConfig {
   /// time to live (renewed every third of it; a node that stopped loses its maps after it).
   std::string node_id;
   std::chrono::milliseconds lease_ttl{3000};
+  /// A node of a cluster (--cluster-id; PostgreSQL only): the cluster's name, the URL the other nodes reach this one
+  /// at (--advertise; default http://<bind address or host name>:<port>), and the node-to-node token (from
+  /// --cluster-token-file or WM_CLUSTER_TOKEN, never the command line). Empty cluster_id: no cluster.
+  std::string cluster_id;
+  std::string advertise_url;
+  std::string cluster_token;
   bool help = false;
   bool print_network = false;
 };

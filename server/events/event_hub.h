@@ -24,6 +24,7 @@ enum class EventKind {
   change,        // a change was accepted, rejected or undone
   resync,        // this subscriber fell behind and lost events: everything is stale
   map_removed,   // the map was deleted: nothing more comes
+  map_moved,     // another node of the cluster serves the map now ("owner": its URL): nothing more comes from here
 };
 
 /// One event as a subscriber gets it: its kind, and its JSON text with "seq" spliced in.

@@ -187,6 +187,12 @@ void Bridge::Core::take_events() {
         for (const auto& client : live_clients()) client->push_last(last);
         break;
       }
+      case events::EventKind::map_moved: {
+        const auto map = info.metadata.find("map");
+        const auto last = map_moved_status(map == info.metadata.end() ? std::string_view() : map->second);
+        for (const auto& client : live_clients()) client->push_last(last);
+        break;
+      }
       case events::EventKind::change:
       case events::EventKind::resync:  // the hub dropped events for us: everything
         elements_dirty_ = plan_dirty_ = decisions_dirty_ = grid_dirty_ = robots_dirty_ = true;
@@ -228,6 +234,12 @@ void Bridge::Core::produce() {
 std::string map_deleted_status(std::string_view map) {
   return status_json(StatusLevel::error, "the map" + (map.empty() ? std::string() : " '" + std::string(map) + "'") +
                                              " was deleted (GET /api/v1/maps lists the maps)");
+}
+
+std::string map_moved_status(std::string_view map) {
+  return status_json(StatusLevel::error, "the map" + (map.empty() ? std::string() : " '" + std::string(map) + "'") +
+                                             " moved to another node of the cluster: connect again (any node "
+                                             "sends you on to its owner; GET /api/v1/maps names it)");
 }
 
 // --- Bridge ---

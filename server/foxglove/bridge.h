@@ -52,6 +52,8 @@ struct BridgeStats {
 /// (scene updates carry only the entities that changed and deletions of those removed).
 /// The last status a client of a deleted map gets (an error naming the map; `map` empty: the server's own).
 std::string map_deleted_status(std::string_view map);
+/// The status a client of a map that moved to another node of the cluster gets last.
+std::string map_moved_status(std::string_view map);
 
 class Bridge {
  public:

@@ -123,8 +123,10 @@ class HandlerPool {
 // One live-events WebSocket: forwards the hub's events in order; reads only to notice the close.
 class EventSession : public std::enable_shared_from_this<EventSession> {
  public:
-  EventSession(tcp::socket&& socket, events::EventHub& hub, std::shared_ptr<events::EventHub> owner = nullptr)
-      : ws_(std::move(socket)), owner_(std::move(owner)), hub_(hub) {}
+  /// `farewell`: sent after the hello, and then the stream closes (a map another node serves: where it is).
+  EventSession(tcp::socket&& socket, events::EventHub& hub, std::shared_ptr<events::EventHub> owner = nullptr,
+               std::string farewell = {})
+      : ws_(std::move(socket)), owner_(std::move(owner)), hub_(hub), farewell_(std::move(farewell)) {}
   ~EventSession() {
     if (subscriber_) hub_.unsubscribe(subscriber_);
   }
@@ -142,6 +144,10 @@ class EventSession : public std::enable_shared_from_this<EventSession> {
       if (auto self = weak.lock()) net::post(self->ws_.get_executor(), [self] { self->pump(); });
     });
     outbox_.push_back(R"({"type":"hello","api":"/api/v1"})");
+    if (!farewell_.empty()) {
+      outbox_.push_back(std::move(farewell_));
+      closing_ = true;
+    }
     write_next();
     read();
   }
@@ -156,11 +162,26 @@ class EventSession : public std::enable_shared_from_this<EventSession> {
 
   void pump() {
     if (writing_ || stopped_) return;
-    for (auto& event : subscriber_->take()) outbox_.push_back(std::move(event.json));
+    if (!closing_) {
+      for (auto& event : subscriber_->take()) {
+        outbox_.push_back(std::move(event.json));
+        // The map moved to another node: its last word, then the stream ends (the client follows "owner").
+        if (event.kind == events::EventKind::map_moved) {
+          closing_ = true;
+          break;
+        }
+      }
+    }
     write_next();
   }
 
   void write_next() {
+    if (outbox_.empty() && closing_ && !stopped_) {
+      stopped_ = true;
+      writing_ = true;
+      return ws_.async_close(websocket::close_reason(websocket::close_code::try_again_later),
+                             [self = shared_from_this()](beast::error_code) { self->stop(); });
+    }
     if (outbox_.empty() || stopped_) {
       writing_ = false;
       return;
@@ -193,8 +214,10 @@ class EventSession : public std::enable_shared_from_this<EventSession> {
   std::shared_ptr<events::EventHub::Subscriber> subscriber_;
   beast::flat_buffer buffer_;
   std::deque<std::string> outbox_;
+  std::string farewell_;
   bool writing_ = false;
   bool stopped_ = false;
+  bool closing_ = false;  // the last message is queued: close once the outbox is empty
 };
 
 // A WebSocket run by an endpoint of the api's choosing (the Foxglove bridge): moves whole messages both ways and
@@ -378,6 +401,14 @@ class Session : public std::enable_shared_from_this<Session> {
       }
       auto endpoint = handlers_.open_websocket ? handlers_.open_websocket(parser_->get()) : nullptr;
       auto map_hub = !endpoint && handlers_.events_hub ? handlers_.events_hub(parser_->get()) : nullptr;
+      auto farewell = !endpoint && !map_hub && handlers_.events_elsewhere ? handlers_.events_elsewhere(parser_->get())
+                                                                          : std::nullopt;
+      if (farewell && hub_) {
+        stream_.expires_never();
+        std::make_shared<EventSession>(stream_.release_socket(), *hub_, nullptr, std::move(*farewell))
+            ->run(parser_->release());
+        return;
+      }
       if (endpoint || map_hub || hub_) {
         stream_.expires_never();
         if (endpoint) {

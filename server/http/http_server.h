@@ -61,6 +61,9 @@ class HttpServer {
     std::function<std::shared_ptr<WebSocketEndpoint>(const api::Request&)> open_websocket;
     /// For the live events of one map of several: its hub, kept while the stream runs; null (or empty): `events`.
     std::function<std::shared_ptr<events::EventHub>(const api::Request&)> events_hub;
+    /// For the live events of a map another node serves: the one message the stream sends after its hello (where the
+    /// map is) before it closes; nullopt (or empty): none.
+    std::function<std::optional<std::string>(const api::Request&)> events_elsewhere;
   };
   /// Binds and listens. WebSocket upgrades that `handlers.is_websocket` accepts run on the endpoint
   /// `handlers.open_websocket` gives, or else subscribe to `events` (when given). What the server recovers from (a

@@ -1,6 +1,7 @@
 #include "server/service/map_registry.h"
 
 #include <algorithm>
+#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <system_error>
 #include <utility>
@@ -33,7 +34,7 @@ std::filesystem::path removed_file(const std::filesystem::path& data_dir, const 
 
 bool in_postgres(const MapRegistryOptions& options) { return storage::is_postgres_uri(options.store.path); }
 
-std::string map_schema(const std::string& id) { return std::string(kMapSchemaPrefix) + id; }
+std::string map_schema(const std::string& id) { return map_schema_name(id); }
 
 // The maps in the data directory: its files <id>.db, sorted. What an interrupted removal left is removed.
 std::vector<std::string> sqlite_maps(const MapRegistryOptions& options, common::Diagnostics& diagnostics) {
@@ -58,25 +59,44 @@ std::vector<std::string> sqlite_maps(const MapRegistryOptions& options, common::
   return found;
 }
 
-// The maps in a PostgreSQL database: its schemas named map_<id>. One a removal marked (and a crash kept from going)
-// is dropped now.
-std::vector<std::string> postgres_maps(const MapRegistryOptions& options, common::Diagnostics& diagnostics) {
-  storage::PostgresConnection catalog(options.store.path, "public", false);
-  std::vector<std::string> found;
-  storage::Statement s(catalog, "SELECT nspname FROM pg_namespace WHERE starts_with(nspname, ?1) ORDER BY nspname");
+struct StoredMap {
+  std::string id;
+  bool removed = false;  // marked by a removal that has not dropped it yet
+};
+
+// The maps in a PostgreSQL database: its schemas named map_<id>, by id, each with its removal mark. A schema whose
+// store has not made its meta table yet (a map being created) counts as a map.
+std::vector<StoredMap> postgres_map_schemas(const std::string& uri) {
+  storage::PostgresConnection catalog(uri, "public", false);
+  std::vector<StoredMap> found;
+  storage::Statement s(catalog,
+                       "SELECT n.nspname, to_regclass(quote_ident(n.nspname) || '.meta') IS NOT NULL "
+                       "FROM pg_namespace n WHERE starts_with(n.nspname, ?1) ORDER BY n.nspname");
   s.bind(1, kMapSchemaPrefix);
   while (s.step()) {
     const auto schema = s.column_text(0);
     const auto id = schema.substr(kMapSchemaPrefix.size());
     if (!valid_map_id(id) || id == kDefaultMapId) continue;
+    found.push_back({id, false});
+    if (s.column_int(1) == 0) continue;
     storage::Statement removed(catalog,
                                "SELECT 1 FROM " + storage::quoted_schema(schema) + ".meta WHERE key = 'removed'");
-    if (removed.step()) {
-      catalog.exec("DROP SCHEMA " + storage::quoted_schema(schema) + " CASCADE");
-      diagnostics.report(common::Severity::info, "maps", "map '" + id + "', removed before a restart, dropped");
+    found.back().removed = removed.step();
+  }
+  return found;
+}
+
+// The maps in a PostgreSQL database. One a removal marked (and a crash kept from going) is dropped now.
+std::vector<std::string> postgres_maps(const MapRegistryOptions& options, common::Diagnostics& diagnostics) {
+  std::vector<std::string> found;
+  for (const auto& map : postgres_map_schemas(options.store.path)) {
+    if (!map.removed) {
+      found.push_back(map.id);
       continue;
     }
-    found.push_back(id);
+    storage::PostgresConnection(options.store.path, "public", false)
+        .exec("DROP SCHEMA " + storage::quoted_schema(std::string(kMapSchemaPrefix) + map.id) + " CASCADE");
+    diagnostics.report(common::Severity::info, "maps", "map '" + map.id + "', removed before a restart, dropped");
   }
   return found;
 }
@@ -97,6 +117,15 @@ std::filesystem::path map_rules_dir(const std::filesystem::path& rules_dir, std:
   return rules_dir / "maps" / std::string(map_id);
 }
 
+std::string map_schema_name(std::string_view id) { return std::string(kMapSchemaPrefix) + std::string(id); }
+
+std::optional<std::string> map_id_of_schema(std::string_view schema) {
+  if (!schema.starts_with(kMapSchemaPrefix)) return std::nullopt;
+  auto id = std::string(schema.substr(kMapSchemaPrefix.size()));
+  if (!valid_map_id(id) || id == kDefaultMapId) return std::nullopt;
+  return id;
+}
+
 bool valid_map_id(std::string_view id) {
   if (id.empty() || id.size() > 32) return false;
   const auto allowed = [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-'; };
@@ -110,7 +139,12 @@ MapInstance::MapInstance(std::string map_id, const MapRegistryOptions& options, 
         auto store_options = options.store;
         if (in_postgres(options)) {
           store_options.postgres_schema = map_schema(id);
-          if (options.leases) store_options.fence = options.leases->take(store_options.postgres_schema);
+          if (options.leases && options.cluster) {
+            store_options.fence = options.leases->try_take(store_options.postgres_schema);
+            if (!store_options.fence) throw storage::StorageError("map '" + id + "' is held by another node");
+          } else if (options.leases) {
+            store_options.fence = options.leases->take(store_options.postgres_schema);
+          }
         } else
           store_options.path = map_file(options.data_dir, id).string();
         return store_options;
@@ -127,6 +161,7 @@ MapInstance::~MapInstance() = default;
 
 MapRegistry::MapRegistry(MapRegistryOptions options, common::Diagnostics& diagnostics)
     : options_(std::move(options)), diagnostics_(diagnostics) {
+  if (options_.cluster) return;  // the cluster gives this node its maps (adopt)
   const auto found =
       in_postgres(options_) ? postgres_maps(options_, diagnostics_) : sqlite_maps(options_, diagnostics_);
   std::lock_guard lock(mutex_);
@@ -181,6 +216,9 @@ std::shared_ptr<MapInstance> MapRegistry::create(const std::string& id) {
   if (id == kDefaultMapId) throw Conflict("the default map always exists");
   std::lock_guard lock(mutex_);
   if (maps_.count(id)) throw Conflict("map '" + id + "' exists");
+  if (options_.cluster)
+    for (const auto& map : postgres_map_schemas(options_.store.path))
+      if (map.id == id) throw Conflict("map '" + id + "' exists (on another node of the cluster)");
   std::filesystem::create_directories(options_.data_dir);
   auto map = open(id);
   maps_.emplace(id, map);
@@ -215,6 +253,51 @@ void MapRegistry::remove(const std::string& id) {
   map->removed_as = removed_as;
   // Those who follow the map's events learn why nothing more comes.
   map->events.publish(events::EventKind::map_removed, R"({"type":"map_removed","map":")" + id + "\"}");
+}
+
+std::vector<std::string> MapRegistry::stored_ids() const {
+  if (!in_postgres(options_)) return ids();
+  std::vector<std::string> found;
+  for (const auto& map : postgres_map_schemas(options_.store.path))
+    if (!map.removed) found.push_back(map.id);
+  return found;
+}
+
+bool MapRegistry::adopt(const std::string& id) {
+  if (!valid_map_id(id) || id == kDefaultMapId) return false;
+  std::lock_guard lock(mutex_);
+  if (maps_.count(id)) return true;
+  maps_.emplace(id, open(id));
+  return true;
+}
+
+void MapRegistry::let_go(const std::string& id, const std::string& owner_url) {
+  std::shared_ptr<MapInstance> map;
+  {
+    std::lock_guard lock(mutex_);
+    const auto found = maps_.find(id);
+    if (found == maps_.end()) return;
+    map = std::move(found->second);
+    maps_.erase(found);
+  }
+  map->events.publish(events::EventKind::map_moved,
+                      nlohmann::json{{"type", "map_moved"}, {"map", id}, {"owner", owner_url}}.dump());
+}
+
+int MapRegistry::sweep_removed() {
+  if (!in_postgres(options_) || !options_.leases) return 0;
+  int dropped = 0;
+  for (const auto& map : postgres_map_schemas(options_.store.path)) {
+    if (!map.removed || find(map.id)) continue;
+    const auto schema = map_schema(map.id);
+    if (!options_.leases->try_take(schema)) continue;  // its holder is alive and drops it itself
+    drop_postgres_map(options_.store, map.id);
+    options_.leases->give_back(schema);
+    diagnostics_.report(common::Severity::info, "maps",
+                        "map '" + map.id + "', removed by a node that stopped, dropped");
+    ++dropped;
+  }
+  return dropped;
 }
 
 }  // namespace wm::service

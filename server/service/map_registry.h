@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -29,6 +30,11 @@ inline constexpr std::string_view kMapIdRule =
 /// `<rules_dir>/maps/<id>`.
 std::filesystem::path map_rules_dir(const std::filesystem::path& rules_dir, std::string_view map_id);
 
+/// The PostgreSQL schema of map `id` (and the name of its lease): map_<id>.
+std::string map_schema_name(std::string_view id);
+/// The map id of a schema map_schema_name made; nullopt for any other schema (a node's default map).
+std::optional<std::string> map_id_of_schema(std::string_view schema);
+
 /// Whether `id` may name a map: 1–32 of [a-z0-9_-], starting with a letter or a digit (it goes into URLs and file
 /// names as it is).
 bool valid_map_id(std::string_view id);
@@ -41,6 +47,9 @@ struct MapRegistryOptions {
   ServiceOptions service;
   /// PostgreSQL store: each map's store writes under its lease, taken when the map opens (nullptr: SQLite).
   storage::LeaseKeeper* leases = nullptr;
+  /// A node of a cluster (PostgreSQL): no map is opened at start, a map is opened by adopt() when the cluster gives
+  /// it to this node, and its lease is taken without waiting (another node's live lease: not opened).
+  bool cluster = false;
 };
 
 /// One map: its store, its knowledge base and its world service, built in that order and gone in the reverse.
@@ -83,6 +92,20 @@ class MapRegistry {
   /// behind (the next start removes them); they go when the last request that holds the map ends (such a request
   /// came before the removal and ends as it would have). @throw NotFound.
   void remove(const std::string& id);
+
+  /// Every map the store holds, open here or not, sorted (a cluster's maps; on SQLite the open ones). Removed maps are
+  /// not listed. @throw storage::StorageError when the database does not answer.
+  std::vector<std::string> stored_ids() const;
+  /// Opens map `id` here (a cluster gave it to this node); true when it is open here now. @throw
+  /// storage::StorageError when its lease is another node's or it does not open.
+  bool adopt(const std::string& id);
+  /// Closes map `id` here: it moved to another node (`owner_url`, empty when not known yet). Who follows its events is
+  /// told (map_moved) and then the stream ends; a request that holds it ends against it, and its store refuses to
+  /// commit once the lease is another's. Nothing when it is not open here.
+  void let_go(const std::string& id, const std::string& owner_url);
+  /// Drops the maps a removal marked whose holder died before it could drop them (their leases are free), each under
+  /// its lease. Returns how many. PostgreSQL only.
+  int sweep_removed();
 
  private:
   std::shared_ptr<MapInstance> open(const std::string& id);

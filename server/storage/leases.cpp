@@ -14,6 +14,8 @@ SELECT pg_advisory_xact_lock(7461001);
 CREATE SCHEMA IF NOT EXISTS wm_cluster;
 CREATE TABLE IF NOT EXISTS wm_cluster.leases(map TEXT PRIMARY KEY, node TEXT NOT NULL, epoch BIGINT NOT NULL,
                                              expires_at TIMESTAMPTZ NOT NULL);
+CREATE TABLE IF NOT EXISTS wm_cluster.nodes(node TEXT PRIMARY KEY, cluster TEXT NOT NULL, url TEXT NOT NULL,
+                                            joined_at TIMESTAMPTZ NOT NULL, heartbeat_at TIMESTAMPTZ NOT NULL);
 CREATE OR REPLACE FUNCTION wm_cluster.fence(m TEXT, n TEXT, e BIGINT) RETURNS void AS $fence$
 DECLARE
   held RECORD;
@@ -28,6 +30,40 @@ END
 $fence$ LANGUAGE plpgsql;
 COMMIT;
 )sql");
+}
+
+NodeTable::NodeTable(const std::string& uri) : connection_(std::make_unique<PostgresConnection>(uri, "public", false)) {
+  ensure_lease_schema(*connection_);
+}
+
+void NodeTable::heartbeat(const std::string& cluster, const std::string& node, const std::string& url) {
+  Statement(
+      *connection_,
+      "INSERT INTO wm_cluster.nodes(node, cluster, url, joined_at, heartbeat_at) "
+      "VALUES (?1, ?2, ?3, clock_timestamp(), clock_timestamp()) "
+      "ON CONFLICT (node) DO UPDATE SET heartbeat_at = clock_timestamp(), url = excluded.url, "
+      "cluster = excluded.cluster, joined_at = CASE WHEN wm_cluster.nodes.url = excluded.url "
+      "AND wm_cluster.nodes.cluster = excluded.cluster THEN wm_cluster.nodes.joined_at ELSE clock_timestamp() END")
+      .bind(1, std::string_view(node))
+      .bind(2, std::string_view(cluster))
+      .bind(3, std::string_view(url))
+      .run();
+}
+
+void NodeTable::leave(const std::string& node) {
+  Statement(*connection_, "DELETE FROM wm_cluster.nodes WHERE node = ?1").bind(1, std::string_view(node)).run();
+}
+
+std::vector<NodeRow> NodeTable::nodes(const std::string& cluster) {
+  Statement s(
+      *connection_,
+      "SELECT cluster, node, url, EXTRACT(EPOCH FROM clock_timestamp() - heartbeat_at), "
+      "EXTRACT(EPOCH FROM clock_timestamp() - joined_at) FROM wm_cluster.nodes WHERE cluster = ?1 ORDER BY node");
+  s.bind(1, std::string_view(cluster));
+  std::vector<NodeRow> result;
+  while (s.step())
+    result.push_back({s.column_text(0), s.column_text(1), s.column_text(2), s.column_double(3), s.column_double(4)});
+  return result;
 }
 
 LeaseTable::LeaseTable(const std::string& uri)
@@ -123,6 +159,21 @@ Fence LeaseKeeper::take(const std::string& map) {
   }
   held_[map] = *epoch;
   return Fence{map, node_, *epoch};
+}
+
+std::optional<Fence> LeaseKeeper::try_take(const std::string& map) {
+  std::lock_guard lock(mutex_);
+  const auto epoch = table_.acquire(map, node_, ttl_);
+  if (!epoch) return std::nullopt;
+  held_[map] = *epoch;
+  return Fence{map, node_, *epoch};
+}
+
+std::vector<std::string> LeaseKeeper::held() {
+  std::lock_guard lock(mutex_);
+  std::vector<std::string> maps;
+  for (const auto& [map, epoch] : held_) maps.push_back(map);
+  return maps;
 }
 
 void LeaseKeeper::give_back(const std::string& map) {

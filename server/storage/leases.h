@@ -44,6 +44,31 @@ struct Lease {
   double expires_in_s = 0;  // negative: expired
 };
 
+/// A node of a cluster as the node table has it.
+struct NodeRow {
+  std::string cluster;
+  std::string node;
+  std::string url;             // where the other nodes forward its maps' requests
+  double heartbeat_age_s = 0;  // since its last heartbeat, on the database's clock
+  double up_s = 0;             // since it joined
+};
+
+/// The cluster's nodes (wm_cluster.nodes), each one's row kept fresh by its own heartbeat.
+class NodeTable {
+ public:
+  /// @throw StorageError when the database cannot be reached or the table made.
+  explicit NodeTable(const std::string& uri);
+  /// Records that `node` of `cluster`, reached at `url`, is alive now (its row made or refreshed).
+  void heartbeat(const std::string& cluster, const std::string& node, const std::string& url);
+  /// Takes `node`'s row out (a clean stop).
+  void leave(const std::string& node);
+  /// The nodes of `cluster`, by id, the dead ones too (their heartbeat_age_s says so).
+  std::vector<NodeRow> nodes(const std::string& cluster);
+
+ private:
+  std::unique_ptr<Connection> connection_;
+};
+
 /// The lease table (schema wm_cluster of the database), made when missing.
 class LeaseTable {
  public:
@@ -79,6 +104,10 @@ class LeaseKeeper {
   /// Takes `map`'s lease: the fence its store writes under. A lease held by another node is waited for once, at most
   /// its time to live (a node that stopped leaves it to run out). @throw StorageError naming the node that holds it.
   Fence take(const std::string& map);
+  /// Takes `map`'s lease when it is free or expired now, without waiting; nullopt when another node holds it.
+  std::optional<Fence> try_take(const std::string& map);
+  /// The maps whose leases this node holds now.
+  std::vector<std::string> held();
   /// Gives `map`'s lease back (nothing when not held).
   void give_back(const std::string& map);
   const std::string& node() const { return node_; }

@@ -1,5 +1,6 @@
 // The maps one server holds: GET/POST /api/v1/maps, GET/DELETE /api/v1/maps/{map}. Each map's own resources are
 // today's routes under /api/v1/maps/{map}/ (split off in the router); the default map's are also today's routes.
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -49,6 +50,28 @@ Response get_maps(const Call& call) {
   nlohmann::json list = nlohmann::json::array();
   // The default map is the one this call's ports reach (GET /api/v1/maps is no map's own route).
   list.push_back(map_summary(std::string(service::kDefaultMapId), call.world));
+  if (call.cluster) {
+    // Every map of the cluster: this node's with their summary, the others with the node that serves them (their
+    // routes here pass the request on to it).
+    const auto status = call.cluster->status();
+    for (const auto& id : call.maps->stored_ids()) {
+      if (const auto map = call.maps->find(id)) {
+        auto summary = map_summary(id, service::WorldPorts(map->world));
+        summary["node"] = status.node_id;
+        list.push_back(std::move(summary));
+        continue;
+      }
+      nlohmann::json entry{
+          {"id", id}, {"default", false}, {"href", "/api/v1/maps/" + id}, {"node", nullptr}, {"owner", nullptr}};
+      for (const auto& node : status.nodes)
+        if (std::find(node.maps.begin(), node.maps.end(), id) != node.maps.end()) {
+          entry["node"] = node.node;
+          entry["owner"] = node.url;
+        }
+      list.push_back(std::move(entry));
+    }
+    return json_response(call.request, {{"maps", std::move(list)}});
+  }
   if (call.maps)
     for (const auto& id : call.maps->ids())
       if (const auto map = call.maps->find(id)) list.push_back(map_summary(id, service::WorldPorts(map->world)));

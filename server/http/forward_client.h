@@ -1,0 +1,23 @@
+#pragma once
+
+// Node to node: a request passed on, as it came, to the node of a cluster that serves its map.
+#include <chrono>
+#include <stdexcept>
+#include <string>
+
+#include "server/api/http_types.h"
+
+namespace wm::http {
+
+/// No whole answer came from the other node (refused, reset, timed out): the request may or may not have been
+/// applied there (a client retries with its Idempotency-Key).
+class ForwardError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Sends `request` to the node at `base_url` ("http://host:port") on a connection of its own, with its Host set to
+/// that node's, and returns the answer as it came (its Connection header left to the caller). @throw ForwardError.
+api::Response forward_request(api::Request request, const std::string& base_url, std::chrono::milliseconds timeout);
+
+}  // namespace wm::http
