@@ -9,6 +9,7 @@ namespace wm::wmctl {
 int health(const Invocation& in);
 int network(const Invocation& in);
 int maps_list(const Invocation& in);
+int cluster(const Invocation& in);  // GET /api/v1/cluster
 int maps_create(const Invocation& in);
 int maps_delete(const Invocation& in);
 int maps_import(const Invocation& in);

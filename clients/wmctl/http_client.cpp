@@ -17,7 +17,7 @@ std::string map_target(const std::string& map, const std::string& target) {
   if (map.empty() || map == "default" || !target.starts_with(api)) return target;
   const auto rest = std::string_view(target).substr(api.size());
   const auto first = rest.substr(0, rest.find_first_of("/?"));
-  for (const std::string_view server_wide : {"network", "maps"})
+  for (const std::string_view server_wide : {"network", "maps", "cluster"})
     if (first == server_wide) return target;
   return std::string(api) + "maps/" + map + "/" + std::string(rest);
 }

@@ -27,6 +27,7 @@ std::vector<Command> command_table() {
       {"health", {}, {}, "server status, counts and loaded rules", health},
       {"network", {}, {}, "the processing network: executors' load, functions' activations, queues", network},
       {"maps", {}, {}, "the server's maps: id, plan, elements, observations, robots", maps_list},
+      {"cluster", {}, {}, "the cluster's nodes (alive, heartbeat, maps), every map's lease and epoch", cluster},
       {"maps create", {"ID"}, {}, "a new, empty map (1-32 of a-z, 0-9, '_', '-')", maps_create},
       {"maps delete", {"ID"}, {}, "delete a map and its file (not the default map)", maps_delete},
       {"maps import",

@@ -52,11 +52,45 @@ int health(const Invocation& in) {
 
 int maps_list(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/maps")), [](const json& answer) {
-    for (const auto& m : answer["maps"])
+    for (const auto& m : answer["maps"]) {
+      if (!m.contains("plan_name")) {  // a map another node of the cluster serves
+        std::cout << m["id"].get<std::string>() << ": served by "
+                  << (m["node"].is_string()
+                          ? "node " + m["node"].get<std::string>() + " at " + m["owner"].get<std::string>()
+                          : std::string("no node yet (being taken over)"))
+                  << "\n";
+        continue;
+      }
       std::cout << m["id"].get<std::string>() << (m["default"].get<bool>() ? " (default)" : "") << ": plan '"
                 << m["plan_name"].get<std::string>() << "', " << m["objects"] << " objects, " << m["elements"]
                 << " elements, " << m["observations"] << " observations, " << m["robots"] << " robots, version "
-                << m["version"] << "\n";
+                << m["version"] << (m.contains("node") ? ", node " + m["node"].get<std::string>() : "") << "\n";
+    }
+  });
+}
+
+int cluster(const Invocation& in) {
+  return in.emit(parse_answer(in.client.request("GET", "/api/v1/cluster")), [](const json& c) {
+    std::cout << "cluster " << c["cluster"].get<std::string>() << " (asked node " << c["node"].get<std::string>()
+              << "; leases of " << c["lease_ttl_s"] << " s)\n";
+    for (const auto& n : c["nodes"]) {
+      std::cout << "  " << n["node"].get<std::string>() << "  " << n["url"].get<std::string>() << "  "
+                << (n["alive"].get<bool>() ? "alive" : "DEAD") << ", heartbeat " << std::fixed << std::setprecision(1)
+                << n["heartbeat_age_s"].get<double>() << " s ago, maps:";
+      for (const auto& m : n["maps"]) std::cout << " " << m.get<std::string>();
+      std::cout << "\n";
+    }
+    for (const auto& l : c["leases"])
+      std::cout << "  lease " << l["map"].get<std::string>() << ": node " << l["node"].get<std::string>() << ", epoch "
+                << l["epoch"] << (l["live"].get<bool>() ? ", expires in " : ", EXPIRED ") << std::fixed
+                << std::setprecision(1) << l["expires_in_s"].get<double>() << " s\n";
+    if (!c["unowned"].empty()) {
+      std::cout << "  waiting for a node:";
+      for (const auto& m : c["unowned"]) std::cout << " " << m.get<std::string>();
+      std::cout << "\n";
+    }
+    std::cout << "  this node: " << c["taken_over"] << " maps taken over, " << c["lost"] << " lost, "
+              << c["handed_over"] << " handed over\n";
   });
 }
 

@@ -59,6 +59,8 @@ MapContext map_context(const std::optional<std::string>& path_id, Services& serv
 
 constexpr const char* kForwardedBy = "X-WM-Forwarded-By";
 constexpr const char* kClusterToken = "X-WM-Cluster-Token";
+constexpr const char* kServedBy = "X-WM-Node";
+constexpr const char* kEpoch = "X-WM-Epoch";
 
 // Compared in a time that does not depend on where the texts differ.
 bool same_secret(std::string_view a, std::string_view b) {
@@ -156,7 +158,14 @@ Response dispatch(const Request& request, Services& services) {
     if (const auto clustered = clustered_map(map_id, match, services))
       if (auto answer = answer_elsewhere(request, *clustered, services)) return std::move(*answer);
     const auto map = map_context(map_id, services);
-    return match.route->handler(call_of(request, target, match, services, map));
+    auto response = match.route->handler(call_of(request, target, match, services, map));
+    if (services.cluster && map.instance) {
+      // Which node answered for a map of the cluster, under which lease: what a client (or a test) checks a takeover
+      // by.
+      response.set(kServedBy, services.cluster->member->options().node_id);
+      if (const auto& fence = map.instance->store.fence()) response.set(kEpoch, std::to_string(fence->epoch));
+    }
+    return response;
   }
   const auto allow = allowed_methods(target.path);
   if (allow.empty()) throw ApiError(404, "not_found", "no resource at '" + target.path + "'");

@@ -1,5 +1,6 @@
 #include "server/storage/leases.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "server/storage/postgres.h"
@@ -66,13 +67,44 @@ std::vector<NodeRow> NodeTable::nodes(const std::string& cluster) {
   return result;
 }
 
-LeaseTable::LeaseTable(const std::string& uri)
-    : connection_(std::make_unique<PostgresConnection>(uri, "public", false)) {
+std::string fence_session_name(const std::string& map, std::int64_t epoch) {
+  return ("wm-fence/" + map + "/" + std::to_string(epoch)).substr(0, 63);
+}
+
+LeaseTable::LeaseTable(const std::string& uri, std::chrono::milliseconds lock_wait)
+    : connection_(std::make_unique<PostgresConnection>(uri, "public", false)), lock_wait_(lock_wait) {
   ensure_lease_schema(*connection_);
+  if (lock_wait_.count() > 0) connection_->exec("SET lock_timeout = " + std::to_string(lock_wait_.count()));
 }
 
 std::optional<std::int64_t> LeaseTable::acquire(const std::string& map, const std::string& node,
                                                 std::chrono::milliseconds ttl) {
+  try {
+    return acquire_once(map, node, ttl);
+  } catch (const StorageError&) {
+    if (lock_wait_.count() <= 0) throw;
+    // Waited lock_wait for the lease row: a fenced transaction holds it. Its lease ran out, so it can never commit;
+    // its owner stalls inside it (paused, cut off). Its sessions are ended, which releases the row.
+    std::optional<std::int64_t> expired;
+    {
+      Statement s(*connection_,
+                  "SELECT epoch FROM wm_cluster.leases WHERE map = ?1 AND expires_at <= clock_timestamp()");
+      s.bind(1, std::string_view(map));
+      if (s.step()) expired = s.column_int(0);
+    }
+    if (!expired) throw;
+    Statement end(*connection_,
+                  "SELECT pg_terminate_backend(pid, 2000) FROM pg_stat_activity WHERE application_name = ?1 "
+                  "AND pid <> pg_backend_pid()");
+    end.bind(1, std::string_view(fence_session_name(map, *expired)));
+    while (end.step()) {
+    }
+    return acquire_once(map, node, ttl);
+  }
+}
+
+std::optional<std::int64_t> LeaseTable::acquire_once(const std::string& map, const std::string& node,
+                                                     std::chrono::milliseconds ttl) {
   Statement s(*connection_,
               "INSERT INTO wm_cluster.leases(map, node, epoch, expires_at) "
               "VALUES (?1, ?2, 1, clock_timestamp() + ?3 * interval '1 millisecond') "
@@ -115,7 +147,11 @@ std::vector<Lease> LeaseTable::leases() {
 
 LeaseKeeper::LeaseKeeper(const std::string& uri, std::string node, std::chrono::milliseconds ttl,
                          std::function<void(const std::string& map, const std::string& why)> on_lost)
-    : node_(std::move(node)), ttl_(ttl), on_lost_(std::move(on_lost)), table_(uri) {
+    : node_(std::move(node)),
+      ttl_(ttl),
+      on_lost_(std::move(on_lost)),
+      renew_table_(uri),
+      take_table_(uri, std::max(ttl / 4, std::chrono::milliseconds(50))) {
   renewer_ = std::thread([this] { renew_loop(); });
 }
 
@@ -126,9 +162,10 @@ LeaseKeeper::~LeaseKeeper() {
   }
   wake_.notify_all();
   renewer_.join();
+  std::lock_guard take(take_mutex_);
   for (const auto& [map, epoch] : held_) {
     try {
-      table_.release(map, node_, epoch);
+      take_table_.release(map, node_, epoch);
     } catch (const StorageError&) {
       // It expires by itself.
     }
@@ -136,37 +173,45 @@ LeaseKeeper::~LeaseKeeper() {
 }
 
 Fence LeaseKeeper::take(const std::string& map) {
-  std::unique_lock lock(mutex_);
-  auto epoch = table_.acquire(map, node_, ttl_);
+  std::unique_lock take(take_mutex_);
+  auto epoch = take_table_.acquire(map, node_, ttl_);
   if (!epoch) {
     // A node that stopped (a crash, a restart of this one) leaves its lease to run out: wait for that once, at most
     // one lease time. A node alive renews it meanwhile, and the map stays its own.
     double left_s = 0;
-    for (const auto& lease : table_.leases())
+    for (const auto& lease : take_table_.leases())
       if (lease.map == map) left_s = lease.expires_in_s;
     if (left_s > 0 && left_s <= std::chrono::duration<double>(ttl_).count()) {
-      wake_.wait_for(lock, std::chrono::duration<double>(left_s + 0.05), [this] { return stopping_; });
-      epoch = table_.acquire(map, node_, ttl_);
+      {
+        std::unique_lock lock(mutex_);
+        wake_.wait_for(lock, std::chrono::duration<double>(left_s + 0.05), [this] { return stopping_; });
+      }
+      epoch = take_table_.acquire(map, node_, ttl_);
     }
   }
   if (!epoch) {
     std::string holder = "another node";
-    for (const auto& lease : table_.leases())
+    for (const auto& lease : take_table_.leases())
       if (lease.map == map)
         holder = "node '" + lease.node + "' (epoch " + std::to_string(lease.epoch) + ") for another " +
                  std::to_string(static_cast<int>(std::ceil(lease.expires_in_s))) + " s";
     throw StorageError("map '" + map + "' is held by " + holder + ": one node writes a map at a time");
   }
+  std::lock_guard lock(mutex_);
   held_[map] = *epoch;
-  return Fence{map, node_, *epoch};
+  return Fence{map, node_, *epoch, ttl_.count()};
 }
 
 std::optional<Fence> LeaseKeeper::try_take(const std::string& map) {
-  std::lock_guard lock(mutex_);
-  const auto epoch = table_.acquire(map, node_, ttl_);
+  std::optional<std::int64_t> epoch;
+  {
+    std::lock_guard take(take_mutex_);
+    epoch = take_table_.acquire(map, node_, ttl_);
+  }
   if (!epoch) return std::nullopt;
+  std::lock_guard lock(mutex_);
   held_[map] = *epoch;
-  return Fence{map, node_, *epoch};
+  return Fence{map, node_, *epoch, ttl_.count()};
 }
 
 std::vector<std::string> LeaseKeeper::held() {
@@ -177,15 +222,20 @@ std::vector<std::string> LeaseKeeper::held() {
 }
 
 void LeaseKeeper::give_back(const std::string& map) {
-  std::lock_guard lock(mutex_);
-  const auto found = held_.find(map);
-  if (found == held_.end()) return;
+  std::int64_t epoch = 0;
+  {
+    std::lock_guard lock(mutex_);
+    const auto found = held_.find(map);
+    if (found == held_.end()) return;
+    epoch = found->second;
+    held_.erase(found);
+  }
+  std::lock_guard take(take_mutex_);
   try {
-    table_.release(map, node_, found->second);
+    take_table_.release(map, node_, epoch);
   } catch (const StorageError&) {
     // It expires by itself.
   }
-  held_.erase(found);
 }
 
 void LeaseKeeper::renew_loop() {
@@ -193,21 +243,26 @@ void LeaseKeeper::renew_loop() {
   while (!stopping_) {
     wake_.wait_for(lock, ttl_ / 3, [this] { return stopping_; });
     if (stopping_) break;
-    for (auto it = held_.begin(); it != held_.end();) {
-      bool renewed = true;
+    const auto held = held_;
+    lock.unlock();
+    std::vector<std::string> lost;
+    for (const auto& [map, epoch] : held) {
       try {
-        renewed = table_.renew(it->first, node_, it->second, ttl_);
+        if (!renew_table_.renew(map, node_, epoch, ttl_)) lost.push_back(map);
       } catch (const StorageError&) {
         // The database did not answer: tried again next time, while the lease still runs (the fence refuses the
         // map's commits once it has run out).
       }
-      if (renewed) {
-        ++it;
-        continue;
-      }
-      const auto map = it->first;
-      it = held_.erase(it);
+    }
+    lock.lock();
+    for (const auto& map : lost) {
+      // Unless it was given back or taken again meanwhile.
+      const auto found = held_.find(map);
+      if (found == held_.end() || found->second != held.at(map)) continue;
+      held_.erase(found);
+      lock.unlock();
       if (on_lost_) on_lost_(map, "its lease ran out or another node took it over");
+      lock.lock();
     }
   }
 }

@@ -35,6 +35,10 @@ struct Fence {
   std::string map;
   std::string node;
   std::int64_t epoch = 0;
+  /// The lease's time to live. A fenced transaction holds the lease row until its commit, so a writer that stalls
+  /// inside one (paused, cut off) would hold a takeover back: the database ends such a transaction after half of it
+  /// (idle_in_transaction_session_timeout), and it commits nothing. 0: no limit.
+  std::int64_t ttl_ms = 0;
 };
 
 struct Lease {
@@ -72,8 +76,11 @@ class NodeTable {
 /// The lease table (schema wm_cluster of the database), made when missing.
 class LeaseTable {
  public:
-  /// @throw StorageError when the database cannot be reached or the table made.
-  explicit LeaseTable(const std::string& uri);
+  /// `lock_wait` > 0: acquire waits at most that long for a fenced transaction of the old owner that holds the lease
+  /// row; when the lease has run out, that owner's fenced sessions are ended (their transaction commits nothing: a
+  /// node paused inside one cannot hold a takeover back) and the lease taken. 0: acquire waits for the commit as
+  /// long as it takes. @throw StorageError when the database cannot be reached or the table made.
+  explicit LeaseTable(const std::string& uri, std::chrono::milliseconds lock_wait = std::chrono::milliseconds(0));
 
   /// Takes `map` for `node` for `ttl` when it is free, expired or already `node`'s; the new epoch, or nullopt when
   /// another node holds it. Taking over an expired lease waits for a commit its old owner has under way.
@@ -86,8 +93,15 @@ class LeaseTable {
   std::vector<Lease> leases();
 
  private:
+  std::optional<std::int64_t> acquire_once(const std::string& map, const std::string& node,
+                                           std::chrono::milliseconds ttl);
   std::unique_ptr<Connection> connection_;
+  const std::chrono::milliseconds lock_wait_;
 };
+
+/// The name a fenced store's sessions carry (application_name), by which a node taking an expired lease over ends the
+/// ones that still hold it.
+std::string fence_session_name(const std::string& map, std::int64_t epoch);
 
 /// The leases one node holds, renewed every third of their time to live by a thread of its own. A lease that cannot
 /// be renewed is lost (the map's store is fenced from then on) and reported to `on_lost`. Thread-safe.
@@ -118,8 +132,11 @@ class LeaseKeeper {
   const std::string node_;
   const std::chrono::milliseconds ttl_;
   const std::function<void(const std::string&, const std::string&)> on_lost_;
-  std::mutex mutex_;  // the table's connection and held_
-  LeaseTable table_;
+  // Renewals have a connection of their own: a takeover that waits for a row lock never delays them.
+  LeaseTable renew_table_;  // the renewer's thread only (and the destructor, after it ended)
+  std::mutex take_mutex_;   // take_table_
+  LeaseTable take_table_;
+  std::mutex mutex_;                          // held_, stopping_
   std::map<std::string, std::int64_t> held_;  // map -> epoch
   std::condition_variable wake_;
   bool stopping_ = false;

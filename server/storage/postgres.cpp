@@ -2,6 +2,7 @@
 
 #include <libpq-fe.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <vector>
@@ -274,6 +275,7 @@ void PostgresConnection::reconnect_if_lost() {
   prepared_in_pipeline_.clear();
   pipelining_ = false;
   exec("SET search_path TO " + quoted_schema(schema_) + ", public");
+  limit_stalls();
 }
 
 void PostgresConnection::begin() {
@@ -301,6 +303,15 @@ void PostgresConnection::begin() {
 void PostgresConnection::set_fence(const Fence& fence) {
   ensure_lease_schema(*this);
   fence_ = fence;
+  limit_stalls();
+}
+
+void PostgresConnection::limit_stalls() {
+  if (!fence_) return;
+  // The name a node taking the lease over ends this session by, should it stall inside a transaction.
+  exec("SET application_name = '" + fence_session_name(fence_->map, fence_->epoch) + "'");
+  if (fence_->ttl_ms <= 0) return;
+  exec("SET idle_in_transaction_session_timeout = " + std::to_string(std::max<std::int64_t>(fence_->ttl_ms / 2, 100)));
 }
 
 void PostgresConnection::send(const std::string& name, const std::vector<const char*>& values,

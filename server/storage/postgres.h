@@ -43,6 +43,9 @@ class PostgresConnection final : public Connection {
   void set_schema_version(int version) override;
 
  private:
+  /// A fenced connection: named after its lease (fence_session_name), by which a node taking it over ends it should it
+  /// stall inside a transaction; and the database ends a transaction idle on this client for half the lease.
+  void limit_stalls();
   friend class PostgresStatement;
   /// The name of the server-side prepared statement for `sql`, prepared on first use. @throw StorageError.
   std::string prepared(const std::string& sql);

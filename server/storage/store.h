@@ -91,6 +91,8 @@ class Store {
   int schema_version();
   /// Which engine holds it.
   Dialect dialect() const;
+  /// The lease this store's writes are fenced by (StoreOptions::fence); nullopt when none.
+  const std::optional<Fence>& fence() const { return options_.fence; }
 
   /// The persisted world (an empty state for a new file). @throw StorageError, apriori::FloorPlanError.
   world::WorldState load(const world::WorldOptions& options);

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <thread>
 
@@ -117,23 +118,60 @@ TEST(FenceTest, ATakeoverWaitsForACommitUnderWay) {
   PostgresConnection a(testing::postgres().uri(), map, true);
   a.set_fence({map, "a", *epoch});
   a.exec("CREATE TABLE IF NOT EXISTS t(k BIGINT PRIMARY KEY)");
-  std::chrono::steady_clock::time_point committed, taken;
+  // The commit's answer reaches both threads at once, so their clocks after it are not compared: the takeover must
+  // have waited at least as long as the commit's transaction ran (0.6 s from its start).
+  std::atomic<std::chrono::steady_clock::time_point> began{};
+  std::chrono::steady_clock::time_point taken;
   std::thread owner([&] {
+    began = std::chrono::steady_clock::now();
     Transaction tx(a);
     Statement(a, "SELECT pg_sleep(0.6)").run();  // a slow commit, begun while the lease is good
     Statement(a, "INSERT INTO t(k) VALUES (1)").run();
     tx.commit();
-    committed = std::chrono::steady_clock::now();
   });
   std::this_thread::sleep_for(400ms);  // past the lease, while the commit runs
   const auto taken_epoch = leases.acquire(map, "b", 60s);
   taken = std::chrono::steady_clock::now();
   owner.join();
   EXPECT_EQ(taken_epoch, *epoch + 1);
-  EXPECT_GE(taken, committed) << "the takeover did not wait for the commit under way";
+  EXPECT_GE(taken - began.load(), 590ms) << "the takeover did not wait for the commit under way";
   Statement count(a, "SELECT COUNT(*) FROM t");
   count.step();
   EXPECT_EQ(count.column_int(0), 1);
+}
+
+// A node paused inside a fenced transaction holds the lease row; once its lease ran out, a node taking it over (with a
+// bounded wait) ends that session instead of waiting for it for as long as it is paused, and the stalled
+// transaction commits nothing.
+TEST(FenceTest, ATakeoverEndsTheStalledTransactionOfAnExpiredOwner) {
+  LeaseTable leases(testing::postgres().uri());
+  const auto map = map_name();
+  const auto epoch = leases.acquire(map, "a", 300ms);
+  ASSERT_TRUE(epoch);
+  PostgresConnection stalled(testing::postgres().uri(), map, true);
+  stalled.exec("CREATE TABLE IF NOT EXISTS t(k BIGINT PRIMARY KEY)");
+  stalled.exec("SET application_name = '" + fence_session_name(map, *epoch) + "'");
+  stalled.exec("BEGIN");
+  stalled.exec("SELECT 1 FROM wm_cluster.leases WHERE map = '" + map + "' FOR SHARE");
+  stalled.exec("INSERT INTO t(k) VALUES (1)");  // ... and then its node stops answering
+  std::this_thread::sleep_for(400ms);           // past the lease
+  LeaseTable taker(testing::postgres().uri(), 200ms);
+  const auto started = std::chrono::steady_clock::now();
+  const auto taken = taker.acquire(map, "b", 3s);
+  EXPECT_EQ(taken, *epoch + 1);
+  EXPECT_LT(std::chrono::steady_clock::now() - started, 3s);
+  EXPECT_THROW(stalled.exec("COMMIT"), StorageError);  // its session was ended: the insert never commits
+  PostgresConnection reader(testing::postgres().uri(), map, false);
+  Statement count(reader, "SELECT COUNT(*) FROM t");
+  count.step();
+  EXPECT_EQ(count.column_int(0), 0);
+  // A live lease's holder is never ended: the wait runs out and the lease stays b's.
+  PostgresConnection holder(testing::postgres().uri(), map, false);
+  holder.exec("SET application_name = '" + fence_session_name(map, *taken) + "'");
+  holder.exec("BEGIN");
+  holder.exec("SELECT 1 FROM wm_cluster.leases WHERE map = '" + map + "' FOR SHARE");
+  EXPECT_THROW(taker.acquire(map, "c", 3s), StorageError);
+  holder.exec("COMMIT");
 }
 
 }  // namespace
