@@ -112,16 +112,18 @@ int main(int argc, char** argv) {
     if (in_cluster) {
       cluster.emplace(service::ClusterOptions{cfg.cluster_id, cfg.node_id, cfg.store.path, cfg.lease_ttl}, maps,
                       *leases, diagnostics);
-      routing.emplace(
-          api::ClusterRouting{&*cluster, cfg.cluster_token,
-                              [timeout = std::chrono::milliseconds(cfg.http.read_timeout)](
-                                  const api::Request& request, const std::string& url) -> std::optional<api::Response> {
-                                try {
-                                  return http::forward_request(request, url, timeout);
-                                } catch (const http::ForwardError&) {
-                                  return std::nullopt;
-                                }
-                              }});
+      // A request passed on waits for its answer while its node keeps the map's lease, and at most this long.
+      const auto forward_timeout = std::chrono::milliseconds(60'000);
+      routing.emplace(api::ClusterRouting{
+          &*cluster, cfg.cluster_token,
+          [forward_timeout](const api::Request& request, const std::string& url,
+                            const std::function<bool()>& still_worth_it) -> std::optional<api::Response> {
+            try {
+              return http::forward_request(request, url, forward_timeout, still_worth_it);
+            } catch (const http::ForwardError&) {
+              return std::nullopt;
+            }
+          }});
     }
     api::Services services{cfg.api, world};
     services.diagnostics = &diagnostics;
@@ -130,6 +132,10 @@ int main(int argc, char** argv) {
     // The other maps' shared-memory exports, each made when its map is first used (after `maps`: gone before it).
     std::optional<api::MapExports> map_exports;
     if (cfg.shm.enabled) services.map_exports = &map_exports.emplace(cfg.shm, diagnostics);
+    // A map that moved to another node keeps no export here.
+    maps.on_let_go([&map_exports](const service::MapInstance* map) {
+      if (map_exports) map_exports->forget(map);
+    });
     // Before the HTTP server, which hands it to handlers, and after the world it reads.
     std::optional<shm::SharedMapExport> shared_memory;
     if (cfg.shm.enabled) {

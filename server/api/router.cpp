@@ -111,7 +111,16 @@ std::optional<Response> answer_elsewhere(const Request& request, const std::stri
   Request passed = request;
   passed.set(kForwardedBy, cluster.member->options().node_id);
   passed.set(kClusterToken, cluster.token);
-  auto answer = cluster.forward(passed, owner->url);
+  // Waited for while that node still serves the map: one paused past its lease is given up on at once.
+  const auto still_owner = [&cluster, &id, node = owner->node] {
+    try {
+      const auto now = cluster.member->owner_of(id);
+      return now && now->node == node;
+    } catch (const std::exception&) {
+      return true;  // the database does not say: the request's own deadline decides
+    }
+  };
+  auto answer = cluster.forward(passed, owner->url, still_owner);
   if (!answer)
     throw ApiError(503, "map_unavailable",
                    "the node serving map '" + id + "' (" + owner->url + ") did not answer: ask again in a second");
@@ -180,7 +189,11 @@ Response dispatch(const Request& request, Services& services) {
 Lane handler_lane(const Request& request) {
   const auto target = target_of(request);
   const auto path = target.substr(0, target.find('?'));
-  if (const auto found = route_of(request.method(), path)) return found->second.route->lane;
+  if (const auto found = route_of(request.method(), path)) {
+    // A map's own route never runs on the I/O thread: in a cluster its answer may come from another node.
+    if (found->first && found->second.route->lane == Lane::immediate) return Lane::read;
+    return found->second.route->lane;
+  }
   // A path that decoding changes ("%2F", "+") may still name a route once decoded: run it on a handler lane as
   // any read or write. Otherwise no route answers it, and its 404 or 405 is answered at once.
   if (path.find_first_of("%+") != std::string_view::npos)

@@ -25,8 +25,11 @@ namespace wm::api {
 struct ClusterRouting {
   service::ClusterMember* member = nullptr;
   std::string token;  // node to node; never empty in a cluster
-  /// The other node's answer as it came; nullopt when no whole answer came (refused, reset, timed out).
-  std::function<std::optional<Response>(const Request&, const std::string& base_url)> forward;
+  /// The other node's answer as it came; nullopt when no whole answer came (refused, reset, timed out) or
+  /// `still_worth_it`, asked while it waits, said no.
+  std::function<std::optional<Response>(const Request&, const std::string& base_url,
+                                        const std::function<bool()>& still_worth_it)>
+      forward;
 };
 
 /// What the handlers work on; built by main and passed down.

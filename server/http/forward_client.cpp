@@ -14,7 +14,8 @@ namespace wm::http {
 namespace beast = boost::beast;
 namespace bhttp = boost::beast::http;
 
-api::Response forward_request(api::Request request, const std::string& base_url, std::chrono::milliseconds timeout) {
+api::Response forward_request(api::Request request, const std::string& base_url, std::chrono::milliseconds timeout,
+                              const std::function<bool()>& still_worth_it, std::chrono::milliseconds check_every) {
   static const std::regex url_form(R"(http://([^/:]+|\[[^\]]+\]):(\d{1,5})/?)");
   std::smatch parts;
   if (!std::regex_match(base_url, parts, url_form)) throw ForwardError("not a node URL: '" + base_url + "'");
@@ -43,7 +44,16 @@ api::Response forward_request(api::Request request, const std::string& base_url,
         bhttp::async_read(stream, buffer, parser, [&](beast::error_code ec, std::size_t) { failure = ec; });
       });
     });
-    io.run();
+    bool done = false;
+    while (!done) {
+      io.run_for(check_every);
+      done = io.stopped();
+      if (!done && still_worth_it && !still_worth_it()) {
+        beast::error_code ignored;
+        stream.socket().close(ignored);
+        throw ForwardError("gave up waiting for the node at " + base_url + ": it no longer serves the map");
+      }
+    }
     if (failure) throw boost::system::system_error(failure);
     beast::error_code ignored;
     stream.socket().shutdown(boost::asio::ip::tcp::socket::shutdown_both, ignored);

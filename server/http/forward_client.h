@@ -2,6 +2,7 @@
 
 // Node to node: a request passed on, as it came, to the node of a cluster that serves its map.
 #include <chrono>
+#include <functional>
 #include <stdexcept>
 #include <string>
 
@@ -17,7 +18,11 @@ class ForwardError : public std::runtime_error {
 };
 
 /// Sends `request` to the node at `base_url` ("http://host:port") on a connection of its own, with its Host set to
-/// that node's, and returns the answer as it came (its Connection header left to the caller). @throw ForwardError.
-api::Response forward_request(api::Request request, const std::string& base_url, std::chrono::milliseconds timeout);
+/// that node's, and returns the answer as it came (its Connection header left to the caller). While it waits,
+/// `still_worth_it` is asked every `check_every`; false (the node no longer serves the map: paused past its lease)
+/// gives up at once. @throw ForwardError after `timeout`, on giving up, or when the node does not answer.
+api::Response forward_request(api::Request request, const std::string& base_url, std::chrono::milliseconds timeout,
+                              const std::function<bool()>& still_worth_it = {},
+                              std::chrono::milliseconds check_every = std::chrono::milliseconds(500));
 
 }  // namespace wm::http

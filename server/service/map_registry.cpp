@@ -282,6 +282,7 @@ void MapRegistry::let_go(const std::string& id, const std::string& owner_url) {
   }
   map->events.publish(events::EventKind::map_moved,
                       nlohmann::json{{"type", "map_moved"}, {"map", id}, {"owner", owner_url}}.dump());
+  if (on_let_go_) on_let_go_(map.get());
 }
 
 int MapRegistry::sweep_removed() {

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -106,6 +107,9 @@ class MapRegistry {
   /// Drops the maps a removal marked whose holder died before it could drop them (their leases are free), each under
   /// its lease. Returns how many. PostgreSQL only.
   int sweep_removed();
+  /// Called with each map let_go closes, before the registry lets go of it (what holds a map besides the registry,
+  /// such as its shared-memory export, lets go too). Set before the maps are served.
+  void on_let_go(std::function<void(const MapInstance*)> closed) { on_let_go_ = std::move(closed); }
 
  private:
   std::shared_ptr<MapInstance> open(const std::string& id);
@@ -116,6 +120,7 @@ class MapRegistry {
   std::map<std::string, std::shared_ptr<MapInstance>> maps_;
   std::int64_t knowledge_bases_ = 0;  // the next map's knowledge base is wm_kb_map<n>
   std::int64_t removals_ = 0;         // removed files are named .removed-<n>-<file>
+  std::function<void(const MapInstance*)> on_let_go_;
 };
 
 }  // namespace wm::service

@@ -117,6 +117,9 @@ TEST(RoutesTest, EveryRouteRunsOnTheLaneTheTableGivesIt) {
   EXPECT_EQ(api::handler_lane(make_request(http::verb::get, "/api/v1/health")), api::Lane::immediate);
   EXPECT_EQ(api::handler_lane(make_request(http::verb::post, "/api/v1/primitives")), api::Lane::write);
   EXPECT_EQ(api::handler_lane(make_request(http::verb::post, "/api/v1/query")), api::Lane::read);
+  // A map's own route never runs on the I/O thread: in a cluster another node may answer it.
+  EXPECT_EQ(api::handler_lane(make_request(http::verb::get, "/api/v1/maps/f1/health")), api::Lane::read);
+  EXPECT_EQ(api::handler_lane(make_request(http::verb::post, "/api/v1/maps/f1/scans")), api::Lane::write);
   // No route: a 404 or 405 is answered at once, unless decoding may still find one.
   EXPECT_EQ(api::handler_lane(make_request(http::verb::delete_, "/api/v1/map")), api::Lane::immediate);
   EXPECT_EQ(api::handler_lane(make_request(http::verb::get, "/api/v1/objects%2Fx")), api::Lane::read);
