@@ -219,9 +219,18 @@ std::optional<Response> authorize_events(const Request& request, Services& servi
   }
   const auto protocol = websocket_subprotocol(request);
   if (!protocol.empty()) {
-    // The map of a Foxglove client (/foxglove?map=ID), refused as a map route's would be.
+    // The map of a Foxglove client (/foxglove?map=ID), refused as a map route's would be; in a cluster, one another
+    // node serves is named with that node (a Foxglove connection is not passed on).
     try {
-      if (const auto map = parse_target(raw).param("map")) map_context(*map, services);
+      if (const auto map = parse_target(raw).param("map")) {
+        if (services.cluster && service::valid_map_id(*map) && *map != service::kDefaultMapId && services.maps &&
+            !services.maps->find(*map))
+          if (const auto owner = services.cluster->member->owner_of(*map))
+            return error_response(request.version(), false, 503, "map_moved",
+                                  "map '" + *map + "' is served by node " + owner->node + ": connect to " + owner->url +
+                                      "/foxglove?map=" + *map);
+        map_context(*map, services);
+      }
     } catch (...) {
       const auto failure = http_error(std::current_exception());
       return error_response(request.version(), false, failure.status, failure.error, failure.detail);

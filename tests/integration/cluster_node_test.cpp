@@ -114,6 +114,15 @@ TEST_F(ClusterNodeTest, AnyNodeAnswersForAMapAndAForgedOrLoopingForwardIsRefused
   const auto moved = follower.next();
   EXPECT_EQ(moved["type"], "map_moved");
   EXPECT_EQ(moved["owner"], a_->url());
+  // A Foxglove client of the map, at b: refused with where to connect (its connection is not passed on).
+  const auto foxglove = request(b_->port(), http::verb::get, "/foxglove?map=f1",
+                                {{"Upgrade", "websocket"},
+                                 {"Connection", "Upgrade"},
+                                 {"Sec-WebSocket-Version", "13"},
+                                 {"Sec-WebSocket-Protocol", "foxglove.websocket.v1"},
+                                 {"Sec-WebSocket-Key", "dGhlIHNhbXBsZSBub25jZQ=="}});
+  EXPECT_EQ(foxglove.result_int(), 503u) << foxglove.body();
+  EXPECT_NE(foxglove.body().find(a_->url() + "/foxglove?map=f1"), std::string::npos) << foxglove.body();
   // a stops cleanly (its leases given back): b serves the map at its next round, with what a committed.
   ASSERT_EQ(a_->stop(), 0) << a_->output();
   EXPECT_EQ(owner(b_->port(), "f1"), cluster_ + "-b");

@@ -8,7 +8,7 @@
 // robots' scans depends on timing (on a single node too), so only with them off is the decision log a function of
 // the order of the scans alone.
 //
-// WM_CLUSTER_TRIALS=N sets the number of trials (default 50).
+// WM_CLUSTER_TRIALS=N sets the number of trials (default 50; CI runs 20, scripts/cluster_trials.sh N more).
 #include <signal.h>
 
 #include <algorithm>
