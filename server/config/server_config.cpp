@@ -6,6 +6,7 @@
 #include <boost/asio/ip/address.hpp>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <optional>
@@ -323,7 +324,15 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
         c.store.postgres_schema +=
             (lower >= 'a' && lower <= 'z') || (lower >= '0' && lower <= '9') || lower == '-' ? lower : '_';
       }
-      c.store.postgres_schema.resize(std::min<std::size_t>(c.store.postgres_schema.size(), 63));
+      if (c.store.postgres_schema.size() > 63) {
+        // Cut, with a hash of the whole id after it (FNV-1a: the same on every build, so a node finds its schema
+        // again): two long ids that share their first characters stay apart.
+        std::uint64_t hash = 14695981039346656037ull;
+        for (const char ch : c.node_id) hash = (hash ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
+        char hex[17];
+        std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
+        c.store.postgres_schema = c.store.postgres_schema.substr(0, 46) + "_" + hex;
+      }
     }
   }
   if (!storage::is_valid_schema_name(c.store.postgres_schema))

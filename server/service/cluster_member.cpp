@@ -62,7 +62,7 @@ void ClusterMember::lease_lost(const std::string& schema) {
 void ClusterMember::run() {
   std::unique_lock lock(mutex_);
   while (!stopping_) {
-    wake_.wait_for(lock, options_.lease_ttl / 3, [this] { return stopping_ || !lost_.empty(); });
+    wake_.wait_for(lock, options_.lease_ttl / 6, [this] { return stopping_ || !lost_.empty(); });
     if (stopping_) break;
     lock.unlock();
     try {
@@ -195,7 +195,9 @@ ClusterStatus ClusterMember::status() {
       node.url = nodes.column_text(1);
       node.heartbeat_age_s = nodes.column_double(2);
       node.up_s = nodes.column_double(3);
-      node.alive = node.heartbeat_age_s < ttl_s;
+      // A live node heartbeats every sixth of a lease time: one silent for two thirds of it is counted out, so
+      // that when a dead node's leases run out the others' shares already include its maps.
+      node.alive = node.heartbeat_age_s < ttl_s * 2 / 3;
       status.nodes.push_back(std::move(node));
     }
     storage::Statement leases(*query_,

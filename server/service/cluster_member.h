@@ -2,7 +2,7 @@
 
 // One wmd node of a cluster: several nodes share one PostgreSQL database, and each map is served by exactly one of
 // them at a time, the holder of its lease (storage/leases.h). This node keeps its row in the node table fresh
-// (a heartbeat), and every third of a lease time takes the maps no live lease holds: a dead node's, whose leases ran
+// (a heartbeat), and every sixth of a lease time takes the maps no live lease holds: a dead node's, whose leases ran
 // out, a removed node's, a new map's whose creator died. It takes them up to its share (the maps over the live
 // nodes, rounded up); a map still without an owner one round later is taken whatever the share. A node over its
 // share while another is under it hands one map over per round (maps made on one node spread; a new node gets its
@@ -38,7 +38,7 @@ struct ClusterNode {
   std::string url;
   double heartbeat_age_s = 0;
   double up_s = 0;
-  bool alive = false;  // heartbeat within one lease time
+  bool alive = false;  // heartbeat within two thirds of a lease time
   std::vector<std::string> maps;
 };
 
@@ -80,7 +80,7 @@ class ClusterMember {
   ClusterMember& operator=(const ClusterMember&) = delete;
 
   /// Joins the cluster as reachable at `url` (once the HTTP server listens): the first heartbeat and round run
-  /// before this returns, then every third of a lease time on a thread of its own.
+  /// before this returns, then every sixth of a lease time on a thread of its own.
   void start(const std::string& url);
   /// The keeper lost the lease of a map's schema: the map is closed at the next round, which comes at once.
   void lease_lost(const std::string& schema);

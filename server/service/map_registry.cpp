@@ -70,7 +70,7 @@ std::vector<StoredMap> postgres_map_schemas(const std::string& uri) {
   storage::PostgresConnection catalog(uri, "public", false);
   std::vector<StoredMap> found;
   storage::Statement s(catalog,
-                       "SELECT n.nspname, to_regclass(quote_ident(n.nspname) || '.meta') IS NOT NULL "
+                       "SELECT n.nspname, CAST(to_regclass(quote_ident(n.nspname) || '.meta') IS NOT NULL AS INTEGER) "
                        "FROM pg_namespace n WHERE starts_with(n.nspname, ?1) ORDER BY n.nspname");
   s.bind(1, kMapSchemaPrefix);
   while (s.step()) {

@@ -151,7 +151,7 @@ LeaseKeeper::LeaseKeeper(const std::string& uri, std::string node, std::chrono::
       ttl_(ttl),
       on_lost_(std::move(on_lost)),
       renew_table_(uri),
-      take_table_(uri, std::max(ttl / 4, std::chrono::milliseconds(50))) {
+      take_table_(uri, std::max(ttl / 10, std::chrono::milliseconds(50))) {
   renewer_ = std::thread([this] { renew_loop(); });
 }
 

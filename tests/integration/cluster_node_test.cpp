@@ -21,6 +21,8 @@ class ClusterNodeTest : public ::testing::Test {
   void SetUp() override {
     uri_ = postgres().uri();
     ::setenv("WM_CLUSTER_TOKEN", kToken, 1);
+    // Long node ids (the cluster's name and a letter) that differ only at their end: each node's own schema stays its
+    // own.
     cluster_ = schema_for(::testing::UnitTest::GetInstance()->current_test_info()->name());
     a_ = start("a");
     b_ = start("b");
