@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "common/parse_number.h"
+#include "server/http/forward_client.h"
 #include "server/storage/postgres.h"
 
 namespace wm::config {
@@ -313,8 +314,7 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       throw ConfigError(
           "--cluster-id: the nodes pass each other requests with a shared token of at least 16 characters: put it "
           "in a file (--cluster-token-file) or WM_CLUSTER_TOKEN, never on the command line");
-    static const std::regex url_form(R"(http://([^/:]+|\[[^\]]+\]):(\d{1,5})/?)");
-    if (!c.advertise_url.empty() && !std::regex_match(c.advertise_url, url_form))
+    if (!c.advertise_url.empty() && !http::parse_node_url(c.advertise_url))
       throw ConfigError("--advertise: expected http://HOST:PORT, got '" + c.advertise_url + "'");
     if (!schema_given) {
       // Each node's default map is its own: the cluster's maps are those of /api/v1/maps.

@@ -14,13 +14,19 @@ namespace wm::http {
 namespace beast = boost::beast;
 namespace bhttp = boost::beast::http;
 
-api::Response forward_request(api::Request request, const std::string& base_url, std::chrono::milliseconds timeout,
-                              const std::function<bool()>& still_worth_it, std::chrono::milliseconds check_every) {
+std::optional<NodeAddress> parse_node_url(const std::string& url) {
   static const std::regex url_form(R"(http://([^/:]+|\[[^\]]+\]):(\d{1,5})/?)");
   std::smatch parts;
-  if (!std::regex_match(base_url, parts, url_form)) throw ForwardError("not a node URL: '" + base_url + "'");
-  auto host = parts[1].str();
-  const auto port = parts[2].str();
+  if (!std::regex_match(url, parts, url_form)) return std::nullopt;
+  return NodeAddress{parts[1].str(), parts[2].str()};
+}
+
+api::Response forward_request(api::Request request, const std::string& base_url, std::chrono::milliseconds timeout,
+                              const std::function<bool()>& still_worth_it, std::chrono::milliseconds check_every) {
+  const auto address = parse_node_url(base_url);
+  if (!address) throw ForwardError("not a node URL: '" + base_url + "'");
+  const auto& port = address->port;
+  auto host = address->host;
   if (host.size() > 2 && host.front() == '[') host = host.substr(1, host.size() - 2);
   try {
     // Asynchronous steps on an io_context of its own: the stream's deadline applies only to those, and a node that
@@ -29,7 +35,7 @@ api::Response forward_request(api::Request request, const std::string& base_url,
     beast::tcp_stream stream(io);
     boost::asio::ip::tcp::resolver resolver(io);
     const auto endpoints = resolver.resolve(host, port);
-    request.set(bhttp::field::host, parts[1].str() + ":" + port);
+    request.set(bhttp::field::host, address->host + ":" + port);
     request.keep_alive(false);
     request.prepare_payload();
     beast::flat_buffer buffer;

@@ -3,6 +3,7 @@
 // Node to node: a request passed on, as it came, to the node of a cluster that serves its map.
 #include <chrono>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -16,6 +17,14 @@ class ForwardError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// A node's address as its URL gives it: "http://HOST:PORT" (a trailing '/' allowed; HOST may be "[v6]").
+struct NodeAddress {
+  std::string host;  // as written, brackets included
+  std::string port;
+};
+/// nullopt for anything else (another scheme, no port, a path).
+std::optional<NodeAddress> parse_node_url(const std::string& url);
 
 /// Sends `request` to the node at `base_url` ("http://host:port") on a connection of its own, with its Host set to
 /// that node's, and returns the answer as it came (its Connection header left to the caller). While it waits,

@@ -34,8 +34,6 @@ std::filesystem::path removed_file(const std::filesystem::path& data_dir, const 
 
 bool in_postgres(const MapRegistryOptions& options) { return storage::is_postgres_uri(options.store.path); }
 
-std::string map_schema(const std::string& id) { return map_schema_name(id); }
-
 // The maps in the data directory: its files <id>.db, sorted. What an interrupted removal left is removed.
 std::vector<std::string> sqlite_maps(const MapRegistryOptions& options, common::Diagnostics& diagnostics) {
   std::vector<std::string> found;
@@ -138,7 +136,7 @@ MapInstance::MapInstance(std::string map_id, const MapRegistryOptions& options, 
       store([&] {
         auto store_options = options.store;
         if (in_postgres(options)) {
-          store_options.postgres_schema = map_schema(id);
+          store_options.postgres_schema = map_schema_name(id);
           if (options.leases && options.cluster) {
             store_options.fence = options.leases->try_take(store_options.postgres_schema);
             if (!store_options.fence) throw storage::StorageError("map '" + id + "' is held by another node");
@@ -188,7 +186,7 @@ std::shared_ptr<MapInstance> MapRegistry::open(const std::string& id) {
         if (removed_as.empty()) return;
         if (storage::is_postgres_uri(store.path)) {
           drop_postgres_map(store, id);
-          if (leases) leases->give_back(map_schema(id));
+          if (leases) leases->give_back(map_schema_name(id));
           return;
         }
         for (const auto& file : sqlite_files(map_file(data_dir, id))) {
@@ -290,7 +288,7 @@ int MapRegistry::sweep_removed() {
   int dropped = 0;
   for (const auto& map : postgres_map_schemas(options_.store.path)) {
     if (!map.removed || find(map.id)) continue;
-    const auto schema = map_schema(map.id);
+    const auto schema = map_schema_name(map.id);
     if (!options_.leases->try_take(schema)) continue;  // its holder is alive and drops it itself
     drop_postgres_map(options_.store, map.id);
     options_.leases->give_back(schema);

@@ -27,6 +27,7 @@
 
 #include "e2e_fixture.h"
 #include "logs/carmen_log_reader.h"
+#include "logs/scan_body.h"
 #include "support/postgres_server.h"
 
 namespace wm::testing {
@@ -64,19 +65,12 @@ std::optional<Reply> send(int port, http::verb verb, const std::string& target, 
   }
 }
 
-json scan_body(const fusion::LaserScan& scan) {
-  json ranges = json::array();
-  for (const double r : scan.ranges_m) ranges.push_back(std::isfinite(r) ? json(r) : json(nullptr));
+// A robot's scan as wmctl replay posts it: the log's corrected pose, given σ 3 cm / 0.5° (good, not exact).
+json scan_body(const fusion::LaserScan& scan, const std::string& source, double stamp) {
+  auto body = logs::laser_scan_body(scan, source, stamp);
   const double sxy = 0.03, sth = 0.5 * M_PI / 180;
-  return {{"sensor", "laser"},
-          {"pose", {{"x", scan.sensor_pose.x_m}, {"y", scan.sensor_pose.y_m}, {"theta", scan.sensor_pose.theta_rad}}},
-          {"angle_min", scan.angle_min_rad},
-          {"angle_increment", scan.angle_increment_rad},
-          {"ranges", ranges},
-          {"range_min", scan.range_min_m},
-          {"range_max", scan.range_max_m},
-          {"sigma_range", scan.sigma_range_m},
-          {"pose_cov", {{sxy * sxy, 0, 0}, {0, sxy * sxy, 0}, {0, 0, sth * sth}}}};
+  body["pose_cov"] = {{sxy * sxy, 0, 0}, {0, sxy * sxy, 0}, {0, 0, sth * sth}};
+  return body;
 }
 
 struct Ack {
@@ -92,7 +86,7 @@ class ClusterTest : public ::testing::Test {
     ::setenv("WM_CLUSTER_TOKEN", kToken, 1);
     logs::CarmenLogReader reader(std::filesystem::path(WM_SOURCE_DIR) /
                                  "tests/data/carmen/intel-corrected-excerpt.log.gz");
-    while (auto s = reader.next()) scans_.push_back(scan_body(s->scan));
+    while (auto s = reader.next()) scans_.push_back(s->scan);
     ASSERT_GE(scans_.size(), 30u);
     for (int i = 0; i < kNodes; ++i) start_node(i);
   }
@@ -154,9 +148,9 @@ class ClusterTest : public ::testing::Test {
   void robot(const std::string& map, int index) {
     std::size_t turn = static_cast<std::size_t>(index);
     for (std::int64_t k = 0; !stop_; ++k) {
-      auto body = scans_[(static_cast<std::size_t>(index) * 11 + static_cast<std::size_t>(k)) % scans_.size()];
-      body["source"] = map + "-robot-" + std::to_string(index);
-      body["stamp"] = 0.1 * static_cast<double>(k + 1);
+      const auto body =
+          scan_body(scans_[(static_cast<std::size_t>(index) * 11 + static_cast<std::size_t>(k)) % scans_.size()],
+                    map + "-robot-" + std::to_string(index), 0.1 * static_cast<double>(k + 1));
       const auto key = map + "-" + std::to_string(index) + "-" + std::to_string(k);
       const auto text = body.dump();
       {
@@ -202,7 +196,7 @@ class ClusterTest : public ::testing::Test {
 
   std::string uri_;
   TempDir dir_;
-  std::vector<json> scans_;
+  std::vector<fusion::LaserScan> scans_;
   std::array<std::unique_ptr<WmdProcess>, kNodes> nodes_;
   std::array<std::atomic<int>, kNodes> ports_{};
   std::atomic<bool> stop_{false};
