@@ -25,6 +25,7 @@
 #include <thread>
 #include <vector>
 
+#include "clients/robot/command_input.h"
 #include "clients/robot/drive_script.h"
 #include "clients/robot/servosila_bridge.h"
 
@@ -56,7 +57,10 @@ constexpr const char* kUsage =
     "  --turn-speed RAD/S    scripted turn speed (default 0.6; at least 0.2)\n"
     "  --pause S             standstill between two scripted moves (default 0.5)\n"
     "  --link-timeout S      give up when no telemetry came within S seconds of start (default 10)\n"
-    "  --command-timeout S   stdin: stop when no line came for S seconds (default 0: hold the last command)\n"
+    "  --command-timeout S   stop when no new command came for S seconds, whatever sends them (default 0.5;\n"
+    "                        0: a command holds until the next)\n"
+    "  --command-udp [ADDR:]PORT  also take \"v w\" commands as UDP datagrams (default address 127.0.0.1);\n"
+    "                        without --drive, stdin is then not read and the bridge runs until a signal\n"
     "Exit: 0 when the drive ended and the robot was seen stopped; 1 on a lost link or an unconfirmed stop;\n"
     "2 on bad flags; 128+N after signal N. A stop is sent in every case.\n";
 
@@ -85,7 +89,7 @@ struct Arguments {
   double turn_speed_radps = 0.6;
   double pause_s = 0.5;
   double link_timeout_s = 10.0;
-  double command_timeout_s = 0.0;
+  std::optional<wm::robot::HostPort> command_udp;
 };
 
 Arguments parse(int argc, char** argv) {
@@ -169,8 +173,12 @@ Arguments parse(int argc, char** argv) {
     } else if (flag == "--link-timeout") {
       args.link_timeout_s = parse_positive(flag, value);
     } else if (flag == "--command-timeout") {
-      args.command_timeout_s = parse_double(flag, value);
-      if (args.command_timeout_s < 0.0) throw std::invalid_argument("--command-timeout: must be >= 0");
+      args.bridge.command_timeout_s = parse_double(flag, value);
+      if (args.bridge.command_timeout_s < 0.0) throw std::invalid_argument("--command-timeout: must be >= 0");
+    } else if (flag == "--command-udp") {
+      const std::string text(value);
+      args.command_udp = text.find(':') == std::string::npos ? wm::robot::parse_host_port("127.0.0.1:" + text, 0)
+                                                             : wm::robot::parse_host_port(text, 0);
     } else {
       throw std::invalid_argument("unknown option " + std::string(flag));
     }
@@ -242,27 +250,20 @@ Outcome run_script(Bridge& bridge, Interrupt& interrupt, const std::vector<wm::r
     while (Clock::now() < at) {
       if (interrupt.sleep_until(std::min(at, Clock::now() + milliseconds(50)))) return Outcome::interrupted;
       if (link_lost(bridge)) return Outcome::link_lost;
+      bridge.keep_alive();  // the script is the driver: its step holds for its time, not for the command timeout
     }
   }
   bridge.set_velocity(0.0, 0.0);
   return Outcome::done;
 }
 
-/// Reads "v w" lines from stdin until EOF. A line that is not two numbers is a stop (and logged).
-Outcome run_stdin(Bridge& bridge, Interrupt& interrupt, double command_timeout_s) {
+/// Reads "v w" lines from stdin until EOF. A line that is not two numbers is a stop (and logged). Each line holds
+/// for the bridge's command timeout.
+Outcome run_stdin(Bridge& bridge, Interrupt& interrupt) {
   std::string pending;
   char buffer[4096];
-  const auto command_timeout =
-      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(command_timeout_s));
-  Clock::time_point last_line = Clock::now();
-  bool timed_out = false;
   for (;;) {
     if (interrupt.signal() != 0) return Outcome::interrupted;
-    if (command_timeout_s > 0.0 && !timed_out && Clock::now() - last_line > command_timeout) {
-      log("no command for " + fixed(command_timeout_s, 1) + " s: stop");
-      bridge.set_velocity(0.0, 0.0);
-      timed_out = true;
-    }
     pollfd p{STDIN_FILENO, POLLIN, 0};
     if (::poll(&p, 1, 50) <= 0) continue;
     const ssize_t n = ::read(STDIN_FILENO, buffer, sizeof buffer);
@@ -284,12 +285,17 @@ Outcome run_stdin(Bridge& bridge, Interrupt& interrupt, double command_timeout_s
         w = 0.0;
       }
       bridge.set_velocity(v, w);
-      last_line = Clock::now();
-      timed_out = false;
     }
   }
   bridge.set_velocity(0.0, 0.0);
   return Outcome::done;
+}
+
+/// Commands come from elsewhere (--command-udp): serves them until a signal.
+Outcome run_until_signal(Interrupt& interrupt) {
+  while (!interrupt.sleep_until(Clock::now() + milliseconds(500))) {
+  }
+  return Outcome::interrupted;
 }
 
 /// Waits until the bridge sees the robot stopped, or a signal, or the timeout.
@@ -372,6 +378,24 @@ int main(int argc, char** argv) {
     }
   });
 
+  std::unique_ptr<wm::robot::CommandInput> command_input;
+  if (args.command_udp) {
+    try {
+      command_input = std::make_unique<wm::robot::CommandInput>(
+          args.command_udp->host, args.command_udp->port, [&bridge](const wm::robot::VelocityLine& line, bool refused) {
+            if (refused) log("a command datagram that is not \"v w\": stop");
+            bridge->set_velocity(line.linear_mps, line.angular_radps);
+          });
+      log("commands: \"v w\" datagrams on UDP " + args.command_udp->host + ":" + std::to_string(command_input->port()));
+    } catch (const std::exception& e) {
+      log(e.what());
+      bridge->shutdown();
+      pthread_kill(signal_thread.native_handle(), SIGUSR1);
+      signal_thread.join();
+      return 1;
+    }
+  }
+
   int code = 0;
   bool stopped = false;
   if (!wait_for_link(*bridge, interrupt, args.link_timeout_s)) {
@@ -380,8 +404,9 @@ int main(int argc, char** argv) {
       code = 1;
     }
   } else {
-    const Outcome outcome =
-        args.drive ? run_script(*bridge, interrupt, segments) : run_stdin(*bridge, interrupt, args.command_timeout_s);
+    const Outcome outcome = args.drive                 ? run_script(*bridge, interrupt, segments)
+                            : command_input != nullptr ? run_until_signal(interrupt)
+                                                       : run_stdin(*bridge, interrupt);
     if (outcome == Outcome::link_lost) {
       log("link lost during the drive: the robot was sent stops; drive aborted");
       code = 1;
@@ -396,7 +421,8 @@ int main(int argc, char** argv) {
       }
     }
   }
-  bridge->shutdown();  // the stop burst, the final pose, the socket closed
+  command_input.reset();  // no command after this point
+  bridge->shutdown();     // the stop burst, the final pose, the socket closed
 
   if (interrupt.signal() == 0) {
     pthread_kill(signal_thread.native_handle(), SIGUSR1);

@@ -97,7 +97,7 @@ struct Bridge::Impl {
   }
 
   AxisCommand effective_locked() const {
-    if (halted || stop_latched) return AxisCommand{};
+    if (halted || stop_latched || command_expired) return AxisCommand{};
     return command.axes;
   }
 
@@ -158,6 +158,18 @@ struct Bridge::Impl {
     log.always(std::string("watchdog: no telemetry for ") + seconds +
                " s; sending stops (held until telemetry is back and a new command is given)");
     if (was_moving || !is_zero(sent)) send_locked(now);
+  }
+
+  /// A moving command that nobody renewed within command_timeout_s becomes a stop, sent at once.
+  void check_command_timeout_locked(Clock::time_point now) {
+    if (options.command_timeout_s <= 0.0 || command_expired || is_zero(command.axes)) return;
+    if (now - last_command <= to_duration(options.command_timeout_s)) return;
+    command_expired = true;
+    ++stats.command_timeouts;
+    char seconds[32];
+    std::snprintf(seconds, sizeof seconds, "%g", options.command_timeout_s);
+    log.limited("command_timeout", std::string("no velocity command for ") + seconds + " s: stop", now);
+    send_locked(now);
   }
 
   bool confirmed_stopped_locked() const {
@@ -295,6 +307,7 @@ struct Bridge::Impl {
       {
         const std::lock_guard lock(mutex);
         check_watchdog_locked(now);
+        check_command_timeout_locked(now);
         if (now >= next_send) {
           send_locked(now);
           next_send += period;
@@ -408,8 +421,10 @@ struct Bridge::Impl {
   RateLimitedLog log;
   BridgeStats stats;
   OdometrySource mode;
-  ConversionResult command;  // the last command given (its axes are sent when nothing holds a stop)
-  bool stop_latched = true;  // at start, and after a watchdog stop: released by a command while the link is up
+  ConversionResult command;        // the last command given (its axes are sent when nothing holds a stop)
+  Clock::time_point last_command;  // when it was given or last renewed (keep_alive)
+  bool command_expired = false;    // it was not renewed within command_timeout_s: stops until the next command
+  bool stop_latched = true;        // at start, and after a watchdog stop: released by a command while the link is up
   bool halted = false;
   bool tripped = false;
   std::optional<Clock::time_point> last_telemetry;
@@ -459,9 +474,16 @@ ConversionResult Bridge::set_velocity(double linear_mps, double angular_radps) {
         now);
   }
   s.command = result;
+  s.last_command = now;
+  s.command_expired = false;
   if (s.link_up_locked(now)) s.stop_latched = false;
   s.send_locked(now);
   return result;
+}
+
+void Bridge::keep_alive() {
+  const std::lock_guard lock(impl_->mutex);
+  impl_->last_command = Clock::now();
 }
 
 void Bridge::halt() { impl_->halt(); }
@@ -487,6 +509,7 @@ BridgeStatus Bridge::status() const {
   status.ever_linked = s.last_telemetry.has_value();
   status.watchdog_tripped = s.tripped;
   status.stop_latched = s.stop_latched;
+  status.command_expired = s.command_expired;
   status.halted = s.halted;
   status.odometry = s.mode;
   status.sent = s.sent;

@@ -94,6 +94,11 @@ struct BridgeOptions {
   /// With no valid telemetry for this long [s], the link is quiet: the bridge sends a stop and holds it until
   /// telemetry is back and a new command is given. 1.5 s is 1.5 periods of the real robot's 1 Hz telemetry.
   double watchdog_s = 1.5;
+  /// A command holds for this long [s] unless a new one (or keep_alive()) renews it; then the bridge commands a stop
+  /// and keeps sending it until the next command. Whatever drives the bridge (a script, stdin, ROS, a browser
+  /// through wmd) must repeat its command faster than this; a driver that hangs or vanishes stops the robot within
+  /// this time plus one poll (20 ms). 0: off (a command holds until the next).
+  double command_timeout_s = 0.5;
   /// Poses go to the sink once every period [s] (0: only the final one at shutdown).
   double report_period_s = 0.2;
   /// On halt() and shutdown: this many stop packets over this many seconds, so that one survives a lossy link.
@@ -125,6 +130,7 @@ struct BridgeStats {
   std::uint64_t commands_clamped = 0;       // beyond the limits
   std::uint64_t commands_raised = 0;        // non-zero below the minimum speed, raised to it
   std::uint64_t commands_ignored = 0;       // after halt()
+  std::uint64_t command_timeouts = 0;       // a moving command expired (command_timeout_s): a stop
   std::uint64_t telemetry_received = 0;     // valid telemetry from the robot
   std::uint64_t foreign = 0;                // datagrams from another address (or port) than the robot's
   std::uint64_t truncated = 0;              // shorter than the packet its frame type announces (or empty)
@@ -151,6 +157,7 @@ struct BridgeStatus {
   bool ever_linked = false;       // some valid telemetry has arrived
   bool watchdog_tripped = false;  // the link went quiet and has not come back
   bool stop_latched = false;      // a watchdog stop is held until the next command (given while the link is up)
+  bool command_expired = false;   // no command for command_timeout_s: a stop until the next command
   bool halted = false;            // halt() or shutdown(): stops only, for good
   OdometrySource odometry = OdometrySource::automatic;  // automatic until the first telemetry decides
   AxisCommand sent;                                     // the axes of the last control packet
@@ -176,6 +183,10 @@ class Bridge {
   /// while the link is up; a command given while the link is up releases a watchdog stop. Ignored after halt().
   /// Returns the conversion (what is sent while the link is up).
   ConversionResult set_velocity(double linear_mps, double angular_radps);
+
+  /// Renews the current command's lease (command_timeout_s) without sending anything: for a driver in this process
+  /// whose one command holds for a known time (a drive script). Does not undo an expiry that already happened.
+  void keep_alive();
 
   /// Stops for good: from now on every control packet is a stop, and a burst of stop packets is sent at once
   /// (stop_burst_count over stop_burst_duration_s; blocks that long). For signal handlers' threads. Idempotent

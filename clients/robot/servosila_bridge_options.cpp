@@ -27,6 +27,8 @@ void validate(const BridgeOptions& o) {
   require(positive_finite(o.control_period_s) && o.control_period_s <= 1.0,
           "control_period_s must be in (0, 1] (the robot's own watchdog expects packets)");
   require(positive_finite(o.watchdog_s), "watchdog_s must be finite and > 0");
+  require(std::isfinite(o.command_timeout_s) && o.command_timeout_s >= 0.0,
+          "command_timeout_s must be finite and >= 0");
   require(std::isfinite(o.report_period_s) && o.report_period_s >= 0.0, "report_period_s must be finite and >= 0");
   require(o.stop_burst_count >= 1 && o.stop_burst_count <= 100, "stop_burst_count must be in 1..100");
   require(std::isfinite(o.stop_burst_duration_s) && o.stop_burst_duration_s >= 0.0 && o.stop_burst_duration_s <= 5.0,
@@ -98,14 +100,14 @@ std::string format_stats(const BridgeStats& s) {
       << " control_send_errors=" << s.control_send_errors << " commands=" << s.commands
       << " commands_rejected=" << s.commands_rejected << " commands_clamped=" << s.commands_clamped
       << " commands_raised=" << s.commands_raised << " commands_ignored=" << s.commands_ignored
-      << " telemetry_received=" << s.telemetry_received << " foreign=" << s.foreign << " truncated=" << s.truncated
-      << " oversized=" << s.oversized << " unknown_frame_type=" << s.unknown_frame_type
-      << " unexpected_frame_type=" << s.unexpected_frame_type << " too_many_motors=" << s.too_many_motors
-      << " video_frames=" << s.video_frames << " odometry_advanced=" << s.odometry_advanced
-      << " odometry_stale=" << s.odometry_stale << " odometry_track_missing=" << s.odometry_track_missing
-      << " odometry_jumps=" << s.odometry_jumps << " odometry_restarts=" << s.odometry_restarts
-      << " watchdog_trips=" << s.watchdog_trips << " poses_published=" << s.poses_published
-      << " publish_errors=" << s.publish_errors;
+      << " command_timeouts=" << s.command_timeouts << " telemetry_received=" << s.telemetry_received
+      << " foreign=" << s.foreign << " truncated=" << s.truncated << " oversized=" << s.oversized
+      << " unknown_frame_type=" << s.unknown_frame_type << " unexpected_frame_type=" << s.unexpected_frame_type
+      << " too_many_motors=" << s.too_many_motors << " video_frames=" << s.video_frames
+      << " odometry_advanced=" << s.odometry_advanced << " odometry_stale=" << s.odometry_stale
+      << " odometry_track_missing=" << s.odometry_track_missing << " odometry_jumps=" << s.odometry_jumps
+      << " odometry_restarts=" << s.odometry_restarts << " watchdog_trips=" << s.watchdog_trips
+      << " poses_published=" << s.poses_published << " publish_errors=" << s.publish_errors;
   return out.str();
 }
 

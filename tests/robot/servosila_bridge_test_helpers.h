@@ -92,6 +92,7 @@ inline BridgeOptions test_options(std::uint16_t robot_port, LogLines& log) {
   o.robot_port = robot_port;
   o.watchdog_s = 0.5;
   o.report_period_s = 0.05;
+  o.command_timeout_s = 0.0;  // these tests hold one command for seconds; the timeout has tests of its own
   o.log = log.sink();
   return o;
 }
