@@ -140,6 +140,24 @@ void OccupancyGrid::insert(const SonarScan& scan) {
   insert_scan(scan, scan.ranges_m.size(), [&](std::size_t i) { return sonar_beam(scan, i, options_.sensor); });
 }
 
+void OccupancyGrid::insert(const SonarScan& scan, const std::vector<std::optional<Beam>>& beams) {
+  validate(scan);
+  if (beams.size() != scan.ranges_m.size())
+    throw std::invalid_argument("OccupancyGrid::insert: " + std::to_string(beams.size()) + " beams for " +
+                                std::to_string(scan.ranges_m.size()) + " readings");
+  const double reach = std::min(scan.range_max_m, usable_range_m(scan, options_.sensor)) *
+                       (1.0 + range_sigma_per_m(scan, options_.sensor));
+  const Eigen::Vector2d sensor(scan.sensor_pose.x_m, scan.sensor_pose.y_m);
+  for (const auto& beam : beams) {
+    if (!beam) continue;
+    if (!std::isfinite(beam->range_m) || beam->range_m < 0 || beam->range_m > reach || !std::isfinite(beam->sigma_m) ||
+        (beam->origin_m - sensor).norm() > 1e-9 || beam->half_width_rad != scan.beam_width_rad / 2)
+      throw std::invalid_argument(
+          "OccupancyGrid::insert: a sonar beam is not one of the scan's (origin, width or range)");
+  }
+  insert_scan(scan, beams.size(), [&](std::size_t i) { return beams[i]; });
+}
+
 template <typename ScanT, typename MakeBeam>
 void OccupancyGrid::insert_scan(const ScanT& scan, std::size_t beams, const MakeBeam& make_beam) {
   const Pose2D& pose = scan.sensor_pose;

@@ -70,6 +70,11 @@ class OccupancyGrid {
   void insert(const LaserScan& scan);
   /// Adds one sonar ring; same rules and exceptions as the laser overload.
   void insert(const SonarScan& scan);
+  /// Adds a sonar ring whose beams were resolved beforehand (sonar_beam, then changed: the sonar gate drops and
+  /// shortens beams); beams[i] nullopt skips reading i. Same rules and exceptions as insert(scan), and
+  /// @throw std::invalid_argument when beams.size() differs from the scan's, or a beam is not finite, starts
+  ///        elsewhere than the sensor or reaches farther than the scan's own beams could.
+  void insert(const SonarScan& scan, const std::vector<std::optional<Beam>>& beams);
 
   double resolution_m() const { return options_.resolution_m; }
   const GridOptions& options() const { return options_; }
