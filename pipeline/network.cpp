@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <future>
 #include <set>
 #include <sstream>
 
@@ -66,6 +67,7 @@ struct ExecutorState {
   std::atomic<std::uint64_t> idle_at_pushes{0};
   std::atomic<std::uint64_t> cycles{0};
   std::atomic<std::int64_t> busy_ns{0};
+  std::deque<std::shared_ptr<std::packaged_task<void()>>> controls;  // run between two activations (mutex)
   std::thread thread;
 };
 
@@ -79,16 +81,23 @@ struct InputQueue {
   bool written = false;  // a connection ends here
   mutable std::mutex mutex;
   std::deque<std::any> values;
-  std::uint64_t pushed = 0, dropped = 0, refused = 0;
+  std::uint64_t pushed = 0, dropped = 0, refused = 0, dropped_stopped = 0;
   std::size_t max_depth = 0;
+  bool accepting = true;                  // false while its component's subtask is stopped
+  std::atomic<std::uint64_t> version{0};  // values pushed so far: tells a peeking function a new value
 
   std::size_t depth() const {
     std::lock_guard lock(mutex);
     return values.size();
   }
-  /// false when a FIFO is full and `force` is off.
+  /// false when a FIFO is full and `force` is off. While its component is stopped the value is dropped (counted),
+  /// and destroyed after the lock is let go (it may hold a request's answer).
   bool push(std::any value, bool force) {
     std::lock_guard lock(mutex);
+    if (!accepting) {
+      ++dropped_stopped;
+      return true;
+    }
     if (options.policy == PortPolicy::latest) {
       if (!values.empty()) {
         ++dropped;
@@ -100,6 +109,7 @@ struct InputQueue {
     }
     values.push_back(std::move(value));
     ++pushed;
+    ++version;
     max_depth = std::max(max_depth, values.size());
     return true;
   }
@@ -109,6 +119,7 @@ struct FunctionState {
   Component::Function spec;
   std::size_t priority = 0;
   std::vector<InputQueue*> consumed, peeked;
+  std::vector<std::uint64_t> seen;      // per peeked port: its version at the last activation (executor thread)
   std::vector<InputQueue*> downstream;  // FIFO inputs fed by this component: the function waits for their room
   std::atomic<std::uint64_t> activations{0}, failures{0};
   std::atomic<std::int64_t> busy_ns{0}, max_ns{0};
@@ -122,6 +133,10 @@ struct Node {
   std::map<std::string, std::vector<InputQueue*>> targets;  // output → connected inputs
   std::vector<std::unique_ptr<FunctionState>> functions;    // in priority order
   ExecutorState* executor = nullptr;
+  std::atomic<bool> running{true};  // false: its subtask is stopped (set on its executor's thread)
+  std::string subtask;              // empty: in none
+  mutable std::mutex params_mutex;
+  std::map<std::string, std::string> params;  // the task file's, then the settable ones in force (params_mutex)
 
   InputQueue* input(const std::string& port) const {
     for (const auto& q : inputs)
@@ -224,9 +239,11 @@ Network::Network(const TaskSpec& spec, const Registry& registry, FailureReport o
       std::sort(ports.begin(), ports.end());
       return ports;
     };
+    // Any two functions with as many ports are ordered: by the task file's priorities, else by the kind's default.
+    const auto& order = c.priorities.empty() ? node->component->default_order() : c.priorities;
     const auto rank = [&](const Component::Function& f) -> std::ptrdiff_t {
-      const auto it = std::find(c.priorities.begin(), c.priorities.end(), f.name);
-      return it == c.priorities.end() ? -1 : it - c.priorities.begin();
+      const auto it = std::find(order.begin(), order.end(), f.name);
+      return it == order.end() ? -1 : it - order.begin();
     };
     for (const auto* f : chosen) {
       const auto ports = subset(*f);
@@ -246,11 +263,14 @@ Network::Network(const TaskSpec& spec, const Registry& registry, FailureReport o
                                             "' both depend on " + port_list(ports)));
         std::vector<std::string> shared;
         std::set_intersection(ports.begin(), ports.end(), other.begin(), other.end(), std::back_inserter(shared));
-        if (ports.size() == other.size() && !shared.empty() && (rank(*f) < 0 || rank(*g) < 0))
+        if (ports.size() == other.size() && (rank(*f) < 0 || rank(*g) < 0))
           throw NetworkError(fail(spec, "component '" + c.name + "': functions '" + f->name + "' and '" + g->name +
-                                            "' both depend on " + std::to_string(ports.size()) + " ports and share " +
-                                            port_list(shared) + ": give them a relative priority (priorities: [" +
-                                            f->name + ", " + g->name + "] or the reverse)"));
+                                            "' both depend on " + std::to_string(ports.size()) + " ports" +
+                                            (shared.empty() ? std::string() : " and share " + port_list(shared)) +
+                                            ": give them a relative priority (priorities: [" + f->name + ", " +
+                                            g->name + "] or the reverse" +
+                                            (c.priorities.empty() ? "; kind " + c.kind + " has no default order" : "") +
+                                            ")"));
       }
     }
     std::stable_sort(chosen.begin(), chosen.end(), [&](const auto* a, const auto* b) {
@@ -265,8 +285,11 @@ Network::Network(const TaskSpec& spec, const Registry& registry, FailureReport o
       state->priority = i;
       for (const auto& port : state->spec.ports) state->consumed.push_back(node->input(port));
       for (const auto& port : state->spec.options.peeks) state->peeked.push_back(node->input(port));
+      state->seen.assign(state->peeked.size(), 0);
       node->functions.push_back(std::move(state));
     }
+    node->params = c.params.values();
+    for (const auto& [key, value] : node->component->settable_params()) node->params.emplace(key, value);
     by_name[c.name] = node.get();
     nodes_.push_back(std::move(node));
   }
@@ -348,6 +371,38 @@ Network::Network(const TaskSpec& spec, const Registry& registry, FailureReport o
   }
   for (const auto& node : nodes_)
     if (!node->executor) throw NetworkError(fail(spec, "component '" + node->name + "' is on no executor"));
+
+  // Subtasks: only components whose values may be lost, so a stopped one never keeps a request from its answer.
+  for (const auto& t : spec.subtasks) {
+    const std::string where = "subtask '" + t.name + "'";
+    if (std::any_of(subtasks_.begin(), subtasks_.end(), [&](const auto& s) { return s->name == t.name; }))
+      throw NetworkError(fail(spec, where + " is declared twice"));
+    if (t.components.empty()) throw NetworkError(fail(spec, where + " names no component"));
+    auto subtask = std::make_unique<Subtask>();
+    subtask->name = t.name;
+    subtask->running = t.running;
+    for (const auto& name : t.components) {
+      Node* node = find_node(name, where);
+      if (!node->subtask.empty())
+        throw NetworkError(
+            fail(spec, "component '" + name + "' is in two subtasks ('" + node->subtask + "' and '" + t.name + "')"));
+      for (const auto& q : node->inputs) {
+        if (q->options.external)
+          throw NetworkError(fail(spec, where + ": component '" + name +
+                                            "' takes values from outside the network on '" + q->name +
+                                            "' (the HTTP writes): it cannot be stopped"));
+        if (q->written && q->options.policy == PortPolicy::fifo)
+          throw NetworkError(fail(spec, where + ": component '" + name + "' takes every value on '" + q->name +
+                                            "' (a fifo: requests wait for them): only components whose inputs keep "
+                                            "the latest value can be stopped"));
+      }
+      node->subtask = t.name;
+      node->running = t.running;
+      for (auto& q : node->inputs) q->accepting = t.running;
+      subtask->nodes.push_back(node);
+    }
+    subtasks_.push_back(std::move(subtask));
+  }
 }
 
 Network::~Network() {
@@ -477,11 +532,19 @@ void Network::notify() {
 }
 
 bool Network::ready(const Node& node, std::size_t function) const {
+  if (!node.running) return false;
   const auto& f = *node.functions[function];
   for (const auto* q : f.consumed)
     if (q->depth() == 0) return false;
-  for (const auto* q : f.peeked)
-    if (q->depth() == 0) return false;
+  bool unseen = false;  // a peeked value this function has not run on
+  for (std::size_t i = 0; i < f.peeked.size(); ++i) {
+    if (f.peeked[i]->depth() == 0) return false;
+    unseen = unseen || f.peeked[i]->version != f.seen[i];
+  }
+  if (!f.peeked.empty() && !unseen) {
+    const auto mode = f.spec.options.peek_new;
+    if (mode == PeekNew::always || (mode == PeekNew::when_only_peeks && f.consumed.empty())) return false;
+  }
   for (const auto* q : f.downstream)
     if (q->depth() >= q->options.capacity) return false;
   return !f.spec.options.guard || f.spec.options.guard();
@@ -506,9 +569,11 @@ void Network::activate(Node& node, std::size_t function) {
     }
     activation.taken_.emplace_back(q->name, std::move(values));
   }
-  for (auto* q : f.peeked) {
+  for (std::size_t i = 0; i < f.peeked.size(); ++i) {
+    auto* q = f.peeked[i];
     std::lock_guard lock(q->mutex);
     activation.peeked_.emplace_back(q->name, q->values.front());
+    f.seen[i] = q->version;
   }
   ++pushes_;  // a value moved: a stop that drains must look again
   if (made_room) notify();
@@ -536,7 +601,16 @@ void Network::run_executor(ExecutorState& executor) {
   std::vector<std::shared_ptr<void>> attached;
   for (auto* node : executor.nodes)
     if (const auto& start = node->component->thread_start()) attached.push_back(start());
+  const auto run_controls = [&executor] {
+    std::deque<std::shared_ptr<std::packaged_task<void()>>> controls;
+    {
+      std::lock_guard lock(executor.mutex);
+      controls.swap(executor.controls);
+    }
+    for (auto& control : controls) (*control)();
+  };
   while (!stop_now_) {
+    run_controls();
     const auto pushes_before = pushes_.load();
     bool ran = false;
     const auto begin = std::chrono::steady_clock::now();
@@ -560,7 +634,79 @@ void Network::run_executor(ExecutorState& executor) {
     executor.signalled = false;
     executor.idle = false;
   }
+  run_controls();  // none comes after this: run_on_thread looks at stop_now_ under the same mutex
   attached.clear();
+}
+
+void Network::run_on_thread(Node& node, std::function<void()> control) {
+  if (!started_) {
+    control();
+    return;
+  }
+  auto task = std::make_shared<std::packaged_task<void()>>(std::move(control));
+  auto done = task->get_future();
+  auto& executor = *node.executor;
+  {
+    std::lock_guard lock(executor.mutex);
+    if (stop_now_) throw QueueFull("the processing network is stopping");
+    executor.controls.push_back(std::move(task));
+    executor.signalled = true;
+  }
+  executor.cv.notify_one();
+  done.get();
+}
+
+void Network::set_subtask(const std::string& name, bool running) {
+  const auto it = std::find_if(subtasks_.begin(), subtasks_.end(), [&](const auto& t) { return t->name == name; });
+  if (it == subtasks_.end()) throw std::out_of_range("no subtask '" + name + "' in " + source_);
+  std::lock_guard control(control_mutex_);
+  for (Node* node : (*it)->nodes)
+    run_on_thread(*node, [node, running] {
+      node->running = running;
+      for (auto& q : node->inputs) {
+        std::deque<std::any> left;  // destroyed after the lock: a value may hold a request's answer
+        std::lock_guard lock(q->mutex);
+        q->accepting = running;
+        if (!running) {
+          left.swap(q->values);
+          q->dropped_stopped += left.size();
+        }
+      }
+    });
+  (*it)->running = running;
+  notify();  // producers that waited for room in its inputs
+}
+
+void Network::set_params(const std::string& component, const std::map<std::string, std::string>& changes) {
+  const auto it = std::find_if(nodes_.begin(), nodes_.end(), [&](const auto& n) { return n->name == component; });
+  if (it == nodes_.end()) throw std::out_of_range("no component '" + component + "' in " + source_);
+  Node& node = **it;
+  const std::string who = "component '" + node.name + "' (" + node.kind + ")";
+  const auto& settable = node.component->settable_params();
+  std::string known;
+  for (const auto& [key, value] : settable) known += (known.empty() ? "" : ", ") + key;
+  if (changes.empty()) throw std::invalid_argument(who + ": no parameter given");
+  for (const auto& [key, value] : changes)
+    if (!settable.count(key))
+      throw std::invalid_argument(
+          who + ": parameter '" + key + "' cannot change while the network runs" +
+          (known.empty() ? std::string(" (none of " + node.kind + "'s can)") : " (these can: " + known + ")"));
+  std::lock_guard control(control_mutex_);
+  std::map<std::string, std::string> merged;
+  {
+    std::lock_guard lock(node.params_mutex);
+    merged = node.params;
+  }
+  for (const auto& [key, value] : changes) merged[key] = value;
+  std::function<void()> apply;
+  try {
+    apply = node.component->prepare()(Params(merged));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(who + ": " + e.what());  // as the task file's error says it, without the file
+  }
+  run_on_thread(node, std::move(apply));
+  std::lock_guard lock(node.params_mutex);
+  node.params = std::move(merged);
 }
 
 NetworkStats Network::stats() const {
@@ -568,10 +714,21 @@ NetworkStats Network::stats() const {
   s.source = source_;
   s.discarded = discarded_;
   for (const auto& node : nodes_) {
+    ComponentStats cs;
+    cs.name = node->name;
+    cs.kind = node->kind;
+    {
+      std::lock_guard lock(node->params_mutex);
+      cs.params = node->params;
+    }
+    for (const auto& [key, value] : node->component->settable_params()) cs.settable.push_back(key);
+    if (!node->subtask.empty()) cs.subtask = node->subtask;
+    cs.running = node->running;
+    s.components.push_back(std::move(cs));
     for (const auto& q : node->inputs) {
       std::lock_guard lock(q->mutex);
       s.ports.push_back({node->name, q->name, type_name(q->type), q->options.policy, q->options.capacity,
-                         q->values.size(), q->max_depth, q->pushed, q->dropped, q->refused});
+                         q->values.size(), q->max_depth, q->pushed, q->dropped, q->refused, q->dropped_stopped});
     }
     for (const auto& f : node->functions)
       s.functions.push_back({node->name, f->spec.name, f->spec.ports, f->spec.options.peeks, f->priority,
@@ -582,6 +739,11 @@ NetworkStats Network::stats() const {
   }
   const double wall =
       started_ ? std::chrono::duration<double>(std::chrono::steady_clock::now() - started_at_).count() : 0;
+  for (const auto& t : subtasks_) {
+    SubtaskStats ts{t->name, t->running, {}};
+    for (const auto* node : t->nodes) ts.components.push_back(node->name);
+    s.subtasks.push_back(std::move(ts));
+  }
   for (const auto& e : executors_) {
     ExecutorStats es{e->name, {}, e->cycles, e->busy_ns * 1e-9, wall};
     for (const auto* node : e->nodes) es.components.push_back(node->name);

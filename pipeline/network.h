@@ -3,9 +3,11 @@
 // A processing network with DisCODe's conditional activation (Stefańczyk, Kornuta, Kasprzak: "DisCODe: a component
 // framework for perception"): components with typed input and output ports; each component holds partial transition
 // functions, each depending on a subset of its input ports and activated only when all of them hold data; functions
-// that depend on more ports go first, ties between functions that share a port are settled by a relative priority;
-// a function may read a port without consuming it (peek); every cycle of an executor tries each function of each
-// of its components once, in that order, so no function starves another.
+// that depend on more ports go first, and any two with as many ports are ordered by a relative priority (the task
+// file's, else the component kind's default); a function may read a port without consuming it (peek), and runs on
+// a peeked value once; every cycle of an executor tries each function of each of its components once, in that
+// order, so no function starves another. Subtasks are groups of components started and stopped while the network
+// runs; a component's parameters may change while it runs, applied on its own thread.
 #include <any>
 #include <atomic>
 #include <chrono>
@@ -57,6 +59,18 @@ struct InputOptions {
   std::size_t batch = 1;
 };
 
+/// When a function that peeks runs again on a value it has already seen (each input counts the values pushed into it,
+/// and each function remembers the count it last saw on each port it peeks).
+enum class PeekNew {
+  /// A function that only peeks runs when a peeked port holds a value it has not seen; one that also consumes is
+  /// triggered by its consumed values (the peeked ports need only hold a value).
+  when_only_peeks,
+  /// Also a function that consumes waits for a value it has not seen on one of its peeked ports.
+  always,
+  /// A peeked value is always new: a function that only peeks runs every cycle while its ports hold values.
+  never,
+};
+
 struct FunctionOptions {
   /// Ports the function reads without consuming: they must hold data too, and count for its priority.
   std::vector<std::string> peeks;
@@ -65,9 +79,11 @@ struct FunctionOptions {
   /// The outputs it emits on: it waits for room in the FIFO inputs they feed (nullopt: every output of its
   /// component). Naming them keeps a feedback loop (a result coming back to the component) from blocking itself.
   std::optional<std::vector<std::string>> emits;
+  PeekNew peek_new = PeekNew::when_only_peeks;
 };
 
 class Activation;
+class Params;
 using FunctionBody = std::function<void(Activation&)>;
 
 /// Ports and partial functions. A component kind's factory builds one and fills it in; the network wires it.
@@ -107,6 +123,22 @@ class Component {
     functions_.push_back({std::move(name), std::move(ports), std::move(options), std::move(body)});
     return *this;
   }
+  /// The kind's default relative priority of its functions, first = first: orders any two with as many ports (the
+  /// task file's `priorities:` replace it).
+  Component& order(std::vector<std::string> functions) {
+    order_ = std::move(functions);
+    return *this;
+  }
+  /// Parameters that may change while the network runs. `current`: their values at start, as text. `prepare`, on
+  /// the caller's thread, checks the parameters as the factory did at start (the task file's with the changes on
+  /// top; @throw std::invalid_argument with the factory's message) and returns what puts them in force, which runs
+  /// on the component's own executor thread between two activations.
+  using Prepare = std::function<std::function<void()>(const Params&)>;
+  Component& settable(std::map<std::string, std::string> current, Prepare prepare) {
+    settable_ = std::move(current);
+    prepare_ = std::move(prepare);
+    return *this;
+  }
   /// Runs on each executor thread that hosts this component, before its first activation; what it returns is kept
   /// until the thread ends (e.g. a Prolog engine attached to the thread).
   Component& on_thread_start(std::function<std::shared_ptr<void>()> start) {
@@ -118,12 +150,18 @@ class Component {
   const std::vector<Output>& outputs() const { return outputs_; }
   const std::vector<Function>& functions() const { return functions_; }
   const std::function<std::shared_ptr<void>()>& thread_start() const { return thread_start_; }
+  const std::vector<std::string>& default_order() const { return order_; }
+  const std::map<std::string, std::string>& settable_params() const { return settable_; }
+  const Prepare& prepare() const { return prepare_; }
 
  private:
   std::vector<Input> inputs_;
   std::vector<Output> outputs_;
   std::vector<Function> functions_;
   std::function<std::shared_ptr<void>()> thread_start_;
+  std::vector<std::string> order_;
+  std::map<std::string, std::string> settable_;
+  Prepare prepare_;
 };
 
 /// Parameters of one component from the task file, as text.
@@ -159,9 +197,9 @@ struct TaskSpec {
     std::string kind;
     Params params;
     std::optional<std::vector<std::string>> functions;  // the functions to run (nullopt: all)
-    std::vector<std::string> priorities;                // relative priority among ties, first = first
-    std::map<std::string, std::size_t> capacities;      // input port → capacity
-    std::map<std::string, PortPolicy> policies;         // input port → policy
+    std::vector<std::string> priorities;            // relative priority among ties, first = first (empty: the kind's)
+    std::map<std::string, std::size_t> capacities;  // input port → capacity
+    std::map<std::string, PortPolicy> policies;     // input port → policy
   };
   struct Connection {
     std::string from_component, from_port, to_component, to_port;
@@ -170,10 +208,18 @@ struct TaskSpec {
     std::string name;
     std::vector<std::string> components;  // tried in this order every cycle
   };
+  /// Components started and stopped together while the network runs. Only components whose inputs all keep the
+  /// latest value may be in one (what a FIFO or an external input holds, a request waits for).
+  struct SubtaskSpec {
+    std::string name;
+    std::vector<std::string> components;
+    bool running = true;  // at start
+  };
   std::string source = "<task>";  // the file, for error messages
   std::vector<ComponentSpec> components;
   std::vector<Connection> connections;
   std::vector<ExecutorSpec> executors;
+  std::vector<SubtaskSpec> subtasks;
 };
 
 /// Bounds on a task file: what a network of a few stages needs, many times over. A larger one is a mistake or an
@@ -194,6 +240,7 @@ struct PortStats {
   PortPolicy policy = PortPolicy::fifo;
   std::size_t capacity = 0, depth = 0, max_depth = 0;
   std::uint64_t pushed = 0, dropped = 0, refused = 0;
+  std::uint64_t dropped_stopped = 0;  // arrived while its component's subtask was stopped (not in `pushed`)
 };
 struct FunctionStats {
   std::string component, function;
@@ -208,8 +255,22 @@ struct ExecutorStats {
   std::uint64_t cycles = 0;
   double busy_s = 0, wall_s = 0;  // load = busy_s / wall_s
 };
+struct ComponentStats {
+  std::string name, kind;
+  std::map<std::string, std::string> params;  // the task file's, then the settable ones in force
+  std::vector<std::string> settable;          // what PUT .../params may change
+  std::optional<std::string> subtask;
+  bool running = true;
+};
+struct SubtaskStats {
+  std::string name;
+  bool running = true;
+  std::vector<std::string> components;
+};
 struct NetworkStats {
   std::string source;
+  std::vector<ComponentStats> components;
+  std::vector<SubtaskStats> subtasks;
   std::vector<PortStats> ports;
   std::vector<FunctionStats> functions;
   std::vector<ExecutorStats> executors;
@@ -299,6 +360,17 @@ class Network {
   /// Wakes every executor (after state that guards read changed outside the network).
   void notify();
 
+  /// Starts or stops a subtask, on each of its components' executor threads between two activations (this call
+  /// waits for them). A stopped component runs no function; what waits in its inputs is dropped, and so is what
+  /// arrives there until it starts again (PortStats::dropped_stopped), so no producer waits on it.
+  /// @throw std::out_of_range for an unknown subtask; QueueFull while the network stops.
+  void set_subtask(const std::string& name, bool running);
+  /// Changes parameters of a running component: checked on this thread as at start (@throw std::invalid_argument,
+  /// nothing changed: a parameter that cannot change at run time, a bad value), put in force on its executor's
+  /// thread between two activations; returns when they are. @throw std::out_of_range for an unknown component;
+  /// QueueFull while the network stops.
+  void set_params(const std::string& component, const std::map<std::string, std::string>& changes);
+
   NetworkStats stats() const;
   const std::string& source() const { return source_; }
 
@@ -310,11 +382,20 @@ class Network {
   bool ready(const internal::Node& node, std::size_t function) const;
   void activate(internal::Node& node, std::size_t function);
   void wake(internal::ExecutorState& executor);
+  /// Runs `control` on `node`'s executor thread between two activations (here when no thread runs) and waits.
+  void run_on_thread(internal::Node& node, std::function<void()> control);
 
   std::string source_;
   FailureReport on_failure_;
   std::vector<std::unique_ptr<internal::Node>> nodes_;
   std::vector<std::unique_ptr<internal::ExecutorState>> executors_;
+  struct Subtask {
+    std::string name;
+    std::vector<internal::Node*> nodes;
+    std::atomic<bool> running{true};
+  };
+  std::vector<std::unique_ptr<Subtask>> subtasks_;
+  std::mutex control_mutex_;              // one start/stop or parameter change at a time
   std::atomic<std::uint64_t> pushes_{0};  // values pushed or taken anywhere
   std::atomic<std::uint64_t> discarded_{0};
   std::atomic<bool> stop_now_{false};

@@ -70,8 +70,9 @@ TaskSpec parse_task(const std::string& yaml, const std::string& source) {
   spec.source = source;
   for (const auto& entry : root) {
     const auto key = entry.first.as<std::string>();
-    if (key != "components" && key != "connections" && key != "executors" && key != "description")
-      refuse(source, entry.first, "unknown key '" + key + "' (components, connections, executors, description)");
+    if (key != "components" && key != "connections" && key != "executors" && key != "subtasks" && key != "description")
+      refuse(source, entry.first,
+             "unknown key '" + key + "' (components, connections, executors, subtasks, description)");
   }
   const auto components = root["components"];
   if (!components || !components.IsMap() || components.size() == 0)
@@ -150,6 +151,35 @@ TaskSpec parse_task(const std::string& yaml, const std::string& source) {
                                     names(source, entry.second, "an executor's components")};
     if (executor.components.empty()) refuse(source, entry.second, "executor '" + executor.name + "' runs no component");
     spec.executors.push_back(std::move(executor));
+  }
+  // subtasks: {name: {components: [...], running: true|false}}
+  if (const auto subtasks = root["subtasks"]) {
+    if (!subtasks.IsMap()) refuse(source, subtasks, "'subtasks' must map names to {components: [...], running: B}");
+    for (const auto& entry : subtasks) {
+      TaskSpec::SubtaskSpec subtask;
+      subtask.name = scalar(source, entry.first, "a subtask name");
+      const auto& body = entry.second;
+      if (!body.IsMap()) refuse(source, body, "subtask '" + subtask.name + "' must be {components: [...], running: B}");
+      bool named = false;
+      for (const auto& field : body) {
+        const auto key = field.first.as<std::string>();
+        if (key == "components") {
+          subtask.components = names(source, field.second, "a subtask's components");
+          named = true;
+        } else if (key == "running") {
+          const auto value = scalar(source, field.second, "running");
+          if (value != "true" && value != "false")
+            refuse(source, field.second, "subtask '" + subtask.name + "': running must be true or false");
+          subtask.running = value == "true";
+        } else {
+          refuse(source, field.first,
+                 "subtask '" + subtask.name + "': unknown key '" + key + "' (components, running)");
+        }
+      }
+      if (!named || subtask.components.empty())
+        refuse(source, body, "subtask '" + subtask.name + "' names no component");
+      spec.subtasks.push_back(std::move(subtask));
+    }
   }
   return spec;
 }

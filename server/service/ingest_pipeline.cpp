@@ -88,6 +88,8 @@ components:
   store: {kind: store, params: {max_batch: 64}}
   grid: {kind: grid}
   grid_lines: {kind: grid_lines}
+subtasks:
+  grid-lines: {components: [grid_lines], running: true}
 connections:
   - matcher.decided -> store.in
   - store.committed -> matcher.committed
@@ -136,6 +138,8 @@ pipeline::Registry IngestPipeline::network_registry() {
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
     c->function("primitives", {"primitives"}, [this](pipeline::Activation& a) { decide_primitives(a); },
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
+    // One port each, so the order is the kind's: answers first, then commands, the trim, new requests.
+    c->order({"finish", "command", "trim", "laser", "sonar", "primitives"});
     c->on_thread_start(
         [this] { return std::static_pointer_cast<void>(std::make_shared<rules::ThreadAttachment>(engine_)); });
     return c;
@@ -152,18 +156,29 @@ pipeline::Registry IngestPipeline::network_registry() {
 
   registry.add("grid", [this, queued](const pipeline::Params& params) {
     // Every this many scans the grid asks the grid line extractor for a run (0: only POST /api/v1/grid/extract).
-    const auto extract_every = static_cast<std::int64_t>(
-        params.number("extract_every", static_cast<double>(options_.grid_extract_every), 0, 1e9));
+    // The same check at start and for a change at run time (PUT /api/v1/network/components/{name}/params).
+    const auto read_extract_every = [this](const pipeline::Params& p) {
+      return static_cast<std::int64_t>(
+          p.number("extract_every", static_cast<double>(options_.grid_extract_every), 0, 1e9));
+    };
+    // Read and written on the grid's executor thread only.
+    auto extract_every = std::make_shared<std::int64_t>(read_extract_every(params));
     auto c = std::make_unique<Component>();
     c->input<GridScanPtr>("laser", {PortPolicy::fifo, 4 * queued, false})
         .input<GridScanPtr>("sonar", {PortPolicy::fifo, 4 * queued, false});
     c->output<TrimTick>("trim").output<GridTick>("extract");
     c->function("laser_and_sonar", {"laser", "sonar"},
-                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, true, true, extract_every); });
+                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, true, true, *extract_every); });
     c->function("laser", {"laser"},
-                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, true, false, extract_every); });
+                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, true, false, *extract_every); });
     c->function("sonar", {"sonar"},
-                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, false, true, extract_every); });
+                [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, false, true, *extract_every); });
+    c->order({"laser", "sonar"});
+    c->settable({{"extract_every", std::to_string(*extract_every)}},
+                [read_extract_every, extract_every](const pipeline::Params& p) -> std::function<void()> {
+                  const auto value = read_extract_every(p);
+                  return [extract_every, value] { *extract_every = value; };
+                });
     return c;
   });
 
@@ -288,6 +303,26 @@ PrimitivesOutcome IngestPipeline::post_primitives(world::Observation observation
 bool IngestPipeline::accepts_scans(const std::string& sensor) const { return network_->consumes("matcher", sensor); }
 
 pipeline::NetworkStats IngestPipeline::stats() const { return network_->stats(); }
+
+void IngestPipeline::set_subtask(const std::string& name, bool running) {
+  try {
+    network_->set_subtask(name, running);
+  } catch (const std::out_of_range& e) {
+    throw NotFound(e.what());
+  } catch (const pipeline::QueueFull& e) {
+    throw Busy(e.what());
+  }
+}
+
+void IngestPipeline::set_params(const std::string& component, const std::map<std::string, std::string>& changes) {
+  try {
+    network_->set_params(component, changes);
+  } catch (const std::out_of_range& e) {
+    throw NotFound(e.what());
+  } catch (const pipeline::QueueFull& e) {
+    throw Busy(e.what());
+  }
+}
 
 // On the matcher, from finish only: the groups committed before the failed one are finished (and published) by then,
 // and what was decided after it carries its epoch and fails in the store.

@@ -130,6 +130,10 @@ class IngestPipeline {
   /// Whether the network processes this sensor's scans ("laser", "sonar").
   bool accepts_scans(const std::string& sensor) const;
   pipeline::NetworkStats stats() const;
+  /// See pipeline::Network::set_subtask and set_params. @throw NotFound for an unknown name, Busy while stopping,
+  /// std::invalid_argument (set_params) for a parameter that cannot change or a bad value.
+  void set_subtask(const std::string& name, bool running);
+  void set_params(const std::string& component, const std::map<std::string, std::string>& changes);
 
   /// FNV-1a, 64 bits, of a request body: tells a retry (same bytes) from a reuse of its id for another body.
   static std::int64_t body_hash(std::string_view body);

@@ -42,6 +42,7 @@ std::unique_ptr<Component> sink(Trace& trace) {
     trace.add("both:" + std::to_string(a) + "+" + std::to_string(b));
   });
   c->function("b_only", {"b"}, [&trace](Activation& x) { trace.add("b_only:" + std::to_string(x.take<int>("b"))); });
+  c->order({"a_only", "b_only"});
   return c;
 }
 
@@ -113,6 +114,7 @@ TEST(NetworkTest, EachFunctionRunsOncePerCycle) {
     c->input<int>("a", {PortPolicy::fifo, 16, true}).input<int>("b", {PortPolicy::fifo, 16, true});
     c->function("fa", {"a"}, [&](Activation& x) { trace.add("a" + std::to_string(x.take<int>("a"))); });
     c->function("fb", {"b"}, [&](Activation& x) { trace.add("b" + std::to_string(x.take<int>("b"))); });
+    c->order({"fa", "fb"});
     return c;
   });
   Network network(one("split"), registry);
@@ -458,6 +460,251 @@ TEST(NetworkErrorsTest, DisablingAFunctionRemovesItsTie) {
   Network network(spec, registry);
   EXPECT_TRUE(network.consumes("s", "a"));
   EXPECT_FALSE(network.consumes("s", "c"));
+}
+
+// --- the paper's tie rule: any two functions with as many ports are ordered ---
+
+std::unique_ptr<Component> apart(bool with_default) {
+  auto c = std::make_unique<Component>();
+  c->input<int>("a", {PortPolicy::fifo, 8, true}).input<int>("b", {PortPolicy::fifo, 8, true});
+  c->function("fa", {"a"}, [](Activation& x) { x.take<int>("a"); });
+  c->function("fb", {"b"}, [](Activation& x) { x.take<int>("b"); });
+  if (with_default) c->order({"fb", "fa"});
+  return c;
+}
+
+TEST(NetworkErrorsTest, TiesWithoutASharedPortNeedAnOrderToo) {
+  Registry registry;
+  registry.add("bare", [](const Params&) { return apart(false); });
+  registry.add("ordered", [](const Params&) { return apart(true); });
+  const auto error = build_error(one("bare"), registry);
+  EXPECT_NE(error.find("test.yaml: component 's': functions 'fa' and 'fb' both depend on 1 ports: give them a "
+                       "relative priority (priorities: [fa, fb] or the reverse; kind bare has no default order)"),
+            std::string::npos)
+      << error;
+  // The kind's default order settles it; the task file's priorities replace it.
+  Network by_default(one("ordered"), registry);
+  EXPECT_EQ(by_default.stats().functions.at(0).function, "fb");
+  Network by_task(one("ordered", {"fa", "fb"}), registry);
+  EXPECT_EQ(by_task.stats().functions.at(0).function, "fa");
+  // A task file's priorities that leave a tie out are refused even when the kind has a default.
+  registry.add("three", [](const Params&) {
+    auto c = apart(true);
+    c->input<int>("c", {PortPolicy::fifo, 8, true});
+    c->function("fc", {"c"}, [](Activation& x) { x.take<int>("c"); });
+    c->order({"fc", "fb", "fa"});
+    return c;
+  });
+  EXPECT_NE(build_error(one("three", {"fa", "fb"}), registry)
+                .find("functions 'fa' and 'fc' both depend on 1 ports: give them a relative priority"),
+            std::string::npos);
+}
+
+// --- peeking: a value is new data once ---
+
+TEST(NetworkTest, AFunctionThatOnlyPeeksRunsOncePerNewValue) {
+  Trace trace;
+  std::atomic<int> polls{0};
+  Registry registry;
+  registry.add("watch", [&](const Params&) {
+    auto c = std::make_unique<Component>();
+    c->input<int>("setting", {PortPolicy::latest, 1, true}).input<int>("other", {PortPolicy::latest, 1, true});
+    c->function("watch", {}, [&](Activation& x) { trace.add("saw " + std::to_string(x.peek<int>("setting"))); },
+                {{"setting"}, {}, std::nullopt});
+    c->function("poll", {}, [&](Activation&) { ++polls; }, {{"other"}, {}, std::nullopt, PeekNew::never});
+    c->order({"watch", "poll"});
+    return c;
+  });
+  Network network(one("watch"), registry);
+  network.start();
+  network.inject("s", "setting", 1);
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 1; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(60));  // many cycles: the old value does not count again
+  EXPECT_EQ(trace.copy().size(), 1u);
+  network.inject("s", "setting", 2);
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 2; }));
+  network.inject("s", "setting", 2);  // the same value pushed again is a new value
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 3; }));
+  // PeekNew::never: a poll, every cycle while its port holds a value.
+  network.inject("s", "other", 0);
+  ASSERT_TRUE(wait_for([&] { return polls.load() > 20; }));
+  network.stop(false);
+  EXPECT_EQ(trace.copy(), (std::vector<std::string>{"saw 1", "saw 2", "saw 2"}));
+  for (const auto& f : network.stats().functions)
+    if (f.function == "watch") {
+      EXPECT_EQ(f.activations, 3u);
+    }
+}
+
+TEST(NetworkTest, PeekNewAlwaysHoldsAConsumerBackUntilThePeekedValueIsNew) {
+  Trace trace;
+  Registry registry;
+  registry.add("gate", [&](const Params&) {
+    auto c = std::make_unique<Component>();
+    c->input<int>("data", {PortPolicy::fifo, 16, true}).input<int>("key", {PortPolicy::latest, 1, true});
+    c->function("pair", {"data"},
+                [&](Activation& x) {
+                  trace.add(std::to_string(x.peek<int>("key")) + ":" + std::to_string(x.take<int>("data")));
+                },
+                {{"key"}, {}, std::nullopt, PeekNew::always});
+    return c;
+  });
+  Network network(one("gate"), registry);
+  network.inject("s", "data", 1);
+  network.inject("s", "data", 2);
+  network.inject("s", "key", 10);
+  network.start();
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 1; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(trace.copy().size(), 1u) << "ran again on a key it had seen";
+  network.inject("s", "key", 11);
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 2; }));
+  network.stop(false);
+  EXPECT_EQ(trace.copy(), (std::vector<std::string>{"10:1", "11:2"}));
+}
+
+// --- subtasks and parameters while the network runs ---
+
+// A source that forwards every value to a ticked worker (keep-latest input) in a subtask; the worker's `scale`
+// parameter may change at run time.
+Registry subtask_registry(Trace& trace, std::atomic<std::thread::id>& applied_on) {
+  Registry registry;
+  registry.add("source", [](const Params&) {
+    auto c = std::make_unique<Component>();
+    c->input<int>("in", {PortPolicy::fifo, 1000, true}).output<int>("out");
+    c->function("forward", {"in"}, [](Activation& x) { x.emit("out", x.take<int>("in")); });
+    return c;
+  });
+  registry.add("worker", [&trace, &applied_on](const Params& params) {
+    const auto read = [](const Params& p) { return static_cast<int>(p.number("scale", 1, 1, 100)); };
+    auto scale = std::make_shared<int>(read(params));
+    auto c = std::make_unique<Component>();
+    c->input<int>("tick", {PortPolicy::latest, 1, false});
+    c->function("work", {"tick"},
+                [&trace, scale](Activation& x) { trace.add(std::to_string(x.take<int>("tick") * *scale)); });
+    c->settable({{"scale", std::to_string(*scale)}}, [read, scale, &applied_on](const Params& p) {
+      const int value = read(p);
+      return std::function<void()>([scale, value, &applied_on] {
+        *scale = value;
+        applied_on = std::this_thread::get_id();
+      });
+    });
+    return c;
+  });
+  return registry;
+}
+
+TaskSpec subtask_spec(bool running) {
+  TaskSpec spec;
+  spec.source = "sub.yaml";
+  spec.components.push_back({"src", "source", {}, std::nullopt, {}, {}, {}});
+  spec.components.push_back({"w", "worker", {}, std::nullopt, {}, {}, {}});
+  spec.connections.push_back({"src", "out", "w", "tick"});
+  spec.executors.push_back({"one", {"src"}});
+  spec.executors.push_back({"two", {"w"}});
+  spec.subtasks.push_back({"work", {"w"}, running});
+  return spec;
+}
+
+int port_count(const Network& network, const std::string& port, std::uint64_t PortStats::*field) {
+  for (const auto& p : network.stats().ports)
+    if (p.port == port) return static_cast<int>(p.*field);
+  return -1;
+}
+
+TEST(NetworkTest, AStoppedSubtaskRunsNothingAndDropsWhatArrivesWithoutHoldingItsProducers) {
+  Trace trace;
+  std::atomic<std::thread::id> applied_on;
+  const auto registry = subtask_registry(trace, applied_on);
+  Network network(subtask_spec(false), registry);
+  auto stats = network.stats();
+  ASSERT_EQ(stats.subtasks.size(), 1u);
+  EXPECT_FALSE(stats.subtasks[0].running);
+  EXPECT_EQ(stats.subtasks[0].components, std::vector<std::string>{"w"});
+  network.start();
+  for (int i = 1; i <= 50; ++i) network.inject("src", "in", i);
+  ASSERT_TRUE(wait_for([&] { return port_count(network, "tick", &PortStats::dropped_stopped) == 50; }));
+  EXPECT_EQ(network.depth("src", "in"), 0u) << "the producer went on";
+  EXPECT_TRUE(trace.copy().empty());
+
+  network.set_subtask("work", true);
+  network.inject("src", "in", 7);
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 1; }));
+  EXPECT_EQ(trace.copy().back(), "7");
+  network.set_subtask("work", false);
+  for (int i = 0; i < 5; ++i) network.inject("src", "in", 8);
+  ASSERT_TRUE(wait_for([&] { return port_count(network, "tick", &PortStats::dropped_stopped) == 55; }));
+  EXPECT_EQ(trace.copy().size(), 1u);
+  stats = network.stats();
+  EXPECT_FALSE(stats.components.at(1).running);
+  EXPECT_EQ(stats.components.at(1).subtask, std::optional<std::string>("work"));
+  EXPECT_THROW(network.set_subtask("nothing", true), std::out_of_range);
+  EXPECT_TRUE(network.stop().drained);
+}
+
+TEST(NetworkTest, ParametersChangeOnTheComponentsThreadAfterTheSameCheckAsAtStart) {
+  Trace trace;
+  std::atomic<std::thread::id> applied_on;
+  const auto registry = subtask_registry(trace, applied_on);
+  Network network(subtask_spec(true), registry);
+  network.start();
+  EXPECT_EQ(network.stats().components.at(1).params.at("scale"), "1");
+  network.set_params("w", {{"scale", "3"}});
+  EXPECT_NE(applied_on.load(), std::this_thread::get_id());
+  EXPECT_NE(applied_on.load(), std::thread::id());
+  network.inject("src", "in", 5);
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 1; }));
+  EXPECT_EQ(trace.copy().back(), "15");
+  // The factory's own message; nothing changes.
+  for (const std::string bad : {"0", "nan", "3x", "", "1e999"}) {
+    try {
+      network.set_params("w", {{"scale", bad}});
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "component 'w' (worker): parameter 'scale' must be a number in [1, 100], not '" + bad + "'");
+    }
+  }
+  EXPECT_EQ(network.stats().components.at(1).params.at("scale"), "3");
+  try {
+    network.set_params("w", {{"speed", "2"}});
+    ADD_FAILURE();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "component 'w' (worker): parameter 'speed' cannot change while the network runs (these can: scale)");
+  }
+  EXPECT_THROW(network.set_params("src", {{"scale", "2"}}), std::invalid_argument);  // none of its can
+  EXPECT_THROW(network.set_params("nobody", {{"scale", "2"}}), std::out_of_range);
+  network.inject("src", "in", 2);
+  ASSERT_TRUE(wait_for([&] { return trace.copy().size() == 2; }));
+  EXPECT_EQ(trace.copy().back(), "6");
+  network.stop();
+}
+
+TEST(NetworkErrorsTest, ASubtaskMayHoldOnlyComponentsWhoseValuesMayBeLost) {
+  Trace trace;
+  std::atomic<std::thread::id> applied_on;
+  const auto registry = subtask_registry(trace, applied_on);
+  auto spec = subtask_spec(true);
+  spec.subtasks[0].components = {"src"};
+  EXPECT_NE(build_error(spec, registry)
+                .find("sub.yaml: subtask 'work': component 'src' takes values from outside the network on 'in' (the "
+                      "HTTP writes): it cannot be stopped"),
+            std::string::npos)
+      << build_error(spec, registry);
+  spec = subtask_spec(true);
+  spec.components[1].policies["tick"] = PortPolicy::fifo;
+  EXPECT_NE(build_error(spec, registry)
+                .find("subtask 'work': component 'w' takes every value on 'tick' (a fifo: requests wait for them)"),
+            std::string::npos)
+      << build_error(spec, registry);
+  spec = subtask_spec(true);
+  spec.subtasks.push_back({"again", {"w"}, true});
+  EXPECT_NE(build_error(spec, registry).find("component 'w' is in two subtasks ('work' and 'again')"),
+            std::string::npos);
+  spec = subtask_spec(true);
+  spec.subtasks[0].components = {"nobody"};
+  EXPECT_NE(build_error(spec, registry).find("subtask 'work': no component 'nobody'"), std::string::npos);
 }
 
 }  // namespace

@@ -55,6 +55,26 @@ executors:
   EXPECT_EQ(spec.executors[1].components, (std::vector<std::string>{"lines"}));
 }
 
+TEST(TaskFileTest, ReadsSubtasksAndRefusesMalformedOnes) {
+  const std::string head = "components: {a: {kind: k}, b: {kind: k}}\nexecutors: {e: [a, b]}\n";
+  const auto spec = parse_task(
+      head + "subtasks:\n  slow: {components: [b], running: false}\n  quick: {components: [a]}\n", "net.yaml");
+  ASSERT_EQ(spec.subtasks.size(), 2u);
+  EXPECT_EQ(spec.subtasks[0].name, "slow");
+  EXPECT_EQ(spec.subtasks[0].components, std::vector<std::string>{"b"});
+  EXPECT_FALSE(spec.subtasks[0].running);
+  EXPECT_TRUE(spec.subtasks[1].running);
+  EXPECT_NE(parse_error(head + "subtasks:\n  s: {components: [b], running: maybe}\n")
+                .find("net.yaml:4: subtask 's': running must be true or false"),
+            std::string::npos);
+  EXPECT_NE(parse_error(head + "subtasks:\n  s: {executors: [e]}\n")
+                .find("net.yaml:4: subtask 's': unknown key 'executors' (components, running)"),
+            std::string::npos);
+  EXPECT_NE(parse_error(head + "subtasks:\n  s: {running: true}\n").find("subtask 's' names no component"),
+            std::string::npos);
+  EXPECT_NE(parse_error(head + "subtasks: [b]\n").find("'subtasks' must map names to"), std::string::npos);
+}
+
 TEST(TaskFileTest, RefusesWithTheFileLineAndReason) {
   EXPECT_NE(parse_error("components: {a: {kind: k}}\nexecutors: {e: [a]}\nconnections: [a.out b.in]\n")
                 .find("net.yaml:3: connection 'a.out b.in' must read 'a.out -> b.in'"),
