@@ -58,6 +58,21 @@ float ds_decision_value(DsDecision decision) {
 
 std::string_view to_string(GridLayer layer) { return kGridLayerNames.at(static_cast<std::size_t>(layer)); }
 
+std::optional<OccupancyGrid::Layer> stored_layer(GridLayer layer) {
+  switch (layer) {
+    case GridLayer::bayes:
+      return OccupancyGrid::Layer::bayes_probability;
+    case GridLayer::ds_belief:
+      return OccupancyGrid::Layer::ds_belief;
+    case GridLayer::ds_plausibility:
+      return OccupancyGrid::Layer::ds_plausibility;
+    case GridLayer::ds_conflict:
+      return OccupancyGrid::Layer::ds_conflict;
+    default:
+      return std::nullopt;
+  }
+}
+
 std::optional<GridLayer> grid_layer_named(std::string_view name) {
   for (std::size_t i = 0; i < kGridLayerNames.size(); ++i)
     if (kGridLayerNames[i] == name) return static_cast<GridLayer>(i);
@@ -65,6 +80,8 @@ std::optional<GridLayer> grid_layer_named(std::string_view name) {
 }
 
 void validate(const LaserSonarOptions& options) {
+  if (options.recent_laser_scans > 64)
+    throw std::invalid_argument("LaserSonarOptions::recent_laser_scans must be <= 64");
   validate(options.gate);
   validate(options.decision);
 }
@@ -81,7 +98,9 @@ LaserSonarGrids::LaserSonarGrids(const LaserSonarGrids& other)
       fused_(other.fused_),
       laser_(other.laser_ ? std::make_unique<OccupancyGrid>(*other.laser_) : nullptr),
       sonar_(other.sonar_ ? std::make_unique<OccupancyGrid>(*other.sonar_) : nullptr),
-      counts_(other.counts_) {}
+      counts_(other.counts_),
+      recent_(other.recent_),
+      recent_flat_(other.recent_flat_) {}
 
 LaserSonarGrids& LaserSonarGrids::operator=(const LaserSonarGrids& other) {
   if (this != &other) {
@@ -102,6 +121,25 @@ void LaserSonarGrids::start_side_grids() { start_sides(false); }
 void LaserSonarGrids::insert(const LaserScan& scan) {
   fused_.insert(scan);
   if (laser_) laser_->insert(scan);
+  remember_returns(scan);
+}
+
+void LaserSonarGrids::remember_returns(const LaserScan& scan) {
+  if (options_.recent_laser_scans == 0) return;
+  std::vector<Eigen::Vector2d> points;
+  const double reach = std::min(scan.range_max_m, usable_range_m(scan, grid_options_.sensor));
+  for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+    const double r = scan.ranges_m[i];
+    if (!(r >= scan.range_min_m && r < reach)) continue;
+    const double a =
+        scan.sensor_pose.theta_rad + scan.angle_min_rad + static_cast<double>(i) * scan.angle_increment_rad;
+    points.emplace_back(scan.sensor_pose.x_m + r * std::cos(a), scan.sensor_pose.y_m + r * std::sin(a));
+  }
+  recent_.push_back(std::move(points));
+  if (recent_.size() > options_.recent_laser_scans) recent_.erase(recent_.begin());
+  recent_flat_.clear();
+  for (const auto& scan_points : recent_)
+    recent_flat_.insert(recent_flat_.end(), scan_points.begin(), scan_points.end());
 }
 
 SonarGateResult LaserSonarGrids::insert(const SonarScan& scan) {
@@ -109,7 +147,7 @@ SonarGateResult LaserSonarGrids::insert(const SonarScan& scan) {
   start_sides(true);
   SonarGateResult gated;
   if (options_.gate_sonar) {
-    gated = gate_sonar(scan, *laser_, options_.gate);
+    gated = gate_sonar(scan, *laser_, options_.gate, recent_flat_);
   } else {
     for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
       gated.beams.push_back(sonar_beam(scan, i, grid_options_.sensor));
@@ -131,11 +169,12 @@ SonarGateResult LaserSonarGrids::insert(const SonarScan& scan) {
 
 void LaserSonarGrids::insert_side_only(const LaserScan& scan) {
   if (laser_) laser_->insert(scan);
+  remember_returns(scan);
 }
 
 void LaserSonarGrids::insert_side_only(const SonarScan& scan) {
   start_sides(false);
-  const auto gated = options_.gate_sonar ? gate_sonar(scan, *laser_, options_.gate) : SonarGateResult{};
+  const auto gated = options_.gate_sonar ? gate_sonar(scan, *laser_, options_.gate, recent_flat_) : SonarGateResult{};
   sonar_->insert(scan);
   if (!options_.gate_sonar) return;
   ++counts_.scans;

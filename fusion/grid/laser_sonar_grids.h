@@ -1,5 +1,6 @@
 #pragma once
 
+#include <Eigen/Core>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -48,11 +49,14 @@ inline constexpr std::array<std::string_view, 9> kGridLayerNames = {
     "bayes",       "ds_belief",         "ds_plausibility", "ds_conflict",         "ds_decision",
     "laser_bayes", "laser_ds_decision", "sonar_bayes",     "laser_sonar_conflict"};
 std::string_view to_string(GridLayer layer);
+/// The fused grid's own layer a GridLayer is (the first four), nullopt for the derived ones.
+std::optional<OccupancyGrid::Layer> stored_layer(GridLayer layer);
 /// nullopt for a name not in kGridLayerNames.
 std::optional<GridLayer> grid_layer_named(std::string_view name);
 
 struct LaserSonarOptions {
   bool gate_sonar = true;  // judge sonar by the laser before the fused grid takes it; false: fused as it comes
+  std::size_t recent_laser_scans = 8;  // the latest laser scans whose returns back a sonar return, [0, 64]
   SonarGateOptions gate;
   DsDecisionOptions decision;
 };
@@ -116,6 +120,9 @@ class LaserSonarGrids {
   std::unique_ptr<OccupancyGrid> laser_;
   std::unique_ptr<OccupancyGrid> sonar_;
   SonarGateCounts counts_;
+  std::vector<std::vector<Eigen::Vector2d>> recent_;  // return points of the latest laser scans, oldest first
+  std::vector<Eigen::Vector2d> recent_flat_;          // the same, one list (what the gate reads)
+  void remember_returns(const LaserScan& scan);
 };
 
 }  // namespace wm::fusion

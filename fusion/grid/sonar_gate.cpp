@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 
@@ -45,7 +46,8 @@ std::size_t SonarGateResult::count(SonarVerdict verdict) const {
   return static_cast<std::size_t>(std::count(verdicts.begin(), verdicts.end(), verdict));
 }
 
-SonarGateResult gate_sonar(const SonarScan& scan, const OccupancyGrid& laser_grid, const SonarGateOptions& options) {
+SonarGateResult gate_sonar(const SonarScan& scan, const OccupancyGrid& laser_grid, const SonarGateOptions& options,
+                           const std::vector<Eigen::Vector2d>& recent_returns) {
   validate(scan);
   validate(options);
   const auto& sensor = laser_grid.options().sensor;
@@ -79,6 +81,14 @@ SonarGateResult gate_sonar(const SonarScan& scan, const OccupancyGrid& laser_gri
           break;
         }
         if (l < free) ++seen_free;
+      }
+      for (std::size_t k = 0; !backed && k < recent_returns.size(); ++k) {
+        const Eigen::Vector2d v = recent_returns[k] - beam->origin_m;
+        const double d = v.norm();
+        if (std::abs(d - beam->range_m) > band.sigma_m + resolution) continue;
+        const double off_axis =
+            std::abs(std::remainder(std::atan2(v.y(), v.x()) - beam->angle_rad, 2 * std::numbers::pi));
+        backed = off_axis <= beam->half_width_rad + std::atan2(options.band_margin_m, std::max(d, 1e-3));
       }
       if (!backed) {
         if (cells > 0 && static_cast<double>(seen_free) >= options.phantom_seen_share * static_cast<double>(cells)) {

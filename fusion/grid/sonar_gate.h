@@ -12,9 +12,10 @@ namespace wm::fusion {
 
 /// Sonar judged by the laser (docs/fusion.md §7): where a laser-only grid has seen the cells a sonar cone covers, the
 /// laser, the more reliable sensor, decides whether a sonar reading can be true before it reaches the fused grid.
-///  - A *phantom* (cross talk, a multi-path echo, a return from below the laser's plane excepted — see below): the
-///    laser saw the return's arc, widened by band_margin_m either side, free (at least phantom_seen_share of its
-///    cells below free_probability) and no cell of it occupied. The reading is dropped: no hit, no free space.
+///  - A *phantom* (cross talk, a multi-path echo): the laser saw the return's arc, widened by band_margin_m either
+///    side, free (at least phantom_seen_share of its cells below free_probability), no cell of it is occupied, and
+///    no return of the latest laser scans lies in it (a person who just stepped into space the grid holds free is
+///    in the laser's scan before the grid calls the cell occupied). The reading is dropped: no hit, no free space.
 ///  - A *long* reading (specular reflection: at grazing incidence the pulse bounces away and the echo, if any,
 ///    comes from farther away; a "no return" is the same): the cone's free space runs into a cell the laser holds
 ///    occupied. The reading is clipped: free space up to clip_margin_m in front of the first such cell, no hit, so
@@ -53,6 +54,9 @@ struct SonarGateResult {
 /// Judges every reading of `scan` against `laser_grid` (a grid that only laser scans went into), with the sensor
 /// model of `laser_grid`'s options. Deterministic: depends only on the scan and the laser grid's cells.
 /// @throw std::invalid_argument when the scan or the options are invalid.
-SonarGateResult gate_sonar(const SonarScan& scan, const OccupancyGrid& laser_grid, const SonarGateOptions& options);
+/// `recent_returns`: the return points of the latest laser scans (world frame [m]); any of them in a return's band
+/// backs it.
+SonarGateResult gate_sonar(const SonarScan& scan, const OccupancyGrid& laser_grid, const SonarGateOptions& options,
+                           const std::vector<Eigen::Vector2d>& recent_returns = {});
 
 }  // namespace wm::fusion

@@ -105,6 +105,10 @@ std::string usage() {
          "  --grid-resolution M    occupancy grid cell size [m] (default 0.05; a stored grid keeps its own)\n"
          "  --usable-range M       returns beyond M only clear space, for scans that give no usable_range (default "
          "20)\n"
+         "  --sonar-gate on|off    judge sonar readings by the laser before they reach the fused grid (default on)\n"
+         "  --ds-decision B,P,K    the DS decision layer: occupied at belief >= B, free at plausibility <= P, "
+         "conflict\n"
+         "                         at K >= K (default 0.6,0.4,0.6)\n"
          "  --grid-flush-ms N      write changed grid tiles at most every N ms (default 1000; scans are journaled at "
          "once)\n"
          "  --grid-extract-every N run the grid line extractor every N scans (default 0: POST /api/v1/grid/extract)\n"
@@ -264,7 +268,17 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.service.ingest.grid_trim_every = config_number<std::size_t>(flag, value, 0, 1'000'000);
     else if (flag == "--grid-resolution")
       c.service.grids.grid.resolution_m = config_number<double>(flag, value, 0.005, 10.0);
-    else if (flag == "--usable-range")
+    else if (flag == "--sonar-gate") {
+      if (value != "on" && value != "off") throw ConfigError("--sonar-gate: expected 'on' or 'off'");
+      c.service.grids.laser_sonar.gate_sonar = value == "on";
+    } else if (flag == "--ds-decision") {
+      const auto parts = comma_list(value);
+      if (parts.size() != 3) throw ConfigError("--ds-decision: expected B,P,K (three numbers)");
+      auto& decision = c.service.grids.laser_sonar.decision;
+      decision.occupied_belief_min = config_number<double>(flag, parts[0], 0.01, 1.0);
+      decision.free_plausibility_max = config_number<double>(flag, parts[1], 0.0, 0.99);
+      decision.conflict_min = config_number<double>(flag, parts[2], 0.01, 2.0);
+    } else if (flag == "--usable-range")
       c.service.grids.grid.sensor.max_usable_range_m = config_number<double>(flag, value, 0.1, 1000.0);
     else if (flag == "--shm-max-mb")
       c.shm.max_bytes = config_number<std::uint64_t>(flag, value, 1, 1'048'576) << 20;

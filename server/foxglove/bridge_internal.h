@@ -26,7 +26,7 @@ namespace wm::foxglove::internal {
 
 using Clock = std::chrono::steady_clock;
 using Payload = std::shared_ptr<const std::string>;
-using Layer = fusion::OccupancyGrid::Layer;
+using Layer = fusion::GridLayer;
 
 inline std::uint64_t unix_ns_now() {
   return static_cast<std::uint64_t>(
@@ -233,7 +233,7 @@ struct Bridge::Core {
   // has been sent; they differ when a new subscriber's grid was read afresh.
   GridCache grid_cache_, ds_cache_;
   std::int64_t grid_published_ = -1, ds_published_ = -1;
-  TileCache bayes_tiles_{{Layer::bayes_probability}};
+  TileCache bayes_tiles_{{Layer::bayes}};
   TileCache ds_tiles_{{Layer::ds_belief, Layer::ds_plausibility, Layer::ds_conflict}};
   // The snapshot the last scene update of each topic was made from: the next one carries what changed since.
   std::shared_ptr<const world::WorldState> elements_sent_, plan_sent_;

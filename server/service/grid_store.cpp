@@ -70,10 +70,10 @@ GridStore::GridStore(const GridStoreOptions& options, storage::Store& store, com
     grid_options.resolution_m = stored->resolution_m;
     grid_options.tile_size_cells = stored->tile_size_cells;
   }
-  grid_ = std::make_unique<fusion::OccupancyGrid>(grid_options);
-  resolution_m_ = grid_->resolution_m();
+  grids_ = std::make_unique<fusion::LaserSonarGrids>(grid_options, options_.laser_sonar);
+  resolution_m_ = grids_->fused().resolution_m();
   if (stored) {
-    for (const auto& [index, data] : stored->tiles) grid_->set_tile(index, data);
+    for (const auto& [index, data] : stored->tiles) grids_->fused().set_tile(index, data);
     flushed_scan_seq_ = last_scan_seq_ = stored->through_scan_seq;
     revision_ = last_scan_seq_;
   }
@@ -86,7 +86,7 @@ void GridStore::insert(const world::ScanObservation& scan, std::int64_t seq, con
   {
     std::unique_lock lock(mutex_);
     try {
-      std::visit([this](const auto& s) { grid_->insert(s); }, scan.scan);
+      std::visit([this](const auto& s) { grids_->insert(s); }, scan.scan);
     } catch (...) {
       refused = std::current_exception();
     }
@@ -154,12 +154,13 @@ void GridStore::flush(bool force) {
   changed.through_scan_seq = last_scan_seq_;
   {
     std::unique_lock lock(mutex_);  // take_dirty_tiles changes the grid's bookkeeping
-    changed.resolution_m = grid_->resolution_m();
-    changed.tile_size_cells = grid_->tile_size_cells();
-    auto tiles = grid_->take_dirty_tiles();
-    if (flush_all_) tiles = grid_->tiles();
+    auto& grid = grids_->fused();
+    changed.resolution_m = grid.resolution_m();
+    changed.tile_size_cells = grid.tile_size_cells();
+    auto tiles = grid.take_dirty_tiles();
+    if (flush_all_) tiles = grid.tiles();
     for (const auto& index : tiles)
-      if (auto data = grid_->tile(index)) changed.tiles.emplace_back(index, std::move(*data));
+      if (auto data = grid.tile(index)) changed.tiles.emplace_back(index, std::move(*data));
   }
   {
     std::set<std::pair<std::string, std::size_t>> flushed;
@@ -187,10 +188,24 @@ std::optional<fusion::GridGeometry> GridStore::bounds() const {
   return read([](const fusion::OccupancyGrid& grid) { return grid.bounds(); });
 }
 
-GridLayerValues GridStore::layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const {
-  return read([&](const fusion::OccupancyGrid& grid) {
-    return GridLayerValues{grid.export_layer(layer, region), revision_.load()};
-  });
+GridLayerValues GridStore::layer(fusion::GridLayer layer, const fusion::GridGeometry& region) const {
+  std::shared_lock lock(mutex_);
+  return GridLayerValues{grids_->export_layer(layer, region), revision_.load()};
+}
+
+void GridStore::start_side_grids() {
+  std::unique_lock lock(mutex_);
+  grids_->start_side_grids();
+}
+
+void GridStore::insert_side_only(const world::ScanObservation& scan) {
+  std::unique_lock lock(mutex_);
+  std::visit([this](const auto& s) { grids_->insert_side_only(s); }, scan.scan);
+}
+
+GridSonarStatus GridStore::sonar() const {
+  std::shared_lock lock(mutex_);
+  return {grids_->has_sonar(), grids_->options().gate_sonar, grids_->gate_counts()};
 }
 
 GridTiles GridStore::tiles() const {
@@ -201,13 +216,12 @@ GridTiles GridStore::tiles() const {
   });
 }
 
-std::optional<GridTileValues> GridStore::tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
-                                              std::int64_t ty) const {
-  return read([&](const fusion::OccupancyGrid& grid) -> std::optional<GridTileValues> {
-    const auto revision = grid.tile_revision({tx, ty});
-    if (revision == 0) return std::nullopt;
-    return GridTileValues{grid.export_layer(layer, grid.tiles_geometry({tx, ty}, {tx, ty})), revision};
-  });
+std::optional<GridTileValues> GridStore::tile(fusion::GridLayer layer, std::int64_t tx, std::int64_t ty) const {
+  std::shared_lock lock(mutex_);
+  const auto revision = grids_->tile_revision(layer, {tx, ty});
+  if (revision == 0) return std::nullopt;
+  const auto& grid = grids_->fused();
+  return GridTileValues{grids_->export_layer(layer, grid.tiles_geometry({tx, ty}, {tx, ty})), revision};
 }
 
 std::optional<GridTileValues> GridStore::tile_layers(std::int64_t tx, std::int64_t ty) const {
@@ -256,7 +270,7 @@ std::vector<world::EdgeEvidence> GridStore::edge_evidence(const world::WorldStat
   // The grid's lock, then the beams': nothing takes them the other way round.
   std::shared_lock lock(mutex_);
   std::lock_guard beams_lock(beams_mutex_);
-  fusion::OccupancyGrid::CellReader cells(*grid_);
+  fusion::OccupancyGrid::CellReader cells(grids_->fused());
   options.step_m = resolution_m_;
   const auto probe = grid_edge_probe(cells, resolution_m_);
   const world::EdgeCrossings crossings = [&](std::size_t object, std::size_t edge, double s0, double s1) {

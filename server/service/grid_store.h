@@ -16,6 +16,7 @@
 
 #include "common/diagnostics.h"
 #include "fusion/grid/beam_crossings.h"
+#include "fusion/grid/laser_sonar_grids.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
 #include "server/service/world_port.h"
@@ -38,6 +39,8 @@ world::GridProbe grid_element_probe(fusion::OccupancyGrid::CellReader& cells, do
 
 struct GridStoreOptions {
   fusion::GridOptions grid;  // a stored grid's resolution and tile size win over these
+  /// Sonar judged by the laser before the fused grid takes it, the decision layer's thresholds.
+  fusion::LaserSonarOptions laser_sonar;
   /// Changed tiles are written at most this often (the journal holds every scan; scans after the last flush are
   /// replayed at start).
   std::chrono::milliseconds flush_interval{1000};
@@ -45,7 +48,8 @@ struct GridStoreOptions {
   fusion::BeamCrossingOptions beam_crossings;
 };
 
-/// The map's occupancy grids (both models) with their lock, their flush to the store, and the laser beams counted at
+/// The map's occupancy grids (both models; fused, with laser-only and sonar-only grids beside it once sonar is seen:
+/// fusion::LaserSonarGrids) with their lock, their flush to the store, and the laser beams counted at
 /// the plan's edges (flushed with the tiles). One writer inserts scans in journal order; any thread reads. Readers
 /// share a writer-preferring lock, so a stream of readers cannot starve the inserts.
 class GridStore {
@@ -77,17 +81,23 @@ class GridStore {
   /// The journal sequence of the last scan in the grid (scans ever accepted); it never goes back across restarts.
   std::int64_t revision() const { return revision_.load(); }
   double resolution_m() const { return resolution_m_; }
-  /// Runs `read(grid)` under the shared lock; `read` must not take it again.
+  /// Runs `read(grid)` under the shared lock on the fused grid; `read` must not take it again.
   template <typename F>
   auto read(F&& read) const {
     std::shared_lock lock(mutex_);
-    return read(*grid_);
+    return read(grids_->fused());
   }
+  /// Starts the laser-only and sonar-only grids empty, to be rebuilt from the journal through insert_side_only
+  /// (start-up, before replay_journal_into_grid: the fused grid comes from its stored tiles).
+  void start_side_grids();
+  /// A journaled scan already in the stored fused grid, into the side grids only (writer thread, start-up).
+  void insert_side_only(const world::ScanObservation& scan);
+  GridSonarStatus sonar() const;
   std::optional<fusion::GridGeometry> bounds() const;
   /// A layer over `region`, with the revision read under the same lock (it counts exactly the scans the cells hold).
-  GridLayerValues layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const;
+  GridLayerValues layer(fusion::GridLayer layer, const fusion::GridGeometry& region) const;
   GridTiles tiles() const;
-  std::optional<GridTileValues> tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx, std::int64_t ty) const;
+  std::optional<GridTileValues> tile(fusion::GridLayer layer, std::int64_t tx, std::int64_t ty) const;
   std::optional<GridTileValues> tile_layers(std::int64_t tx, std::int64_t ty) const;
   /// The Bayes grid as probabilities, for the line extractor; nullopt when empty.
   std::optional<fusion::ProbabilityRaster> probability_raster() const;
@@ -111,7 +121,7 @@ class GridStore {
   storage::Store& store_;
   common::Diagnostics& diagnostics_;
   mutable WriterPreferringMutex mutex_;
-  std::unique_ptr<fusion::OccupancyGrid> grid_;  // changed by the writer only
+  std::unique_ptr<fusion::LaserSonarGrids> grids_;  // changed by the writer only
   double resolution_m_ = 0;
   std::atomic<std::int64_t> revision_{0};
   // Writer only:

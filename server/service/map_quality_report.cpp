@@ -21,7 +21,7 @@ MapQualityReport measure_map_quality(MapPort& map, const GridPort& grid, const M
   for (const auto& [number, element] : state->elements) elements.push_back(element.segment);
 
   if (const auto bounds = grid.grid_bounds()) {
-    const auto layer = grid.grid_layer(fusion::OccupancyGrid::Layer::bayes_probability, *bounds);
+    const auto layer = grid.grid_layer(fusion::GridLayer::bayes, *bounds);
     report.grid_revision = layer.revision;
     report.map = fusion::map_quality(elements, *bounds, layer.values, options.map);
   } else {

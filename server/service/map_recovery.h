@@ -36,7 +36,8 @@ void for_each_journaled_scan(storage::Store& store, std::int64_t after, Visit vi
   }
 }
 
-/// Inserts every journaled scan past the grid's last flush into `grid` (decided against `map`, the map as loaded), so
+/// Rebuilds the laser-only and sonar-only grids from the whole journal when it holds sonar scans, then inserts every
+/// journaled scan past the grid's last flush into `grid` (decided against `map`, the map as loaded), so
 /// the grid and its revision reach the last journaled scan; the replayed tiles stay dirty for the next flush.
 /// @throw storage::StorageError when the journal and the rebuilt grid end at different scans.
 void replay_journal_into_grid(storage::Store& store, GridStore& grid, const world::WorldState& map);

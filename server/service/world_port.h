@@ -15,6 +15,7 @@
 
 #include "apriori/floor_plan.h"
 #include "fusion/grid/grid_geometry.h"
+#include "fusion/grid/laser_sonar_grids.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "fusion/registration/plan_registration.h"
 #include "pipeline/network.h"
@@ -127,6 +128,12 @@ struct GridTiles {
   std::vector<GridTileRevision> tiles;
 };
 /// One tile of one layer (tile_size² values, row-major from its lower-left cell, NaN unknown) and its revision.
+/// The sonar side of the grids: seen at all, judged by the laser (the option), and the gate's verdicts so far.
+struct GridSonarStatus {
+  bool seen = false;
+  bool gated = true;
+  fusion::SonarGateCounts counts;
+};
 struct GridTileValues {
   std::vector<float> values;
   std::uint64_t revision = 0;
@@ -266,12 +273,11 @@ class GridPort {
   virtual std::optional<fusion::GridGeometry> grid_bounds() const = 0;
   /// One layer over `region` (cells never observed are NaN), read under the grid's shared lock: never during an
   /// insert, and a waiting insert goes first.
-  virtual GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const = 0;
+  virtual GridLayerValues grid_layer(fusion::GridLayer layer, const fusion::GridGeometry& region) const = 0;
   /// Every touched tile with its revision, read under one lock.
   virtual GridTiles grid_tiles() const = 0;
   /// One tile of a layer with its revision, read under one lock; nullopt for a tile never touched.
-  virtual std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
-                                                  std::int64_t ty) const = 0;
+  virtual std::optional<GridTileValues> grid_tile(fusion::GridLayer layer, std::int64_t tx, std::int64_t ty) const = 0;
   /// Every layer of one tile, in Layer order (tile_size² values each, one after the other), read under one lock so
   /// all four are of one revision; nullopt for a tile never touched.
   virtual std::optional<GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const = 0;
@@ -289,6 +295,8 @@ class RobotPort {
   /// @throw storage::StorageError (nothing applied then).
   virtual RobotState put_robot_pose(const std::string& id, RobotPose pose, bool stopped) = 0;
   virtual const RobotOptions& robot_options() const = 0;
+  /// Whether sonar was seen and is judged by the laser, and what the gate did so far.
+  virtual GridSonarStatus grid_sonar() const = 0;
 };
 
 /// The whole service: what wmd wires in (WorldService implements it).

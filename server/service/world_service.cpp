@@ -158,20 +158,21 @@ double WorldService::grid_resolution_m() const { return grid_.resolution_m(); }
 
 std::optional<fusion::GridGeometry> WorldService::grid_bounds() const { return grid_.bounds(); }
 
-GridLayerValues WorldService::grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const {
+GridLayerValues WorldService::grid_layer(fusion::GridLayer layer, const fusion::GridGeometry& region) const {
   return grid_.layer(layer, region);
 }
 
 GridTiles WorldService::grid_tiles() const { return grid_.tiles(); }
 
-std::optional<GridTileValues> WorldService::grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
-                                                      std::int64_t ty) const {
+std::optional<GridTileValues> WorldService::grid_tile(fusion::GridLayer layer, std::int64_t tx, std::int64_t ty) const {
   return grid_.tile(layer, tx, ty);
 }
 
 std::optional<GridTileValues> WorldService::grid_tile_layers(std::int64_t tx, std::int64_t ty) const {
   return grid_.tile_layers(tx, ty);
 }
+
+GridSonarStatus WorldService::grid_sonar() const { return grid_.sonar(); }
 
 RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {
   pose.received_at_unix_s = now_unix_s();

@@ -129,11 +129,11 @@ class WorldService final : public WorldPort {
 
   double grid_resolution_m() const override;
   std::optional<fusion::GridGeometry> grid_bounds() const override;
-  GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer, const fusion::GridGeometry& region) const override;
+  GridLayerValues grid_layer(fusion::GridLayer layer, const fusion::GridGeometry& region) const override;
+  GridSonarStatus grid_sonar() const override;
   GridTiles grid_tiles() const override;
   std::optional<GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override;
-  std::optional<GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
-                                          std::int64_t ty) const override;
+  std::optional<GridTileValues> grid_tile(fusion::GridLayer layer, std::int64_t tx, std::int64_t ty) const override;
   /// Scans in the grid: the journal sequence of the last one inserted.
   std::int64_t grid_revision() const { return grid_.revision(); }
   /// The processing network's components, ports, queues and activity.

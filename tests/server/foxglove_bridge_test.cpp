@@ -76,13 +76,14 @@ class LiveWorld : public testing::FakeWorldPort {
     for (const auto& [index, revision] : grid_.tile_revisions()) result.tiles.push_back({index.x, index.y, revision});
     return result;
   }
-  std::optional<service::GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
+  std::optional<service::GridTileValues> grid_tile(fusion::GridLayer layer, std::int64_t tx,
                                                    std::int64_t ty) const override {
     std::lock_guard lock(mutex_);
     const auto revision = grid_.tile_revision({tx, ty});
     if (revision == 0) return std::nullopt;
     ++tile_reads;
-    return service::GridTileValues{grid_.export_layer(layer, grid_.tiles_geometry({tx, ty}, {tx, ty})), revision};
+    return service::GridTileValues{
+        grid_.export_layer(fusion::stored_layer(layer).value(), grid_.tiles_geometry({tx, ty}, {tx, ty})), revision};
   }
   std::optional<service::GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override {
     std::lock_guard lock(mutex_);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/parse_number.h"
+#include "tools/truth/sonar.h"
 #include "tools/truth/truth.h"
 
 namespace {
@@ -22,11 +23,13 @@ const char* kUsage =
     "usage: wm-truth [--building gdc1|ahg2|rmf-office|barcelona|all] [--pose-noise low|high|both] [--seed N]\n"
     "                [--max-route M] [--step M] [--fov 360|270] [--demolished N] [--partitions N] [--people N]\n"
     "                [--table DX,DY,DTHETA_DEG|removed] [--no-plan] [--no-scan-alignment]\n"
-    "                [--no-line-continuation] [--data DIR] [--rules DIR] [--grid-extract-every N]\n"
+    "                [--no-line-continuation] [--data DIR] [--rules DIR] [--grid-extract-every N] [--sonar]\n"
     "  --max-route          drive only the first M metres of each route (default: all)\n"
     "  --no-plan            only the mapping figures (one replay per row instead of two)\n"
     "  --no-scan-alignment  the server keeps each scan's posted pose (wmd --no-scan-alignment), for comparison\n"
     "  --no-line-continuation  no views of elements past their ends from sparse returns, for comparison\n"
+    "  --sonar              a sonar ring beside the laser: the fused grid's walls with and without judging sonar\n"
+    "                       by the laser, against laser-only (no store, no rules; --seed, --max-route, --data)\n"
     "  --grid-extract-every run the grid line extractor every N scans (wmd --grid-extract-every; default 0: never)\n";
 
 }  // namespace
@@ -38,6 +41,7 @@ int main(int argc, char** argv) {
   options.rules_dir = WM_DEFAULT_RULES_DIR;
   std::vector<std::string> buildings{"gdc1"};
   std::vector<PoseNoise> noises{PoseNoise::low};
+  bool sonar = false;
   try {
     for (int i = 1; i < argc; ++i) {
       const std::string flag = argv[i];
@@ -47,6 +51,10 @@ int main(int argc, char** argv) {
       }
       if (flag == "--no-scan-alignment") {
         options.service.ingest.align_scans = false;
+        continue;
+      }
+      if (flag == "--sonar") {
+        sonar = true;
         continue;
       }
       if (flag == "--no-line-continuation") {
@@ -104,8 +112,21 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "wm-truth: %s\n%s", e.what(), kUsage);
     return 2;
   }
-  std::vector<TruthResult> results;
   int status = 0;
+  if (sonar) {
+    std::vector<SonarFusionResult> rows;
+    for (const auto& building : buildings) {
+      try {
+        rows.push_back(run_sonar_fusion(building, options.data_dir, options.seed, options.max_route_m));
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "wm-truth: %s: %s\n", building.c_str(), e.what());
+        status = 1;
+      }
+    }
+    std::fputs(format_sonar_table(rows).c_str(), stdout);
+    return status;
+  }
+  std::vector<TruthResult> results;
   for (const auto& building : buildings)
     for (const auto noise : noises) {
       options.pose_noise = noise;

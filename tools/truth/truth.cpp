@@ -204,8 +204,7 @@ void print_grid(const service::WorldService& world, const char* box) {
   const double r = world.grid_resolution_m();
   const auto w = static_cast<std::int64_t>(std::ceil((x1 - x0) / r)),
              h = static_cast<std::int64_t>(std::ceil((y1 - y0) / r));
-  const auto values =
-      world.grid_layer(fusion::OccupancyGrid::Layer::bayes_probability, fusion::GridGeometry({x0, y0}, r, w, h)).values;
+  const auto values = world.grid_layer(fusion::GridLayer::bayes, fusion::GridGeometry({x0, y0}, r, w, h)).values;
   for (std::int64_t y = h - 1; y >= 0; --y) {
     std::fprintf(stderr, "grid %8.2f ", y0 + (static_cast<double>(y) + 0.5) * r);
     for (std::int64_t x = 0; x < w; ++x) {

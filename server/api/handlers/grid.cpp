@@ -15,18 +15,36 @@
 namespace wm::api {
 namespace {
 
-using Layer = fusion::OccupancyGrid::Layer;
+using Layer = fusion::GridLayer;
 
 // Largest answers [cells]: JSON costs ~7 bytes a cell, PGM one.
 constexpr std::int64_t kMaxJsonCells = 4'000'000;
 constexpr std::int64_t kMaxImageCells = 64'000'000;
 
+nlohmann::json layer_names() {
+  nlohmann::json names = nlohmann::json::array();
+  for (const auto name : fusion::kGridLayerNames) names.push_back(std::string(name));
+  return names;
+}
+
 Layer grid_layer(const std::string& name) {
-  if (name == "bayes") return Layer::bayes_probability;
-  if (name == "ds_belief") return Layer::ds_belief;
-  if (name == "ds_plausibility") return Layer::ds_plausibility;
-  if (name == "ds_conflict") return Layer::ds_conflict;
-  throw bad_request("layer", "expected bayes, ds_belief, ds_plausibility or ds_conflict");
+  if (const auto layer = fusion::grid_layer_named(name)) return *layer;
+  std::string expected;
+  for (const auto known : fusion::kGridLayerNames) expected += (expected.empty() ? "" : ", ") + std::string(known);
+  throw bad_request("layer", "expected one of " + expected);
+}
+
+// What the sonar side of the grids did (GET /api/v1/grid/tiles): seen, gated, the gate's verdicts.
+nlohmann::json sonar_json(const service::GridSonarStatus& sonar) {
+  return {{"seen", sonar.seen},
+          {"gated_by_laser", sonar.gated},
+          {"scans", sonar.counts.scans},
+          {"readings",
+           {{"kept", sonar.counts.kept},
+            {"unjudged", sonar.counts.unjudged},
+            {"phantom", sonar.counts.phantom},
+            {"clipped", sonar.counts.clipped},
+            {"ignored", sonar.counts.ignored}}}};
 }
 
 // The cells to export: the bbox given (x0,y0,x1,y1 in metres, snapped outwards to cells) or everything
@@ -104,7 +122,8 @@ Response get_grid_tiles(const Call& call) {
                        {{"tile_size_cells", tiles.tile_size_cells},
                         {"resolution", tiles.resolution_m},
                         {"revision", tiles.revision},
-                        {"layers", {"bayes", "ds_belief", "ds_plausibility", "ds_conflict"}},
+                        {"layers", layer_names()},
+                        {"sonar", sonar_json(call.world.grid.grid_sonar())},
                         {"tiles", std::move(list)},
                         {"order",
                          "[tx, ty, tile revision]; tile (tx, ty) holds cells [tx*T, (tx+1)*T) x [ty*T, "
@@ -148,7 +167,7 @@ Response get_grid_map_yaml(const Call& call) {
   return raw_response(call.request, formats::map_yaml(grid_region(call, kMaxImageCells)), "application/yaml");
 }
 
-Response get_grid_map_pgm(const Call& call) { return pgm_response(call, Layer::bayes_probability); }
+Response get_grid_map_pgm(const Call& call) { return pgm_response(call, Layer::bayes); }
 
 Response post_grid_extract(const Call& call) {
   require_token(call.request, call.options);

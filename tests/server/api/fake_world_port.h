@@ -97,22 +97,23 @@ class FakeGrid : public virtual service::GridPort, public virtual FakeLedger {
 
   double grid_resolution_m() const override { return the_grid().resolution_m(); }
   std::optional<fusion::GridGeometry> grid_bounds() const override { return the_grid().bounds(); }
-  service::GridLayerValues grid_layer(fusion::OccupancyGrid::Layer layer,
-                                      const fusion::GridGeometry& region) const override {
-    return {the_grid().export_layer(layer, region), 4};
+  service::GridLayerValues grid_layer(fusion::GridLayer layer, const fusion::GridGeometry& region) const override {
+    return {the_grid().export_layer(fusion::stored_layer(layer).value(), region), 4};
   }
+  service::GridSonarStatus grid_sonar() const override { return {}; }
   service::GridTiles grid_tiles() const override {
     service::GridTiles result{the_grid().tile_size_cells(), the_grid().resolution_m(), 4, {}};
     for (const auto& [index, revision] : the_grid().tile_revisions())
       result.tiles.push_back({index.x, index.y, revision});
     return result;
   }
-  std::optional<service::GridTileValues> grid_tile(fusion::OccupancyGrid::Layer layer, std::int64_t tx,
+  std::optional<service::GridTileValues> grid_tile(fusion::GridLayer layer, std::int64_t tx,
                                                    std::int64_t ty) const override {
     const auto revision = the_grid().tile_revision({tx, ty});
     if (revision == 0) return std::nullopt;
-    return service::GridTileValues{the_grid().export_layer(layer, the_grid().tiles_geometry({tx, ty}, {tx, ty})),
-                                   revision};
+    return service::GridTileValues{
+        the_grid().export_layer(fusion::stored_layer(layer).value(), the_grid().tiles_geometry({tx, ty}, {tx, ty})),
+        revision};
   }
   std::optional<service::GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const override {
     const auto revision = the_grid().tile_revision({tx, ty});

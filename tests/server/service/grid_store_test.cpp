@@ -42,7 +42,7 @@ TEST(GridStoreTest, FlushedGridAndBeamCountsComeBackAfterAReload) {
     EXPECT_EQ(grid.flushed_scan_seq(), 5);
     const auto bounds = grid.bounds();
     ASSERT_TRUE(bounds);
-    before = grid.layer(fusion::OccupancyGrid::Layer::bayes_probability, *bounds);
+    before = grid.layer(fusion::GridLayer::bayes, *bounds);
     std::int64_t revision = 0;
     const auto evidence = grid.edge_evidence(state, std::nullopt, world::PlanEvidenceOptions{}, revision);
     ASSERT_EQ(evidence.size(), 1u);
@@ -60,7 +60,7 @@ TEST(GridStoreTest, FlushedGridAndBeamCountsComeBackAfterAReload) {
   EXPECT_EQ(grid.flushed_scan_seq(), 5);
   const auto bounds = grid.bounds();
   ASSERT_TRUE(bounds);
-  const auto after = grid.layer(fusion::OccupancyGrid::Layer::bayes_probability, *bounds);
+  const auto after = grid.layer(fusion::GridLayer::bayes, *bounds);
   ASSERT_EQ(after.values.size(), before.values.size());
   for (std::size_t i = 0; i < after.values.size(); ++i) {
     if (std::isnan(before.values[i])) {
