@@ -28,9 +28,13 @@ void parse_arguments(const Command& command, const std::vector<std::string>& wor
   const std::string name(command.name);
   if (words.size() < command.operands.size())
     throw UsageError(name + " needs " + std::string(command.operands[words.size()]));
-  // Operands come first and are taken as they are, so a query goal may start with "--".
-  into.operands.assign(words.begin(), words.begin() + static_cast<std::ptrdiff_t>(command.operands.size()));
-  for (std::size_t i = command.operands.size(); i < words.size(); i += 2) {
+  // Operands come first and are taken as they are, so a query goal may start with "--". A last operand named
+  // "X..." takes every word up to the first flag.
+  std::size_t end = command.operands.size();
+  if (!command.operands.empty() && command.operands.back().ends_with("..."))
+    while (end < words.size() && !words[end].starts_with("--")) ++end;
+  into.operands.assign(words.begin(), words.begin() + static_cast<std::ptrdiff_t>(end));
+  for (std::size_t i = end; i < words.size(); i += 2) {
     const auto known = std::find_if(command.flags.begin(), command.flags.end(),
                                     [&](const Flag& flag) { return flag.name == words[i]; });
     if (known == command.flags.end()) {

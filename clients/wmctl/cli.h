@@ -68,7 +68,8 @@ struct Flag {
 /// A row of the command table: dispatch, `wmctl help` and every usage message come from these.
 struct Command {
   std::string_view name;                   // the words that select it, e.g. "rules dry-run"
-  std::vector<std::string_view> operands;  // positional arguments, all required, before any flag
+  std::vector<std::string_view> operands;  // positional arguments, all required, before any flag; a last one
+                                           // named "X..." takes one or more words
   std::vector<Flag> flags;
   std::string_view summary;  // one or more lines, without the leading indent
   int (*run)(const Invocation&);

@@ -8,6 +8,8 @@ namespace wm::wmctl {
 // The map and the floor plan (map_commands.cpp).
 int health(const Invocation& in);
 int network(const Invocation& in);
+int network_subtask(const Invocation& in);  // PUT /api/v1/network/subtasks/{name}
+int network_set(const Invocation& in);      // PUT /api/v1/network/components/{name}/params
 int maps_list(const Invocation& in);
 int cluster(const Invocation& in);  // GET /api/v1/cluster
 int maps_create(const Invocation& in);

@@ -116,6 +116,26 @@ int maps_import(const Invocation& in) {
   });
 }
 
+namespace {
+
+// The subtasks and the components' parameters, as `network`, `network subtask` and `network set` print them.
+void print_network_state(const json& n) {
+  for (const auto& t : n.value("subtasks", json::array())) {
+    std::cout << "subtask " << t["name"].get<std::string>() << ": " << (t["running"].get<bool>() ? "on" : "off")
+              << ", components";
+    for (const auto& c : t["components"]) std::cout << " " << c.get<std::string>();
+    std::cout << "\n";
+  }
+  for (const auto& c : n.value("components", json::array())) {
+    std::cout << "component " << c["name"].get<std::string>() << " (" << c["kind"].get<std::string>() << ")";
+    for (const auto& [key, value] : c["params"].items()) std::cout << " " << key << "=" << value.get<std::string>();
+    if (!c["running"].get<bool>()) std::cout << " [stopped]";
+    std::cout << "\n";
+  }
+}
+
+}  // namespace
+
 int network(const Invocation& in) {
   return in.emit(parse_answer(in.client.request("GET", "/api/v1/network")), [](const json& n) {
     std::cout << "network " << n["task_file"].get<std::string>() << "\n";
@@ -134,8 +154,38 @@ int network(const Invocation& in) {
       std::cout << "  " << p["component"].get<std::string>() << "." << p["port"].get<std::string>() << " ["
                 << p["policy"].get<std::string>() << " " << p["capacity"] << "]: depth " << p["depth"] << " (max "
                 << p["max_depth"] << "), " << p["pushed"] << " in, " << p["dropped"] << " dropped, " << p["refused"]
-                << " refused\n";
+                << " refused"
+                << (p.value("dropped_stopped", 0)
+                        ? ", " + std::to_string(p["dropped_stopped"].get<std::uint64_t>()) + " dropped while stopped"
+                        : std::string())
+                << "\n";
+    print_network_state(n);
   });
+}
+
+int network_subtask(const Invocation& in) {
+  const auto& state = in.operands[1];
+  if (state != "on" && state != "off") throw UsageError("network subtask: the state is on or off, not '" + state + "'");
+  const json body = {{"running", state == "on"}};
+  const auto answer =
+      in.client.request("PUT", "/api/v1/network/subtasks/" + in.operands[0], body.dump(), "application/json", in.token);
+  return in.emit(parse_answer(answer), [](const json& n) { print_network_state(n); });
+}
+
+int network_set(const Invocation& in) {
+  json body = json::object();
+  for (std::size_t i = 1; i < in.operands.size(); ++i) {
+    const auto& word = in.operands[i];
+    const auto eq = word.find('=');
+    if (eq == std::string::npos || eq == 0) throw UsageError("network set: '" + word + "' is not KEY=VALUE");
+    const auto value = word.substr(eq + 1);
+    // A number goes as a number, anything else as text; the server checks it as a task file's value.
+    const json number = json::parse(value, nullptr, false);
+    body[word.substr(0, eq)] = !value.empty() && number.is_number() ? number : json(value);
+  }
+  const auto answer = in.client.request("PUT", "/api/v1/network/components/" + in.operands[0] + "/params", body.dump(),
+                                        "application/json", in.token);
+  return in.emit(parse_answer(answer), [](const json& n) { print_network_state(n); });
 }
 
 int floorplan_load(const Invocation& in) {

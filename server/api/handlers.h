@@ -51,6 +51,8 @@ Response get_health(const Call& call);
 Response get_network(const Call& call);
 Response get_index(const Call& call);  // GET /api/v1: the route table as JSON
 Response get_root(const Call& call);   // GET /: the viewer's index.html when served, else the index
+Response put_network_subtask(const Call& call);
+Response put_network_params(const Call& call);
 // handlers/cluster.cpp
 Response get_cluster(const Call& call);  // GET /api/v1/cluster: nodes, leases, epochs
 // handlers/floorplan.cpp

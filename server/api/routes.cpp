@@ -16,6 +16,8 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1", get_index, Lane::immediate},
     Route{verb::get, "/api/v1/health", get_health, Lane::immediate},
     Route{verb::get, "/api/v1/network", get_network, Lane::read},
+    Route{verb::put, "/api/v1/network/subtasks/{name}", put_network_subtask, Lane::write},
+    Route{verb::put, "/api/v1/network/components/{name}/params", put_network_params, Lane::write},
     Route{verb::get, "/api/v1/floorplan", get_floor_plan, Lane::read},
     Route{verb::put, "/api/v1/floorplan", put_floor_plan, Lane::write, "?units=U&level=L&name=N"},
     Route{verb::post, "/api/v1/floorplan/place", post_floor_plan_place, Lane::write},
@@ -167,9 +169,16 @@ std::optional<MapScopedPath> split_map_path(std::string_view path) {
 }
 
 bool is_per_map(const Route& route) {
-  constexpr std::array<std::string_view, 8> server_wide{
-      "/",         "/api/v1",    "/api/v1/network", "/api/v1/maps", "/api/v1/maps/{map}", "/api/v1/cluster",
-      "/foxglove", "/web/{path}"};
+  constexpr std::array<std::string_view, 10> server_wide{"/",
+                                                         "/api/v1",
+                                                         "/api/v1/network",
+                                                         "/api/v1/network/subtasks/{name}",
+                                                         "/api/v1/network/components/{name}/params",
+                                                         "/api/v1/maps",
+                                                         "/api/v1/maps/{map}",
+                                                         "/api/v1/cluster",
+                                                         "/foxglove",
+                                                         "/web/{path}"};
   return std::find(server_wide.begin(), server_wide.end(), route.pattern) == server_wide.end();
 }
 

@@ -214,6 +214,20 @@ class PlanPort {
  public:
   virtual ~PlanPort() = default;
 
+  /// Starts or stops a subtask of the network while it runs; returns the network as it is then.
+  /// @throw NotFound for an unknown subtask, Busy while the network stops.
+  virtual pipeline::NetworkStats set_network_subtask(const std::string& name, bool running) {
+    (void)name, (void)running;
+    throw Conflict("this service's network has no subtasks");
+  }
+  /// Changes parameters of a component while the network runs (text values, checked as in a task file); returns
+  /// the network as it is then. @throw NotFound for an unknown component; std::invalid_argument for a parameter
+  /// that cannot change or a bad value (nothing changed); Busy while the network stops.
+  virtual pipeline::NetworkStats set_network_params(const std::string& component,
+                                                    const std::map<std::string, std::string>& changes) {
+    (void)component, (void)changes;
+    throw Conflict("this service's network takes no parameters");
+  }
   /// Replaces the floor plan; the observed elements stay. Returns the new map version.
   /// @throw Busy, storage::StorageError, std::invalid_argument for bad geometry.
   virtual std::int64_t load_floor_plan(apriori::FloorPlan plan) = 0;

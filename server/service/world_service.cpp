@@ -84,6 +84,17 @@ bool WorldService::accepts_scans(const std::string& sensor) const { return inges
 
 pipeline::NetworkStats WorldService::network_stats() const { return ingest_->stats(); }
 
+pipeline::NetworkStats WorldService::set_network_subtask(const std::string& name, bool running) {
+  ingest_->set_subtask(name, running);
+  return ingest_->stats();
+}
+
+pipeline::NetworkStats WorldService::set_network_params(const std::string& component,
+                                                        const std::map<std::string, std::string>& changes) {
+  ingest_->set_params(component, changes);
+  return ingest_->stats();
+}
+
 std::shared_ptr<const world::PlanReport> WorldService::plan_report() const { return plan_checks_.report(); }
 
 std::shared_ptr<const world::PlanReport> WorldService::refresh_plan_report() {

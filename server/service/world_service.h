@@ -138,6 +138,9 @@ class WorldService final : public WorldPort {
   std::int64_t grid_revision() const { return grid_.revision(); }
   /// The processing network's components, ports, queues and activity.
   pipeline::NetworkStats network_stats() const override;
+  pipeline::NetworkStats set_network_subtask(const std::string& name, bool running) override;
+  pipeline::NetworkStats set_network_params(const std::string& component,
+                                            const std::map<std::string, std::string>& changes) override;
   std::optional<MapRemovals> removed_since(std::int64_t since, std::int64_t up_to) const override;
   /// The plan's edges against the grid and the rules' verdicts on them, as of the last grid check.
   std::shared_ptr<const world::PlanReport> plan_report() const override;
