@@ -68,5 +68,24 @@ TEST(ServerConfigTest, AStoreUriWithAPasswordOrABadSchemaIsRefused) {
         << schema;
 }
 
+// The sonar gate and the DS decision thresholds: on/off and three numbers in range, anything else refused.
+TEST(ServerConfigTest, SonarGateAndDecisionThresholdsAreCheckedAtStart) {
+  const std::filesystem::path rules = std::string(WM_SOURCE_DIR) + "/rules/prolog";
+  const auto parse = [&](std::vector<std::string> args) { return config::parse_command_line(args, rules); };
+  EXPECT_TRUE(parse({}).service.grids.laser_sonar.gate_sonar) << "on by default";
+  EXPECT_FALSE(parse({"--sonar-gate", "off"}).service.grids.laser_sonar.gate_sonar);
+  const auto decision = parse({"--ds-decision", "0.7,0.3,1.5"}).service.grids.laser_sonar.decision;
+  EXPECT_DOUBLE_EQ(decision.occupied_belief_min, 0.7);
+  EXPECT_DOUBLE_EQ(decision.free_plausibility_max, 0.3);
+  EXPECT_DOUBLE_EQ(decision.conflict_min, 1.5);
+  for (const std::vector<std::string>& bad : {std::vector<std::string>{"--sonar-gate", "yes"},
+                                              {"--ds-decision", "0.7,0.3"},
+                                              {"--ds-decision", "0.7,nan,0.5"},
+                                              {"--ds-decision", "0,0.3,0.5"},
+                                              {"--ds-decision", "0.7,1,0.5"},
+                                              {"--ds-decision", "0.7,0.3,0.5,1"}})
+    EXPECT_THROW(parse(bad), config::ConfigError) << bad[1];
+}
+
 }  // namespace
 }  // namespace wm::testing
