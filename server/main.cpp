@@ -14,6 +14,7 @@
 
 #include "apriori/floor_plan.h"
 #include "common/diagnostics.h"
+#include "server/api/drive_relay.h"
 #include "server/api/router.h"
 #include "server/config/server_config.h"
 #include "server/foxglove/bridge.h"
@@ -160,13 +161,18 @@ int main(int argc, char** argv) {
         [&services](const std::shared_ptr<service::MapInstance>& map) {
           return services.map_caches->of(map)->instance();
         });
+    // Before the HTTP server, whose drive connections it relays.
+    api::DriveRelay drive_relay(cfg.drive);
+    services.drive = &drive_relay;
     http::HttpServer::Handlers handlers{
         [&services](const api::Request& r) { return api::handle_request(r, services); },
         [](const api::Request& r) { return api::handler_lane(r); },
         [](const api::Request& r) { return api::is_websocket_upgrade(r); },
         [&services](const api::Request& r) { return api::authorize_events(r, services); },
         [&services](const api::Request& r) { return api::answer_at_once(r, services); },
-        [&foxglove_bridge, &map_bridges](const api::Request& r) -> std::shared_ptr<http::WebSocketEndpoint> {
+        [&foxglove_bridge, &map_bridges,
+         &drive_relay](const api::Request& r) -> std::shared_ptr<http::WebSocketEndpoint> {
+          if (auto drive = drive_relay.connect(r)) return drive;
           // The route table names the subprotocol each WebSocket speaks; none is the events stream.
           if (api::websocket_subprotocol(r) != foxglove::kSubprotocol) return nullptr;
           if (const auto map = api::foxglove_map(r)) return map_bridges.connect(*map);

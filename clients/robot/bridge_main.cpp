@@ -27,6 +27,7 @@
 
 #include "clients/robot/command_input.h"
 #include "clients/robot/drive_script.h"
+#include "clients/robot/remote_drive.h"
 #include "clients/robot/servosila_bridge.h"
 
 namespace {
@@ -59,6 +60,9 @@ constexpr const char* kUsage =
     "  --link-timeout S      give up when no telemetry came within S seconds of start (default 10)\n"
     "  --command-timeout S   stop when no new command came for S seconds, whatever sends them (default 0.5;\n"
     "                        0: a command holds until the next)\n"
+    "  --remote-drive        take drivers' commands from wmd (--server): a WebSocket to\n"
+    "                        /api/v1/robots/ID/drive?role=robot; the web viewer's drive panel drives the robot\n"
+    "  --remote-hold S       stop when wmd relayed no command for S seconds while moving (default 0.3)\n"
     "  --command-udp [ADDR:]PORT  also take \"v w\" commands as UDP datagrams (default address 127.0.0.1);\n"
     "                        without --drive, stdin is then not read and the bridge runs until a signal\n"
     "Exit: 0 when the drive ended and the robot was seen stopped; 1 on a lost link or an unconfirmed stop;\n"
@@ -90,6 +94,8 @@ struct Arguments {
   double pause_s = 0.5;
   double link_timeout_s = 10.0;
   std::optional<wm::robot::HostPort> command_udp;
+  bool remote_drive = false;
+  double remote_hold_s = 0.3;
 };
 
 Arguments parse(int argc, char** argv) {
@@ -103,6 +109,10 @@ Arguments parse(int argc, char** argv) {
     }
     if (flag == "--robot-any-port") {
       args.bridge.accept_any_robot_port = true;
+      continue;
+    }
+    if (flag == "--remote-drive") {
+      args.remote_drive = true;
       continue;
     }
     if (i + 1 >= argc) throw std::invalid_argument(std::string(flag) + ": missing value");
@@ -175,6 +185,8 @@ Arguments parse(int argc, char** argv) {
     } else if (flag == "--command-timeout") {
       args.bridge.command_timeout_s = parse_double(flag, value);
       if (args.bridge.command_timeout_s < 0.0) throw std::invalid_argument("--command-timeout: must be >= 0");
+    } else if (flag == "--remote-hold") {
+      args.remote_hold_s = parse_positive(flag, value);
     } else if (flag == "--command-udp") {
       const std::string text(value);
       args.command_udp = text.find(':') == std::string::npos ? wm::robot::parse_host_port("127.0.0.1:" + text, 0)
@@ -184,6 +196,7 @@ Arguments parse(int argc, char** argv) {
     }
   }
   if (!have_robot) throw std::invalid_argument("--robot HOST[:PORT] is required");
+  if (args.remote_drive && args.server.empty()) throw std::invalid_argument("--remote-drive needs --server");
   return args;
 }
 
@@ -396,6 +409,17 @@ int main(int argc, char** argv) {
     }
   }
 
+  std::unique_ptr<wm::robot::RemoteDrive> remote_drive;
+  if (args.remote_drive) {
+    wm::robot::RemoteDriveOptions remote;
+    remote.server_url = args.server;
+    remote.robot_id = args.id;
+    remote.token = args.token;
+    remote.hold_s = args.remote_hold_s;
+    remote_drive =
+        std::make_unique<wm::robot::RemoteDrive>(remote, [&bridge](double v, double w) { bridge->set_velocity(v, w); });
+  }
+
   int code = 0;
   bool stopped = false;
   if (!wait_for_link(*bridge, interrupt, args.link_timeout_s)) {
@@ -404,9 +428,9 @@ int main(int argc, char** argv) {
       code = 1;
     }
   } else {
-    const Outcome outcome = args.drive                 ? run_script(*bridge, interrupt, segments)
-                            : command_input != nullptr ? run_until_signal(interrupt)
-                                                       : run_stdin(*bridge, interrupt);
+    const Outcome outcome = args.drive ? run_script(*bridge, interrupt, segments)
+                            : command_input != nullptr || remote_drive != nullptr ? run_until_signal(interrupt)
+                                                                                  : run_stdin(*bridge, interrupt);
     if (outcome == Outcome::link_lost) {
       log("link lost during the drive: the robot was sent stops; drive aborted");
       code = 1;
@@ -422,7 +446,8 @@ int main(int argc, char** argv) {
     }
   }
   command_input.reset();  // no command after this point
-  bridge->shutdown();     // the stop burst, the final pose, the socket closed
+  remote_drive.reset();
+  bridge->shutdown();  // the stop burst, the final pose, the socket closed
 
   if (interrupt.signal() == 0) {
     pthread_kill(signal_thread.native_handle(), SIGUSR1);

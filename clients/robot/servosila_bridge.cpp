@@ -181,7 +181,7 @@ struct Bridge::Impl {
 
   PoseReport report_locked(Clock::time_point now) {
     integrate_locked(now);
-    return PoseReport{odometry.pose(), !confirmed_stopped_locked(), unix_now()};
+    return PoseReport{odometry.pose(), !confirmed_stopped_locked(), unix_now(), motors, last_telemetry.has_value()};
   }
 
   void on_datagram(std::span<const std::uint8_t> bytes, const sockaddr_storage& from, Clock::time_point now) {
@@ -248,6 +248,7 @@ struct Bridge::Impl {
     }
     last_telemetry = now;
     tripped = false;
+    motors = packet.motors;
     if (mode == OdometrySource::automatic) {
       const bool has_tracks = find_motor(packet, options.tracks.left_track_id) != nullptr &&
                               find_motor(packet, options.tracks.right_track_id) != nullptr;
@@ -432,7 +433,8 @@ struct Bridge::Impl {
   std::optional<Clock::time_point> zero_since;  // the control packets have been stops since then
   Velocity integrating;                         // what `sent` stands for (commanded odometry)
   Clock::time_point integrated_until;
-  bool still = false;  // the last applied telemetry step showed no motion
+  std::vector<MotorRecord> motors;  // of the last valid telemetry packet
+  bool still = false;               // the last applied telemetry step showed no motion
   Clock::time_point still_at;
 
   std::atomic<bool> quit_io{false};

@@ -6,8 +6,10 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "clients/robot/odometry.h"
+#include "clients/robot/servosila_protocol.h"
 #include "clients/robot/servosila_units.h"
 
 // The bridge between a Servosila Engineer (UDP, PROTOCOL.md) and the world model (HTTP): it drives the robot with
@@ -37,6 +39,10 @@ struct PoseReport {
   /// packet that arrived after the stop showed no motion; commanded: a zero command was sent).
   bool moving = true;
   double stamp_unix_s = 0.0;  // when the pose was taken (system clock)
+  /// The motor records of the last valid telemetry packet (empty before the first): raw amps, fault flags and
+  /// counters, as the robot sent them. The protocol has no temperatures.
+  std::vector<MotorRecord> motors;
+  bool has_telemetry = false;
 };
 
 /// Where poses go. The bridge calls publish() from one thread at a time (its reporter thread, then at shutdown the
@@ -48,7 +54,9 @@ class PoseSink {
   virtual void publish(const PoseReport& report) = 0;
 };
 
-/// The body of `PUT /api/v1/robots/{id}/pose` for a report: {"x", "y", "theta", "cov": 3×3, "stamp", "state"}.
+/// The body of `PUT /api/v1/robots/{id}/pose` for a report: {"x", "y", "theta", "cov": 3×3, "stamp", "state",
+/// "telemetry"?: {"motors": [{"id", "state", "mode", "current" (the raw amps field), "temperature": null (the
+/// protocol has none), "fault", "faults", "status_bits"}], "current_unit": "raw", "temperature_unit": "none"}}.
 std::string pose_report_json(const PoseReport& report);
 
 /// PUTs each report to a wmd server (`PUT /api/v1/robots/{id}/pose`, `Authorization: Bearer` when a token is set).

@@ -14,12 +14,27 @@ std::string pose_report_json(const PoseReport& report) {
   const OdometryPose& p = report.pose;
   nlohmann::json cov = nlohmann::json::array();
   for (int r = 0; r < 3; ++r) cov.push_back({p.covariance(r, 0), p.covariance(r, 1), p.covariance(r, 2)});
-  const nlohmann::json body = {{"x", p.x_m},
-                               {"y", p.y_m},
-                               {"theta", p.theta_rad},
-                               {"cov", std::move(cov)},
-                               {"stamp", report.stamp_unix_s},
-                               {"state", report.moving ? "moving" : "stopped"}};
+  nlohmann::json body = {{"x", p.x_m},
+                         {"y", p.y_m},
+                         {"theta", p.theta_rad},
+                         {"cov", std::move(cov)},
+                         {"stamp", report.stamp_unix_s},
+                         {"state", report.moving ? "moving" : "stopped"}};
+  if (report.has_telemetry) {
+    nlohmann::json motors = nlohmann::json::array();
+    for (const MotorRecord& m : report.motors) {
+      if (motors.size() == 16) break;  // wmd's limit; the protocol allows 10
+      motors.push_back({{"id", m.device_id},
+                        {"state", m.device_state},
+                        {"mode", m.operation_mode},
+                        {"current", m.amps},
+                        {"temperature", nullptr},
+                        {"fault", m.fault_detected != 0},
+                        {"faults", m.faults_counter},
+                        {"status_bits", static_cast<std::uint16_t>(m.status_bits)}});
+    }
+    body["telemetry"] = {{"motors", std::move(motors)}, {"current_unit", "raw"}, {"temperature_unit", "none"}};
+  }
   return body.dump();
 }
 

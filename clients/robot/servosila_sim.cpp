@@ -206,6 +206,11 @@ struct ServosilaSim::Impl {
     // scale (72 021.7 per m/s), positive when the count grows.
     m.speed = saturate_int16(sign * speed_mps * options.units.drive_units_per_mps);
     m.speed_command = m.speed;
+    // The amps field has no unit either: the simulator reports 1000 per m/s of track speed, a stand-in for the
+    // load a real motor would show. A raised fault sets the flag and counts once on every record.
+    m.amps = saturate_int16(std::abs(speed_mps) * 1000.0);
+    m.fault_detected = fault ? 1 : 0;
+    m.faults_counter = faults;
     return m;
   }
 
@@ -274,6 +279,8 @@ struct ServosilaSim::Impl {
   SimTruth truth;
   SimStats stats;
   std::uint64_t ticks = 0;
+  bool fault = false;        // set_fault: reported by every motor record
+  std::uint16_t faults = 0;  // how many times a fault was raised
   Clock::time_point last_step;
   std::optional<Clock::time_point> last_control;
   std::optional<udp::endpoint> operator_endpoint;
@@ -305,6 +312,12 @@ void ServosilaSim::set_loss_probability(double p) {
   require(probability(p), "loss probability must be in [0, 1]");
   const std::lock_guard lock(impl_->mutex);
   impl_->loss_probability = p;
+}
+
+void ServosilaSim::set_fault(bool fault) {
+  const std::lock_guard lock(impl_->mutex);
+  if (fault && !impl_->fault) ++impl_->faults;
+  impl_->fault = fault;
 }
 
 void ServosilaSim::set_reorder_probability(double p) {

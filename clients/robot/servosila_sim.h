@@ -83,6 +83,9 @@ class ServosilaSim {
   /// Switch loss and reordering while running. @throw std::invalid_argument outside [0, 1].
   void set_loss_probability(double p);
   void set_reorder_probability(double p);
+  /// Raises (true) or clears a motor fault: every motor record then reports fault_detected 1, and the faults
+  /// counter counts each raise. The robot still moves (a real controller might not); this is for telemetry.
+  void set_fault(bool fault);
 
  private:
   struct Impl;

@@ -30,7 +30,9 @@ constexpr const char* kUsage =
     "  --reorder P             deliver each datagram after the next one with probability P (default 0)\n"
     "  --seed N                random seed for loss and reordering (default 1)\n"
     "  --initial-position N    both track counters at start (default 0)\n"
-    "  --print-period S        seconds between truth lines on stdout (default 0.2; 0: none)\n";
+    "  --print-period S        seconds between truth lines on stdout (default 0.2; 0: none)\n"
+    "Signals: SIGUSR1 raises a motor fault (telemetry: every motor's fault flag, the counter counts it), SIGUSR2\n"
+    "clears it.\n";
 
 template <typename T>
 T parse_number(std::string_view flag, std::string_view text) {
@@ -97,6 +99,17 @@ int main(int argc, char** argv) {
     boost::asio::io_context io;
     boost::asio::signal_set signals(io, SIGINT, SIGTERM);
     signals.async_wait([&io](const boost::system::error_code&, int) { io.stop(); });
+    boost::asio::signal_set fault_signals(io, SIGUSR1, SIGUSR2);
+    std::function<void()> fault_loop = [&] {
+      fault_signals.async_wait([&](const boost::system::error_code& ec, int signal) {
+        if (ec) return;
+        sim.set_fault(signal == SIGUSR1);
+        std::printf("wm-servosila-sim: motor fault %s\n", signal == SIGUSR1 ? "raised" : "cleared");
+        std::fflush(stdout);
+        fault_loop();
+      });
+    };
+    fault_loop();
 
     const auto start = std::chrono::steady_clock::now();
     boost::asio::steady_timer timer(io);

@@ -21,6 +21,7 @@
 namespace wm::api {
 
 class MapExports;  // server/api/map_scope.h
+class DriveRelay;  // server/api/drive_relay.h
 
 /// One request as a handler sees it.
 struct Call {
@@ -38,6 +39,7 @@ struct Call {
   service::MapRegistry* maps = nullptr;  // the server's other maps; nullptr: it has only the default map
   MapExports* map_exports = nullptr;     // their shared-memory exports; nullptr: none (--no-shm)
   service::ClusterMember* cluster = nullptr;  // this node of a cluster; nullptr: no cluster
+  DriveRelay* drive = nullptr;                // robots' drive connections and telemetry; nullptr: none
 };
 
 using Handler = Response (*)(const Call&);
@@ -49,10 +51,10 @@ using AtOnceHandler = std::optional<Response> (*)(const Call&, std::shared_ptr<c
 // handlers/health.cpp, index.cpp
 Response get_health(const Call& call);
 Response get_network(const Call& call);
-Response get_index(const Call& call);  // GET /api/v1: the route table as JSON
-Response get_root(const Call& call);   // GET /: the viewer's index.html when served, else the index
 Response put_network_subtask(const Call& call);
 Response put_network_params(const Call& call);
+Response get_index(const Call& call);  // GET /api/v1: the route table as JSON
+Response get_root(const Call& call);   // GET /: the viewer's index.html when served, else the index
 // handlers/cluster.cpp
 Response get_cluster(const Call& call);  // GET /api/v1/cluster: nodes, leases, epochs
 // handlers/floorplan.cpp

@@ -4,6 +4,7 @@
 
 #include "server/api/access.h"
 #include "server/api/api_error.h"
+#include "server/api/drive_relay.h"
 #include "server/api/error_mapping.h"
 #include "server/api/request.h"
 #include "server/api/routes.h"
@@ -143,6 +144,7 @@ Call call_of(const Request& request, const Target& target, const RouteMatch& mat
   call.maps = services.maps;
   call.map_exports = services.map_exports;
   call.cluster = services.cluster ? services.cluster->member : nullptr;
+  call.drive = services.drive;
   return call;
 }
 
@@ -207,6 +209,7 @@ bool is_websocket_upgrade(const Request& request) {
 
 std::optional<Response> authorize_events(const Request& request, Services& services) {
   if (auto refusal = authorize_upgrade(request, services.options)) return refusal;
+  if (auto refusal = authorize_drive(request)) return refusal;
   const auto raw = target_of(request);
   if (const auto scoped = split_map_path(raw.substr(0, raw.find('?')))) {
     if (map_events_elsewhere(request, services)) return std::nullopt;  // told where the map is, then closed

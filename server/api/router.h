@@ -18,6 +18,8 @@
 
 namespace wm::api {
 
+class DriveRelay;  // server/api/drive_relay.h
+
 /// What a node of a cluster needs to answer for maps another node serves: who serves them, and a way to pass a request
 /// on to that node. A request passed on carries this node's id (X-WM-Forwarded-By) and the cluster's token
 /// (X-WM-Cluster-Token); a node that is passed a request for a map it does not serve answers 503 map_moved and never
@@ -46,6 +48,8 @@ struct Services {
   MapExports* map_exports = nullptr;
   /// This node of a cluster, whose maps other nodes serve too; nullptr: no cluster.
   ClusterRouting* cluster = nullptr;
+  /// The robots' drive connections and telemetry (GET /api/v1/robots/{id}/drive); nullptr: not served.
+  DriveRelay* drive = nullptr;
 };
 
 /// The answer to a request whose route is marked at_once, when it can be given on the calling (I/O) thread without

@@ -58,6 +58,9 @@ constexpr std::array kRoutes{
     Route{verb::get, "/api/v1/shm", get_shm, Lane::read},
     Route{verb::get, "/api/v1/robots", get_robots, Lane::read},
     Route{verb::put, "/api/v1/robots/{id}/pose", put_robot_pose, Lane::write},
+    // Driving a robot from a browser through wmd (drive_relay.h): the robot side and one driver.
+    Route{verb::get, "/api/v1/robots/{id}/drive", get_websocket_without_upgrade, Lane::immediate,
+          "?role=driver|robot&token=TOKEN", true},
     Route{verb::get, "/api/v1/robots/{id}", get_robot, Lane::read},
     Route{verb::get, "/api/v1/maps", get_maps, Lane::read},
     Route{verb::post, "/api/v1/maps", post_maps, Lane::write},
@@ -169,7 +172,7 @@ std::optional<MapScopedPath> split_map_path(std::string_view path) {
 }
 
 bool is_per_map(const Route& route) {
-  constexpr std::array<std::string_view, 10> server_wide{"/",
+  constexpr std::array<std::string_view, 11> server_wide{"/",
                                                          "/api/v1",
                                                          "/api/v1/network",
                                                          "/api/v1/network/subtasks/{name}",
@@ -178,6 +181,7 @@ bool is_per_map(const Route& route) {
                                                          "/api/v1/maps/{map}",
                                                          "/api/v1/cluster",
                                                          "/foxglove",
+                                                         "/api/v1/robots/{id}/drive",
                                                          "/web/{path}"};
   return std::find(server_wide.begin(), server_wide.end(), route.pattern) == server_wide.end();
 }

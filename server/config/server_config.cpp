@@ -134,6 +134,9 @@ std::string usage() {
          "  --foxglove-queue-kb N  changes (scene updates, decisions) a Foxglove client may have queued [KiB]; past\n"
          "                         them it falls behind and is sent the current state when it reads (default 32768)\n"
          "  --foxglove-max-clients N  Foxglove clients served at once; one more is refused (default 32)\n"
+         "  --drive-max-speed M/S  drivers' commands are clamped to this linear speed (default 0.4)\n"
+         "  --drive-max-turn RAD/S drivers' commands are clamped to this turn rate (default 1.25)\n"
+         "  --drive-hold-ms N      stop a robot whose driver sent nothing for N ms (default 150)\n"
          "  --help                 this text\n";
 }
 
@@ -288,6 +291,12 @@ ServerConfig parse_command_line(const std::vector<std::string>& args, const std:
       c.foxglove.max_queued_bytes = config_number<std::size_t>(flag, value, 16, 4'194'304) << 10;
     else if (flag == "--foxglove-max-clients")
       c.foxglove.max_clients = config_number<std::size_t>(flag, value, 1, 4096);
+    else if (flag == "--drive-max-speed")
+      c.drive.max_linear_mps = config_number<double>(flag, value, 0.01, 5.0);
+    else if (flag == "--drive-max-turn")
+      c.drive.max_angular_radps = config_number<double>(flag, value, 0.01, 10.0);
+    else if (flag == "--drive-hold-ms")
+      c.drive.hold_ms = config_number<int>(flag, value, 20, 5000);
     else if (flag == "--sync") {
       if (value != "full" && value != "normal") throw ConfigError("--sync: expected 'full' or 'normal'");
       c.store.synchronous_full = value == "full";

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "rules/engine.h"
+#include "server/api/drive_relay.h"
 #include "server/api/router.h"
 #include "server/foxglove/foxglove_options.h"
 #include "server/http/http_server.h"
@@ -32,6 +33,7 @@ struct ServerConfig {
   http::HttpOptions http;
   shm::ShmOptions shm;
   foxglove::FoxgloveOptions foxglove;
+  api::DriveOptions drive;                               // driving robots through wmd (--drive-*)
   std::optional<std::filesystem::path> floor_plan_file;  // loaded at start (demo), replacing the stored plan
   /// The maps besides the default one (the --db file), one SQLite file each; default: "<db>.maps" beside it.
   std::filesystem::path maps_dir;

@@ -1,6 +1,9 @@
 #include "server/json/robots_json.h"
 
 #include <cmath>
+#include <cstdint>
+#include <optional>
+#include <string>
 
 #include "apriori/import/json_limits.h"
 #include "server/json/codec.h"
@@ -40,6 +43,22 @@ json pose_json(const service::RobotPose& pose) {
   return j;
 }
 
+std::uint64_t integer(const json& value, const std::string& at, std::uint64_t max) {
+  if (!value.is_number_integer() && !value.is_number_unsigned()) throw bad_request(at, "expected an integer");
+  if (value.is_number_integer() && value.get<std::int64_t>() < 0) throw bad_request(at, "negative");
+  const auto v = value.get<std::uint64_t>();
+  if (v > max) throw bad_request(at, "more than " + std::to_string(max));
+  return v;
+}
+
+json nullable_number(const json& value, const std::string& at) {
+  if (value.is_null()) return nullptr;
+  if (!value.is_number()) throw bad_request(at, "expected a number or null");
+  const double v = value.get<double>();
+  if (!std::isfinite(v) || std::abs(v) > 1e6) throw bad_request(at, "expected a finite number (|x| ≤ 1e6)");
+  return v;
+}
+
 }  // namespace
 
 json robot_json(const service::RobotState& robot, const char* status, double now_unix_s) {
@@ -74,8 +93,9 @@ ReportedPose parse_reported_pose(std::string_view text) {
   }
   if (!body.is_object()) throw bad_request("", "expected an object {\"x\", \"y\", \"theta\", ...}");
   for (const auto& [key, value] : body.items())
-    if (key != "x" && key != "y" && key != "theta" && key != "cov" && key != "stamp" && key != "state")
-      throw bad_request(key, "unknown field (x, y, theta, cov, stamp, state)");
+    if (key != "x" && key != "y" && key != "theta" && key != "cov" && key != "stamp" && key != "state" &&
+        key != "telemetry")
+      throw bad_request(key, "unknown field (x, y, theta, cov, stamp, state, telemetry)");
   ReportedPose reported;
   auto& pose = reported.pose;
   pose.x = number(body, "x", 1e5);
@@ -105,7 +125,61 @@ ReportedPose parse_reported_pose(std::string_view text) {
       throw bad_request("state", "expected \"moving\" or \"stopped\"");
     reported.stopped = state == "stopped";
   }
+  if (body.contains("telemetry")) reported.telemetry = parse_robot_telemetry(body["telemetry"]);
   return reported;
+}
+
+json parse_robot_telemetry(const json& telemetry) {
+  if (!telemetry.is_object()) throw bad_request("telemetry", "expected an object {\"motors\": [...]}");
+  json out = json::object();
+  bool any_fault = false;
+  for (const auto& [key, value] : telemetry.items()) {
+    const std::string at = "telemetry." + key.substr(0, 64);
+    if (key == "motors") {
+      if (!value.is_array() || value.size() > 16) throw bad_request(at, "expected at most 16 motors");
+      json motors = json::array();
+      for (std::size_t i = 0; i < value.size(); ++i) {
+        const auto& m = value[i];
+        const std::string mat = at + "[" + std::to_string(i) + "]";
+        if (!m.is_object()) throw bad_request(mat, "expected an object");
+        json motor = json::object();
+        for (const auto& [field, v] : m.items()) {
+          const std::string fat = mat + "." + field.substr(0, 64);
+          if (field == "id" || field == "state" || field == "mode") {
+            motor[field] = integer(v, fat, 255);
+          } else if (field == "faults" || field == "status_bits") {
+            motor[field] = integer(v, fat, 65535);
+          } else if (field == "current" || field == "temperature") {
+            motor[field] = nullable_number(v, fat);
+          } else if (field == "fault") {
+            if (!v.is_boolean()) throw bad_request(fat, "expected true or false");
+            motor[field] = v.get<bool>();
+            any_fault = any_fault || v.get<bool>();
+          } else {
+            throw bad_request(fat,
+                              "unknown field (id, state, mode, current, temperature, fault, faults, "
+                              "status_bits)");
+          }
+        }
+        if (!motor.contains("id")) throw bad_request(mat + ".id", "missing");
+        for (const char* field : {"current", "temperature"})
+          if (!motor.contains(field)) motor[field] = nullptr;
+        if (!motor.contains("fault")) motor["fault"] = false;
+        if (!motor.contains("faults")) motor["faults"] = 0;
+        motors.push_back(std::move(motor));
+      }
+      out["motors"] = std::move(motors);
+    } else if (key == "current_unit" || key == "temperature_unit") {
+      if (!value.is_string() || value.get_ref<const std::string&>().size() > 32)
+        throw bad_request(at, "expected a string of at most 32 characters");
+      out[key] = value;
+    } else {
+      throw bad_request(at, "unknown field (motors, current_unit, temperature_unit)");
+    }
+  }
+  if (!out.contains("motors")) throw bad_request("telemetry.motors", "missing");
+  out["fault"] = any_fault;
+  return out;
 }
 
 bool valid_robot_id(std::string_view id) {

@@ -6,6 +6,7 @@
 
 #include "server/api/access.h"
 #include "server/api/api_error.h"
+#include "server/api/drive_relay.h"
 #include "server/api/handlers.h"
 #include "server/api/request.h"
 #include "server/api/response.h"
@@ -18,9 +19,18 @@ double now_unix_s() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
+// The robot with its status, and what the drive relay knows of it now: its telemetry (null when it reported none
+// since wmd started) and its drive connections. A fault in the last telemetry makes the status "fault".
 nlohmann::json with_status(const Call& call, const service::RobotState& robot, double now) {
   const service::RobotRegistry rules(call.world.robots.robot_options());  // only for its status thresholds
-  return json_codec::robot_json(robot, service::to_string(rules.status(robot, now)), now);
+  auto j = json_codec::robot_json(robot, service::to_string(rules.status(robot, now)), now);
+  if (call.drive) {
+    bool fault = false;
+    auto live = call.drive->robot_live(robot.id, fault);
+    for (auto& [key, value] : live.items()) j[key] = std::move(value);
+    if (fault) j["status"] = "fault";
+  }
+  return j;
 }
 
 const std::string& robot_id(const Call& call) {
@@ -76,7 +86,8 @@ Response get_robots(const Call& call) {
                                       {"alive_s", options.alive_s},
                                       {"status",
                                        "alive: heard from within alive_s; stale: silent longer; stopped: its last "
-                                       "reported pose said so (until it sends again)"}});
+                                       "reported pose said so (until it sends again); fault: its last telemetry "
+                                       "reported a motor fault"}});
 }
 
 Response get_robot(const Call& call) {
@@ -93,6 +104,7 @@ Response put_robot_pose(const Call& call) {
   const auto& id = robot_id(call);
   auto reported = json_codec::parse_reported_pose(call.request.body());
   const auto robot = call.world.robots.put_robot_pose(id, std::move(reported.pose), reported.stopped);
+  if (reported.telemetry && call.drive) call.drive->put_telemetry(id, std::move(*reported.telemetry));
   return json_response(call.request, with_status(call, robot, now_unix_s()));
 }
 
