@@ -178,6 +178,45 @@ TEST_F(NetworkControlTest, HostileCallsAreRefusedAndChangeNothing) {
   EXPECT_EQ(extract_every(), "20");
 }
 
+// A task file whose subtask would stop what the HTTP writes or the store need, or that leaves a tie unordered, is
+// refused at start with the file, the line where it can, and the reason.
+TEST(NetworkTaskFileTest, SubtasksThatWouldStopRequestsAndUnorderedTiesAreRefusedAtStart) {
+  TempDir dir;
+  const auto base = slurp(std::string(WM_SOURCE_DIR) + "/networks/default.yaml");
+  ASSERT_NE(base.find("grid-lines: {components: [grid_lines], running: true}"), std::string::npos);
+  const auto refused = [&](const std::string& yaml) {
+    const auto file = dir.path() / "net.yaml";
+    std::ofstream(file) << yaml;
+    const auto r = run_command(std::string(WM_WMD_PATH) + " --db " + (dir.path() / "wm.db").string() +
+                               " --port 0 --rules " + WM_RULES_DIR + " --network " + file.string() + " 2>&1");
+    EXPECT_NE(r.status, 0) << r.output;
+    return r.output;
+  };
+  auto with = [&](const std::string& from, const std::string& to) {
+    auto text = base;
+    text.replace(text.find(from), from.size(), to);
+    return text;
+  };
+  auto output = refused(with("components: [grid_lines]", "components: [grid_lines, matcher]"));
+  EXPECT_NE(output.find("net.yaml: subtask 'grid-lines': component 'matcher' takes values from outside the network "
+                        "on 'laser' (the HTTP writes): it cannot be stopped"),
+            std::string::npos)
+      << output;
+  output = refused(with("components: [grid_lines]", "components: [store]"));
+  EXPECT_NE(output.find("net.yaml: subtask 'grid-lines': component 'store' takes every value on 'in' (a fifo: "
+                        "requests wait for them): only components whose inputs keep the latest value can be stopped"),
+            std::string::npos)
+      << output;
+  output = refused(with("grid: {kind: grid}", "grid: {kind: grid, priorities: [laser_and_sonar]}"));
+  EXPECT_NE(output.find("net.yaml: component 'grid': functions 'laser' and 'sonar' both depend on 1 ports: give them "
+                        "a relative priority (priorities: [laser, sonar] or the reverse)"),
+            std::string::npos)
+      << output;
+  output = refused(with("running: true", "running: perhaps"));
+  EXPECT_NE(output.find("net.yaml:12: subtask 'grid-lines': running must be true or false"), std::string::npos)
+      << output;
+}
+
 // wmctl network subtask NAME on|off and wmctl network set COMPONENT key=value...
 TEST_F(NetworkControlTest, WmctlSwitchesSubtasksAndSetsParams) {
   const auto with_token = std::string("--token ") + kToken + " ";
@@ -224,7 +263,7 @@ TEST_F(NetworkControlTest, WmctlSwitchesSubtasksAndSetsParams) {
 // Toggling the subtask and changing the extractor's period while scans stream in from several writers: every scan
 // is answered 200, none waits for a stopped component, and the counts add up.
 TEST_F(NetworkControlTest, ConcurrentTogglesWhileScansStream) {
-  const auto log = real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected-excerpt.log.gz");
+  const auto log = real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected.log.gz");
   logs::CarmenLogReader reader(log);
   std::vector<std::string> bodies;
   while (auto s = reader.next()) {
@@ -273,7 +312,7 @@ TEST_F(NetworkControlTest, ConcurrentTogglesWhileScansStream) {
 // and no observation of origin grid is decided while it is off, its activations stand still and its ticks are
 // counted as dropped; switched on again, it resumes.
 TEST_F(NetworkControlTest, SwitchingTheGridLinesSubtaskOffStopsGridElementsAndOnResumesThem) {
-  const auto log = real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected-excerpt.log.gz");
+  const auto log = real_data("carmen/intel-corrected.log.gz", "carmen/intel-corrected.log.gz");
   logs::CarmenLogReader reader(log);
   const auto post_scans = [&](int count) {
     int posted = 0;
