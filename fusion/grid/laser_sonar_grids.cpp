@@ -230,25 +230,26 @@ std::vector<float> LaserSonarGrids::export_layer(GridLayer layer, const GridGeom
 }
 
 std::uint64_t LaserSonarGrids::tile_revision(GridLayer layer, TileIndex t) const {
+  // Every layer has a tile wherever the fused grid has one (a viewer reads the fused grid's tile index for all of
+  // them). Revisions only grow, so the sum of the revisions of the grids a layer reads changes whenever one does.
+  const auto fused = fused_.tile_revision(t);
+  if (fused == 0) return 0;
   switch (layer) {
     case GridLayer::bayes:
     case GridLayer::ds_belief:
     case GridLayer::ds_plausibility:
     case GridLayer::ds_conflict:
     case GridLayer::ds_decision:
-      return fused_.tile_revision(t);
+      return fused;
     case GridLayer::laser_bayes:
     case GridLayer::laser_ds_decision:
-      return laser_only().tile_revision(t);
+      return laser_ ? fused + laser_->tile_revision(t) : fused;
     case GridLayer::sonar_bayes:
-      return sonar_ ? sonar_->tile_revision(t) : 0;
+      return sonar_ ? fused + sonar_->tile_revision(t) : fused;
     case GridLayer::laser_sonar_conflict:
-      // Both revisions only grow, so their sum changes whenever either grid's tile does.
-      return sonar_ && sonar_->tile_revision(t) > 0 && laser_->tile_revision(t) > 0
-                 ? sonar_->tile_revision(t) + laser_->tile_revision(t)
-                 : 0;
+      return sonar_ ? fused + sonar_->tile_revision(t) + laser_->tile_revision(t) : fused;
   }
-  return 0;
+  return fused;
 }
 
 }  // namespace wm::fusion

@@ -108,7 +108,7 @@ class LaserSonarGrids {
   /// @throw std::invalid_argument when the region has more than OccupancyGrid::kMaxExportCells cells.
   std::vector<float> export_layer(GridLayer layer, const GridGeometry& region) const;
   /// Names the content of tile t in `layer` (changes whenever a grid the layer reads changes there); 0 when the
-  /// layer has nothing there.
+  /// fused grid has no tile t (every layer has a tile, NaN where it knows nothing, wherever the fused grid has one).
   std::uint64_t tile_revision(GridLayer layer, TileIndex t) const;
 
  private:

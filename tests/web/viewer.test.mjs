@@ -293,8 +293,9 @@ test('the viewer shows the grid, the plan and the elements, follows live decisio
     await expectDrawnEqualsApi('after the placement was undone');
   });
 
-  await t.test('the layer switch shows each Dempster-Shafer layer', async () => {
-    for (const layer of ['ds_belief', 'ds_plausibility', 'ds_conflict', 'bayes']) {
+  await t.test('the layer switch shows each Dempster-Shafer, laser-only and sonar layer', async () => {
+    for (const layer of ['ds_belief', 'ds_plausibility', 'ds_conflict', 'ds_decision', 'laser_bayes', 'sonar_bayes',
+      'laser_sonar_conflict', 'bayes']) {
       await page.selectOption('#layer-select', layer);
       await page.waitForFunction((l) => {
         const v = window.worldmodelViewer;

@@ -6,7 +6,8 @@
 import { cellCount, containsCells, padCells, unionCells } from './geometry.js';
 import { kUnknownRgb, pgmToRgba, tileToPgmPixels } from './pgm.js';
 
-export const kLayers = ['bayes', 'ds_belief', 'ds_plausibility', 'ds_conflict'];
+export const kLayers = ['bayes', 'ds_belief', 'ds_plausibility', 'ds_conflict', 'ds_decision', 'laser_bayes',
+  'sonar_bayes', 'laser_sonar_conflict'];
 
 /** Minimum time between two region fetches of the active layer [ms]. */
 const kThrottleMs = 400;

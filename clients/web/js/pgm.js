@@ -55,13 +55,13 @@ export function displayGrey(v) {
 
 /**
  * RGBA bytes (Uint8ClampedArray, width·height·4) for PGM pixels: free white, occupied black (displayGrey), unknown
- * kUnknownRgb. For the conflict layer the grey is tinted red, so conflict does not read as an obstacle.
+ * kUnknownRgb. For the conflict layers the grey is tinted red, so conflict does not read as an obstacle.
  */
 export function pgmToRgba(pixels, layer = 'bayes') {
   const lut = new Uint8Array(256);
   for (let v = 0; v < 256; ++v) lut[v] = displayGrey(v);
   const out = new Uint8ClampedArray(pixels.length * 4);
-  const tint = layer === 'ds_conflict';
+  const tint = layer === 'ds_conflict' || layer === 'laser_sonar_conflict';
   for (let i = 0, j = 0; i < pixels.length; ++i, j += 4) {
     const v = pixels[i];
     if (v === kUnknown) {
