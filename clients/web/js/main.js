@@ -11,6 +11,7 @@ import { Api, ApiError, apiBaseFromLocation, EventStream, eventsUrl, mapFromLoca
 import {
   changeCentre, ChangeList, decisionErrorText, loadToken, RefreshThrottle, saveToken,
 } from './changes.js';
+import { DrivePanel } from './drive.js';
 import { RateMeter } from './geometry.js';
 import { GridLayers } from './grid_layers.js';
 import { MapView } from './map_view.js';
@@ -91,6 +92,8 @@ const tokenStorage = (() => {
   }
 })();
 changesState.token = loadToken(tokenStorage, window.location.search);
+// The drive panel uses the same token (the drive WebSocket needs it when wmd runs with --token).
+const drive = new DrivePanel(api, () => changesState.token);
 const changesPanel = new ChangesPanel({
   token: changesState.token,
   onDecide: (id, verdict) => decideChange(id, verdict),
@@ -324,6 +327,7 @@ function targetOfDecision(d) {
 }
 
 function select(target) {
+  if (target?.kind === 'robot') drive.select(target.id);  // a robot clicked on the map is the one to drive
   state.selection = target;
   view.selection = target;
   view.requestDraw();
