@@ -103,6 +103,8 @@ class LaserSonarGrids {
   bool has_sonar() const { return sonar_ != nullptr; }
   const SonarGateCounts& gate_counts() const { return counts_; }
   const LaserSonarOptions& options() const { return options_; }
+  /// Judges the sonar scans inserted from now on by the laser, or not.
+  void set_gate_sonar(bool on) { options_.gate_sonar = on; }
 
   /// A layer over a region as OccupancyGrid::export_layer (NaN unknown; sonar layers all NaN without sonar).
   /// @throw std::invalid_argument when the region has more than OccupancyGrid::kMaxExportCells cells.

@@ -203,6 +203,11 @@ void GridStore::insert_side_only(const world::ScanObservation& scan) {
   std::visit([this](const auto& s) { grids_->insert_side_only(s); }, scan.scan);
 }
 
+void GridStore::set_sonar_gate(bool on) {
+  std::unique_lock lock(mutex_);
+  grids_->set_gate_sonar(on);
+}
+
 GridSonarStatus GridStore::sonar() const {
   std::shared_lock lock(mutex_);
   return {grids_->has_sonar(), grids_->options().gate_sonar, grids_->gate_counts()};

@@ -93,6 +93,8 @@ class GridStore {
   /// A journaled scan already in the stored fused grid, into the side grids only (writer thread, start-up).
   void insert_side_only(const world::ScanObservation& scan);
   GridSonarStatus sonar() const;
+  /// Turns judging sonar by the laser on or off for the scans inserted from now on.
+  void set_sonar_gate(bool on);
   std::optional<fusion::GridGeometry> bounds() const;
   /// A layer over `region`, with the revision read under the same lock (it counts exactly the scans the cells hold).
   GridLayerValues layer(fusion::GridLayer layer, const fusion::GridGeometry& region) const;

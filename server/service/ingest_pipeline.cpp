@@ -161,6 +161,15 @@ pipeline::Registry IngestPipeline::network_registry() {
       return static_cast<std::int64_t>(
           p.number("extract_every", static_cast<double>(options_.grid_extract_every), 0, 1e9));
     };
+    // Whether sonar is judged by the laser before the fused grid takes it (wmd --sonar-gate by default).
+    const auto read_sonar_gate = [this](const pipeline::Params& p) {
+      const auto text = p.text("sonar_gate");
+      if (!text) return grid_.sonar().gated;
+      if (*text != "on" && *text != "off" && *text != "true" && *text != "false")
+        throw std::invalid_argument("parameter 'sonar_gate' must be on or off, not '" + *text + "'");
+      return *text == "on" || *text == "true";
+    };
+    grid_.set_sonar_gate(read_sonar_gate(params));  // before any executor runs
     // Read and written on the grid's executor thread only.
     auto extract_every = std::make_shared<std::int64_t>(read_extract_every(params));
     auto c = std::make_unique<Component>();
@@ -174,11 +183,16 @@ pipeline::Registry IngestPipeline::network_registry() {
     c->function("sonar", {"sonar"},
                 [this, extract_every](pipeline::Activation& a) { insert_grid_scans(a, false, true, *extract_every); });
     c->order({"laser", "sonar"});
-    c->settable({{"extract_every", std::to_string(*extract_every)}},
-                [read_extract_every, extract_every](const pipeline::Params& p) -> std::function<void()> {
-                  const auto value = read_extract_every(p);
-                  return [extract_every, value] { *extract_every = value; };
-                });
+    c->settable(
+        {{"extract_every", std::to_string(*extract_every)}, {"sonar_gate", grid_.sonar().gated ? "on" : "off"}},
+        [this, read_extract_every, read_sonar_gate, extract_every](const pipeline::Params& p) -> std::function<void()> {
+          const auto value = read_extract_every(p);
+          const bool gate = read_sonar_gate(p);
+          return [this, extract_every, value, gate] {
+            *extract_every = value;
+            grid_.set_sonar_gate(gate);
+          };
+        });
     return c;
   });
 

@@ -94,6 +94,30 @@ TEST_F(SonarGateTest, SideGridsComeBackAfterACrashAndAfterARestart) {
   EXPECT_EQ(get_json("/api/v1/grid/tiles")["sonar"], counts);
 }
 
+// The grid component's sonar_gate parameter, changed while the network runs: a bad value changes nothing, off lets
+// the phantom in, on keeps it out again.
+TEST_F(SonarGateTest, TheGateIsAParameterOfTheGridComponentChangedWhileItRuns) {
+  map_the_room();
+  const std::string route = "/api/v1/network/components/grid/params";
+  send_json("PUT", route, {{"sonar_gate", "maybe"}}, 422);
+  send_json("PUT", route, {{"sonar_gate", 1}}, 422);
+  const auto network = get_json("/api/v1/network");
+  bool listed = false;
+  for (const auto& c : network["components"])
+    if (c["name"] == "grid") listed = c["params"]["sonar_gate"] == "on";
+  EXPECT_TRUE(listed) << network["components"].dump();
+  for (int k = 0; k < 3; ++k) post_scan(phantom_sonar());
+  EXPECT_EQ(get_json("/api/v1/grid/tiles")["sonar"]["readings"]["phantom"], 3);
+  send_json("PUT", route, {{"sonar_gate", false}});
+  EXPECT_FALSE(get_json("/api/v1/grid/tiles")["sonar"]["gated_by_laser"].get<bool>());
+  for (int k = 0; k < 10; ++k) post_scan(phantom_sonar());
+  EXPECT_GT(cell("bayes", 6.0, 3.0), 0.5) << "ungated, the phantom went into the fused grid";
+  EXPECT_EQ(get_json("/api/v1/grid/tiles")["sonar"]["readings"]["phantom"], 3);
+  send_json("PUT", route, {{"sonar_gate", "on"}});
+  post_scan(phantom_sonar());
+  EXPECT_EQ(get_json("/api/v1/grid/tiles")["sonar"]["readings"]["phantom"], 4) << "judged by the laser-only grid again";
+}
+
 class UngatedSonarTest : public GridTest {
  protected:
   void SetUp() override {

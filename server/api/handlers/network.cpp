@@ -58,13 +58,16 @@ nlohmann::json network_json(const pipeline::NetworkStats& stats) {
           {"discarded", stats.discarded}};
 }
 
-// A parameter's value as a task file would give it: a number or a string (checked by the component, as at start).
+// A parameter's value as a task file would give it: a number, a string or a boolean (checked by the component, as at
+// start).
 std::string param_text(const std::string& key, const nlohmann::json& value) {
   if (value.is_string()) return value.get<std::string>();
+  if (value.is_boolean()) return value.get<bool>() ? "true" : "false";
   if (value.is_number_integer()) return std::to_string(value.get<std::int64_t>());
   if (value.is_number_unsigned()) return std::to_string(value.get<std::uint64_t>());
   if (value.is_number_float()) return value.dump();
-  throw std::invalid_argument("parameter '" + key + "' must be a number or a string, not " + value.type_name());
+  throw std::invalid_argument("parameter '" + key + "' must be a number, a string or a boolean, not " +
+                              value.type_name());
 }
 
 }  // namespace
