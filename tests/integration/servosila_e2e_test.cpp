@@ -9,6 +9,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <boost/asio/connect.hpp>
+#include <boost/beast/websocket.hpp>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -339,6 +341,81 @@ TEST_F(ServosilaTest, WithTwentyPercentLossTheRobotStillStopsWhenTheScriptEnds) 
   const json robot = get_json("/api/v1/robots/servosila-loss");
   EXPECT_EQ(robot["status"], "stopped") << robot.dump();
   expect_pose_near_truth(robot["pose"], truth, "20 % loss");
+}
+
+}  // namespace
+}  // namespace wm::testing
+
+namespace wm::testing {
+namespace {
+
+/// A driver of GET /api/v1/robots/{id}/drive that only writes (wmd's state messages are not read).
+class Driver {
+ public:
+  Driver(int port, const std::string& robot, const std::string& token) : ws_(ioc_) {
+    boost::asio::ip::tcp::resolver resolver(ioc_);
+    boost::asio::connect(ws_.next_layer(), resolver.resolve("127.0.0.1", std::to_string(port)));
+    ws_.set_option(boost::beast::websocket::stream_base::decorator([token](boost::beast::websocket::request_type& r) {
+      r.set(boost::beast::http::field::authorization, "Bearer " + token);
+    }));
+    ws_.handshake("127.0.0.1", "/api/v1/robots/" + robot + "/drive");
+  }
+  bool send(double v, double w) {
+    boost::beast::error_code ec;
+    ws_.write(boost::asio::buffer(json{{"v", v}, {"w", w}}.dump()), ec);
+    return !ec;
+  }
+
+ private:
+  boost::asio::io_context ioc_;
+  boost::beast::websocket::stream<boost::asio::ip::tcp::socket> ws_;
+};
+
+TEST_F(ServosilaTest, ADriverThroughWmdMovesTheSimulatorTelemetryShowsAFaultAndLosingWmdStopsIt) {
+  Sim sim({"--print-period", "0.01", "--watchdog", "10"});
+  Child bridge({WM_SERVOSILA_BRIDGE_PATH, "--robot", sim.address(), "--server", server_->url(), "--token", token_,
+                "--id", "remote-1", "--remote-drive"});
+  ASSERT_TRUE(bridge.find_line([](const std::string& l) { return l.find("connected to") != std::string::npos; },
+                               std::chrono::seconds(10)))
+      << bridge.output();
+  Driver driver(server_->port(), "remote-1", token_);
+  const auto drive_for = [&](Clock::duration d) {
+    for (const auto end = Clock::now() + d; Clock::now() < end; std::this_thread::sleep_for(milliseconds(100)))
+      driver.send(0.3, 0.0);
+  };
+  drive_for(milliseconds(1000));
+  ASSERT_TRUE(sim.find_line(sim_moving, std::chrono::seconds(1))) << sim.output() << bridge.output();
+  EXPECT_GT(sim.last_truth()["x_m"].get<double>(), 0.1);
+
+  // The telemetry the bridge decodes reaches wmd with the pose; a fault raised in the simulator turns the status.
+  sim.signal(SIGUSR1);
+  json robot;
+  for (int i = 0; i < 100; ++i) {
+    drive_for(milliseconds(100));
+    robot = get_json("/api/v1/robots/remote-1");
+    if (robot["status"] == "fault") break;
+  }
+  ASSERT_EQ(robot["status"], "fault") << robot.dump();
+  ASSERT_EQ(robot["telemetry"]["motors"].size(), 2u) << robot.dump();
+  EXPECT_GT(robot["telemetry"]["motors"][0]["current"].get<double>(), 0.0) << "the tracks draw current while moving";
+  EXPECT_TRUE(robot["telemetry"]["motors"][0]["temperature"].is_null()) << "the protocol has no temperatures";
+  EXPECT_EQ(robot["telemetry"]["motors"][0]["faults"], 1);
+  EXPECT_EQ(robot["drive"]["robot_connected"], true);
+
+  // wmd killed mid-drive: the bridge's connection ends, and it stops the robot.
+  drive_for(milliseconds(300));
+  ASSERT_TRUE(sim_moving(sim.last_truth().dump()));
+  const std::size_t lines_before = sim.lines().size();
+  const Clock::time_point killed = Clock::now();
+  server_->crash();
+  const auto stop = sim.find_line(sim_stopped, std::chrono::seconds(3), lines_before);
+  ASSERT_TRUE(stop.has_value()) << sim.output() << bridge.output();
+  const double delay_ms = std::chrono::duration<double, std::milli>(sim.lines()[*stop].at - killed).count();
+  std::cout << "wmd killed: the simulator saw a stop after " << delay_ms << " ms\n";
+  EXPECT_FALSE(json::parse(sim.lines()[*stop].text)["watchdog_stopped"].get<bool>());
+  bridge.signal(SIGTERM);
+  EXPECT_TRUE(bridge.wait(std::chrono::seconds(10)).has_value()) << bridge.output();
+  start();  // the fixture's teardown expects a server
 }
 
 }  // namespace
