@@ -207,13 +207,6 @@ class IngestPort {
   virtual std::optional<PrimitivesOutcome> extract_grid_lines() = 0;
   /// The processing network the writes run on: components, ports, queue depths, activity.
   virtual pipeline::NetworkStats network_stats() const = 0;
-};
-
-/// The floor plan: loading, placement, alignment, re-deciding against it, georeference, and accepting changes.
-class PlanPort {
- public:
-  virtual ~PlanPort() = default;
-
   /// Starts or stops a subtask of the network while it runs; returns the network as it is then.
   /// @throw NotFound for an unknown subtask, Busy while the network stops.
   virtual pipeline::NetworkStats set_network_subtask(const std::string& name, bool running) {
@@ -228,6 +221,13 @@ class PlanPort {
     (void)component, (void)changes;
     throw Conflict("this service's network takes no parameters");
   }
+};
+
+/// The floor plan: loading, placement, alignment, re-deciding against it, georeference, and accepting changes.
+class PlanPort {
+ public:
+  virtual ~PlanPort() = default;
+
   /// Replaces the floor plan; the observed elements stay. Returns the new map version.
   /// @throw Busy, storage::StorageError, std::invalid_argument for bad geometry.
   virtual std::int64_t load_floor_plan(apriori::FloorPlan plan) = 0;
@@ -295,6 +295,8 @@ class GridPort {
   /// Every layer of one tile, in Layer order (tile_size² values each, one after the other), read under one lock so
   /// all four are of one revision; nullopt for a tile never touched.
   virtual std::optional<GridTileValues> grid_tile_layers(std::int64_t tx, std::int64_t ty) const = 0;
+  /// Whether sonar was seen and is judged by the laser, and what the gate did so far.
+  virtual GridSonarStatus grid_sonar() const = 0;
 };
 
 /// The robots heard from.
@@ -309,8 +311,6 @@ class RobotPort {
   /// @throw storage::StorageError (nothing applied then).
   virtual RobotState put_robot_pose(const std::string& id, RobotPose pose, bool stopped) = 0;
   virtual const RobotOptions& robot_options() const = 0;
-  /// Whether sonar was seen and is judged by the laser, and what the gate did so far.
-  virtual GridSonarStatus grid_sonar() const = 0;
 };
 
 /// The whole service: what wmd wires in (WorldService implements it).

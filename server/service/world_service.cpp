@@ -173,6 +173,8 @@ GridLayerValues WorldService::grid_layer(fusion::GridLayer layer, const fusion::
   return grid_.layer(layer, region);
 }
 
+GridSonarStatus WorldService::grid_sonar() const { return grid_.sonar(); }
+
 GridTiles WorldService::grid_tiles() const { return grid_.tiles(); }
 
 std::optional<GridTileValues> WorldService::grid_tile(fusion::GridLayer layer, std::int64_t tx, std::int64_t ty) const {
@@ -182,8 +184,6 @@ std::optional<GridTileValues> WorldService::grid_tile(fusion::GridLayer layer, s
 std::optional<GridTileValues> WorldService::grid_tile_layers(std::int64_t tx, std::int64_t ty) const {
   return grid_.tile_layers(tx, ty);
 }
-
-GridSonarStatus WorldService::grid_sonar() const { return grid_.sonar(); }
 
 RobotState WorldService::put_robot_pose(const std::string& id, RobotPose pose, bool stopped) {
   pose.received_at_unix_s = now_unix_s();

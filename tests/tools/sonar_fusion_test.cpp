@@ -2,13 +2,12 @@
 // specular reflection at grazing incidence, cross talk) beside a 360° laser, driven through AHG2, GDC1 and the
 // Open-RMF office. The fused grid with the gate keeps the laser's walls and adds no false occupied cells; without
 // the gate the sonar's specular readings erode the walls and its phantoms leave occupied arcs in free space.
-#include "tools/truth/sonar.h"
-
 #include <gtest/gtest.h>
 
 #include <cstdio>
 
 #include "tests/support/test_data.h"
+#include "tools/truth/sonar.h"
 
 namespace wm::truth {
 namespace {
@@ -81,7 +80,9 @@ TEST_P(SonarFusionTest, TheGateKeepsTheLaserWallsAndDropsThePhantoms) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Buildings, SonarFusionTest, ::testing::Values("ahg2", "gdc1", "rmf-office"),
-                         [](const auto& info) { return std::string(info.param == std::string("rmf-office") ? "rmf_office" : info.param); });
+                         [](const auto& info) {
+                           return std::string(info.param == std::string("rmf-office") ? "rmf_office" : info.param);
+                         });
 
 }  // namespace
 }  // namespace wm::truth
