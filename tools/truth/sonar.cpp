@@ -191,9 +191,11 @@ SonarFusionResult run_sonar_fusion(const std::string& name, const std::filesyste
       result.cross_talk += kind == SonarTruth::cross_talk;
       const bool dropped = verdicts.verdicts[k] == fusion::SonarVerdict::phantom;
       result.cross_talk_dropped += kind == SonarTruth::cross_talk && dropped;
-      result.cross_talk_clipped += kind == SonarTruth::cross_talk && verdicts.verdicts[k] == fusion::SonarVerdict::clipped;
-      result.cross_talk_kept += kind == SonarTruth::cross_talk && (verdicts.verdicts[k] == fusion::SonarVerdict::kept ||
-                                                                   verdicts.verdicts[k] == fusion::SonarVerdict::unjudged);
+      result.cross_talk_clipped +=
+          kind == SonarTruth::cross_talk && verdicts.verdicts[k] == fusion::SonarVerdict::clipped;
+      result.cross_talk_kept +=
+          kind == SonarTruth::cross_talk && (verdicts.verdicts[k] == fusion::SonarVerdict::kept ||
+                                             verdicts.verdicts[k] == fusion::SonarVerdict::unjudged);
       result.echoes_dropped += kind == SonarTruth::echo && dropped;
     }
   }
@@ -212,19 +214,21 @@ SonarFusionResult run_sonar_fusion(const std::string& name, const std::filesyste
 std::string format_sonar_table(const std::vector<SonarFusionResult>& results) {
   std::string out =
       "| building | scans | sonar readings (specular, cross talk) | gate: phantom / clipped / unjudged / kept | cross "
-      "talk dropped / clipped / kept | true echoes dropped | walls kept: laser-only / gated / ungated | false occupied cells: "
+      "talk dropped / clipped / kept | true echoes dropped | walls kept: laser-only / gated / ungated | false occupied "
+      "cells: "
       "laser-only / gated / ungated |\n|---|---|---|---|---|---|---|---|\n";
   char line[512];
   for (const auto& r : results) {
-    std::snprintf(line, sizeof line,
-                  "| %s | %zu | %zu (%zu, %zu) | %llu / %llu / %llu / %llu | %zu / %zu / %zu of %zu | %zu | %.3f / %.3f / %.3f | "
-                  "%zu / %zu / %zu |\n",
-                  r.building.c_str(), r.scans, r.readings, r.specular, r.cross_talk,
-                  static_cast<unsigned long long>(r.gate.phantom), static_cast<unsigned long long>(r.gate.clipped),
-                  static_cast<unsigned long long>(r.gate.unjudged), static_cast<unsigned long long>(r.gate.kept),
-                  r.cross_talk_dropped, r.cross_talk_clipped, r.cross_talk_kept, r.cross_talk, r.echoes_dropped, r.laser_only.kept_share(),
-                  r.gated.kept_share(), r.ungated.kept_share(), r.laser_only.false_cells, r.gated.false_cells,
-                  r.ungated.false_cells);
+    std::snprintf(
+        line, sizeof line,
+        "| %s | %zu | %zu (%zu, %zu) | %llu / %llu / %llu / %llu | %zu / %zu / %zu of %zu | %zu | %.3f / %.3f / %.3f | "
+        "%zu / %zu / %zu |\n",
+        r.building.c_str(), r.scans, r.readings, r.specular, r.cross_talk,
+        static_cast<unsigned long long>(r.gate.phantom), static_cast<unsigned long long>(r.gate.clipped),
+        static_cast<unsigned long long>(r.gate.unjudged), static_cast<unsigned long long>(r.gate.kept),
+        r.cross_talk_dropped, r.cross_talk_clipped, r.cross_talk_kept, r.cross_talk, r.echoes_dropped,
+        r.laser_only.kept_share(), r.gated.kept_share(), r.ungated.kept_share(), r.laser_only.false_cells,
+        r.gated.false_cells, r.ungated.false_cells);
     out += line;
   }
   return out;

@@ -46,10 +46,10 @@ std::vector<SonarRing> sonar_drive(const BuiltWorld& world, const Drive& drive, 
 
 /// The walls and the free space of one grid against the world as built.
 struct GridWallScore {
-  std::size_t wall_cells = 0;     // cells on true lines occupied in the laser-only grid (what the laser mapped)
-  std::size_t walls_kept = 0;     // of those, occupied in this grid
-  std::size_t false_cells = 0;    // occupied cells farther than 0.15 m from every true line (people's paths aside)
-  std::size_t free_cells = 0;     // cells free (P < 0.25) in this grid
+  std::size_t wall_cells = 0;   // cells on true lines occupied in the laser-only grid (what the laser mapped)
+  std::size_t walls_kept = 0;   // of those, occupied in this grid
+  std::size_t false_cells = 0;  // occupied cells farther than 0.15 m from every true line (people's paths aside)
+  std::size_t free_cells = 0;   // cells free (P < 0.25) in this grid
   double kept_share() const { return wall_cells ? static_cast<double>(walls_kept) / wall_cells : 1.0; }
 };
 
