@@ -17,6 +17,7 @@
 
 #include "bench/support/ratio_reporter.h"
 #include "fusion/grid/internal/beam_walk.h"
+#include "fusion/grid/laser_sonar_grids.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "logs/carmen_log_reader.h"
 
@@ -76,6 +77,55 @@ void bm_grid(benchmark::State& state, GridOptions o) {
     benchmark::DoNotOptimize(grid.log_odds({0, 0}));
   }
   set_counters(state, cells);
+}
+
+// A sonar ring beside each laser scan (the log has none): 16 transducers with 30° cones, each reading the laser's
+// shortest return within its cone (capped at 6 m), every 17th reading a cross-talk phantom at a third of it.
+const std::vector<wm::fusion::SonarScan>& sonar_rings() {
+  static const std::vector<wm::fusion::SonarScan> all = [] {
+    std::vector<wm::fusion::SonarScan> out;
+    std::size_t n = 0;
+    for (const LaserScan& s : scans()) {
+      wm::fusion::SonarScan ring;
+      ring.sensor_pose = s.sensor_pose;
+      ring.beam_width_rad = 30 * std::numbers::pi / 180;
+      ring.range_min_m = 0.15;
+      ring.range_max_m = 6.0;
+      for (int k = 0; k < 16; ++k) {
+        const double axis = 2 * std::numbers::pi * k / 16;
+        double reading = ring.range_max_m;
+        for (std::size_t i = 0; i < s.ranges_m.size(); ++i) {
+          const double a = s.angle_min_rad + static_cast<double>(i) * s.angle_increment_rad;
+          if (std::abs(std::remainder(a - axis, 2 * std::numbers::pi)) <= ring.beam_width_rad / 2 &&
+              s.ranges_m[i] >= s.range_min_m && s.ranges_m[i] < s.range_max_m)
+            reading = std::min(reading, s.ranges_m[i]);
+        }
+        if (++n % 17 == 0) reading = std::max(ring.range_min_m, reading / 3);
+        ring.angles_rad.push_back(axis);
+        ring.ranges_m.push_back(reading);
+      }
+      out.push_back(std::move(ring));
+    }
+    return out;
+  }();
+  return all;
+}
+
+// Laser scans and sonar rings into the fused, laser-only and sonar-only grids, the sonar judged by the laser or not.
+void bm_laser_sonar(benchmark::State& state, bool gated) {
+  const auto& rings = sonar_rings();
+  wm::fusion::LaserSonarOptions o;
+  o.gate_sonar = gated;
+  for (auto _ : state) {
+    wm::fusion::LaserSonarGrids grids(options(2.0, true, true), o);
+    for (std::size_t k = 0; k < scans().size(); ++k) {
+      grids.insert(scans()[k]);
+      grids.insert(rings[k]);
+    }
+    benchmark::DoNotOptimize(grids.fused().log_odds({0, 0}));
+    state.counters["phantoms"] = static_cast<double>(grids.gate_counts().phantom);
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * scans().size()));
 }
 
 // The raw baseline: the same walk over the same cells (same beams, same cone, same classification), each visit
@@ -162,9 +212,13 @@ int main(int argc, char** argv) {
         ->Unit(benchmark::kMillisecond);
   }
   benchmark::RegisterBenchmark("octomap", bm_octomap)->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("laser+sonar_ungated", bm_laser_sonar, false)->Unit(benchmark::kMillisecond);
+  benchmark::RegisterBenchmark("laser+sonar_gated", bm_laser_sonar, true)->Unit(benchmark::kMillisecond);
 
-  wm::bench::RatioReporter reporter(
-      {{"vs OctoMap", "octomap"}, {"vs raw walk (2deg)", "raw_walk/2deg"}, {"vs Bayes (2deg)", "bayes/2deg"}});
+  wm::bench::RatioReporter reporter({{"vs OctoMap", "octomap"},
+                                     {"vs raw walk (2deg)", "raw_walk/2deg"},
+                                     {"vs Bayes (2deg)", "bayes/2deg"},
+                                     {"vs laser+sonar ungated", "laser+sonar_ungated"}});
   benchmark::RunSpecifiedBenchmarks(&reporter);
   benchmark::Shutdown();
 
