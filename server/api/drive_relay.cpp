@@ -204,6 +204,13 @@ struct DriveRelay::Impl : std::enable_shared_from_this<DriveRelay::Impl> {
     const std::lock_guard lock(mutex);
     Slot& slot = slots[endpoint->robot()];
     if (endpoint->is_driver()) {
+      const auto idle = std::chrono::duration<double>(Clock::now() - slot.last_driver_command).count();
+      if (auto old = slot.driver.lock(); old && idle > options.driver_takeover_s) {
+        stop_locked(endpoint->robot(), slot);
+        old->send(error_message("replaced", "another driver took over after " + std::to_string(idle) + " s idle"),
+                  true);
+        slot.driver.reset();
+      }
       if (!slot.driver.expired()) {
         endpoint->send(
             error_message("driver_busy", "robot '" + endpoint->robot() + "' has a driver already: one at a time"),

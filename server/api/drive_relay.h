@@ -27,6 +27,10 @@ struct DriveOptions {
   /// The hold lease [ms] (--drive-hold-ms): with no driver command for this long, a moving robot is commanded to
   /// stop. The viewer sends every 100 ms while a key is held.
   int hold_ms = 150;
+  /// A driver that sent nothing for this long [s] gives way to a new one (told "replaced" and closed): a browser whose
+  /// connection went half-open, or a tab left open elsewhere, does not lock its robot until the transport's idle
+  /// timeout. A driver that is driving (or stopped less than this ago) keeps the robot.
+  double driver_takeover_s = 3.0;
   /// Largest message accepted from either side [bytes]; a larger one is refused (a stop, an error, the connection
   /// closed).
   std::size_t max_message_bytes = 4096;

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "tests/integration/e2e_fixture.h"
@@ -239,6 +240,29 @@ TEST_F(DriveE2eTest, OneDriverAtATimeFloodsAndOversizedFramesDoNotHurt) {
   const auto state = third.read();
   ASSERT_TRUE(state);
   EXPECT_EQ((*state)["type"], "state");
+}
+
+TEST_F(DriveE2eTest, ADriverSilentForThreeSecondsGivesWayToANewOne) {
+  Ws robot(port(), robot_target());
+  ASSERT_TRUE(robot.read_until(is_stop));
+  Ws first(port(), driver_target());
+  ASSERT_TRUE(first.read());
+  first.send(R"({"v": 0.3, "w": 0})");
+  ASSERT_TRUE(robot.read_until([](const json& m) { return is_command(m, 0.3, 0.0); }));
+  ASSERT_TRUE(robot.read_until(is_stop)) << "the lease";
+  std::this_thread::sleep_for(milliseconds(3200));  // a half-open connection, a forgotten tab
+  Ws second(port(), driver_target());
+  const auto state = second.read();
+  ASSERT_TRUE(state);
+  EXPECT_EQ((*state)["type"], "state") << state->dump();
+  const auto told = first.read_until(is_error);
+  ASSERT_TRUE(told);
+  EXPECT_EQ((*told)["error"], "replaced");
+  second.send(R"({"v": -0.2, "w": 0})");
+  EXPECT_TRUE(robot.read_until([](const json& m) { return is_command(m, -0.2, 0.0); }));
+  first.send(R"({"v": 0.3, "w": 0})");
+  EXPECT_FALSE(robot.read_until([](const json& m) { return is_command(m, 0.3, 0.0); }, milliseconds(300)))
+      << "the replaced driver drives no more";
 }
 
 TEST_F(DriveE2eTest, TelemetryIsValidatedServedAndAFaultTurnsTheStatus) {

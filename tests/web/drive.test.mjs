@@ -171,6 +171,33 @@ test('losing focus stops the robot', async () => {
   await page.close();
 });
 
+test('the window losing focus or the page being hidden stops the robot (synthetic events)', async () => {
+  // Headless Chromium has no other window to take the focus and never hides a page: the events are dispatched.
+  const page = await openPanel();
+  const latencies = { blur: [], hidden: [] };
+  for (let i = 0; i < 10; i += 1) {
+    for (const kind of ['blur', 'hidden']) {
+      await page.focus('#drive-pad');
+      await hold(page);
+      const at = performance.now();
+      await page.evaluate((k) => {
+        if (k === 'blur') {
+          window.dispatchEvent(new Event('blur'));
+        } else {
+          Object.defineProperty(document, 'visibilityState', { value: 'hidden', configurable: true });
+          document.dispatchEvent(new Event('visibilitychange'));
+          delete document.visibilityState;
+        }
+      }, kind);
+      latencies[kind].push(await stopLatency(at, `the stop after ${kind} ${i}`));
+      await page.keyboard.up('ArrowUp');
+    }
+  }
+  assert.ok(summary('window blur (synthetic) -> simulator stopped', latencies.blur) < boundMs);
+  assert.ok(summary('page hidden (synthetic) -> simulator stopped', latencies.hidden) < boundMs);
+  await page.close();
+});
+
 test('closing the tab while a key is held stops the robot', async () => {
   const latencies = [];
   for (let i = 0; i < trials; i += 1) {

@@ -74,6 +74,7 @@ export class DrivePanel {
   select(robot) {
     if (robot === this.robot && this.socket) return;
     this.disconnect('another robot');
+    this.refused = false;
     this.robot = robot;
     this.picker.value = robot;
     this.render();
@@ -92,11 +93,17 @@ export class DrivePanel {
       this.held.clear();
       this.stopTimer();
       this.setState('closed');
+      // wmd restarted or the network dropped: try again, but not against another driver (busy, replaced).
+      if (!this.refused) {
+        const robot = this.robot;
+        setTimeout(() => { if (robot === this.robot && !this.socket && !this.refused) this.connect(); }, 2000);
+      }
     };
   }
 
   disconnect(why) {
     this.releaseAll(why);
+    this.refused = true;  // no reconnection: the page is going, or another robot is chosen (select() clears it)
     if (this.socket) {
       const socket = this.socket;
       this.socket = null;
@@ -116,7 +123,7 @@ export class DrivePanel {
       this.render();
     } else if (m.type === 'error') {
       this.setMessage(`${m.error}: ${m.detail}`);
-      if (m.error === 'driver_busy') this.setState('busy');
+      if (m.error === 'driver_busy' || m.error === 'replaced') this.refused = true;
     }
   }
 
