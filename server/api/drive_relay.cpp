@@ -39,7 +39,8 @@ std::optional<std::string> drive_robot(std::string_view path) {
 }
 
 std::string error_message(std::string_view error, std::string_view detail) {
-  return json{{"type", "error"}, {"error", error}, {"detail", detail}}.dump();
+  return json{{"type", "error"}, {"error", error}, {"detail", detail}}.dump(-1, ' ', false,
+                                                                            json::error_handler_t::replace);
 }
 
 std::string command_message(double v, double w) { return json{{"v", v}, {"w", w}}.dump(); }

@@ -200,7 +200,9 @@ TEST_F(DriveE2eTest, HostileDriverMessagesAreStopsAndErrorsNeverMotion) {
   for (const std::string& bad :
        std::vector<std::string>{"not json", R"({"v": NaN, "w": 0})", R"({"v": "0.3", "w": 0})", R"({"v": 0.3})",
                                 R"({"v": 0.3, "w": 0, "x": 1})", R"([0.3, 0])", R"({"v": 1e400, "w": 0})",
-                                R"({"v": 1e308, "w": 0})", R"({"v": null, "w": 0})", std::string(8192, ' ') + "{}"}) {
+                                R"({"v": 1e308, "w": 0})", R"({"v": null, "w": 0})", std::string(8192, ' ') + "{}",
+                                // a 3-byte UTF-8 character across the 64-byte cut of an unknown key
+                                R"({"v": 0.3, "w": 0, ")" + std::string(63, 'k') + "\xe2\x82\xac" + R"(": 1})"}) {
     driver.send(R"({"v": 0.3, "w": 0})");
     ASSERT_TRUE(robot.read_until([](const json& m) { return is_command(m, 0.3, 0.0); })) << bad;
     driver.send(bad);
