@@ -184,9 +184,11 @@ Arguments parse(int argc, char** argv) {
       args.link_timeout_s = parse_positive(flag, value);
     } else if (flag == "--command-timeout") {
       args.bridge.command_timeout_s = parse_double(flag, value);
-      if (args.bridge.command_timeout_s < 0.0) throw std::invalid_argument("--command-timeout: must be >= 0");
+      if (args.bridge.command_timeout_s < 0.0 || args.bridge.command_timeout_s > 3600.0)
+        throw std::invalid_argument("--command-timeout: must be in [0, 3600] s");
     } else if (flag == "--remote-hold") {
       args.remote_hold_s = parse_positive(flag, value);
+      if (args.remote_hold_s > 3600.0) throw std::invalid_argument("--remote-hold: must be in (0, 3600] s");
     } else if (flag == "--command-udp") {
       const std::string text(value);
       args.command_udp = text.find(':') == std::string::npos ? wm::robot::parse_host_port("127.0.0.1:" + text, 0)

@@ -27,8 +27,8 @@ void validate(const BridgeOptions& o) {
   require(positive_finite(o.control_period_s) && o.control_period_s <= 1.0,
           "control_period_s must be in (0, 1] (the robot's own watchdog expects packets)");
   require(positive_finite(o.watchdog_s), "watchdog_s must be finite and > 0");
-  require(std::isfinite(o.command_timeout_s) && o.command_timeout_s >= 0.0,
-          "command_timeout_s must be finite and >= 0");
+  require(std::isfinite(o.command_timeout_s) && o.command_timeout_s >= 0.0 && o.command_timeout_s <= 3600.0,
+          "command_timeout_s must be in [0, 3600] s");
   require(std::isfinite(o.report_period_s) && o.report_period_s >= 0.0, "report_period_s must be finite and >= 0");
   require(o.stop_burst_count >= 1 && o.stop_burst_count <= 100, "stop_burst_count must be in 1..100");
   require(std::isfinite(o.stop_burst_duration_s) && o.stop_burst_duration_s >= 0.0 && o.stop_burst_duration_s <= 5.0,

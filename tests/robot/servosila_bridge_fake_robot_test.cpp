@@ -187,6 +187,12 @@ TEST(ServosilaBridgeTest, InvalidOptionsAreRefused) {
   o.units.max_linear_mps = 0.1;  // below the 0.2 m/s minimum
   EXPECT_THROW(Bridge{o}, std::invalid_argument);
   o = test_options(10000, log);
+  o.command_timeout_s = 1e10;  // to_duration would overflow
+  EXPECT_THROW(Bridge{o}, std::invalid_argument);
+  o = test_options(10000, log);
+  o.command_timeout_s = 3601.0;
+  EXPECT_THROW(Bridge{o}, std::invalid_argument);
+  o = test_options(10000, log);
   o.robot_host = "no-such-host.invalid";
   EXPECT_THROW(Bridge{o}, std::runtime_error);
 }
