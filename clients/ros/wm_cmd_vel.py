@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 """Forwards a ROS 1 ``geometry_msgs/Twist`` topic (``cmd_vel``) to wm-servosila, so that teleop_twist_keyboard,
 move_base or any other velocity source drives a Servosila robot.
 
@@ -15,6 +15,7 @@ failed sends go to rosout at exit.
 import math
 import socket
 import sys
+from typing import Tuple
 
 
 def twist_line(linear_x: float, angular_z: float) -> bytes:
@@ -28,8 +29,11 @@ def twist_line(linear_x: float, angular_z: float) -> bytes:
     return f"{text(linear_x)} {text(angular_z)}\n".encode("ascii")
 
 
-def parse_address(text: str) -> tuple[str, int]:
+def parse_address(text: str) -> Tuple[str, int]:
+    """``HOST:PORT`` or ``[IPV6]:PORT``; the host without brackets, as sendto wants it."""
     host, _, port = text.rpartition(":")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
     if not host or not port.isdigit() or not 0 < int(port) < 65536:
         raise ValueError(f"~bridge: expected HOST:PORT, got {text!r}")
     return host, int(port)
