@@ -183,13 +183,18 @@ TEST_F(DriveE2eTest, CommandsAreClampedRelayedAndStoppedOnReleaseLeaseAndClose) 
               *std::min_element(lease_ms.begin(), lease_ms.end()), *std::max_element(lease_ms.begin(), lease_ms.end()));
 
   // The driver goes away mid-command: a stop at once.
+  // The stop must come before the 150 ms lease (measured from the last command) could give it.
   driver.send(R"({"v": 0.3, "w": 0.5})");
+  const auto last_command = Clock::now();
   ASSERT_TRUE(robot.read_until([](const json& m) { return is_command(m, 0.3, 0.5); }));
   const auto closing = Clock::now();
   driver.close();
   ASSERT_TRUE(robot.read_until(is_stop, milliseconds(500)));
+  const auto stopped = Clock::now();
   std::printf("driver closed: stop after %.1f ms\n",
-              std::chrono::duration<double, std::milli>(Clock::now() - closing).count());
+              std::chrono::duration<double, std::milli>(stopped - closing).count());
+  EXPECT_LT((std::chrono::duration<double, std::milli>(stopped - last_command).count()), 140.0)
+      << "the close's own stop, not the hold lease";
 }
 
 TEST_F(DriveE2eTest, HostileDriverMessagesAreStopsAndErrorsNeverMotion) {

@@ -104,7 +104,9 @@ before(async () => {
   ctx.pageErrors = [];
   ctx.summary = [];
   ctx.wmd = await startWmd({ wmdPath: path.join(build, 'bin', 'wmd'), repo, dir: ctx.dir,
-    extraArgs: ['--token', token, '--no-shm'] });
+    // A 2 s hold lease (default 150 ms), so that only the page's own stop (release, focus lost, blur, hidden, close)
+    // can stop the robot within the bound; the bridge's --remote-hold (0.3 s) is beyond it too.
+    extraArgs: ['--token', token, '--no-shm', '--drive-hold-ms', '2000'] });
   // The simulator's own watchdog is long: only the bridge's stop packets stop it.
   const sim = await startProcess([path.join(build, 'bin', 'wm-servosila-sim'), '--port', '0', '--watchdog', '10',
     '--telemetry-period', '0.2', '--print-period', '0.005'], /listening on/, (line) => {
