@@ -15,7 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 # Every harness (scripts/test.sh builds this list: `bash scripts/fuzz.sh --list`).
-all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_scan_alignment fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_foxglove fuzz_query fuzz_rules_text fuzz_map_routes)
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_scan_alignment fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_robot_commands fuzz_sonar_gate fuzz_foxglove fuzz_query fuzz_rules_text fuzz_map_routes)
 if [ "${1:-}" = --list ]; then
   echo "${all[@]}"
   exit 0
@@ -47,6 +47,8 @@ options_for() {
     fuzz_rmf) echo "-max_len=4096 -dict=fuzz/dict/yaml.dict" ;;
     fuzz_carmen) echo "-max_len=8192 -dict=fuzz/dict/carmen.dict" ;;
     fuzz_servosila) echo "-max_len=512" ;;  # datagrams of 57 and 275 bytes, and anything else
+    fuzz_robot_commands) echo "-max_len=1024 -dict=fuzz/dict/json.dict" ;;  # "v w", {"v","w"}, a pose report
+    fuzz_sonar_gate) echo "-max_len=600" ;;  # 7 doubles, then 16 bytes per reading: up to 32 readings
     fuzz_scan_record) echo "-max_len=4096" ;;  # records of 161 bytes and more (8 per reading)
     fuzz_scan_alignment) echo "-max_len=8192" ;;  # 9 doubles, then 56 bytes per line: up to 144 lines
     fuzz_foxglove) echo "-max_len=1024 -dict=fuzz/dict/json.dict" ;;  # a client's subscribe/unsubscribe texts

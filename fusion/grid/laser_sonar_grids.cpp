@@ -145,25 +145,12 @@ void LaserSonarGrids::remember_returns(const LaserScan& scan) {
 SonarGateResult LaserSonarGrids::insert(const SonarScan& scan) {
   validate(scan);
   start_sides(true);
-  SonarGateResult gated;
-  if (options_.gate_sonar) {
-    gated = gate_sonar(scan, *laser_, options_.gate, recent_flat_);
-  } else {
-    for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
-      gated.beams.push_back(sonar_beam(scan, i, grid_options_.sensor));
-      gated.verdicts.push_back(gated.beams.back() ? SonarVerdict::kept : SonarVerdict::ignored);
-    }
-  }
-  // Both inserts check the same growth limits, so either both go in or neither (the sonar grid first: it takes
-  // the whole reach of the scan, the fused one at most that).
-  sonar_->insert(scan);
+  const auto gated = judge(scan);
+  // The fused grid first: its tiles cover the sonar-only grid's, so the sonar grid's growth check passes whenever
+  // the fused one's did, and a refused scan changes neither.
   fused_.insert(scan, gated.beams);
-  ++counts_.scans;
-  counts_.kept += gated.count(SonarVerdict::kept);
-  counts_.unjudged += gated.count(SonarVerdict::unjudged);
-  counts_.phantom += gated.count(SonarVerdict::phantom);
-  counts_.clipped += gated.count(SonarVerdict::clipped);
-  counts_.ignored += gated.count(SonarVerdict::ignored);
+  sonar_->insert(scan);
+  count(gated);
   return gated;
 }
 
@@ -173,10 +160,24 @@ void LaserSonarGrids::insert_side_only(const LaserScan& scan) {
 }
 
 void LaserSonarGrids::insert_side_only(const SonarScan& scan) {
+  validate(scan);
   start_sides(false);
-  const auto gated = options_.gate_sonar ? gate_sonar(scan, *laser_, options_.gate, recent_flat_) : SonarGateResult{};
+  const auto gated = judge(scan);
   sonar_->insert(scan);
-  if (!options_.gate_sonar) return;
+  count(gated);
+}
+
+SonarGateResult LaserSonarGrids::judge(const SonarScan& scan) const {
+  if (options_.gate_sonar) return gate_sonar(scan, *laser_, options_.gate, recent_flat_);
+  SonarGateResult kept;
+  for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
+    kept.beams.push_back(sonar_beam(scan, i, grid_options_.sensor));
+    kept.verdicts.push_back(kept.beams.back() ? SonarVerdict::kept : SonarVerdict::ignored);
+  }
+  return kept;
+}
+
+void LaserSonarGrids::count(const SonarGateResult& gated) {
   ++counts_.scans;
   counts_.kept += gated.count(SonarVerdict::kept);
   counts_.unjudged += gated.count(SonarVerdict::unjudged);

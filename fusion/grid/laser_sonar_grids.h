@@ -13,7 +13,7 @@
 
 namespace wm::fusion {
 
-/// What the Dempster–Shafer grid answers for a cell (docs/fusion.md §7): the support Bel(O) = m(O) and the
+/// What the Dempster–Shafer grid answers for a cell (docs/fusion.md §8): the support Bel(O) = m(O) and the
 /// plausibility Pl(O) = 1 − m(E) bound the evidence for "occupied"; a decision needs the interval on one side.
 ///  - conflict:  the cell's conflict (the largest K of its combinations) >= conflict_min: sources disagreed there;
 ///  - occupied:  Bel(O) >= occupied_belief_min;
@@ -125,6 +125,9 @@ class LaserSonarGrids {
   std::vector<std::vector<Eigen::Vector2d>> recent_;  // return points of the latest laser scans, oldest first
   std::vector<Eigen::Vector2d> recent_flat_;          // the same, one list (what the gate reads)
   void remember_returns(const LaserScan& scan);
+  /// The gate's verdicts (every reading kept as it came when the gate is off).
+  SonarGateResult judge(const SonarScan& scan) const;
+  void count(const SonarGateResult& gated);
 };
 
 }  // namespace wm::fusion

@@ -168,6 +168,9 @@ void OccupancyGrid::insert_scan(const ScanT& scan, std::size_t beams, const Make
   const double reach_m = std::min(scan.range_max_m, usable_range_m(scan, options_.sensor)) *
                              (1.0 + range_sigma_per_m(scan, options_.sensor)) +
                          scan.sigma_range_m + 2.0 * options_.resolution_m;
+  if (!(reach_m <= kMaxSensorCoordinateM)) {  // a σ of 1e300 m: no tile index could hold it
+    throw std::invalid_argument("OccupancyGrid::insert: the scan reaches more than 10000 km (range σ or range)");
+  }
   const double tile_m = options_.resolution_m * static_cast<double>(options_.tile_size_cells);
   check_growth(static_cast<std::int64_t>(std::floor((pose.x_m - reach_m) / tile_m)),
                static_cast<std::int64_t>(std::floor((pose.y_m - reach_m) / tile_m)),

@@ -10,7 +10,7 @@
 
 namespace wm::fusion {
 
-/// Sonar judged by the laser (docs/fusion.md §7): where a laser-only grid has seen the cells a sonar cone covers, the
+/// Sonar judged by the laser (docs/fusion.md §8): where a laser-only grid has seen the cells a sonar cone covers, the
 /// laser, the more reliable sensor, decides whether a sonar reading can be true before it reaches the fused grid.
 ///  - A *phantom* (cross talk, a multi-path echo): the laser saw the return's arc, widened by band_margin_m either
 ///    side, free (at least phantom_seen_share of its cells below free_probability), no cell of it is occupied, and

@@ -526,10 +526,31 @@ void IngestPipeline::finish_committed(pipeline::Activation& a) {
 }
 
 void IngestPipeline::insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every) {
+  // Laser and sonar scans come on two queues, each in journal order, but not in journal order with each other
+  // (laser 10 and 11 may be queued while sonar 12 is taken). The grid takes them in journal order: a sonar reading
+  // is judged by the laser scans before it, exactly as a replay of the journal judges it. A scan waits here for
+  // the ones before it (they are on the other queue, on their way).
+  const auto hold = [this](GridScanPtr s) {
+    const auto seq = s->seq;
+    grid_held_.emplace(seq, std::move(s));
+  };
+  if (laser) hold(a.take<GridScanPtr>("laser"));
+  if (sonar) hold(a.take<GridScanPtr>("sonar"));
   std::vector<GridScanPtr> scans;
-  if (laser) scans.push_back(a.take<GridScanPtr>("laser"));
-  if (sonar) scans.push_back(a.take<GridScanPtr>("sonar"));
-  std::sort(scans.begin(), scans.end(), [](const auto& x, const auto& y) { return x->seq < y->seq; });
+  for (std::int64_t next = grid_.last_scan_seq() + 1; !grid_held_.empty();) {
+    const auto first = grid_held_.begin();
+    if (first->first > next) {
+      if (grid_held_.size() <= kMaxHeldGridScans) break;
+      // Never seen: every journaled scan is sent to the grid. Rather than hold every later scan for ever:
+      diagnostics_.report(common::Severity::error, "grid",
+                          "scan " + std::to_string(next) + " never reached the grid; scan " +
+                              std::to_string(first->first) + " goes in without it");
+    }
+    next = first->first + 1;
+    scans.push_back(std::move(first->second));
+    grid_held_.erase(first);
+  }
+  if (scans.empty()) return;
   const auto state = writer_.snapshot();
   for (const auto& s : scans) {
     try {

@@ -204,6 +204,9 @@ class IngestPipeline {
   storage::Store& store_;
   rules::Engine& engine_;
   MapWriter& writer_;
+  /// Scans taken off the grid's queues and waiting for the ones before them (grid executor thread only).
+  std::map<std::int64_t, GridScanPtr> grid_held_;
+  static constexpr std::size_t kMaxHeldGridScans = 4096;
   GridStore& grid_;
   PlanChecks& plan_checks_;
   RobotRegistry& robots_;

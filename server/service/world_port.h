@@ -127,13 +127,13 @@ struct GridTiles {
   std::int64_t revision = 0;  // scans in the grid
   std::vector<GridTileRevision> tiles;
 };
-/// One tile of one layer (tile_size² values, row-major from its lower-left cell, NaN unknown) and its revision.
 /// The sonar side of the grids: seen at all, judged by the laser (the option), and the gate's verdicts so far.
 struct GridSonarStatus {
   bool seen = false;
   bool gated = true;
   fusion::SonarGateCounts counts;
 };
+/// One tile of one layer (tile_size² values, row-major from its lower-left cell, NaN unknown) and its revision.
 struct GridTileValues {
   std::vector<float> values;
   std::uint64_t revision = 0;

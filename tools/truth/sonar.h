@@ -12,7 +12,7 @@
 
 namespace wm::truth {
 
-/// A ring of Polaroid 6500-class transducers (docs/fusion.md §7): a 30° cone each, the first echo within it.
+/// A ring of Polaroid 6500-class transducers (docs/fusion.md §8): a 30° cone each, the first echo within it.
 /// Specular reflection (Kuc and Siegel's model of a smooth wall: it echoes back only near its normal): a ray of the
 /// cone returns only when it meets a surface within specular_limit_deg of the surface's normal; people (diffuse)
 /// always echo. When no ray of the cone returns, the axis ray is followed through one mirror bounce: if it then

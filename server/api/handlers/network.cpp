@@ -66,8 +66,7 @@ std::string param_text(const std::string& key, const nlohmann::json& value) {
   if (value.is_number_integer()) return std::to_string(value.get<std::int64_t>());
   if (value.is_number_unsigned()) return std::to_string(value.get<std::uint64_t>());
   if (value.is_number_float()) return value.dump();
-  throw std::invalid_argument("parameter '" + key + "' must be a number, a string or a boolean, not " +
-                              value.type_name());
+  throw bad_request(key, std::string("expected a number, a string or a boolean, not ") + value.type_name());
 }
 
 }  // namespace
