@@ -91,7 +91,8 @@ struct RemoteDrive::Impl {
       if (!token.empty()) r.set(beast::http::field::authorization, "Bearer " + token);
     }));
     // The handshake blocks (a few ms on a LAN); reading is asynchronous below.
-    ws->handshake(host + ":" + port, "/api/v1/robots/" + options.robot_id + "/drive?role=robot", ec);
+    const std::string authority = (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" + port;
+    ws->handshake(authority, "/api/v1/robots/" + options.robot_id + "/drive?role=robot", ec);
     if (ec) return fail("WebSocket handshake with " + host + ":" + port + " refused: " + ec.message());
     {
       const std::lock_guard lock(mutex);
