@@ -19,7 +19,6 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <regex>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -201,8 +200,7 @@ Arguments parse(int argc, char** argv) {
   if (!have_robot) throw std::invalid_argument("--robot HOST[:PORT] is required");
   if (args.remote_drive && args.server.empty()) throw std::invalid_argument("--remote-drive needs --server");
   // The URL RemoteDrive accepts (its constructor throws otherwise, after the bridge's threads have started).
-  static const std::regex remote_url(R"(^http://([^/:\[\]]+|\[[0-9a-fA-F:.]+\])(?::([0-9]{1,5}))?/?$)");
-  if (args.remote_drive && !std::regex_match(args.server, remote_url))
+  if (args.remote_drive && !wm::robot::parse_drive_server(args.server))
     throw std::invalid_argument("--remote-drive: --server must be http://host[:port] (got '" + args.server + "')");
   return args;
 }

@@ -156,16 +156,22 @@ struct RemoteDrive::Impl {
   }
 };
 
+std::optional<DriveServer> parse_drive_server(const std::string& url) {
+  static const std::regex pattern(R"(^http://([A-Za-z0-9._-]+|\[[0-9a-fA-F:.]+\])(?::([0-9]{1,5}))?/?$)");
+  std::smatch m;
+  if (!std::regex_match(url, m, pattern)) return std::nullopt;
+  DriveServer server{m[1].str(), m[2].matched ? m[2].str() : "80"};
+  if (server.host.front() == '[') server.host = server.host.substr(1, server.host.size() - 2);
+  return server;
+}
+
 RemoteDrive::RemoteDrive(RemoteDriveOptions options, std::function<void(double, double)> apply)
     : impl_(std::make_unique<Impl>()) {
-  static const std::regex url(R"(^http://([^/:\[\]]+|\[[0-9a-fA-F:.]+\])(?::([0-9]{1,5}))?/?$)");
-  std::smatch m;
-  if (!std::regex_match(options.server_url, m, url))
-    throw std::invalid_argument("remote drive: '" + options.server_url + "' is not http://host[:port]");
+  const auto server = parse_drive_server(options.server_url);
+  if (!server) throw std::invalid_argument("remote drive: '" + options.server_url + "' is not http://host[:port]");
   if (!valid_robot_id(options.robot_id)) throw std::invalid_argument("remote drive: bad robot id");
-  impl_->host = m[1].str();
-  if (impl_->host.front() == '[') impl_->host = impl_->host.substr(1, impl_->host.size() - 2);
-  impl_->port = m[2].matched ? m[2].str() : "80";
+  impl_->host = server->host;
+  impl_->port = server->port;
   impl_->options = std::move(options);
   impl_->apply = std::move(apply);
   impl_->reconnect_at = Clock::now();

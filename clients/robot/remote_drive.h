@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 // The robot side of driving from a browser: a WebSocket to wmd's GET /api/v1/robots/{id}/drive?role=robot, over
@@ -13,6 +14,14 @@
 // a driver that vanishes does. Reconnects every second while it is down.
 
 namespace wm::robot {
+
+/// Where wmd is, as RemoteDrive reads --server: http://host[:port] (an IPv6 host in brackets, kept in `host` without
+/// them; port "80" when not given). nullopt for anything else.
+struct DriveServer {
+  std::string host;
+  std::string port;
+};
+std::optional<DriveServer> parse_drive_server(const std::string& url);
 
 struct RemoteDriveOptions {
   std::string server_url;  // http://host[:port]

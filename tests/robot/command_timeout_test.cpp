@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "clients/robot/command_input.h"
+#include "clients/robot/remote_drive.h"
 #include "clients/robot/servosila_bridge.h"
 #include "clients/robot/servosila_sim.h"
 #include "tests/robot/servosila_bridge_test_helpers.h"
@@ -123,6 +124,22 @@ TEST(CommandInputTest, HostileDatagramsBecomeStopsAndHugeValuesAreClampedByTheBr
   ASSERT_TRUE(wait_until([&] { return !moving(sim); }, milliseconds(1500))) << "then the timeout stops it";
   EXPECT_GE(input.stats().refused, 3u);
   EXPECT_GE(bridge.stats().commands_rejected, 1u);
+}
+
+// --server as --remote-drive reads it, checked while the flags are parsed and by RemoteDrive itself.
+TEST(DriveServerTest, OnlyHttpHostAndPortAreAServer) {
+  const auto plain = parse_drive_server("http://localhost:8080");
+  ASSERT_TRUE(plain);
+  EXPECT_EQ(plain->host, "localhost");
+  EXPECT_EQ(plain->port, "8080");
+  const auto v6 = parse_drive_server("http://[::1]:9/");
+  ASSERT_TRUE(v6);
+  EXPECT_EQ(v6->host, "::1");
+  EXPECT_EQ(v6->port, "9");
+  EXPECT_EQ(parse_drive_server("http://wmd")->port, "80");
+  for (const std::string bad : {"https://wmd:8080", "http://wmd:8080//", "http://wmd:8080/api", "wmd:8080", "http://",
+                                "http://[::1", "http://a b:80", "http://wmd:123456"})
+    EXPECT_FALSE(parse_drive_server(bad)) << bad;
 }
 
 }  // namespace
