@@ -31,8 +31,8 @@ struct DriveOptions {
   /// connection went half-open, or a tab left open elsewhere, does not lock its robot until the transport's idle
   /// timeout. A driver that is driving (or stopped less than this ago) keeps the robot.
   double driver_takeover_s = 3.0;
-  /// Largest message accepted from either side [bytes]; a larger one is refused (a stop, an error, the connection
-  /// closed).
+  /// Largest message accepted from either side [bytes]; a larger one is refused (a stop and an error answer; the
+  /// connection stays). Frames beyond the transport's own limit close it.
   std::size_t max_message_bytes = 4096;
   /// Messages a connection may have queued for sending; past it the connection is closed (a peer that stopped
   /// reading: its robot is stopped).
@@ -75,8 +75,8 @@ class DriveRelay {
   std::shared_ptr<Impl> impl_;
 };
 
-/// For an upgrade of GET /api/v1/robots/{id}/drive: 400 for a bad robot id or a role that is not "driver" or
-/// "robot"; nullopt otherwise (and for every other target). Never throws.
+/// For a WebSocket upgrade: 400 for a target that cannot be parsed, and for GET /api/v1/robots/{id}/drive with a bad
+/// robot id or a role that is not "driver" or "robot"; nullopt otherwise. Never throws.
 std::optional<Response> authorize_drive(const Request& request);
 
 }  // namespace wm::api
