@@ -4,23 +4,22 @@
 
 namespace wm::service {
 
-void replay_journal_into_grid(storage::Store& store, GridStore& grid, const world::WorldState& map) {
+bool journal_has_sonar(const std::vector<storage::Store::RobotJournal>& robots) {
+  for (const auto& robot : robots)
+    if (robot.scans.contains("sonar")) return true;
+  return false;
+}
+
+void replay_journal_into_grid(storage::Store& store, GridStore& grid, const world::WorldState& map,
+                              bool journal_has_sonar) {
   // The laser-only and sonar-only grids are not stored: a map that has seen sonar rebuilds them from the journal
   // through the last flush (the fused grid has those scans in its tiles), then takes the rest as every grid does.
-  bool sonar = false;
-  for (const auto& robot : store.robot_journal(0)) sonar = sonar || robot.scans.contains("sonar");
-  if (sonar) {
+  if (journal_has_sonar) {
     grid.start_side_grids();
     const auto through = grid.flushed_scan_seq();
-    for (std::int64_t after = 0; after < through;) {
-      auto page = store.scans_after(after, 256);
-      if (page.empty()) break;
-      for (auto& record : page) {
-        after = record.seq;
-        if (record.seq > through) break;
-        grid.insert_side_only(journaled_scan(std::move(record)));
-      }
-    }
+    for_each_journaled_scan(store, 0, [&](std::int64_t seq, storage::JournaledScan&& record) {
+      if (seq <= through) grid.insert_side_only(journaled_scan(std::move(record)));
+    });
   }
   // A scan is journaled (with its line decisions) before it touches the grid, and the tiles are flushed later.
   for_each_journaled_scan(store, grid.flushed_scan_seq(), [&](std::int64_t seq, storage::JournaledScan&& record) {
@@ -31,8 +30,8 @@ void replay_journal_into_grid(storage::Store& store, GridStore& grid, const worl
                                 " but the grid was rebuilt to " + std::to_string(grid.last_scan_seq()));
 }
 
-void restore_robots(storage::Store& store, RobotRegistry& robots) {
-  for (auto& journal : store.robot_journal(robots.options().track_points)) {
+void restore_robots(std::vector<storage::Store::RobotJournal> journals, RobotRegistry& robots) {
+  for (auto& journal : journals) {
     RobotState robot;
     robot.id = journal.robot;
     robot.scans = std::move(journal.scans);

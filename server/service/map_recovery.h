@@ -3,6 +3,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <utility>
+#include <vector>
 
 #include "server/json/codec.h"
 #include "server/service/grid_store.h"
@@ -36,14 +37,18 @@ void for_each_journaled_scan(storage::Store& store, std::int64_t after, Visit vi
   }
 }
 
-/// Rebuilds the laser-only and sonar-only grids from the whole journal when it holds sonar scans, then inserts every
+/// Rebuilds the laser-only and sonar-only grids from the whole journal when it holds sonar scans (journal_has_sonar
+/// of the robots' journal), then inserts every
 /// journaled scan past the grid's last flush into `grid` (decided against `map`, the map as loaded), so
 /// the grid and its revision reach the last journaled scan; the replayed tiles stay dirty for the next flush.
 /// @throw storage::StorageError when the journal and the rebuilt grid end at different scans.
-void replay_journal_into_grid(storage::Store& store, GridStore& grid, const world::WorldState& map);
+void replay_journal_into_grid(storage::Store& store, GridStore& grid, const world::WorldState& map,
+                              bool journal_has_sonar);
+/// Whether any robot of the journal (Store::robot_journal) sent sonar scans.
+bool journal_has_sonar(const std::vector<storage::Store::RobotJournal>& robots);
 
-/// The robots as the journal left them: tracks, counts, and the newest of the last reported pose and the last
-/// scan's pose.
-void restore_robots(storage::Store& store, RobotRegistry& robots);
+/// The robots as the journal left them (Store::robot_journal with the registry's track_points): tracks, counts, and
+/// the newest of the last reported pose and the last scan's pose.
+void restore_robots(std::vector<storage::Store::RobotJournal> journals, RobotRegistry& robots);
 
 }  // namespace wm::service

@@ -34,8 +34,10 @@ WorldService::WorldService(const ServiceOptions& options, storage::Store& store,
       writer_(options.map, store.load(options.map.world), engine, diagnostics),
       grid_(options.grids, store, diagnostics),
       plan_checks_(options.plan_checks, grid_, engine, diagnostics, rejected_changes(store)) {
-  replay_journal_into_grid(store_, grid_, *snapshot());
-  restore_robots(store_, robots_);
+  // One read of the robots' journal serves both: whether sonar was seen, and the robots themselves.
+  auto journals = store_.robot_journal(robots_.options().track_points);
+  replay_journal_into_grid(store_, grid_, *snapshot(), journal_has_sonar(journals));
+  restore_robots(std::move(journals), robots_);
   ingest_ = std::make_unique<IngestPipeline>(
       options_.ingest, IngestParts{store_, engine_, writer_, grid_, plan_checks_, robots_, event_log_, diagnostics_});
   plan_ = std::make_unique<PlanCommands>(
