@@ -99,8 +99,7 @@ LaserSonarGrids::LaserSonarGrids(const LaserSonarGrids& other)
       laser_(other.laser_ ? std::make_unique<OccupancyGrid>(*other.laser_) : nullptr),
       sonar_(other.sonar_ ? std::make_unique<OccupancyGrid>(*other.sonar_) : nullptr),
       counts_(other.counts_),
-      recent_(other.recent_),
-      recent_flat_(other.recent_flat_) {}
+      recent_(other.recent_) {}
 
 LaserSonarGrids& LaserSonarGrids::operator=(const LaserSonarGrids& other) {
   if (this != &other) {
@@ -137,9 +136,6 @@ void LaserSonarGrids::remember_returns(const LaserScan& scan) {
   }
   recent_.push_back(std::move(points));
   if (recent_.size() > options_.recent_laser_scans) recent_.erase(recent_.begin());
-  recent_flat_.clear();
-  for (const auto& scan_points : recent_)
-    recent_flat_.insert(recent_flat_.end(), scan_points.begin(), scan_points.end());
 }
 
 SonarGateResult LaserSonarGrids::insert(const SonarScan& scan) {
@@ -168,7 +164,12 @@ void LaserSonarGrids::insert_side_only(const SonarScan& scan) {
 }
 
 SonarGateResult LaserSonarGrids::judge(const SonarScan& scan) const {
-  if (options_.gate_sonar) return gate_sonar(scan, *laser_, options_.gate, recent_flat_);
+  if (options_.gate_sonar) {
+    // Put together here, per sonar scan, rather than per laser scan: a map without sonar never needs it.
+    std::vector<Eigen::Vector2d> recent;
+    for (const auto& points : recent_) recent.insert(recent.end(), points.begin(), points.end());
+    return gate_sonar(scan, *laser_, options_.gate, recent);
+  }
   SonarGateResult kept;
   for (std::size_t i = 0; i < scan.ranges_m.size(); ++i) {
     kept.beams.push_back(sonar_beam(scan, i, grid_options_.sensor));

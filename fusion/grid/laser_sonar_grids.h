@@ -123,7 +123,6 @@ class LaserSonarGrids {
   std::unique_ptr<OccupancyGrid> sonar_;
   SonarGateCounts counts_;
   std::vector<std::vector<Eigen::Vector2d>> recent_;  // return points of the latest laser scans, oldest first
-  std::vector<Eigen::Vector2d> recent_flat_;          // the same, one list (what the gate reads)
   void remember_returns(const LaserScan& scan);
   /// The gate's verdicts (every reading kept as it came when the gate is off).
   SonarGateResult judge(const SonarScan& scan) const;
