@@ -16,7 +16,8 @@ void check_common(const char* fn, const Pose2D& pose, double range_min_m, double
   if (!std::isfinite(range_max_m) || !(range_max_m > range_min_m)) {
     fail("range_max_m must be finite and > range_min_m");
   }
-  if (!std::isfinite(sigma_m) || sigma_m < 0.0) fail("sigma_range_m must be finite and >= 0");
+  // A wider σ only makes the hit band a wall kilometres thick (and its walk as long); the HTTP API caps it alike.
+  if (!(sigma_m >= 0.0 && sigma_m <= kMaxSigmaRangeM)) fail("sigma_range_m must be in [0, 10] m");
 }
 
 }  // namespace
@@ -26,8 +27,8 @@ void validate(const LaserScan& scan) {
   if (!std::isfinite(scan.angle_min_rad) || !std::isfinite(scan.angle_increment_rad)) {
     throw std::invalid_argument("validate(LaserScan): angle_min_rad and angle_increment_rad must be finite");
   }
-  if (!(scan.sigma_range_per_m >= 0 && std::isfinite(scan.sigma_range_per_m)))
-    throw std::invalid_argument("validate(LaserScan): sigma_range_per_m must be >= 0 and finite");
+  if (!(scan.sigma_range_per_m >= 0 && scan.sigma_range_per_m <= 1))
+    throw std::invalid_argument("validate(LaserScan): sigma_range_per_m must be in [0, 1] m/m");
   if (!(scan.usable_range_m >= 0 && std::isfinite(scan.usable_range_m)))
     throw std::invalid_argument("validate(LaserScan): usable_range_m must be >= 0 and finite (0: the grid's own)");
 }

@@ -40,10 +40,14 @@ struct SonarScan {
 /// Largest supported beam aperture [rad]: the cone walk needs both cone edges within 90° of the walk axis.
 inline constexpr double kMaxBeamWidthRad = 1.5707963267948966;  // π/2, exclusive
 
+/// Largest range σ a scan may declare [m].
+inline constexpr double kMaxSigmaRangeM = 10.0;
+
 /// Checks a scan's own consistency. Individual readings are not checked (bad ones are skipped per beam).
 /// @throw std::invalid_argument when the pose, angle_min or angle_increment is not finite, range_min_m is
-///        negative or not finite, range_max_m is not finite or <= range_min_m, or sigma_range_m is negative
-///        or not finite; for a laser scan also when sigma_range_per_m or usable_range_m is negative or not finite.
+///        negative or not finite, range_max_m is not finite or <= range_min_m, or sigma_range_m is not in
+///        [0, kMaxSigmaRangeM]; for a laser scan also when sigma_range_per_m is not in [0, 1] or usable_range_m is
+///        negative or not finite.
 void validate(const LaserScan& scan);
 /// @throw std::invalid_argument as for LaserScan, and when angles_rad and ranges_m differ in size, an angle is
 ///        not finite, or beam_width_rad is not in [0, π/2).

@@ -50,8 +50,6 @@ SonarGateResult gate_sonar(const SonarScan& scan, const OccupancyGrid& laser_gri
                            const std::vector<Eigen::Vector2d>& recent_returns) {
   validate(scan);
   validate(options);
-  // The grid refuses such a scan too (it would reach beyond any tile index); refused before walking its cones.
-  if (!(scan.sigma_range_m <= 1e6)) throw std::invalid_argument("gate_sonar: the range sigma is beyond 1000 km");
   const auto& sensor = laser_grid.options().sensor;
   const double resolution = laser_grid.resolution_m();
   const double free = logit(options.free_probability);

@@ -54,6 +54,9 @@ TEST(ScanTest, RejectsInconsistentLaserScans) {
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_m = -0.01; })), std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_per_m = -0.001; })), std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_per_m = nan; })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_per_m = 1.5; })), std::invalid_argument);
+  EXPECT_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_m = kMaxSigmaRangeM * 1.01; })), std::invalid_argument);
+  EXPECT_NO_THROW(validate(bad([&](LaserScan& s) { s.sigma_range_m = kMaxSigmaRangeM; })));
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.usable_range_m = -1; })), std::invalid_argument);
   EXPECT_THROW(validate(bad([&](LaserScan& s) { s.usable_range_m = std::numeric_limits<double>::infinity(); })),
                std::invalid_argument);
@@ -76,6 +79,10 @@ TEST(ScanTest, RejectsInconsistentSonarScans) {
   SonarScan range = good_sonar();
   range.range_max_m = 0.0;
   EXPECT_THROW(validate(range), std::invalid_argument);
+  // A kilometre-wide σ would make every echo a band kilometres thick (the sonar gate once walked one out of memory).
+  SonarScan blurred = good_sonar();
+  blurred.sigma_range_m = 1285.0;
+  EXPECT_THROW(validate(blurred), std::invalid_argument);
 }
 
 }  // namespace
