@@ -33,8 +33,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -45,10 +48,13 @@
 #include <thread>
 #include <vector>
 
+#include "apriori/import/rmf_import.h"
+#include "bench/support/dense_drive.h"
 #include "bench/support/ratio_reporter.h"
 #include "bench/support/wmd_child.h"
 #include "logs/carmen_log_reader.h"
 #include "logs/scan_body.h"
+#include "tools/raycast/raycast.h"
 
 namespace {
 
@@ -102,6 +108,19 @@ std::vector<std::vector<std::string>> robot_bodies(const std::vector<wm::logs::L
   return bodies;
 }
 
+// The q-quantile of sorted values (nearest rank), 0 for none.
+double quantile(const std::vector<double>& sorted, double q) {
+  if (sorted.empty()) return 0.0;
+  const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(sorted.size())));
+  return sorted[std::max<std::size_t>(rank, 1) - 1];
+}
+
+std::size_t beams_of(const std::vector<wm::logs::LogScan>& scans) {
+  std::size_t beams = 0;
+  for (const auto& s : scans) beams += s.scan.ranges_m.size();
+  return beams;
+}
+
 std::vector<std::string> split_words(const std::string& text) {
   std::istringstream in(text);
   std::vector<std::string> words;
@@ -148,7 +167,7 @@ void run_robot(Connection& connection, const std::vector<std::string>& bodies, R
 }
 
 // Where the time went: the processing network's own counters (GET /api/v1/network), per executor and function.
-void print_network_profile(const std::string& label, int robots, const std::string& body) {
+void print_network_profile(const std::string& label, int robots, const std::string& body, double beams) {
   const auto network = nlohmann::json::parse(body, nullptr, false);
   if (network.is_discarded() || !network.contains("executors")) return;
   std::fprintf(stderr, "network profile, %s, %d robots (%s):\n", label.c_str(), robots,
@@ -158,19 +177,37 @@ void print_network_profile(const std::string& label, int robots, const std::stri
                  e["load"].get<double>(), e["busy_s"].get<double>());
   for (const auto& f : network["functions"])
     if (f["activations"].get<std::uint64_t>() > 0)
-      std::fprintf(stderr, "  %-12s %-16s %7llu activations, mean %.3f ms, busy %.2f s\n",
+      std::fprintf(stderr, "  %-12s %-16s %7llu activations, mean %.3f ms, busy %.2f s, %.0f ns per beam\n",
                    f["component"].get<std::string>().c_str(), f["function"].get<std::string>().c_str(),
                    static_cast<unsigned long long>(f["activations"].get<std::uint64_t>()), f["mean_ms"].get<double>(),
-                   f["busy_s"].get<double>());
+                   f["busy_s"].get<double>(), beams > 0 ? 1e9 * f["busy_s"].get<double>() / beams : 0.0);
+}
+
+// wmd's CPU per scan and per beam, all threads and by thread (the executors name theirs: grids, world, storage,
+// lines; HTTP and JSON run on threads named wmd).
+void print_cpu_by_thread(const std::string& label, int robots, const WmdProcess& wmd,
+                         const std::map<std::string, double>& threads_before, double wmd_cpu_s, std::size_t accepted,
+                         double beams) {
+  std::fprintf(stderr,
+               "wmd CPU per scan, %s, %d robots: %.3f ms (%.0f ns per beam); by thread, ms per scan (ns per beam):",
+               label.c_str(), robots, 1000.0 * wmd_cpu_s / static_cast<double>(accepted), 1e9 * wmd_cpu_s / beams);
+  for (const auto& [name, seconds] : wmd.cpu_seconds_by_thread()) {
+    const auto before = threads_before.find(name);
+    const double spent = seconds - (before == threads_before.end() ? 0.0 : before->second);
+    std::fprintf(stderr, " %s %.3f (%.0f)", name.c_str(), 1000.0 * spent / static_cast<double>(accepted),
+                 1e9 * spent / beams);
+  }
+  std::fprintf(stderr, "\n");
 }
 
 void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans,
             const std::vector<std::string>* wmd_args, const std::string* binary, const std::string* label) {
   const int robots = static_cast<int>(state.range(0));
   const auto bodies = robot_bodies(*scans, robots);
+  const double beams_per_scan = static_cast<double>(beams_of(*scans)) / static_cast<double>(scans->size());
   std::size_t accepted = 0, retries = 0;
   std::vector<double> latencies_ms;
-  double wmd_cpu_s = 0;
+  double wmd_cpu_s = 0, beams = 0;
   try {
     WmdProcess wmd(*wmd_args, *binary);
     // Connections opened before the clock starts: we time ingest, not the handshakes.
@@ -196,20 +233,12 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
       if (failed) break;
     }
     wmd_cpu_s = wmd.cpu_seconds() - cpu_before;
-    if (accepted > 0) {
-      std::fprintf(stderr, "wmd CPU per scan, %s, %d robots: %.3f ms; by thread:", label->c_str(), robots,
-                   1000.0 * wmd_cpu_s / static_cast<double>(accepted));
-      for (const auto& [name, seconds] : wmd.cpu_seconds_by_thread()) {
-        const auto before = threads_before.find(name);
-        const double spent = seconds - (before == threads_before.end() ? 0.0 : before->second);
-        std::fprintf(stderr, " %s %.3f", name.c_str(), 1000.0 * spent / static_cast<double>(accepted));
-      }
-      std::fprintf(stderr, "\n");
-    }
+    beams = static_cast<double>(accepted) * beams_per_scan;
+    if (accepted > 0) print_cpu_by_thread(*label, robots, wmd, threads_before, wmd_cpu_s, accepted, beams);
     try {
       Connection c(wmd.port());
       const auto answer = c.request(http::verb::get, "/api/v1/network");
-      if (answer.status == 200) print_network_profile(*label, robots, answer.body);
+      if (answer.status == 200) print_network_profile(*label, robots, answer.body, beams);
     } catch (const std::exception&) {
       // a profile is a bonus; the figures above stand without it
     }
@@ -222,16 +251,116 @@ void ingest(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans
   std::sort(latencies_ms.begin(), latencies_ms.end());
   double sum = 0;
   for (double l : latencies_ms) sum += l;
-  const auto p99_index = static_cast<std::size_t>(std::ceil(0.99 * static_cast<double>(latencies_ms.size()))) - 1;
   state.SetItemsProcessed(static_cast<std::int64_t>(accepted));
   state.SetLabel(*label);
   state.counters["robots"] = robots;
   state.counters["scans"] = static_cast<double>(accepted);
+  state.counters["beams_per_s"] = benchmark::Counter(beams, benchmark::Counter::kIsRate);
   state.counters["retries"] = static_cast<double>(retries);
   state.counters["mean_ms"] = latencies_ms.empty() ? 0.0 : sum / static_cast<double>(latencies_ms.size());
-  state.counters["p99_ms"] = latencies_ms.empty() ? 0.0 : latencies_ms[p99_index];
-  // wmd's CPU per accepted scan, all threads: scans/s can reach at most cores / this, whatever else runs.
+  state.counters["p50_ms"] = quantile(latencies_ms, 0.50);
+  state.counters["p99_ms"] = quantile(latencies_ms, 0.99);
+  // wmd's CPU per accepted scan and per beam, all threads: scans/s can reach at most cores / this, whatever else runs.
   state.counters["cpu_ms_per_scan"] = accepted == 0 ? 0.0 : 1000.0 * wmd_cpu_s / static_cast<double>(accepted);
+  state.counters["cpu_ns_per_beam"] = beams == 0 ? 0.0 : 1e9 * wmd_cpu_s / beams;
+}
+
+// One robot at a fixed pace among flooders: robot 0 posts its scans on a 40 Hz schedule (sleep until its slot; a
+// late answer sends the next scan at once, none is skipped) while the other 15 post theirs as fast as they can,
+// going round them again until the paced robot is done. Its answer times (from its post to its 2xx, 503 retries
+// included) and whether it kept the pace are the figures; the flooders' scans/s beside them.
+constexpr int kFlooders = 15;
+constexpr auto kPacedPeriod = std::chrono::microseconds(25'000);  // 40 Hz
+
+void ingest_paced(benchmark::State& state, const std::vector<wm::logs::LogScan>* scans, std::size_t paced_scans,
+                  const std::string* label) {
+  const int robots = kFlooders + 1;
+  const auto bodies = robot_bodies(*scans, robots);
+  const double beams_per_scan = static_cast<double>(beams_of(*scans)) / static_cast<double>(scans->size());
+  std::vector<double> paced_ms;
+  std::size_t flooded = 0, late = 0;
+  double wmd_cpu_s = 0, paced_span_s = 0, beams = 0;
+  try {
+    WmdProcess wmd({});
+    std::vector<std::unique_ptr<Connection>> connections;
+    for (int k = 0; k < robots; ++k) connections.push_back(std::make_unique<Connection>(wmd.port()));
+    std::string error;
+    std::mutex error_mutex;
+    const auto fail = [&](const std::string& what) {
+      const std::lock_guard lock(error_mutex);
+      if (error.empty()) error = what;
+    };
+    const double cpu_before = wmd.cpu_seconds();
+    const auto threads_before = wmd.cpu_seconds_by_thread();
+    // Posts one body until it is accepted; false at another status or a connection error.
+    const auto post = [&](Connection& c, const std::string& body) {
+      try {
+        for (;;) {
+          const auto answer = c.request(http::verb::post, "/api/v1/scans", body);
+          if (answer.status >= 200 && answer.status < 300) return true;
+          if (answer.status != 503) {
+            fail("POST /api/v1/scans: " + std::to_string(answer.status) + " " + answer.body.substr(0, 300));
+            return false;
+          }
+          std::this_thread::sleep_for(kRetryPause);
+        }
+      } catch (const std::exception& e) {
+        fail(std::string("connection: ") + e.what());
+        return false;
+      }
+    };
+    for (auto _ : state) {
+      std::atomic<bool> done{false};
+      std::vector<std::size_t> accepted(static_cast<std::size_t>(robots), 0);
+      std::vector<std::thread> flooders;
+      for (int k = 1; k < robots; ++k)
+        flooders.emplace_back([&, k] {
+          const auto& mine = bodies[static_cast<std::size_t>(k)];
+          for (std::size_t i = 0; !done; ++i) {
+            if (!post(*connections[static_cast<std::size_t>(k)], mine[i % mine.size()])) return;
+            ++accepted[static_cast<std::size_t>(k)];
+          }
+        });
+      const auto start = Clock::now();
+      auto last_sent = start;
+      for (std::size_t i = 0; i < paced_scans; ++i) {
+        const auto slot = start + i * kPacedPeriod;
+        std::this_thread::sleep_until(slot);
+        last_sent = Clock::now();
+        if (last_sent - slot > std::chrono::milliseconds(1)) ++late;
+        if (!post(*connections[0], bodies[0][i % bodies[0].size()])) break;
+        paced_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - last_sent).count());
+      }
+      paced_span_s = std::chrono::duration<double>(last_sent - start).count();
+      done = true;
+      for (auto& t : flooders) t.join();
+      for (int k = 1; k < robots; ++k) flooded += accepted[static_cast<std::size_t>(k)];
+    }
+    wmd_cpu_s = wmd.cpu_seconds() - cpu_before;
+    const std::size_t all = flooded + paced_ms.size();
+    beams = static_cast<double>(all) * beams_per_scan;
+    if (all > 0) print_cpu_by_thread(*label + ", one at 40 Hz", robots, wmd, threads_before, wmd_cpu_s, all, beams);
+    connections.clear();
+    if (!error.empty()) return state.SkipWithError(error.c_str());
+    if (!wmd.stop()) return state.SkipWithError("wmd did not exit 0 on SIGTERM");
+  } catch (const std::exception& e) {
+    return state.SkipWithError(e.what());
+  }
+  const std::size_t all = flooded + paced_ms.size();
+  std::sort(paced_ms.begin(), paced_ms.end());
+  state.SetItemsProcessed(static_cast<std::int64_t>(all));
+  state.SetLabel(*label);
+  state.counters["beams_per_s"] = benchmark::Counter(beams, benchmark::Counter::kIsRate);
+  state.counters["flood_scans_per_s"] = benchmark::Counter(static_cast<double>(flooded), benchmark::Counter::kIsRate);
+  state.counters["paced_scans"] = static_cast<double>(paced_ms.size());
+  // The pace kept: scans after the first over the time from the first post to the last; 40 when every post went
+  // at its slot.
+  state.counters["paced_hz"] = paced_span_s > 0 ? static_cast<double>(paced_ms.size() - 1) / paced_span_s : 0.0;
+  state.counters["paced_late"] = static_cast<double>(late);  // posts sent more than 1 ms after their slot
+  state.counters["paced_p50_ms"] = quantile(paced_ms, 0.50);
+  state.counters["paced_p99_ms"] = quantile(paced_ms, 0.99);
+  state.counters["paced_max_ms"] = paced_ms.empty() ? 0.0 : paced_ms.back();
+  state.counters["cpu_ns_per_beam"] = beams == 0 ? 0.0 : 1e9 * wmd_cpu_s / beams;
 }
 
 // Several maps of one wmd busy at once: `maps` maps (m0, m1, ...), each fed the whole log by its own kRobotsPerMap
@@ -427,6 +556,43 @@ void postgres_commits(benchmark::State& state, const std::string* payload) {
       benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
+// A set of scans posted by the beam-count benchmarks: a real log, or a drive ray-cast in a floor plan.
+struct ScanSet {
+  std::string name;  // in the benchmark's name: letters, digits and '_'
+  std::vector<wm::logs::LogScan> scans;
+};
+
+// `count` scans of a 1 081-beam 270° scanner driving through a plan at 40 Hz.
+std::vector<wm::logs::LogScan> dense_scans(const std::vector<wm::raycast::PlanLine>& lines, std::size_t count) {
+  std::vector<wm::logs::LogScan> scans;
+  for (auto& scan : wm::bench::dense_drive(lines, count)) {
+    scans.push_back({scans.size() + 1, 0.025 * static_cast<double>(scans.size()), std::move(scan)});
+  }
+  return scans;
+}
+
+std::string read_text(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error("cannot read " + file.string());
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// The data sets of the beam-count benchmarks: CSAIL's 360-beam log (when this machine has it) and dense drives in two
+// plans of different kinds, a university floor (GDC1, 1 289 lines) and an office with its furniture (Open-RMF).
+std::deque<ScanSet> beam_sets(std::size_t count, bool both_plans) {
+  std::deque<ScanSet> sets;
+  const fs::path csail = fs::path(WM_SHARED_DATA_DIR) / "carmen" / "csail-corrected.log.gz";
+  if (fs::exists(csail)) sets.push_back({"csail360", read_scans(csail, count)});
+  const fs::path plans = fs::path(WM_SOURCE_DIR) / "tests" / "data" / "plans";
+  sets.push_back(
+      {"gdc1_1081", dense_scans(wm::raycast::read_vectormap((plans / "GDC1.vectormap.json").string()), count)});
+  if (both_plans) {
+    const auto office = wm::apriori::import_rmf_building(read_text(plans / "rmf-office.building.yaml"));
+    sets.push_back({"office1081", dense_scans(wm::bench::plan_lines(office.plan), count)});
+  }
+  return sets;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -506,5 +672,48 @@ int main(int argc, char** argv) {
       ->UseRealTime()
       ->Unit(benchmark::kMillisecond);
   ratios.push_back({"against one map alone (4 robots)", "BM_IngestMaps/maps:1/iterations:1/real_time"});
+
+  // Scans of more beams: CSAIL's 360 and a 1 081-beam scanner in two plans, 1 and 16 robots, against the Intel log's
+  // 180 beams above (16 robots, scans/s; beams/s and CPU per beam are counters); then one robot at 40 Hz among 15
+  // flooding robots. WM_BENCH_QUICK: fewer scans, one plan, 16 robots only.
+  const bool quick = std::getenv("WM_BENCH_QUICK") != nullptr;
+  std::deque<ScanSet> sets;
+  try {
+    const auto start = Clock::now();
+    sets = beam_sets(quick ? 160 : 1440, !quick);
+    std::printf("ingest_bench: dense drives ray-cast in %.1f s:",
+                std::chrono::duration<double>(Clock::now() - start).count());
+    for (const auto& set : sets)
+      std::printf(" %s %zu scans of %zu beams;", set.name.c_str(), set.scans.size(),
+                  set.scans.empty() ? 0 : set.scans.front().scan.ranges_m.size());
+    std::printf("\n");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ingest_bench: %s\n", e.what());
+    return 1;
+  }
+  std::deque<std::string> labels;
+  for (const auto& set : sets) {
+    labels.push_back(set.name);
+    for (const int robots : quick ? std::vector<int>{16} : std::vector<int>{1, 16})
+      benchmark::RegisterBenchmark(("BM_IngestBeams_" + set.name).c_str(), ingest, &set.scans, &default_args,
+                                   &default_binary, &labels.back())
+          ->ArgName("robots")
+          ->Arg(robots)
+          ->Iterations(1)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond);
+  }
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    if (sets[i].name.find("1081") == std::string::npos) continue;
+    benchmark::RegisterBenchmark(("BM_IngestPaced40HzAmongFlooders_" + sets[i].name).c_str(), ingest_paced,
+                                 &sets[i].scans, std::size_t{quick ? 20u : 240u}, &labels[i])
+        ->ArgName("robots")
+        ->Arg(kFlooders + 1)
+        ->Iterations(1)
+        ->UseRealTime()
+        ->Unit(benchmark::kMillisecond);
+  }
+  ratios.push_back(
+      {"scans/s against the Intel log's 180 beams, 16 robots", "BM_Ingest/robots:16/iterations:1/real_time"});
   return wm::bench::run_with_ratios(argc, argv, ratios);
 }
