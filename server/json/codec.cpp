@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -153,9 +154,32 @@ world::Observation parse_primitives(std::string_view body, const world::WorldOpt
 
 namespace {
 
+// A float32 typed array (RFC 8746 tag 85, little-endian), each value checked as a JSON number would be.
+std::vector<double> float32_list(const json::binary_t& bytes, const std::string& key, std::size_t max_items) {
+  if (!bytes.has_subtype() || bytes.subtype() != kCborFloat32LeTag)
+    throw bad_request(key, "expected an array of numbers or a float32 array (CBOR tag 85 over a byte string)");
+  if (bytes.size() % 4 != 0) throw bad_request(key, "a float32 array needs 4 bytes per value");
+  const std::size_t count = bytes.size() / 4;
+  if (count == 0) throw bad_request(key, "must not be empty");
+  if (count > max_items) throw bad_request(key, "more than " + std::to_string(max_items) + " values");
+  std::vector<double> values;
+  values.reserve(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::uint32_t bits =
+        static_cast<std::uint32_t>(bytes[4 * i]) | static_cast<std::uint32_t>(bytes[4 * i + 1]) << 8 |
+        static_cast<std::uint32_t>(bytes[4 * i + 2]) << 16 | static_cast<std::uint32_t>(bytes[4 * i + 3]) << 24;
+    const auto v = static_cast<double>(std::bit_cast<float>(bits));
+    if (!std::isfinite(v)) throw bad_request(item(key, i), "not a finite number");
+    if (std::abs(v) > 1e9) throw bad_request(item(key, i), "absurd value");
+    values.push_back(v);
+  }
+  return values;
+}
+
 std::vector<double> number_list(const json& doc, const std::string& key, std::size_t max_items, bool allow_null) {
   const auto it = doc.find(key);
   if (it == doc.end()) throw bad_request(key, "missing field");
+  if (it->is_binary()) return float32_list(it->get_binary(), key, max_items);
   if (!it->is_array()) throw bad_request(key, "expected an array of numbers");
   if (it->empty()) throw bad_request(key, "must not be empty");
   if (it->size() > max_items) throw bad_request(key, "more than " + std::to_string(max_items) + " values");
@@ -193,7 +217,129 @@ void require_pose_covariance(const Eigen::Matrix3d& cov, const std::string& fiel
 }
 
 world::ScanObservation parse_scan(std::string_view body, const ScanLimits& limits) {
-  const json doc = parse_json(body);
+  return scan_from_document(parse_json(body), limits);
+}
+
+namespace {
+
+// nlohmann's DOM builder behind a guard: the reader recurses once per level of nesting, and a CBOR byte makes a value
+// (an array of a million nulls is a megabyte of CBOR), so both are counted before the DOM grows. Text must be UTF-8
+// (nlohmann's CBOR reader does not check it; its JSON writer would throw on it in an answer or the journal).
+class BoundedCborDom {
+ public:
+  BoundedCborDom(json& result, std::size_t max_values) : dom_(result, true), max_values_(max_values) {}
+
+  bool null() { return value() && dom_.null(); }
+  bool boolean(bool v) { return value() && dom_.boolean(v); }
+  bool number_integer(json::number_integer_t v) { return value() && dom_.number_integer(v); }
+  bool number_unsigned(json::number_unsigned_t v) { return value() && dom_.number_unsigned(v); }
+  bool number_float(json::number_float_t v, const json::string_t& text) {
+    return value() && dom_.number_float(v, text);
+  }
+  bool string(json::string_t& s) { return utf8(s, "a text string") && value() && dom_.string(s); }
+  bool binary(json::binary_t& b) { return value() && dom_.binary(b); }
+  bool start_object(std::size_t n) { return deeper() && value() && dom_.start_object(n); }
+  bool key(json::string_t& k) { return utf8(k, "a map key") && dom_.key(k); }
+  bool end_object() {
+    --depth_;
+    return dom_.end_object();
+  }
+  bool start_array(std::size_t n) { return deeper() && value() && dom_.start_array(n); }
+  bool end_array() {
+    --depth_;
+    return dom_.end_array();
+  }
+  template <class Exception>
+  bool parse_error(std::size_t position, const std::string& token, const Exception& e) {
+    return dom_.parse_error(position, token, e);  // throws e
+  }
+
+  const std::string& refusal() const { return refusal_; }
+
+ private:
+  bool refuse(std::string why) {
+    refusal_ = std::move(why);
+    return false;
+  }
+  bool value() {
+    return ++values_ <= max_values_ || refuse("more than " + std::to_string(max_values_) + " values in one body");
+  }
+  bool deeper() {
+    return ++depth_ <= apriori::kMaxJsonDepth ||
+           refuse("nested deeper than " + std::to_string(apriori::kMaxJsonDepth) + " levels");
+  }
+  bool utf8(const std::string& text, const char* what) {
+    if (const auto at = common::invalid_utf8_offset(text))
+      return refuse(std::string(what) + " that is not UTF-8 (at its byte " + std::to_string(*at) + ")");
+    return true;
+  }
+
+  nlohmann::detail::json_sax_dom_parser<json> dom_;
+  std::size_t max_values_;
+  std::size_t values_ = 0;
+  std::size_t depth_ = 0;
+  std::string refusal_;
+};
+
+}  // namespace
+
+json parse_cbor(std::string_view bytes, std::size_t max_values) {
+  namespace detail = nlohmann::detail;
+  json result;
+  BoundedCborDom sax(result, max_values);
+  auto input = detail::input_adapter(bytes.data(), bytes.data() + bytes.size());
+  detail::binary_reader<json, decltype(input), BoundedCborDom> reader(std::move(input), detail::input_format_t::cbor);
+  try {
+    if (!reader.sax_parse(detail::input_format_t::cbor, &sax, true, nlohmann::json::cbor_tag_handler_t::store))
+      throw bad_request("", "CBOR refused: " + sax.refusal());
+  } catch (const nlohmann::json::exception& e) {  // parse_error, or out_of_range for an absurd declared size
+    throw bad_request("", std::string("malformed CBOR: ") + e.what());
+  }
+  return result;
+}
+
+namespace {
+
+// Values a body of `scans` scans may hold: ranges and angles, a pose covariance, the other fields.
+std::size_t max_body_values(const ScanLimits& limits, std::size_t scans) {
+  return scans * (2 * limits.max_beams + 64) + 16;
+}
+
+json decode_body(std::string_view body, BodyFormat format, const ScanLimits& limits) {
+  if (format == BodyFormat::json) return parse_json(body);
+  return parse_cbor(body, max_body_values(limits, std::max<std::size_t>(1, limits.max_batch_scans)));
+}
+
+}  // namespace
+
+ScanBody parse_scan_body(std::string_view body, BodyFormat format, const ScanLimits& limits) {
+  const json doc = decode_body(body, format, limits);
+  ScanBody result;
+  const auto batch = doc.is_object() ? doc.find("scans") : doc.end();
+  if (!doc.is_object() || batch == doc.end()) {
+    result.scans.push_back(scan_from_document(doc, limits));
+    return result;
+  }
+  result.batch = true;
+  for (const auto& [key, value] : doc.items())
+    if (key != "scans") throw bad_request(key, "unknown field for a batch of scans (only \"scans\")");
+  if (!batch->is_array()) throw bad_request("scans", "expected an array of scan objects");
+  if (batch->empty()) throw bad_request("scans", "must not be empty");
+  if (batch->size() > limits.max_batch_scans)
+    throw bad_request("scans", "more than " + std::to_string(limits.max_batch_scans) + " scans in one batch");
+  result.scans.reserve(batch->size());
+  for (std::size_t i = 0; i < batch->size(); ++i) {
+    try {
+      result.scans.push_back(scan_from_document((*batch)[i], limits));
+    } catch (const CodecError& e) {
+      const auto path = item("scans", i);
+      throw bad_request(e.path().empty() ? path : path + "." + e.path(), e.message());
+    }
+  }
+  return result;
+}
+
+world::ScanObservation scan_from_document(const json& doc, const ScanLimits& limits) {
   if (!doc.is_object()) throw bad_request("", "expected a scan object");
   const auto sensor_it = doc.find("sensor");
   if (sensor_it == doc.end()) throw bad_request("sensor", "missing field (\"laser\" or \"sonar\")");

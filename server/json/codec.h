@@ -1,11 +1,13 @@
 #pragma once
 
+#include <cstdint>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <variant>
+#include <vector>
 
 #include "fusion/grid/scan.h"
 #include "server/json/codec_error.h"
@@ -52,12 +54,39 @@ struct ScanLimits {
   std::size_t max_beams = 10000;
   double max_range_m = 1000.0;
   double max_abs_coordinate_m = 1.0e5;
+  /// Scans in one batch body ({"scans": [...]}); the store commits at most 64 requests in one transaction by default.
+  std::size_t max_batch_scans = 64;
 };
 
-/// Parses and validates POST /api/v1/scans into the world model's scan. A range may be null (no reading); NaN-like and
-/// out-of-range readings are kept and ignored per beam by the grid. @throw CodecError (bad_request) naming the bad
-/// field.
+/// How a request body is encoded: JSON text (application/json) or CBOR (application/cbor, RFC 8949).
+enum class BodyFormat { json, cbor };
+
+/// The RFC 8746 tag of a little-endian float32 typed array (a byte string of 4 bytes per number).
+inline constexpr std::uint64_t kCborFloat32LeTag = 85;
+
+/// Decodes a CBOR request body into the same document a JSON body gives, for one validation of both. A byte string
+/// under a tag of 24 or more becomes a binary value with the tag as its subtype (tag 85: a float32 array); tags 6–20
+/// are dropped (nlohmann's reader), other tags, an undefined value or trailing bytes are refused. Refuses nesting
+/// deeper than apriori::kMaxJsonDepth, more than `max_values` values in all (a byte each in CBOR: the document would
+/// take 16 bytes per value), text that is not UTF-8, and map keys that are not text.
+/// @throw CodecError (bad_request) saying what and where.
+nlohmann::json parse_cbor(std::string_view bytes, std::size_t max_values);
+
+/// Parses and validates one scan of POST /api/v1/scans into the world model's scan. A range may be null (no reading);
+/// out-of-range readings are kept and ignored per beam by the grid; a number must be finite (also a float32 of a
+/// typed array: NaN and ±Inf are refused like any value that is not a finite number). `ranges` and a sonar's `angles`
+/// are arrays of numbers or (from CBOR) float32 typed arrays. @throw CodecError (bad_request) naming the bad field.
 world::ScanObservation parse_scan(std::string_view body, const ScanLimits& limits);
+world::ScanObservation scan_from_document(const nlohmann::json& doc, const ScanLimits& limits);
+
+/// A POST /api/v1/scans body: one scan object, or a batch {"scans": [scan, ...]} of 1 to limits.max_batch_scans.
+struct ScanBody {
+  std::vector<world::ScanObservation> scans;
+  bool batch = false;
+};
+/// Decodes and validates a whole body before anything is applied: an error in a batch names its scan
+/// ("scans[2].ranges[7]: ..."). @throw CodecError (bad_request).
+ScanBody parse_scan_body(std::string_view body, BodyFormat format, const ScanLimits& limits);
 
 nlohmann::json object_json(const world::ObjectState& object, const world::WorldOptions& options);
 nlohmann::json element_json(const world::Element& element);

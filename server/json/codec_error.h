@@ -14,11 +14,19 @@ class CodecError : public std::runtime_error {
     answer_too_large,  // an answer that would exceed the size or nesting the server sends
   };
   CodecError(Kind kind, const std::string& path, const std::string& message)
-      : std::runtime_error(path.empty() ? message : path + ": " + message), kind_(kind) {}
+      : std::runtime_error(path.empty() ? message : path + ": " + message),
+        kind_(kind),
+        path_(path),
+        message_(message) {}
   Kind kind() const { return kind_; }
+  /// The field path alone (empty: the whole text), and the message without it.
+  const std::string& path() const { return path_; }
+  const std::string& message() const { return message_; }
 
  private:
   Kind kind_;
+  std::string path_;
+  std::string message_;
 };
 
 /// The bad_request error for `path` (the field path, empty for the whole text).

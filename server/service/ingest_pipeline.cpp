@@ -32,12 +32,23 @@ namespace {
 using ScanTicket = Ticket<ScanOutcome>;
 using PrimitivesTicket = Ticket<PrimitivesOutcome>;
 
-struct ScanJob {
+}  // namespace
+
+struct IngestPipeline::ScanJob {
   world::ScanObservation scan;
-  std::string payload;
+  std::string payload;  // a batch's scans: empty (the batch's body hash stands for it)
   std::optional<std::string> request_id;
   std::shared_ptr<ScanTicket> ticket;
 };
+
+// The scans of one request body, decided together and committed as one value.
+struct IngestPipeline::ScanBatch {
+  std::vector<ScanJobPtr> jobs;
+  std::int64_t body_hash = 0;
+};
+
+namespace {
+
 struct PrimitivesJob {
   world::Observation observation;
   std::string payload;
@@ -45,8 +56,6 @@ struct PrimitivesJob {
   std::shared_ptr<PrimitivesTicket> ticket;  // null for the server's own observations (grid lines)
   std::shared_ptr<void> hold;                // a request answered only after this one is applied (or dropped)
 };
-using ScanJobPtr = std::shared_ptr<ScanJob>;
-
 using PrimitivesJobPtr = std::shared_ptr<PrimitivesJob>;
 using Command = std::shared_ptr<std::function<void()>>;
 struct GridTick {
@@ -68,6 +77,7 @@ struct IngestPipeline::Decided {
   std::optional<storage::RequestRecord> request;
   std::string observation_payload;  // a scan's lines: {"scan": seq}
   std::exception_ptr error;         // the commit failed
+  std::vector<DecidedPtr> members;  // a batch of scans: its scans, committed together (the fields above unused)
 };
 
 // A committed scan on its way into the grids, with its commit's live events (the scan event goes last).
@@ -117,6 +127,7 @@ pipeline::Registry IngestPipeline::network_registry() {
     auto c = std::make_unique<Component>();
     c->input<ScanJobPtr>("laser", {PortPolicy::fifo, queued, true})
         .input<ScanJobPtr>("sonar", {PortPolicy::fifo, queued, true})
+        .input<ScanBatchPtr>("scan_batches", {PortPolicy::fifo, queued, true})
         .input<PrimitivesJobPtr>("primitives", {PortPolicy::fifo, queued, true})
         .input<Command>("commands", {PortPolicy::fifo, queued, true})
         .input<DecidedPtr>("committed", {PortPolicy::fifo, 4 * queued, false})
@@ -136,10 +147,12 @@ pipeline::Registry IngestPipeline::network_registry() {
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
     c->function("sonar", {"sonar"}, [this](pipeline::Activation& a) { decide_scan(a, "sonar"); },
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
+    c->function("scan_batch", {"scan_batches"}, [this](pipeline::Activation& a) { decide_scan_batch(a); },
+                {{}, no_barrier, std::vector<std::string>{"decided"}});
     c->function("primitives", {"primitives"}, [this](pipeline::Activation& a) { decide_primitives(a); },
                 {{}, no_barrier, std::vector<std::string>{"decided"}});
     // One port each, so the order is the kind's: answers first, then commands, the trim, new requests.
-    c->order({"finish", "command", "trim", "laser", "sonar", "primitives"});
+    c->order({"finish", "command", "trim", "laser", "sonar", "scan_batch", "primitives"});
     c->on_thread_start(
         [this] { return std::static_pointer_cast<void>(std::make_shared<rules::ThreadAttachment>(engine_)); });
     return c;
@@ -300,6 +313,35 @@ ScanOutcome IngestPipeline::post_scan(world::ScanObservation scan, std::string p
   return future.get();
 }
 
+std::vector<ScanOutcome> IngestPipeline::post_scans(std::vector<world::ScanObservation> scans, std::string_view body,
+                                                    std::optional<std::string> request_id) {
+  if (scans.empty()) throw std::invalid_argument("post_scans: a batch needs at least one scan");
+  for (const auto& scan : scans)
+    if (!accepts_scans(scan.sensor()))
+      throw std::invalid_argument("the processing network (" + network_->source() + ") does not process " +
+                                  scan.sensor() + " scans");
+  auto batch = std::make_shared<ScanBatch>();
+  batch->body_hash = body_hash(body);
+  std::vector<std::future<ScanOutcome>> futures;
+  for (std::size_t i = 0; i < scans.size(); ++i) {
+    // Each scan keeps its own record under the batch's id, so a retried batch is answered scan by scan.
+    auto id = request_id ? std::optional<std::string>(*request_id + "[" + std::to_string(i) + "]") : std::nullopt;
+    auto job = std::make_shared<ScanJob>(
+        ScanJob{std::move(scans[i]), std::string(), std::move(id), std::make_shared<ScanTicket>()});
+    futures.push_back(job->ticket->future());
+    batch->jobs.push_back(std::move(job));
+  }
+  try {
+    network_->inject("matcher", "scan_batches", std::move(batch));
+  } catch (const pipeline::QueueFull& e) {
+    throw Busy(std::string("the world model's scan queue is full; retry later (") + e.what() + ")");
+  }
+  std::vector<ScanOutcome> outcomes;
+  outcomes.reserve(futures.size());
+  for (auto& future : futures) outcomes.push_back(future.get());  // the batch's error, if any, is every scan's
+  return outcomes;
+}
+
 PrimitivesOutcome IngestPipeline::post_primitives(world::Observation observation, std::string payload_json,
                                                   std::optional<std::string> request_id) {
   auto job = std::make_shared<PrimitivesJob>(PrimitivesJob{std::move(observation), std::move(payload_json),
@@ -363,29 +405,83 @@ void IngestPipeline::decide_scan(pipeline::Activation& a, const std::string& por
         return;
       }
     }
-    auto d = std::make_shared<Decided>();
-    d->epoch = epoch_;
-    d->scan_seq = next_scan_seq_ + 1;
-    d->update = prepare_scan_lines(job->scan, d->placement);
-    d->observation_payload = "{\"scan\": " + std::to_string(d->scan_seq) + "}";
-    if (job->request_id) {
-      d->request = storage::RequestRecord{*job->request_id,
-                                          "scan",
-                                          hash,
-                                          d->scan_seq,
-                                          d->update ? d->update->update.state.version : 0,
-                                          d->scan_seq,
-                                          d->update ? std::optional<std::int64_t>(d->update->seq) : std::nullopt};
-      pending_request_ids_[*job->request_id] = hash;
-    }
-    if (d->update) head_ = std::make_shared<const world::WorldState>(d->update->update.state);
-    next_scan_seq_ = d->scan_seq;
-    d->scan = std::move(job);
-    ++in_flight_;
-    a.emit("decided", std::move(d));
+    a.emit("decided", decide_scan_job(job, hash));
   } catch (...) {
     job->ticket->fail(std::current_exception());
   }
+}
+
+IngestPipeline::DecidedPtr IngestPipeline::decide_scan_job(ScanJobPtr job, std::int64_t hash) {
+  auto d = std::make_shared<Decided>();
+  d->epoch = epoch_;
+  d->scan_seq = next_scan_seq_ + 1;
+  d->update = prepare_scan_lines(job->scan, d->placement);
+  d->observation_payload = "{\"scan\": " + std::to_string(d->scan_seq) + "}";
+  if (job->request_id) {
+    d->request = storage::RequestRecord{*job->request_id,
+                                        "scan",
+                                        hash,
+                                        d->scan_seq,
+                                        d->update ? d->update->update.state.version : 0,
+                                        d->scan_seq,
+                                        d->update ? std::optional<std::int64_t>(d->update->seq) : std::nullopt};
+    pending_request_ids_[*job->request_id] = hash;
+  }
+  if (d->update) head_ = std::make_shared<const world::WorldState>(d->update->update.state);
+  next_scan_seq_ = d->scan_seq;
+  d->scan = std::move(job);
+  ++in_flight_;
+  return d;
+}
+
+void IngestPipeline::decide_scan_batch(pipeline::Activation& a) {
+  refresh_head();
+  auto batch = a.take<ScanBatchPtr>("scan_batches");
+  const auto fail_all = [&batch](const std::exception_ptr& error) {
+    for (const auto& job : batch->jobs) job->ticket->fail(error);
+  };
+  try {
+    // A retried batch: every scan is answered from its record, or the batch is applied whole.
+    std::vector<ScanOutcome> replayed;
+    for (const auto& job : batch->jobs) {
+      if (job->request_id && pending_request_ids_.count(*job->request_id))
+        throw Busy("request id '" + *job->request_id + "' is being applied; retry to get its answer");
+      if (auto answer = replayed_scan(job->request_id, batch->body_hash, job->scan))
+        replayed.push_back(std::move(*answer));
+    }
+    if (!replayed.empty() && replayed.size() != batch->jobs.size())
+      throw RequestIdConflict("request id '" + batch->jobs.front()->request_id.value_or("") +
+                              "' and the others of this batch were not all used before: a batch is retried whole");
+    if (!replayed.empty()) {
+      for (std::size_t i = 0; i < replayed.size(); ++i) batch->jobs[i]->ticket->succeed(std::move(replayed[i]));
+      return;
+    }
+  } catch (...) {
+    fail_all(std::current_exception());
+    return;
+  }
+  const auto head_before = head();
+  const auto seq_before = next_scan_seq_;
+  auto whole = std::make_shared<Decided>();
+  whole->epoch = epoch_;
+  try {
+    for (const auto& job : batch->jobs) whole->members.push_back(decide_scan_job(job, batch->body_hash));
+  } catch (...) {
+    // Nothing of the batch goes on: the head, the scan sequence and the rules' facts are as before its first scan.
+    bool changed_map = false;
+    for (const auto& member : whole->members) {
+      if (member->request) pending_request_ids_.erase(member->request->request_id);
+      changed_map = changed_map || member->update.has_value();
+      --in_flight_;
+    }
+    head_ = head_before;
+    next_scan_seq_ = seq_before;
+    if (changed_map) writer_.restore_facts(*head_, "a refused batch of scans");
+    fail_all(std::current_exception());
+    return;
+  }
+  ++in_flight_;  // the batch itself, until its members are finished
+  a.emit("decided", std::move(whole));
 }
 
 void IngestPipeline::decide_primitives(pipeline::Activation& a) {
@@ -454,11 +550,17 @@ void IngestPipeline::commit_group(pipeline::Activation& a) {
   }
   if (!valid.empty()) {
     try {
+      // A batch of scans is its scans, in order.
+      std::vector<const Decided*> parts;
+      for (const auto& d : valid) {
+        if (d->members.empty()) parts.push_back(d.get());
+        for (const auto& member : d->members) parts.push_back(member.get());
+      }
       std::vector<storage::Store::BatchEntry> entries;
       std::vector<storage::ScanEntry> scans;
-      scans.reserve(valid.size());
-      entries.reserve(valid.size());
-      for (const auto& d : valid) {
+      scans.reserve(parts.size());
+      entries.reserve(parts.size());
+      for (const auto* d : parts) {
         storage::Store::BatchEntry entry;
         if (d->scan) {
           scans.push_back(storage::ScanEntry{d->scan_seq, &d->scan->scan});
@@ -490,6 +592,18 @@ void IngestPipeline::commit_group(pipeline::Activation& a) {
 
 void IngestPipeline::finish_committed(pipeline::Activation& a) {
   auto d = a.take<DecidedPtr>("committed");
+  for (auto& member : d->members) {
+    if (d->error) member->error = d->error;
+    finish_decided(a, std::move(member));
+  }
+  if (!d->members.empty()) {
+    --in_flight_;
+    return;
+  }
+  finish_decided(a, std::move(d));
+}
+
+void IngestPipeline::finish_decided(pipeline::Activation& a, DecidedPtr d) {
   --in_flight_;
   if (d->request) pending_request_ids_.erase(d->request->request_id);
   if (d->error) {

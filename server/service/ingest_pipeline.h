@@ -11,6 +11,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "common/diagnostics.h"
 #include "fusion/grid_lines/grid_line_extractor.h"
@@ -105,6 +106,10 @@ class IngestPipeline {
   ScanOutcome post_scan(world::ScanObservation scan, std::string payload_json, std::optional<std::string> request_id);
   PrimitivesOutcome post_primitives(world::Observation observation, std::string payload_json,
                                     std::optional<std::string> request_id);
+  /// See WorldService::post_scans: the scans are decided one after another with nothing between them, go to the
+  /// store as one value (so into one transaction, with whatever else is waiting) and are answered in order.
+  std::vector<ScanOutcome> post_scans(std::vector<world::ScanObservation> scans, std::string_view body,
+                                      std::optional<std::string> request_id);
   /// Runs `work` on the matcher when nothing is in flight, and returns its result. @throw Busy when the queue is full.
   template <typename F>
   auto run_command(F&& work) -> decltype(work()) {
@@ -141,6 +146,10 @@ class IngestPipeline {
  private:
   struct Decided;
   struct GridScan;
+  struct ScanJob;
+  struct ScanBatch;
+  using ScanJobPtr = std::shared_ptr<ScanJob>;
+  using ScanBatchPtr = std::shared_ptr<ScanBatch>;
   using DecidedPtr = std::shared_ptr<Decided>;
   using GridScanPtr = std::shared_ptr<GridScan>;
   struct TrimTick {
@@ -154,10 +163,15 @@ class IngestPipeline {
 
   // The stages, in a scan's order (ingest_pipeline.cpp).
   void decide_scan(pipeline::Activation& a, const std::string& port);
+  void decide_scan_batch(pipeline::Activation& a);
+  /// Decides one scan against the head map, which it becomes, and puts it in flight. @throw from its lines' decision
+  /// (nothing changed then).
+  DecidedPtr decide_scan_job(ScanJobPtr job, std::int64_t body_hash);
   void decide_primitives(pipeline::Activation& a);
   void decide_trim(pipeline::Activation& a);
   void commit_group(pipeline::Activation& a);
   void finish_committed(pipeline::Activation& a);
+  void finish_decided(pipeline::Activation& a, DecidedPtr d);
   void insert_grid_scans(pipeline::Activation& a, bool laser, bool sonar, std::int64_t extract_every);
   /// After a failed group commit: what was decided on top of it is dropped, the rules go back to the committed map.
   void resync_after_failure();

@@ -11,6 +11,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "apriori/floor_plan.h"
@@ -202,6 +203,14 @@ class IngestPort {
   /// as for post_primitives. @throw Busy, RequestIdConflict, storage::StorageError (nothing applied then).
   virtual ScanOutcome post_scan(world::ScanObservation scan, std::string payload_json,
                                 std::optional<std::string> request_id) = 0;
+  /// Applies the scans of one request body whole or not at all, in one transaction, and answers one outcome per scan
+  /// in order. `body` is hashed for the request ids: scan i is recorded under `<request_id>[i]`, and a retry of the
+  /// same body is answered scan by scan without being applied again. @throw as post_scan, for the whole batch.
+  virtual std::vector<ScanOutcome> post_scans(std::vector<world::ScanObservation> scans, std::string_view body,
+                                              std::optional<std::string> request_id) {
+    (void)scans, (void)body, (void)request_id;
+    throw Conflict("this service takes no batches of scans");
+  }
   /// Runs the grid line extractor on the Bayes layer and decides its segments like posted primitives.
   /// nullopt when the grid is empty or yields no line. @throw Busy, storage::StorageError.
   virtual std::optional<PrimitivesOutcome> extract_grid_lines() = 0;

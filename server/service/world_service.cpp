@@ -77,6 +77,11 @@ ScanOutcome WorldService::post_scan(world::ScanObservation scan, std::string pay
   return ingest_->post_scan(std::move(scan), std::move(payload_json), std::move(request_id));
 }
 
+std::vector<ScanOutcome> WorldService::post_scans(std::vector<world::ScanObservation> scans, std::string_view body,
+                                                  std::optional<std::string> request_id) {
+  return ingest_->post_scans(std::move(scans), body, std::move(request_id));
+}
+
 PrimitivesOutcome WorldService::post_primitives(world::Observation observation, std::string payload_json,
                                                 std::optional<std::string> request_id) {
   return ingest_->post_primitives(std::move(observation), std::move(payload_json), std::move(request_id));

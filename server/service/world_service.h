@@ -100,6 +100,10 @@ class WorldService final : public WorldPort {
   /// RequestIdConflict.
   ScanOutcome post_scan(world::ScanObservation scan, std::string payload_json,
                         std::optional<std::string> request_id) override;
+  /// A batch of scans: each as post_scan, all of them decided one after another and committed in one transaction
+  /// (one fsync); a failure applies none of them.
+  std::vector<ScanOutcome> post_scans(std::vector<world::ScanObservation> scans, std::string_view body,
+                                      std::optional<std::string> request_id) override;
   /// Replaces the floor plan (store and knowledge base facts). Returns the new map version.
   std::int64_t load_floor_plan(apriori::FloorPlan plan) override;
   PlacementOutcome place_floor_plan(world::PlacementChange change, std::string payload_json) override;
