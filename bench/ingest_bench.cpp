@@ -12,8 +12,14 @@
 // with PostgreSQL's own commit rate beside it (BM_PostgresCommit_1RowPerTxn: one scan body per transaction, libpq).
 // Maps: BM_IngestMaps feeds 1 or 4 maps of one wmd at once (4 robots each), and BM_IngestMapsBesideAHeldMap one
 // map while another map's writer is stuck on a write lock held from outside, against one map alone.
-// WM_BENCH_QUICK caps the log at 200 scans; WM_BENCH_LOG=FILE posts another CARMEN log's laser scans (the first
-// 2000).
+// Beams: BM_IngestBeams_<set> posts scans of more beams with 1 and 16 robots: CSAIL's 361-beam log, and a 1 081-beam
+// 270° scanner (0.25° apart, 20 m, σ 1 cm) ray-cast on a 40 Hz drive through two plans of different kinds, GDC1 and
+// the Open-RMF office (bench/support/dense_drive.h: the route is found in the plan, not drawn for it), against the
+// Intel log's 180 beams with 16 robots (scans/s; beams/s, p50/p99 answer times and wmd's CPU per beam as counters,
+// the CPU by thread and by network function on stderr). BM_IngestPaced40HzAmongFlooders_<plan>: one robot posts on
+// a 40 Hz schedule while 15 post as fast as they can; its answer times and the pace it kept.
+// WM_BENCH_QUICK caps the log at 200 scans and the dense drives at 160 scans, one plan, 16 robots, 20 paced scans;
+// WM_BENCH_LOG=FILE posts another CARMEN log's laser scans (the first 2000) in the Intel log's place.
 #include <benchmark/benchmark.h>
 #include <fcntl.h>
 #include <libpq-fe.h>
@@ -683,9 +689,21 @@ int main(int argc, char** argv) {
     sets = beam_sets(quick ? 160 : 1440, !quick);
     std::printf("ingest_bench: dense drives ray-cast in %.1f s:",
                 std::chrono::duration<double>(Clock::now() - start).count());
-    for (const auto& set : sets)
-      std::printf(" %s %zu scans of %zu beams;", set.name.c_str(), set.scans.size(),
-                  set.scans.empty() ? 0 : set.scans.front().scan.ranges_m.size());
+    for (const auto& set : sets) {
+      // How far the drive went and how many beams hit something: a drive stuck in a corner would show here.
+      double driven_m = 0, returns = 0;
+      for (std::size_t i = 0; i < set.scans.size(); ++i) {
+        const auto& scan = set.scans[i].scan;
+        if (i > 0) {
+          const auto& before = set.scans[i - 1].scan.sensor_pose;
+          driven_m += std::hypot(scan.sensor_pose.x_m - before.x_m, scan.sensor_pose.y_m - before.y_m);
+        }
+        for (double r : scan.ranges_m) returns += std::isfinite(r) && r < scan.range_max_m ? 1 : 0;
+      }
+      std::printf(" %s %zu scans of %zu beams, %.0f m, %.0f %% returns;", set.name.c_str(), set.scans.size(),
+                  set.scans.empty() ? 0 : set.scans.front().scan.ranges_m.size(), driven_m,
+                  100.0 * returns / static_cast<double>(std::max<std::size_t>(beams_of(set.scans), 1)));
+    }
     std::printf("\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "ingest_bench: %s\n", e.what());
