@@ -2,6 +2,9 @@
 // OctoMap inserting the same scans as point clouds and with a raw walk over the same beams' cells (the
 // memory-touch limit). Run: build/bin/grid_bench (after cmake -DWM_BUILD_BENCH=ON); another CARMEN log with
 // WM_GRID_BENCH_LOG=path. Each iteration builds a fresh map from all scans of the log (loaded once, before timing).
+// The same again for dense scans (".../dense"): 1 081 beams 0.25° apart over 270° (a SICK LMS1xx / Hokuyo UTM-class
+// lidar), ray-cast along GDC1's robot route inside its plan (tools/raycast, as wm-raycast-log does), where near the
+// sensor many beams cross each cell.
 #include <benchmark/benchmark.h>
 #include <octomap/octomap.h>
 
@@ -20,6 +23,7 @@
 #include "fusion/grid/laser_sonar_grids.h"
 #include "fusion/grid/occupancy_grid.h"
 #include "logs/carmen_log_reader.h"
+#include "tools/raycast/raycast.h"
 
 namespace {
 
@@ -41,6 +45,29 @@ const std::vector<LaserScan>& scans() {
   return all;
 }
 
+// 1 081 beams over 270° (0.25° apart) every 0.5 m along GDC1's route: the forward 270° of 1 440-beam 360° casts.
+const std::vector<LaserScan>& dense_scans() {
+  static const std::vector<LaserScan> all = [] {
+    const std::string plan = WM_SHARED_DATA_DIR "/amrl-vectormaps/GDC1.vectormap.json";
+    wm::raycast::DriveOptions drive;
+    drive.beams = 1440;
+    std::vector<LaserScan> out =
+        wm::raycast::simulate_scans(wm::raycast::read_vectormap(plan), wm::raycast::gdc1_route(), drive);
+    constexpr std::size_t kFirst = 180;  // -180° + 180 · 0.25° = -135°
+    constexpr std::size_t kBeams = 1081;
+    for (LaserScan& s : out) {
+      s.angle_min_rad += static_cast<double>(kFirst) * s.angle_increment_rad;
+      s.ranges_m = std::vector<double>(s.ranges_m.begin() + kFirst, s.ranges_m.begin() + kFirst + kBeams);
+    }
+    std::printf("%s: %zu ray-cast scans of %zu beams over 270 deg\n", plan.c_str(), out.size(), kBeams);
+    return out;
+  }();
+  return all;
+}
+
+// Which scans a benchmark inserts.
+using ScanSet = const std::vector<LaserScan>& (*)();
+
 GridOptions options(double beam_width_deg, bool bayes, bool ds) {
   GridOptions o;
   o.resolution_m = kResolutionM;
@@ -51,9 +78,9 @@ GridOptions options(double beam_width_deg, bool bayes, bool ds) {
 }
 
 // Cell visits of one pass over the log (the same for the raw walk and the grids).
-std::size_t cells_per_pass(const GridOptions& o) {
+std::size_t cells_per_pass(ScanSet set, const GridOptions& o) {
   std::size_t cells = 0;
-  for (const LaserScan& s : scans()) {
+  for (const LaserScan& s : set()) {
     for (std::size_t i = 0; i < s.ranges_m.size(); ++i) {
       if (const auto beam = wm::fusion::laser_beam(s, i, o.sensor)) {
         cells += wm::fusion::beam_cells(*beam, o.resolution_m).size();
@@ -63,20 +90,27 @@ std::size_t cells_per_pass(const GridOptions& o) {
   return cells;
 }
 
-void set_counters(benchmark::State& state, std::size_t cells) {
-  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * scans().size()));
-  state.counters["cells/s"] = benchmark::Counter(static_cast<double>(cells) * static_cast<double>(state.iterations()),
-                                                 benchmark::Counter::kIsRate);
+// items/s: scans/s; beams/s counts every reading (a scan's beams, whatever they read); cells/s the cell visits.
+void set_counters(benchmark::State& state, ScanSet set, std::size_t cells) {
+  const auto iterations = static_cast<double>(state.iterations());
+  std::size_t beams = 0;
+  for (const LaserScan& s : set()) beams += s.ranges_m.size();
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * set().size()));
+  state.counters["beams/s"] = benchmark::Counter(static_cast<double>(beams) * iterations, benchmark::Counter::kIsRate);
+  if (cells > 0) {
+    state.counters["cells/s"] =
+        benchmark::Counter(static_cast<double>(cells) * iterations, benchmark::Counter::kIsRate);
+  }
 }
 
-void bm_grid(benchmark::State& state, GridOptions o) {
-  const std::size_t cells = cells_per_pass(o);
+void bm_grid(benchmark::State& state, ScanSet set, GridOptions o) {
+  const std::size_t cells = cells_per_pass(set, o);
   for (auto _ : state) {
     wm::fusion::OccupancyGrid grid(o);
-    for (const LaserScan& s : scans()) grid.insert(s);
+    for (const LaserScan& s : set()) grid.insert(s);
     benchmark::DoNotOptimize(grid.log_odds({0, 0}));
   }
-  set_counters(state, cells);
+  set_counters(state, set, cells);
 }
 
 // A sonar ring beside each laser scan (the log has none): 16 transducers with 30° cones, each reading the laser's
@@ -131,11 +165,11 @@ void bm_laser_sonar(benchmark::State& state, bool gated) {
 // The raw baseline: the same walk over the same cells (same beams, same cone, same classification), each visit
 // only adding a constant to a float in one dense array covering the whole log — no tiles, no scan stamps, no
 // per-scan bookkeeping, no sensor model. What touching those cells costs at least.
-void bm_raw_walk(benchmark::State& state, GridOptions o) {
-  const std::size_t cells = cells_per_pass(o);
+void bm_raw_walk(benchmark::State& state, ScanSet set, GridOptions o) {
+  const std::size_t cells = cells_per_pass(set, o);
   // Dense bounds: every sensor position ± the walked distance.
   double x0 = std::numeric_limits<double>::max(), y0 = x0, x1 = -x0, y1 = -x0;
-  for (const LaserScan& s : scans()) {
+  for (const LaserScan& s : set()) {
     x0 = std::min(x0, s.sensor_pose.x_m);
     y0 = std::min(y0, s.sensor_pose.y_m);
     x1 = std::max(x1, s.sensor_pose.x_m);
@@ -148,7 +182,7 @@ void bm_raw_walk(benchmark::State& state, GridOptions o) {
   const auto height = static_cast<std::int64_t>(std::ceil((y1 + margin) / kResolutionM)) - cy0;
   for (auto _ : state) {
     std::vector<float> grid(static_cast<std::size_t>(width * height), 0.f);
-    for (const LaserScan& s : scans()) {
+    for (const LaserScan& s : set()) {
       for (std::size_t i = 0; i < s.ranges_m.size(); ++i) {
         const auto beam = wm::fusion::laser_beam(s, i, o.sensor);
         if (!beam) continue;
@@ -162,16 +196,16 @@ void bm_raw_walk(benchmark::State& state, GridOptions o) {
     }
     benchmark::DoNotOptimize(grid.data());
   }
-  set_counters(state, cells);
+  set_counters(state, set, cells);
 }
 
 // OctoMap 1.9 at the same resolution: each scan as a point cloud in the z = 0 plane, inserted from the sensor
 // origin with maxrange = the grids' usable range (beyond it: free up to maxrange, no hit — the grids' rule).
 // "No return" readings become far points, so they clear up to maxrange as in the grids.
-void bm_octomap(benchmark::State& state) {
+void bm_octomap(benchmark::State& state, ScanSet set) {
   const GridOptions o = options(0.0, true, false);
   std::vector<std::pair<octomap::point3d, octomap::Pointcloud>> clouds;
-  for (const LaserScan& s : scans()) {
+  for (const LaserScan& s : set()) {
     octomap::Pointcloud cloud;
     for (std::size_t i = 0; i < s.ranges_m.size(); ++i) {
       const double r = s.ranges_m[i];
@@ -190,8 +224,7 @@ void bm_octomap(benchmark::State& state) {
     for (const auto& [origin, cloud] : clouds) tree.insertPointCloud(cloud, origin, o.sensor.max_usable_range_m);
     benchmark::DoNotOptimize(tree.size());
   }
-  set_counters(state, 0);
-  state.counters.erase("cells/s");
+  set_counters(state, set, 0);
 }
 
 }  // namespace
@@ -200,41 +233,52 @@ int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   scans();  // load before timing
-  for (const double width : {2.0, 0.0}) {
-    const std::string w = width > 0.0 ? "/2deg" : "/thin";
-    benchmark::RegisterBenchmark(("raw_walk" + w).c_str(), bm_raw_walk, options(width, true, false))
-        ->Unit(benchmark::kMillisecond);
-    benchmark::RegisterBenchmark(("bayes" + w).c_str(), bm_grid, options(width, true, false))
-        ->Unit(benchmark::kMillisecond);
-    benchmark::RegisterBenchmark(("ds" + w).c_str(), bm_grid, options(width, false, true))
-        ->Unit(benchmark::kMillisecond);
-    benchmark::RegisterBenchmark(("bayes+ds" + w).c_str(), bm_grid, options(width, true, true))
-        ->Unit(benchmark::kMillisecond);
+  dense_scans();
+  for (const auto& [set, suffix] : {std::pair<ScanSet, std::string>{scans, ""}, {dense_scans, "/dense"}}) {
+    for (const double width : {2.0, 0.0}) {
+      const std::string w = (width > 0.0 ? "/2deg" : "/thin") + suffix;
+      benchmark::RegisterBenchmark(("raw_walk" + w).c_str(), bm_raw_walk, set, options(width, true, false))
+          ->Unit(benchmark::kMillisecond);
+      benchmark::RegisterBenchmark(("bayes" + w).c_str(), bm_grid, set, options(width, true, false))
+          ->Unit(benchmark::kMillisecond);
+      benchmark::RegisterBenchmark(("ds" + w).c_str(), bm_grid, set, options(width, false, true))
+          ->Unit(benchmark::kMillisecond);
+      benchmark::RegisterBenchmark(("bayes+ds" + w).c_str(), bm_grid, set, options(width, true, true))
+          ->Unit(benchmark::kMillisecond);
+    }
+    benchmark::RegisterBenchmark(("octomap" + suffix).c_str(), bm_octomap, set)->Unit(benchmark::kMillisecond);
   }
-  benchmark::RegisterBenchmark("octomap", bm_octomap)->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("laser+sonar_ungated", bm_laser_sonar, false)->Unit(benchmark::kMillisecond);
   benchmark::RegisterBenchmark("laser+sonar_gated", bm_laser_sonar, true)->Unit(benchmark::kMillisecond);
 
+  // A baseline with a suffix is compared only with the benchmarks of that suffix (the dense ones with each other).
   wm::bench::RatioReporter reporter({{"vs OctoMap", "octomap"},
                                      {"vs raw walk (2deg)", "raw_walk/2deg"},
                                      {"vs Bayes (2deg)", "bayes/2deg"},
+                                     {"vs OctoMap (dense scans)", "octomap/dense"},
+                                     {"vs raw walk (2deg, dense scans)", "raw_walk/2deg/dense"},
+                                     {"vs Bayes (2deg, dense scans)", "bayes/2deg/dense"},
                                      {"vs laser+sonar ungated", "laser+sonar_ungated"}});
   benchmark::RunSpecifiedBenchmarks(&reporter);
   benchmark::Shutdown();
 
   // The targets, measured in this run.
-  const auto ratio = [&](const char* a, const char* b) {
+  const auto ratio = [&](const std::string& a, const std::string& b) {
     const double rb = reporter.rate(b);
     return rb > 0.0 ? reporter.rate(a) / rb : 0.0;
   };
   std::printf("\nTargets, scans/s ratios of this run:\n");
-  for (const char* w : {"/2deg", "/thin"}) {
-    const std::string bayes = std::string("bayes") + w, raw = std::string("raw_walk") + w, ds = std::string("ds") + w;
-    std::printf("  %-6s Bayes / OctoMap  = %7.2f  (target >= 30)\n", w + 1, ratio(bayes.c_str(), "octomap"));
-    std::printf("  %-6s Bayes / raw walk = %7.2f  (target >= 0.5, i.e. within 2x)\n", w + 1,
-                ratio(bayes.c_str(), raw.c_str()));
-    std::printf("  %-6s DS / Bayes       = %7.2f  (target >= 0.5, i.e. within 2x)\n", w + 1,
-                ratio(ds.c_str(), bayes.c_str()));
+  for (const std::string suffix : {"", "/dense"}) {
+    for (const char* width : {"/2deg", "/thin"}) {
+      const std::string w = width + suffix;
+      const std::string label = (width + 1) + (suffix.empty() ? std::string(" Intel") : std::string(" dense"));
+      std::printf("  %-11s Bayes / OctoMap  = %7.2f  (target >= 30)\n", label.c_str(),
+                  ratio("bayes" + w, "octomap" + suffix));
+      std::printf("  %-11s Bayes / raw walk = %7.2f  (target >= 0.5, i.e. within 2x)\n", label.c_str(),
+                  ratio("bayes" + w, "raw_walk" + w));
+      std::printf("  %-11s DS / Bayes       = %7.2f  (target >= 0.5, i.e. within 2x)\n", label.c_str(),
+                  ratio("ds" + w, "bayes" + w));
+    }
   }
   return 0;
 }

@@ -12,38 +12,51 @@
 
 namespace wm::fusion {
 
-/// Array of structures per model: one visit touches one cell record of each enabled model (one cache line), and a
-/// cell's record carries what the at-most-once-per-scan rule needs, so a scan is applied in a single pass with no
-/// list of touched cells and no second sweep.
-struct OccupancyGrid::BayesCell {
-  std::uint32_t stamp = 0;  // == the grid's stamp_: this scan already updated the cell
-  float log_odds = 0.f;
-  float before = 0.f;     // log-odds before this scan
-  float increment = 0.f;  // the scan's strongest hit, else its strongest miss
-};
-
+/// The DS layers of a cell: m(O), m(E) and the conflict layer, together because an update reads and writes all three.
 struct OccupancyGrid::DsCell {
-  std::uint32_t stamp = 0;
-  float o = 0.f, e = 0.f, k = 0.f;                       // the map: m(O), m(E), conflict layer
-  float before_o = 0.f, before_e = 0.f, before_k = 0.f;  // the map before this scan
-  float scan_o = 0.f, scan_e = 0.f;                      // this scan's beams, combined so far
+  float o = 0.f, e = 0.f, k = 0.f;
 };
 
+/// Only map values: what a scan needs to update each cell once lives in ScanScratch, so an update touches 4 bytes
+/// (Bayes) or 12 bytes (DS) of the map per cell, once per scan.
 struct OccupancyGrid::Tile {
-  Tile(TileIndex i, std::size_t n) : index(i), bayes(n), ds(n) {}
+  Tile(TileIndex i, std::size_t n) : index(i), log_odds(n), ds(n) {}
 
   TileIndex index;
-  std::vector<BayesCell> bayes;
+  std::vector<float> log_odds;
   std::vector<DsCell> ds;
   std::uint32_t stamp = 0;     // last scan that touched the tile
+  std::uint32_t scratch = 0;   // its ScanScratch in that scan (valid while stamp == the grid's stamp_)
   std::uint64_t revision = 0;  // inserts and restores that changed it (never reset, unlike the stamp)
   bool dirty = false;
+};
+
+/// One touched tile's evidence during a scan, beside the map: which cells the scan reached (a bitmap) and, for those
+/// only, the strongest Bayes increment and the beams' DS masses combined so far. Reused from scan to scan; the
+/// value arrays are never cleared (a cell's entry is written by the first beam to reach it, as its bit is set), the
+/// bitmap is cleared as the scan is applied.
+struct OccupancyGrid::ScanScratch {
+  struct Masses {
+    double o, e;
+  };
+  ScanScratch(std::size_t n, bool bayes, bool ds)
+      : touched((n + 63) / 64),
+        increment(bayes ? new float[n] : nullptr),  // uninitialised on purpose: read only where touched
+        masses(ds ? new Masses[n] : nullptr) {}
+
+  Tile* tile = nullptr;
+  std::vector<std::uint64_t> touched;
+  std::unique_ptr<float[]> increment;  // the scan's strongest hit, else its strongest miss [log-odds]
+  std::unique_ptr<Masses[]> masses;    // the scan's beams, combined with Dempster's rule
 };
 
 namespace {
 
 constexpr double kMaxSensorCoordinateM = 1e7;  // 10'000 km: keeps every cell index far from int64 overflow
 constexpr double kTotalConflict = 1.0 - 1e-12;
+// Scratch kept between scans: enough for the tiles a long-range laser scan touches at the default tile size; a scan
+// that touches more allocates the rest and gives it back when applied.
+constexpr std::size_t kKeptScratch = 64;
 
 // Dempster's rule without validation, for the update loop; false on total conflict (o, e untouched).
 inline bool combine(double& o, double& e, double& k, double bo, double be) {
@@ -91,7 +104,9 @@ OccupancyGrid::OccupancyGrid(OccupancyGrid&& other) noexcept
       tile_bounds_(std::exchange(other.tile_bounds_, std::nullopt)),
       cache_(std::exchange(other.cache_, {})),
       stamp_(other.stamp_),
-      dirty_(std::move(other.dirty_)) {
+      dirty_(std::move(other.dirty_)),
+      scratch_(std::move(other.scratch_)),
+      scratch_used_(std::exchange(other.scratch_used_, 0)) {
   other.tiles_.clear();
   other.dirty_.clear();
 }
@@ -106,6 +121,8 @@ OccupancyGrid& OccupancyGrid::operator=(OccupancyGrid&& other) noexcept {
     cache_ = std::exchange(other.cache_, {});
     stamp_ = other.stamp_;
     dirty_ = std::move(other.dirty_);
+    scratch_ = std::move(other.scratch_);
+    scratch_used_ = std::exchange(other.scratch_used_, 0);
     other.tiles_.clear();
     other.dirty_.clear();
   }
@@ -179,13 +196,14 @@ void OccupancyGrid::insert_scan(const ScanT& scan, std::size_t beams, const Make
 
   if (++stamp_ == 0) {
     // 2^32 scans later: forget the old stamps rather than mistake one for the current scan.
-    for (auto& [index, tile] : tiles_) {
-      tile->stamp = 0;
-      for (BayesCell& c : tile->bayes) c.stamp = 0;
-      for (DsCell& c : tile->ds) c.stamp = 0;
-    }
+    for (auto& [index, tile] : tiles_) tile->stamp = 0;
     stamp_ = 1;
   }
+  // A scan cut short by an exception (allocation) left bits behind: clear them, so this scan starts from none.
+  for (std::size_t i = 0; i < scratch_used_; ++i) {
+    std::fill(scratch_[i]->touched.begin(), scratch_[i]->touched.end(), 0);
+  }
+  scratch_used_ = 0;
   double cos_half = 1.0, sin_half = 0.0, half = -1.0;
   for (std::size_t i = 0; i < beams; ++i) {
     const std::optional<Beam> beam = make_beam(i);
@@ -197,6 +215,7 @@ void OccupancyGrid::insert_scan(const ScanT& scan, std::size_t beams, const Make
     }
     walk(internal::prepare(*beam, options_.resolution_m, cos_half, sin_half));
   }
+  apply_scan();
 }
 
 void OccupancyGrid::check_growth(std::int64_t tx0, std::int64_t ty0, std::int64_t tx1, std::int64_t ty1) const {
@@ -232,34 +251,45 @@ OccupancyGrid::Tile* OccupancyGrid::tile_for_write(std::int64_t tx, std::int64_t
   return slot.tile;
 }
 
+OccupancyGrid::ScanScratch& OccupancyGrid::scratch_for(Tile& tile) {
+  if (tile.stamp != stamp_) {
+    tile.stamp = stamp_;
+    ++tile.revision;
+    if (!tile.dirty) {
+      tile.dirty = true;
+      dirty_.push_back(tile.index);
+    }
+    if (scratch_used_ == scratch_.size()) {
+      const auto n = static_cast<std::size_t>(options_.tile_size_cells * options_.tile_size_cells);
+      scratch_.push_back(std::make_unique<ScanScratch>(n, options_.update_bayes, options_.update_ds));
+    }
+    tile.scratch = static_cast<std::uint32_t>(scratch_used_);
+    scratch_[scratch_used_++]->tile = &tile;
+  }
+  return *scratch_[tile.scratch];
+}
+
 void OccupancyGrid::walk(const internal::PreparedBeam& b) {
   const bool bayes = options_.update_bayes;
   const bool ds = options_.update_ds;
-  const auto lo = static_cast<float>(options_.log_odds_min);
-  const auto hi = static_cast<float>(options_.log_odds_max);
-  const double known_max = 1.0 - options_.ds_unknown_min;
   // The current tile along the beam: consecutive cells almost always share it.
   std::int64_t cur_x = std::numeric_limits<std::int64_t>::min();
   std::int64_t cur_y = 0;
-  Tile* tile = nullptr;
+  ScanScratch* s = nullptr;
 
   internal::for_each_beam_cell(b, [&](std::int64_t x, std::int64_t y, double d2, internal::CellClass cls) {
     const std::int64_t tx = x >> shift_;
     const std::int64_t ty = y >> shift_;
-    if (tx != cur_x || ty != cur_y || tile == nullptr) {
-      tile = tile_for_write(tx, ty);
+    if (tx != cur_x || ty != cur_y || s == nullptr) {
+      s = &scratch_for(*tile_for_write(tx, ty));
       cur_x = tx;
       cur_y = ty;
-      if (tile->stamp != stamp_) {
-        tile->stamp = stamp_;
-        ++tile->revision;
-        if (!tile->dirty) {
-          tile->dirty = true;
-          dirty_.push_back(tile->index);
-        }
-      }
     }
     const auto idx = static_cast<std::size_t>(((y & mask_) << shift_) | (x & mask_));
+    std::uint64_t& word = s->touched[idx >> 6];
+    const std::uint64_t bit = std::uint64_t{1} << (idx & 63);
+    const bool first = (word & bit) == 0;
+    word |= bit;
     const bool hit = cls == internal::CellClass::hit;
 
     // Range factor and angular weight only where they can differ from (0, 1): hits, and free cells just in front
@@ -276,60 +306,72 @@ void OccupancyGrid::walk(const internal::PreparedBeam& b) {
     }
 
     if (bayes) {
-      BayesCell& c = tile->bayes[idx];
+      float& increment = s->increment[idx];
       const auto v = static_cast<float>(w * (hit ? internal::bayes_hit_log_odds(b, g) : b.log_odds_miss));
-      if (c.stamp != stamp_) {
-        c.stamp = stamp_;
-        c.before = c.log_odds;
-        c.increment = v;
-        c.log_odds = std::clamp(c.before + v, lo, hi);
-      } else if ((v > 0.f || c.increment > 0.f) ? v > c.increment : v < c.increment) {
-        // The strongest hit if any beam hit the cell, else the strongest miss.
-        c.increment = v;
-        c.log_odds = std::clamp(c.before + v, lo, hi);
-      }
+      // The strongest hit if any beam hit the cell, else the strongest miss.
+      if (first || ((v > 0.f || increment > 0.f) ? v > increment : v < increment)) increment = v;
     }
     if (ds) {
-      DsCell& c = tile->ds[idx];
+      ScanScratch::Masses& scan = s->masses[idx];
       const internal::CellMasses m =
           hit || g > 0.0 ? internal::ds_masses(b, g, d, w) : internal::CellMasses{0.0, w * b.k};
-      double so = m.occupied;
-      double se = m.empty;
-      if (c.stamp != stamp_) {
-        c.stamp = stamp_;
-        c.before_o = c.o;
-        c.before_e = c.e;
-        c.before_k = c.k;
+      if (first) {
+        scan = {m.occupied, m.empty};
       } else {
-        so = c.scan_o;
-        se = c.scan_e;
+        // Between beams the scan's masses are carried at the map's float precision; the last combination is kept
+        // whole for the map. Beam masses are never certain (validated options), so a total conflict between
+        // beams is only float rounding: keep what the scan had.
+        double so = static_cast<float>(scan.o);
+        double se = static_cast<float>(scan.e);
         double k = 0.0;
-        // Beam masses are never certain (validated options), so a total conflict between beams is only float
-        // rounding: keep what the scan had.
         combine(so, se, k, m.occupied, m.empty);
+        scan = {so, se};
       }
-      c.scan_o = static_cast<float>(so);
-      c.scan_e = static_cast<float>(se);
-      // The scan so far, combined into the map as it was before the scan.
-      double o = c.before_o;
-      double e = c.before_e;
-      double k = 1.0;
-      if (combine(o, e, k, so, se)) {
-        if (o + e > known_max) {
-          const double scale = known_max / (o + e);
-          o *= scale;
-          e *= scale;
-        }
-        c.o = static_cast<float>(o);
-        c.e = static_cast<float>(e);
-      } else {
-        k = 1.0;
-        c.o = c.before_o;
-        c.e = c.before_e;
-      }
-      c.k = std::max(c.before_k, static_cast<float>(k));
     }
   });
+}
+
+void OccupancyGrid::apply_scan() {
+  const bool bayes = options_.update_bayes;
+  const bool ds = options_.update_ds;
+  const auto lo = static_cast<float>(options_.log_odds_min);
+  const auto hi = static_cast<float>(options_.log_odds_max);
+  const double known_max = 1.0 - options_.ds_unknown_min;
+  for (std::size_t t = 0; t < scratch_used_; ++t) {
+    ScanScratch& s = *scratch_[t];
+    Tile& tile = *s.tile;
+    // In cell order: the tile's cells are read and written front to back, each once.
+    for (std::size_t w = 0; w < s.touched.size(); ++w) {
+      std::uint64_t bits = s.touched[w];
+      if (bits == 0) continue;
+      s.touched[w] = 0;
+      for (; bits != 0; bits &= bits - 1) {
+        const std::size_t i = w * 64 + static_cast<std::size_t>(std::countr_zero(bits));
+        if (bayes) tile.log_odds[i] = std::clamp(tile.log_odds[i] + s.increment[i], lo, hi);
+        if (ds) {
+          // The scan's beams combined into the map cell with Dempster's rule, then discounted to m(Θ) >= the floor.
+          DsCell& c = tile.ds[i];
+          double o = c.o;
+          double e = c.e;
+          double k = 1.0;
+          if (combine(o, e, k, s.masses[i].o, s.masses[i].e)) {
+            if (o + e > known_max) {
+              const double scale = known_max / (o + e);
+              o *= scale;
+              e *= scale;
+            }
+            c.o = static_cast<float>(o);
+            c.e = static_cast<float>(e);
+          } else {
+            k = 1.0;  // total conflict: the cell keeps its masses
+          }
+          c.k = std::max(c.k, static_cast<float>(k));
+        }
+      }
+    }
+  }
+  scratch_used_ = 0;
+  if (scratch_.size() > kKeptScratch) scratch_.resize(kKeptScratch);
 }
 
 std::optional<GridGeometry> OccupancyGrid::bounds() const {
@@ -357,7 +399,7 @@ std::pair<const OccupancyGrid::Tile*, std::size_t> OccupancyGrid::locate(CellInd
 
 double OccupancyGrid::log_odds(CellIndex c) const {
   const auto [tile, i] = locate(c);
-  return tile == nullptr ? 0.0 : tile->bayes[i].log_odds;
+  return tile == nullptr ? 0.0 : tile->log_odds[i];
 }
 
 double OccupancyGrid::CellReader::log_odds(CellIndex c) {
@@ -371,8 +413,7 @@ double OccupancyGrid::CellReader::log_odds(CellIndex c) {
   }
   return tile_ == nullptr
              ? 0.0
-             : tile_->bayes[static_cast<std::size_t>(((c.y & grid_.mask_) << grid_.shift_) | (c.x & grid_.mask_))]
-                   .log_odds;
+             : tile_->log_odds[static_cast<std::size_t>(((c.y & grid_.mask_) << grid_.shift_) | (c.x & grid_.mask_))];
 }
 
 double OccupancyGrid::probability(CellIndex c) const { return 1.0 - 1.0 / (1.0 + std::exp(log_odds(c))); }
@@ -405,10 +446,10 @@ std::vector<TileIndex> OccupancyGrid::take_dirty_tiles() {
 std::optional<OccupancyGrid::TileData> OccupancyGrid::tile(TileIndex t) const {
   const Tile* tile = find_tile(t.x, t.y);
   if (tile == nullptr) return std::nullopt;
-  const std::size_t n = tile->bayes.size();
+  const std::size_t n = tile->log_odds.size();
   TileData data{std::vector<float>(n), std::vector<float>(n), std::vector<float>(n), std::vector<float>(n)};
   for (std::size_t i = 0; i < n; ++i) {
-    data.log_odds[i] = tile->bayes[i].log_odds;
+    data.log_odds[i] = tile->log_odds[i];
     data.m_occupied[i] = tile->ds[i].o;
     data.m_empty[i] = tile->ds[i].e;
     data.conflict[i] = tile->ds[i].k;
@@ -441,7 +482,7 @@ void OccupancyGrid::set_tile(TileIndex t, TileData data) {
   const float lo = static_cast<float>(options_.log_odds_min);
   const float hi = static_cast<float>(options_.log_odds_max);
   for (std::size_t i = 0; i < n; ++i) {
-    tile->bayes[i].log_odds = std::clamp(data.log_odds[i], lo, hi);
+    tile->log_odds[i] = std::clamp(data.log_odds[i], lo, hi);
     tile->ds[i].o = data.m_occupied[i];
     tile->ds[i].e = data.m_empty[i];
     tile->ds[i].k = data.conflict[i];
@@ -517,7 +558,7 @@ std::vector<float> OccupancyGrid::export_tile_layers(TileIndex t) const {
   float* const plausibility = belief + n;
   float* const conflict = plausibility + n;
   for (std::size_t i = 0; i < n; ++i) {
-    const float l = tile->bayes[i].log_odds;
+    const float l = tile->log_odds[i];
     if (l != 0.f) probability[i] = 1.f - 1.f / (1.f + std::exp(l));
     const DsCell& c = tile->ds[i];
     if (c.o != 0.f || c.e != 0.f) {
@@ -535,7 +576,7 @@ float OccupancyGrid::layer_value(const Tile& tile, std::size_t i, Layer layer) {
   const bool ds_unknown = o == 0.f && e == 0.f;
   switch (layer) {
     case Layer::bayes_probability:
-      if (tile.bayes[i].log_odds != 0.f) return 1.f - 1.f / (1.f + std::exp(tile.bayes[i].log_odds));
+      if (tile.log_odds[i] != 0.f) return 1.f - 1.f / (1.f + std::exp(tile.log_odds[i]));
       break;
     case Layer::ds_belief:
       if (!ds_unknown) return o;

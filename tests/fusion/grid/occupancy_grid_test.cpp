@@ -129,6 +129,60 @@ TEST(OccupancyGridTest, HitWinsOverMissInSameScan) {
   }
 }
 
+TEST(OccupancyGridTest, ManyBeamsThroughOneCellUpdateItOncePerScan) {
+  // 200 beams 0.001° apart share their cells for many metres: each cell is freed (or hit) once per scan.
+  GridOptions o = thin_options();
+  o.ds_unknown_min = 0.0;
+  OccupancyGrid grid(o);
+  const LaserScan s = scan_at({0.025, 0.025, 0.0}, std::vector<double>(200, 1.01), 0.0, 0.001 * kDeg);
+  grid.insert(s);
+  EXPECT_NEAR(grid.log_odds({5, 0}), logit(0.4), 1e-6);
+  EXPECT_NEAR(grid.log_odds({20, 0}), logit(0.7), 1e-6);
+  // DS: a scan's free opinions (0, 0.9) of a cell are combined with each other first, then into the cell once:
+  // n of them give m(E) = 1 − 0.1ⁿ (no mass on O, so no conflict), here with three beams.
+  OccupancyGrid three(o);
+  three.insert(scan_at({0.025, 0.025, 0.0}, {1.01, 1.01, 1.01}, 0.0, 0.001 * kDeg));
+  expect_masses(three.masses({5, 0}), 0.0, 0.999);
+  grid.insert(s);
+  EXPECT_NEAR(grid.log_odds({5, 0}), 2 * logit(0.4), 1e-5);
+  EXPECT_NEAR(grid.log_odds({20, 0}), 2 * logit(0.7), 1e-5);
+}
+
+TEST(OccupancyGridTest, TheTileSizeDoesNotChangeTheCells) {
+  // Tiles of 4 cells: one scan touches hundreds of them (more than the grid keeps scratch for between scans).
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> range(0.5, 12.0);
+  std::vector<LaserScan> scans;
+  for (int k = 0; k < 6; ++k) {
+    std::vector<double> ranges(361);
+    for (double& r : ranges) r = range(rng);
+    scans.push_back(scan_at({0.3 * k, -0.2 * k, 0.1 * k}, ranges, -std::numbers::pi, kDeg));
+  }
+  GridOptions small;
+  small.tile_size_cells = 4;
+  OccupancyGrid a(small);
+  OccupancyGrid b{GridOptions{}};
+  for (const LaserScan& s : scans) {
+    a.insert(s);
+    b.insert(s);
+  }
+  EXPECT_GT(a.tiles().size(), 1000u);
+  const GridGeometry region = *b.bounds();
+  for (const auto layer : {OccupancyGrid::Layer::bayes_probability, OccupancyGrid::Layer::ds_belief,
+                           OccupancyGrid::Layer::ds_plausibility, OccupancyGrid::Layer::ds_conflict}) {
+    const std::vector<float> va = a.export_layer(layer, region);
+    const std::vector<float> vb = b.export_layer(layer, region);
+    ASSERT_EQ(va.size(), vb.size());
+    std::size_t known = 0, differ = 0;
+    for (std::size_t i = 0; i < va.size(); ++i) {
+      if (std::isnan(va[i]) != std::isnan(vb[i]) || (!std::isnan(va[i]) && va[i] != vb[i])) ++differ;
+      if (!std::isnan(vb[i])) ++known;
+    }
+    EXPECT_EQ(differ, 0u);
+    EXPECT_GT(known, 10000u);
+  }
+}
+
 TEST(OccupancyGridTest, RepeatedScansAccumulateAndClamp) {
   GridOptions o = thin_options();
   OccupancyGrid grid(o);
