@@ -2,8 +2,12 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
+#include <mutex>
 #include <string>
+#include <thread>
 
 #include "fusion/registration/plan_registration_internal.h"
 
@@ -40,6 +44,9 @@ void validate(const std::vector<DrawnEdge>& edges, const ObservedMap& observed, 
     throw RegistrationError("scale: expected 0 < min <= max");
   for (const double s : o.scale_candidates)
     if (!positive(s)) throw RegistrationError("scale candidates: expected positive numbers");
+  if (!(o.min_search_score >= 0 && o.min_search_score <= 1))
+    throw RegistrationError("min_search_score: expected a number in [0, 1]");
+  if (o.threads < 1 || o.threads > 256) throw RegistrationError("threads: expected 1 to 256");
   if (!positive(o.search_cell_m)) throw RegistrationError("search_cell_m: expected a positive number");
   if (!std::isfinite(o.initial.x_m) || !std::isfinite(o.initial.y_m) || !std::isfinite(o.initial.theta_rad) ||
       !positive(o.initial.scale))
@@ -128,8 +135,56 @@ struct Candidate {
   std::size_t rotation = 0;
   std::int64_t ox = 0, oy = 0;
   float score = 0;
+  std::size_t root = 0;  // position of the root window it lies in, in the order the roots are handed out
 };
 
+// The order of the roots: the higher score, then the lower rotation index, row and column.
+bool root_before(const Candidate& a, const Candidate& b) {
+  if (a.score != b.score) return a.score > b.score;
+  if (a.rotation != b.rotation) return a.rotation < b.rotation;
+  if (a.oy != b.oy) return a.oy < b.oy;
+  return a.ox < b.ox;
+}
+
+// The order that makes the answer the same whatever the number of threads and whichever thread finds what first:
+// the higher score, then the earlier root, the lower row and column. Ranking ties by root means that a tie in a root
+// handed out after the best leaf's is pruned at once (a plan that fits exactly scores 1 in many coarse windows).
+bool ranks_before(const Candidate& a, const Candidate& b) {
+  if (a.score != b.score) return a.score > b.score;
+  if (a.root != b.root) return a.root < b.root;
+  if (a.oy != b.oy) return a.oy < b.oy;
+  return a.ox < b.ox;
+}
+
+// What score() answers for a window that cannot reach the bar it was scored against (below every real score).
+constexpr float kDropped = -1.0f;
+
+// Runs body(0) on the calling thread and body(1 .. n-1) on threads of their own, and rethrows the first exception
+// any of them threw once all have ended (an exception must not end the process from a worker).
+template <class Body>
+void on_threads(std::size_t n, const Body& body) {
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  const auto guarded = [&](std::size_t t) {
+    try {
+      body(t);
+    } catch (...) {
+      const std::lock_guard lock(error_mutex);
+      if (!error) error = std::current_exception();
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    for (std::size_t t = 1; t < n; ++t) pool.emplace_back(guarded, t);
+    guarded(0);
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+// Branch and bound over (rotation, window) on `threads` threads. Roots are scored for every rotation, sorted, and
+// handed out best first; every thread prunes with the best leaf any of them has found. A window whose bound equals
+// that leaf's score is kept only when its first leaf (its root, lowest row and column) ranks before that leaf, so the
+// answer is the first leaf in ranks_before order whatever the threads did in which order.
 class Search {
  public:
   Search(const std::vector<Eigen::Vector2d>& samples, const Eigen::Vector2d& centroid_drawn,
@@ -142,41 +197,65 @@ class Search {
         rotations_(std::move(rotations)),
         window_(window),
         options_(options),
-        deadline_(deadline) {}
+        deadline_(deadline),
+        threads_(std::max<std::size_t>(1, std::min<std::size_t>(options.threads, rotations_.size()))) {}
 
-  // The best leaf scoring above `floor`; leaves within the separation of `excluded` are passed over.
+  // The first leaf in ranks_before order among those scoring above `floor`; leaves within the separation of
+  // `excluded` are passed over. A window whose bound does not exceed `floor` is dropped with all it holds.
   std::optional<Candidate> run(float floor, const std::optional<Candidate>& excluded, double progress_from,
                                double progress_to) {
     excluded_ = excluded;
+    floor_ = floor;
+    best_score_.store(floor);
     best_.reset();
-    best_score_ = floor;
-    std::vector<Candidate> roots;
+    std::vector<Worker> workers(threads_);
     const std::int64_t step = std::int64_t{1} << kLevels;
-    std::vector<Eigen::Vector2i> points;
-    for (std::size_t r = 0; r < rotations_.size(); ++r) {
-      discretize(r, points);
-      for (std::int64_t oy = -window_; oy <= window_; oy += step)
-        for (std::int64_t ox = -window_; ox <= window_; ox += step)
-          roots.push_back({r, ox, oy, score(points, ox, oy, kLevels)});
-      // The clock is read after every rotation's roots (at most kMaxRoots in all, bounded before the search).
-      if (timed_out_ || std::chrono::steady_clock::now() > deadline_) {
-        timed_out_ = true;
-        return best_;
+
+    // Roots, one rotation at a time per thread, kept per rotation so that their order does not depend on the threads.
+    std::vector<std::vector<Candidate>> roots_of(rotations_.size());
+    std::atomic<std::size_t> next_rotation{0};
+    on_threads(threads_, [&](std::size_t t) {
+      Worker& w = workers[t];
+      for (std::size_t r; (r = next_rotation.fetch_add(1)) < rotations_.size();) {
+        discretize(r, w.points);
+        for (std::int64_t oy = -window_; oy <= window_; oy += step)
+          for (std::int64_t ox = -window_; ox <= window_; ox += step)
+            if (const float s = score(w, ox, oy, kLevels); s != kDropped) roots_of[r].push_back({r, ox, oy, s, 0});
+        // The clock is read after every rotation's roots (at most kMaxRoots in all, bounded before the search).
+        if (timed_out_.load() || std::chrono::steady_clock::now() > deadline_) {
+          timed_out_ = true;
+          return;
+        }
       }
-    }
-    std::sort(roots.begin(), roots.end(), [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
-    for (std::size_t i = 0; i < roots.size(); ++i) {
-      if (roots[i].score <= best_score_) break;
-      if (i % 64 == 0 && options_.progress &&
-          !options_.progress(progress_from + (progress_to - progress_from) * static_cast<double>(i) /
-                                                 static_cast<double>(roots.size()))) {
-        cancelled_ = true;
-        return best_;
+    });
+    for (const auto& w : workers) scored_ += w.scored;
+    if (timed_out_) return std::nullopt;
+    std::vector<Candidate> roots;
+    for (auto& of : roots_of) roots.insert(roots.end(), of.begin(), of.end());
+    roots_of = {};
+    std::sort(roots.begin(), roots.end(), root_before);
+    for (std::size_t i = 0; i < roots.size(); ++i) roots[i].root = i;
+
+    std::atomic<std::size_t> next_root{0};
+    std::mutex progress_mutex;
+    for (auto& w : workers) w.scored = 0;
+    on_threads(threads_, [&](std::size_t t) {
+      Worker& w = workers[t];
+      for (std::size_t i; (i = next_root.fetch_add(1)) < roots.size();) {
+        // Sorted: once a root is pruned, so is every one after it.
+        if (pruned(roots[i]) || stopped(w)) return;
+        if (i % 64 == 0 && options_.progress) {
+          const std::lock_guard lock(progress_mutex);
+          if (!cancelled_ && !options_.progress(progress_from + (progress_to - progress_from) * static_cast<double>(i) /
+                                                                    static_cast<double>(roots.size())))
+            cancelled_ = true;
+          if (cancelled_) return;
+        }
+        discretize(roots[i].rotation, w.points);
+        expand(roots[i], kLevels, w);
       }
-      discretize(roots[i].rotation, points);
-      expand(roots[i], kLevels, points);
-      if (stopped()) break;
-    }
+    });
+    for (const auto& w : workers) scored_ += w.scored;
     return best_;
   }
 
@@ -188,12 +267,17 @@ class Search {
     return {t.x(), t.y(), r.theta, r.scale};
   }
 
-  float best_score() const { return best_score_; }
   std::size_t scored() const { return scored_; }
   bool timed_out() const { return timed_out_; }
   bool cancelled() const { return cancelled_; }
 
  private:
+  // What one thread holds: its counters and the samples of the rotation it works on.
+  struct Worker {
+    std::size_t scored = 0, checks = 0;
+    std::vector<Eigen::Vector2i> points;
+  };
+
   // Where the window's centre puts the drawing's centroid: the initial placement's translation with this rotation's
   // angle and scale, so the window bounds the placement's translation (a unit error scales the drawing about its
   // own origin too).
@@ -218,12 +302,31 @@ class Search {
     }
   }
 
-  float score(const std::vector<Eigen::Vector2i>& points, std::int64_t ox, std::int64_t oy, int level) {
-    ++scored_;
+  // Whether window c (its score a bound of its leaves') holds nothing better than the floor and the best leaf found.
+  bool pruned(const Candidate& c) const {
+    if (c.score <= floor_) return true;
+    const float best = best_score_.load(std::memory_order_relaxed);
+    if (c.score != best) return c.score < best;
+    const std::lock_guard lock(best_mutex_);
+    return best_ && !ranks_before(c, *best_);
+  }
+
+  // The window's mean field value over the samples, or kDropped as soon as the samples left, at 1 each, could no
+  // longer lift it out of pruned(): most windows are dropped after a part of the samples once a good leaf is known.
+  float score(Worker& w, std::int64_t ox, std::int64_t oy, int level) const {
+    ++w.scored;
     const Field& f = pyramid_.levels[static_cast<std::size_t>(level)];
+    const auto n = static_cast<double>(w.points.size());
+    // Past this sum the window is kept; 1e-6 of a sample keeps the test on the safe side of the rounding.
+    const double bar = std::max(static_cast<double>(floor_) * n,
+                                static_cast<double>(best_score_.load(std::memory_order_relaxed)) * n - 1e-6);
+    constexpr std::size_t kBlock = 64;
     double sum = 0;
-    for (const auto& p : points) sum += f.at(p.x() + ox, p.y() + oy);
-    return static_cast<float>(sum / static_cast<double>(points.size()));
+    for (std::size_t i = 0; i < w.points.size(); ++i) {
+      sum += f.at(w.points[i].x() + ox, w.points[i].y() + oy);
+      if ((i + 1) % kBlock == 0 && sum + static_cast<double>(w.points.size() - i - 1) + 1e-6 < bar) return kDropped;
+    }
+    return static_cast<float>(sum / n);
   }
 
   bool is_excluded(const Candidate& c) const {
@@ -233,18 +336,23 @@ class Search {
     return dt < options_.separation_m && std::abs(dtheta) < options_.separation_rad;
   }
 
-  bool stopped() {
-    if (timed_out_ || cancelled_) return true;
-    if (++checks_ % 128 == 0 && std::chrono::steady_clock::now() > deadline_) timed_out_ = true;
-    return timed_out_;
+  bool stopped(Worker& w) {
+    if (timed_out_.load(std::memory_order_relaxed) || cancelled_.load(std::memory_order_relaxed)) return true;
+    if (++w.checks % 128 == 0 && std::chrono::steady_clock::now() > deadline_) timed_out_ = true;
+    return timed_out_.load(std::memory_order_relaxed);
   }
 
-  void expand(const Candidate& c, int level, const std::vector<Eigen::Vector2i>& points) {
+  // Takes leaf c as the best unless a thread has found one that ranks before it.
+  void offer(const Candidate& c) {
+    const std::lock_guard lock(best_mutex_);
+    if (best_ && !ranks_before(c, *best_)) return;
+    best_ = c;
+    best_score_.store(c.score);
+  }
+
+  void expand(const Candidate& c, int level, Worker& w) {
     if (level == 0) {
-      if (c.score > best_score_ && !is_excluded(c)) {
-        best_ = c;
-        best_score_ = c.score;
-      }
+      if (!pruned(c) && !is_excluded(c)) offer(c);
       return;
     }
     const std::int64_t half = std::int64_t{1} << (level - 1);
@@ -254,15 +362,15 @@ class Search {
       for (const std::int64_t dx : {std::int64_t{0}, half}) {
         const std::int64_t ox = c.ox + dx, oy = c.oy + dy;
         if (ox > window_ || oy > window_) continue;
-        children[n++] = {c.rotation, ox, oy, score(points, ox, oy, level - 1)};
+        children[n++] = {c.rotation, ox, oy, score(w, ox, oy, level - 1), c.root};
       }
     // Insertion sort, best first (std::sort on four trips GCC 12's array-bounds warning).
     for (int i = 1; i < n; ++i)
       for (int j = i; j > 0 && children[j].score > children[j - 1].score; --j) std::swap(children[j], children[j - 1]);
     for (int i = 0; i < n; ++i) {
-      if (children[i].score <= best_score_) break;
-      expand(children[i], level - 1, points);
-      if (stopped()) return;
+      if (pruned(children[i])) continue;  // a later one of equal score may rank before the best
+      expand(children[i], level - 1, w);
+      if (stopped(w)) return;
     }
   }
 
@@ -274,10 +382,14 @@ class Search {
   std::int64_t window_;
   const RegistrationOptions& options_;
   std::chrono::steady_clock::time_point deadline_;
-  std::optional<Candidate> excluded_, best_;
-  float best_score_ = 0;
-  std::size_t scored_ = 0, checks_ = 0;
-  bool timed_out_ = false, cancelled_ = false;
+  std::size_t threads_;
+  std::optional<Candidate> excluded_;
+  float floor_ = 0;
+  std::atomic<float> best_score_{0};  // best_'s score, or the floor while there is none: read without the lock
+  mutable std::mutex best_mutex_;
+  std::optional<Candidate> best_;
+  std::size_t scored_ = 0;
+  std::atomic<bool> timed_out_{false}, cancelled_{false};
 };
 
 // Angles θ0 - range .. θ0 + range in steps of `step`; the whole circle once when the range reaches half a turn.
@@ -391,7 +503,8 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
                 deadline);
 
   RegistrationResult result;
-  const auto best = search.run(0.0f, std::nullopt, 0.0, 0.8);
+  const auto floor = static_cast<float>(options.min_search_score);
+  const auto best = search.run(floor, std::nullopt, 0.0, 0.8);
   if (!best) {
     result.timed_out = search.timed_out();
     result.cancelled = search.cancelled();
@@ -401,6 +514,7 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
     return result;
   }
   const float best_search_score = best->score;
+  result.search_score = best_search_score;
   const double band0 = std::max(0.3, 3 * pyramid.cell_m);
   const double cell = observed.geometry.resolution_m();
   const bool with_scale = searching_scale || options.refine_scale;
@@ -411,7 +525,7 @@ RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const Obse
   result.matched_points = refined.matched;
 
   if (!search.timed_out() && !search.cancelled()) {
-    if (const auto second = search.run(0.7f * best_search_score, best, 0.8, 1.0)) {
+    if (const auto second = search.run(std::max(floor, 0.7f * best_search_score), best, 0.8, 1.0)) {
       auto other = refine(edges, points, search.placement(*second), band0, cell, with_scale).placement;
       const Eigen::Vector2d c_best = refined.placement.transform_point(centroid_drawn);
       const Eigen::Vector2d c_other = other.transform_point(centroid_drawn);

@@ -1,11 +1,13 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <functional>
 #include <optional>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "fusion/geometry/similarity2d.h"
@@ -59,6 +61,15 @@ struct RegistrationOptions {
   double separation_m = 1.0;
   double separation_rad = 0.1745;
   double ambiguity_ratio = 0.9;
+  /// The search's score a placement must exceed to be searched for. That score is the mean likelihood-field value
+  /// over the points sampled along the drawing, points outside the observed area counting 0: about the share of
+  /// the whole drawing on occupied cells (score × coverage below). Windows whose bound does not exceed it are
+  /// dropped with all they hold, so a drawing that fits nowhere is answered once no window can reach it: best is
+  /// then the initial placement with score 0.
+  double min_search_score = 0;
+  /// Threads the search runs on, the calling one among them (at most 256). The placement found is the same for any
+  /// number: ties between equal scores are broken by a fixed order, not by which thread found one first.
+  unsigned threads = std::max(1u, std::thread::hardware_concurrency());
   /// Wall-clock bound of the whole search; past it the best found so far is answered with timed_out set.
   std::chrono::milliseconds time_budget{10000};
   /// Called now and then with the share of the search done (0..1); returning false cancels the search.
@@ -85,6 +96,7 @@ struct RegistrationResult {
   bool timed_out = false;
   bool cancelled = false;
   std::size_t hypotheses_scored = 0;  // search nodes scored
+  double search_score = 0;            // the search's score of the best leaf; 0 when none exceeded min_search_score
   double seconds = 0;
 };
 
@@ -92,8 +104,8 @@ struct RegistrationResult {
 /// along the drawn edges against a likelihood field of the occupied cells (Olson 2009), by branch and bound over
 /// a max-pooled pyramid of that field (Hess et al. 2016), then a Gauss-Newton refinement of the drawn edges
 /// against the occupied cells and element points near them (point to line, Huber-weighted).
-/// @throw RegistrationError for no edge, no occupied cell, non-finite or non-positive bounds, or a scale range
-///        that would take more than 256 steps.
+/// @throw RegistrationError for no edge, no occupied cell, non-finite or non-positive bounds, a scale range that
+///        would take more than 256 steps, a min_search_score outside [0, 1], or a number of threads outside [1, 256].
 RegistrationResult register_plan(const std::vector<DrawnEdge>& edges, const ObservedMap& observed,
                                  const RegistrationOptions& options);
 

@@ -150,6 +150,71 @@ TEST_F(Gdc1Registration, APlanOfAnotherBuildingScoresLow) {
   EXPECT_LT(r.best.score, 0.5) << "coverage " << r.best.coverage;
 }
 
+// The threads prune with each other's best leaf in an order no run repeats; ties are broken by a fixed order, so the
+// placement, its scores and the runner-up must not depend on their number.
+TEST_F(Gdc1Registration, FindsTheSamePlacementOnOneThreadAndOnMany) {
+  const Similarity2D truth{6.0, -7.5, 143 * kDeg, 1.0};
+  const auto edges = drawn(*lines_, truth);
+  RegistrationOptions options;
+  options.threads = 1;
+  const auto one = register_plan(edges, *observed_, options);
+  expect_placed(one, truth);
+  for (const unsigned threads : {2u, 3u, 8u}) {
+    SCOPED_TRACE(std::to_string(threads) + " threads");
+    options.threads = threads;
+    const auto many = register_plan(edges, *observed_, options);
+    EXPECT_EQ(many.best.placement.x_m, one.best.placement.x_m);
+    EXPECT_EQ(many.best.placement.y_m, one.best.placement.y_m);
+    EXPECT_EQ(many.best.placement.theta_rad, one.best.placement.theta_rad);
+    EXPECT_EQ(many.best.placement.scale, one.best.placement.scale);
+    EXPECT_EQ(many.best.score, one.best.score);
+    EXPECT_EQ(many.search_score, one.search_score);
+    ASSERT_EQ(many.runner_up.has_value(), one.runner_up.has_value());
+    if (one.runner_up) {
+      EXPECT_EQ(many.runner_up->placement.x_m, one.runner_up->placement.x_m);
+      EXPECT_EQ(many.runner_up->placement.theta_rad, one.runner_up->placement.theta_rad);
+    }
+  }
+}
+
+// Walls drawn exactly where the raster has them: many windows bound the best leaf's score exactly, the case where
+// which thread finds a tie first would decide without the fixed order.
+TEST(PlanRegistration, BreaksTiesOfAnExactFitTheSameWayOnAnyNumberOfThreads) {
+  std::vector<DrawnEdge> world;
+  for (int row = 0; row < 3; ++row)
+    for (int k = 0; k < 6; ++k) {
+      const double x = 4.2 * k, y = 6.0 * row, w = 4.0, d = 4.0;
+      const Eigen::Vector2d a(x, y), b(x + w, y), c(x + w, y + d), e(x, y + d);
+      world.insert(world.end(), {{a, b}, {b, c}, {c, e}, {e, a}});
+    }
+  const GridGeometry g({-1, -1}, 0.05, 540, 380);
+  std::vector<float> p(static_cast<std::size_t>(g.width() * g.height()), 0.2f);
+  for (const auto& l : world)
+    for (int i = 0; i <= 400; ++i) {
+      const auto cell = g.cell_of(l.p0 + (l.p1 - l.p0) * (i / 400.0));
+      p[static_cast<std::size_t>(cell.y * g.width() + cell.x)] = 0.9f;
+    }
+  const ObservedMap observed{g, std::move(p), {}};
+  const Similarity2D truth{2.0, -1.5, 0.4, 1.0};
+  std::vector<DrawnEdge> edges;
+  for (const auto& l : world)
+    edges.push_back({truth.inverse_transform_point(l.p0), truth.inverse_transform_point(l.p1)});
+  RegistrationOptions options;
+  options.threads = 1;
+  const auto one = register_plan(edges, observed, options);
+  EXPECT_NEAR(one.best.placement.x_m, truth.x_m, 0.05);  // one cell: the raster is of 5 cm
+  EXPECT_NEAR(one.best.placement.y_m, truth.y_m, 0.05);
+  EXPECT_GT(one.best.score, 0.95);
+  for (const unsigned threads : {2u, 4u, 7u}) {
+    options.threads = threads;
+    const auto many = register_plan(edges, observed, options);
+    EXPECT_EQ(many.best.placement.x_m, one.best.placement.x_m) << threads << " threads";
+    EXPECT_EQ(many.best.placement.y_m, one.best.placement.y_m) << threads << " threads";
+    EXPECT_EQ(many.best.placement.theta_rad, one.best.placement.theta_rad) << threads << " threads";
+    EXPECT_EQ(many.search_score, one.search_score) << threads << " threads";
+  }
+}
+
 TEST(PlanRegistration, ARoomWithAHalfTurnSymmetryIsAmbiguous) {
   // Two equal rooms side by side along a corridor, point-symmetric about the origin.
   std::vector<PlanLine> lines;
@@ -190,6 +255,9 @@ TEST(PlanRegistration, RefusesWhatItCannotPlace) {
   RegistrationOptions bad;
   bad.scale_min = 2;
   bad.scale_max = 1;
+  EXPECT_THROW(register_plan(edge, one, bad), RegistrationError);
+  bad = {};
+  bad.threads = 0;
   EXPECT_THROW(register_plan(edge, one, bad), RegistrationError);
   bad = {};
   bad.max_translation_m = std::nan("");
