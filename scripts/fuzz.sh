@@ -15,7 +15,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 # Every harness (scripts/test.sh builds this list: `bash scripts/fuzz.sh --list`).
-all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_record fuzz_scan_alignment fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_robot_commands fuzz_sonar_gate fuzz_foxglove fuzz_query fuzz_rules_text fuzz_map_routes)
+all=(fuzz_floor_plan_json fuzz_primitives fuzz_scan fuzz_scan_cbor fuzz_scan_record fuzz_scan_alignment fuzz_dxf fuzz_rmf fuzz_carmen fuzz_servosila fuzz_robot_commands fuzz_sonar_gate fuzz_foxglove fuzz_query fuzz_rules_text fuzz_map_routes)
 if [ "${1:-}" = --list ]; then
   echo "${all[@]}"
   exit 0

@@ -155,6 +155,21 @@ class FakeIngest : public virtual service::IngestPort, public virtual FakeLedger
     return {4, 4, service::PrimitivesOutcome{8, 5, {decision(rules::Action::merge, "e2")}, replay}, replay,
             service::ScanPlacement{{1.0, 2.0, 0.5}, {1.02, 2.0, 0.51}}};
   }
+  std::vector<world::ScanObservation> last_batch;
+  // Scan i of a batch is journaled as seq 10 + i.
+  std::vector<service::ScanOutcome> post_scans(std::vector<world::ScanObservation> scans, std::string_view body,
+                                               std::optional<std::string> request_id) override {
+    enter("post_scans");
+    last_batch = std::move(scans);
+    last_payload = std::string(body);
+    last_request_id = std::move(request_id);
+    std::vector<service::ScanOutcome> outcomes;
+    for (std::size_t i = 0; i < last_batch.size(); ++i) {
+      const auto seq = static_cast<std::int64_t>(10 + i);
+      outcomes.push_back({seq, seq, std::nullopt, replay, std::nullopt});
+    }
+    return outcomes;
+  }
   std::optional<service::PrimitivesOutcome> extract_grid_lines() override {
     enter("extract_grid_lines");
     if (!grid_has_lines) return std::nullopt;

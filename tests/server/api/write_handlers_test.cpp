@@ -114,6 +114,39 @@ TEST_F(WriteHandlersTest, ScansAreParsedAndAnsweredWithTheirLines) {
   EXPECT_EQ(status_of(send(verb::post, "/api/v1/scans", kScan, "text/plain")), 415);
 }
 
+TEST_F(WriteHandlersTest, ScansMayComeAsCborAndInBatches) {
+  const auto cbor_bytes = nlohmann::json::to_cbor(nlohmann::json::parse(kScan));
+  const std::string cbor(cbor_bytes.begin(), cbor_bytes.end());
+  auto response = send(verb::post, "/api/v1/scans", cbor, "application/cbor");
+  ASSERT_EQ(status_of(response), 200) << response.body();
+  EXPECT_EQ(response[http::field::content_type].substr(0, 16), "application/json");
+  EXPECT_EQ(json_of(response)["grid_revision"], 4);
+  EXPECT_EQ(world_.last_scan->observer, "robot-1");
+  EXPECT_EQ(world_.last_payload, cbor);  // the bytes posted are what a retry is compared with
+
+  const auto batch = nlohmann::json{{"scans", {nlohmann::json::parse(kScan), nlohmann::json::parse(kScan)}}};
+  auto request = make_request(verb::post, "/api/v1/scans", batch.dump());
+  request.set("Idempotency-Key", "batch-1");
+  response = send(request);
+  ASSERT_EQ(status_of(response), 200) << response.body();
+  const auto body = json_of(response);
+  ASSERT_EQ(body["scans"].size(), 2u);
+  EXPECT_EQ(body["scans"][0]["seq"], 10);
+  EXPECT_EQ(body["scans"][1]["seq"], 11);
+  EXPECT_EQ(world_.last_batch.size(), 2u);
+  EXPECT_EQ(world_.last_request_id, "batch-1");
+  world_.replay = true;
+  EXPECT_EQ(send(request)["Idempotent-Replayed"], "true");
+
+  response = send(verb::post, "/api/v1/scans", cbor, "application/octet-stream");
+  EXPECT_EQ(status_of(response), 415);
+  EXPECT_EQ(error_of(response), "unsupported_media_type");
+  response = send(verb::post, "/api/v1/scans", R"({"scans": [{"sensor": "radar"}]})");
+  EXPECT_EQ(status_of(response), 400);
+  EXPECT_EQ(json_of(response)["detail"], "scans[0].sensor: expected \"laser\" or \"sonar\"");
+  EXPECT_EQ(world_.calls, (std::vector<std::string>{"post_scan", "post_scans", "post_scans"}));
+}
+
 TEST_F(WriteHandlersTest, FloorPlansLoadFromJsonOrTheImportEnvelope) {
   auto response = send(verb::put, "/api/v1/floorplan", kPlan);
   ASSERT_EQ(status_of(response), 200) << response.body();
