@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <optional>
 #include <stdexcept>
+#include <utility>
 
 namespace wm::world {
 namespace {
@@ -27,6 +28,42 @@ double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a
   return (p - (a + t * ab)).norm();
 }
 
+/// The range [t0, t1] of t in [0, 1] for which a + t·ab lies in the box (Liang–Barsky); nullopt when none does.
+std::optional<std::pair<double, double>> parameters_inside(const Eigen::Vector2d& a, const Eigen::Vector2d& ab,
+                                                           const Box& box) {
+  double t0 = 0, t1 = 1;
+  const auto clip = [&](double from, double step, double lo, double hi) {
+    if (step == 0) return from >= lo && from <= hi;
+    double u = (lo - from) / step, v = (hi - from) / step;
+    if (u > v) std::swap(u, v);
+    t0 = std::max(t0, u);
+    t1 = std::min(t1, v);
+    return t0 <= t1;
+  };
+  if (!clip(a.x(), ab.x(), box.x0, box.x1) || !clip(a.y(), ab.y(), box.y0, box.y1)) return std::nullopt;
+  return std::pair{t0, t1};
+}
+
+/// The edges near a segment, found by its pieces (each no longer than a cell of the spatial index), grown by
+/// `reach`: the box of a long diagonal wall would hold half the building. Sorted, without repeats.
+std::vector<std::pair<std::size_t, std::size_t>> edges_along(const WorldState& state,
+                                                             const fusion::LineSegment& segment, double reach) {
+  const Eigen::Vector2d a = segment.p0(), b = segment.p1();
+  const auto pieces = static_cast<std::size_t>(std::clamp(std::ceil((b - a).norm() / SpatialHash::kCellM), 1.0, 1e6));
+  std::vector<std::pair<std::size_t, std::size_t>> edges;
+  for (std::size_t n = 0; n < pieces; ++n) {
+    const Eigen::Vector2d from = a + static_cast<double>(n) / static_cast<double>(pieces) * (b - a),
+                          to = a + static_cast<double>(n + 1) / static_cast<double>(pieces) * (b - a);
+    const auto near =
+        state.objects.edges_near({std::min(from.x(), to.x()) - reach, std::min(from.y(), to.y()) - reach,
+                                  std::max(from.x(), to.x()) + reach, std::max(from.y(), to.y()) + reach});
+    edges.insert(edges.end(), near.begin(), near.end());
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  return edges;
+}
+
 /// Which samples lie where another drawn edge meets or crosses this one (at 30° or more): there the probe, looking
 /// across this edge, finds the other wall's cells whether this one stands or not.
 void mark_junctions(const WorldState& state, std::size_t object_index, std::size_t k,
@@ -36,13 +73,22 @@ void mark_junctions(const WorldState& state, std::size_t object_index, std::size
   const double reach = options.junction_cells * options.step_m;
   if (reach <= 0) return;
   const Eigen::Vector2d direction = segment.line.direction();
-  for (const auto& [i, j] : state.objects.edges_near(Box::of(segment, reach))) {
+  const Eigen::Vector2d a = segment.p0(), ab = segment.p1() - a;
+  const double count = static_cast<double>(points.size());
+  for (const auto& [i, j] : edges_along(state, segment, reach)) {
     if (i == object_index && j == k) continue;
     const auto other = state.objects[i].body.world_edge(j, Eigen::Matrix2d::Zero());
     if (other.length_m() <= 0 || std::abs(direction.dot(other.line.direction())) > std::cos(kJunctionMinAngleRad))
       continue;
-    for (std::size_t n = 0; n < points.size(); ++n)
-      if (!at_junction[n] && point_segment_distance(points[n], other.p0(), other.p1()) <= reach) at_junction[n] = true;
+    // Only the samples inside the other edge's box grown by the reach can be within reach of it: a long wall
+    // crossed by many others tests a few samples per crossing, not all of its samples against each.
+    const auto inside = parameters_inside(a, ab, Box::of(other, reach));
+    if (!inside) continue;
+    const Eigen::Vector2d q0 = other.p0(), q1 = other.p1();
+    const auto first = static_cast<std::size_t>(std::clamp(std::floor(inside->first * count - 0.5), 0.0, count));
+    const auto last = static_cast<std::size_t>(std::clamp(std::ceil(inside->second * count - 0.5), 0.0, count - 1));
+    for (std::size_t n = first; n <= last && n < points.size(); ++n)
+      if (!at_junction[n] && point_segment_distance(points[n], q0, q1) <= reach) at_junction[n] = true;
   }
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <unordered_map>
 
 namespace wm::world {
 namespace {
@@ -73,31 +74,76 @@ void SpatialHash::add(std::int64_t bucket, const Entry& entry) {
   buckets_.put(bucket, std::move(changed));
 }
 
-void SpatialHash::insert(std::int64_t key, const Box& box) {
-  const auto cells = cells_of(box);
+std::vector<SpatialHash::Cell> SpatialHash::cells_of(const fusion::LineSegment& segment) {
+  const Eigen::Vector2d a = segment.p0(), b = segment.p1();
+  const double pieces = std::ceil((b - a).norm() / kCellM);
+  if (!(pieces <= static_cast<double>(kMaxCellsPerKey) / 3)) return {};  // NaN included
+  // Pieces no longer than a cell: each one's box meets at most 2 × 2 cells, and together they hold every point.
+  const auto n = std::max<std::size_t>(1, static_cast<std::size_t>(pieces));
+  std::vector<Cell> cells;
+  Eigen::Vector2d from = a;
+  for (std::size_t i = 1; i <= n; ++i) {
+    const Eigen::Vector2d to =
+        i == n ? b : Eigen::Vector2d(a + static_cast<double>(i) / static_cast<double>(n) * (b - a));
+    const Box piece{std::min(from.x(), to.x()), std::min(from.y(), to.y()), std::max(from.x(), to.x()),
+                    std::max(from.y(), to.y())};
+    for (auto ix = cell_coordinate(piece.x0); ix <= cell_coordinate(piece.x1); ++ix)
+      for (auto iy = cell_coordinate(piece.y0); iy <= cell_coordinate(piece.y1); ++iy) cells.push_back({ix, iy});
+    from = to;
+  }
+  std::sort(cells.begin(), cells.end());
+  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+  return cells;
+}
+
+void SpatialHash::insert_cells(std::int64_t key, const std::vector<Cell>& cells) {
   if (cells.empty()) add(kLargeBucket, {{}, key});
   for (const auto& cell : cells) add(bucket_of(cell), {cell, key});
 }
 
-void SpatialHash::erase(std::int64_t key, const Box& box) {
-  const auto cells = cells_of(box);
+void SpatialHash::erase_cells(std::int64_t key, const std::vector<Cell>& cells) {
   if (cells.empty()) remove(kLargeBucket, {{}, key});
   for (const auto& cell : cells) remove(bucket_of(cell), {cell, key});
 }
 
-void SpatialHash::move(std::int64_t key, const Box& from, const Box& to) {
-  const auto old_cells = cells_of(from), new_cells = cells_of(to);
-  if (old_cells.empty() || new_cells.empty()) {
-    erase(key, from);
-    insert(key, to);
+void SpatialHash::move_cells(std::int64_t key, const std::vector<Cell>& from, const std::vector<Cell>& to) {
+  if (from.empty() || to.empty()) {
+    erase_cells(key, from);
+    insert_cells(key, to);
     return;
   }
   std::vector<Cell> left, entered;
-  std::set_difference(old_cells.begin(), old_cells.end(), new_cells.begin(), new_cells.end(), std::back_inserter(left));
-  std::set_difference(new_cells.begin(), new_cells.end(), old_cells.begin(), old_cells.end(),
-                      std::back_inserter(entered));
+  std::set_difference(from.begin(), from.end(), to.begin(), to.end(), std::back_inserter(left));
+  std::set_difference(to.begin(), to.end(), from.begin(), from.end(), std::back_inserter(entered));
   for (const auto& cell : left) remove(bucket_of(cell), {cell, key});
   for (const auto& cell : entered) add(bucket_of(cell), {cell, key});
+}
+
+void SpatialHash::insert(std::int64_t key, const Box& box) { insert_cells(key, cells_of(box)); }
+void SpatialHash::erase(std::int64_t key, const Box& box) { erase_cells(key, cells_of(box)); }
+void SpatialHash::move(std::int64_t key, const Box& from, const Box& to) {
+  move_cells(key, cells_of(from), cells_of(to));
+}
+
+void SpatialHash::insert(std::int64_t key, const fusion::LineSegment& segment) { insert_cells(key, cells_of(segment)); }
+void SpatialHash::erase(std::int64_t key, const fusion::LineSegment& segment) { erase_cells(key, cells_of(segment)); }
+void SpatialHash::move(std::int64_t key, const fusion::LineSegment& from, const fusion::LineSegment& to) {
+  move_cells(key, cells_of(from), cells_of(to));
+}
+
+void SpatialHash::insert_all(const std::vector<std::pair<std::int64_t, fusion::LineSegment>>& segments) {
+  std::unordered_map<std::int64_t, std::vector<Entry>> added;
+  for (const auto& [key, segment] : segments) {
+    const auto cells = cells_of(segment);
+    if (cells.empty()) added[kLargeBucket].push_back({{}, key});
+    for (const auto& cell : cells) added[bucket_of(cell)].push_back({cell, key});
+  }
+  for (auto& [bucket, entries] : added) {
+    if (const auto* present = buckets_.find(bucket)) entries.insert(entries.end(), present->begin(), present->end());
+    std::sort(entries.begin(), entries.end());
+    entries.erase(std::unique(entries.begin(), entries.end()), entries.end());
+    buckets_.put(bucket, std::move(entries));
+  }
 }
 
 std::vector<std::int64_t> SpatialHash::query(const Box& box) const {

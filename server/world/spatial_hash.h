@@ -2,6 +2,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "fusion/geometry/line.h"
@@ -30,15 +31,27 @@ class SpatialHash {
  public:
   static constexpr double kCellM = 4.0;
   static constexpr std::size_t kBuckets = 16384;
-  /// A box over more cells than this (a 200 m diagonal) is kept in one list that every query reads.
+  /// A box over more cells than this (a 200 m diagonal), or a segment through more (10 km), is kept in one list
+  /// that every query reads.
   static constexpr std::size_t kMaxCellsPerKey = 2500;
 
   void insert(std::int64_t key, const Box& box);
   void erase(std::int64_t key, const Box& box);
   /// The key's box changed: touches only the cells it left or entered.
   void move(std::int64_t key, const Box& from, const Box& to);
-  /// Every key registered with a box that shares a cell with `box` (so every box that overlaps it, and some near
-  /// ones). Sorted, without repeats.
+
+  /// A segment is registered in the cells it passes through, not in those of its bounding box: a long diagonal
+  /// wall takes a few hundred cells instead of the square of that, and is not among the keys every query reads.
+  /// A query finds it from any box that touches one of those cells (so from any box it has a point in).
+  void insert(std::int64_t key, const fusion::LineSegment& segment);
+  void erase(std::int64_t key, const fusion::LineSegment& segment);
+  void move(std::int64_t key, const fusion::LineSegment& from, const fusion::LineSegment& to);
+  /// Inserts many segments at once: each bucket is built and stored once (insert() copies a bucket per entry,
+  /// which makes a whole plan's edges cost the square of a crowded bucket's size).
+  void insert_all(const std::vector<std::pair<std::int64_t, fusion::LineSegment>>& segments);
+
+  /// Every key registered with a box or segment that shares a cell with `box` (so every box that overlaps it, every
+  /// segment with a point in it, and some near ones). Sorted, without repeats.
   std::vector<std::int64_t> query(const Box& box) const;
   void clear() { buckets_.clear(); }
 
@@ -55,10 +68,14 @@ class SpatialHash {
   // Bucket kLargeBucket holds the keys whose box covers too many cells (with cell {0, 0}).
   static constexpr std::int64_t kLargeBucket = static_cast<std::int64_t>(kBuckets);
 
-  static std::vector<Cell> cells_of(const Box& box);  // sorted; empty when the box is too large
+  static std::vector<Cell> cells_of(const Box& box);                      // sorted; empty when the box is too large
+  static std::vector<Cell> cells_of(const fusion::LineSegment& segment);  // sorted; empty when it is too long
   static std::int64_t bucket_of(const Cell& cell);
   void remove(std::int64_t bucket, const Entry& entry);
   void add(std::int64_t bucket, const Entry& entry);
+  void insert_cells(std::int64_t key, const std::vector<Cell>& cells);
+  void erase_cells(std::int64_t key, const std::vector<Cell>& cells);
+  void move_cells(std::int64_t key, const std::vector<Cell>& from, const std::vector<Cell>& to);
 
   CowMap<std::vector<Entry>> buckets_;  // sorted entries per bucket
 };

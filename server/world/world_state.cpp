@@ -15,8 +15,8 @@ std::int64_t edge_key(std::size_t object, std::size_t edge) {
   return static_cast<std::int64_t>(object) << kEdgeBits | static_cast<std::int64_t>(edge);
 }
 
-Box edge_box(const ObjectState& object, std::size_t k) {
-  return Box::of(object.body.world_edge(k, Eigen::Matrix2d::Zero()));
+fusion::LineSegment edge_segment(const ObjectState& object, std::size_t k) {
+  return object.body.world_edge(k, Eigen::Matrix2d::Zero());
 }
 
 }  // namespace
@@ -24,18 +24,17 @@ Box edge_box(const ObjectState& object, std::size_t k) {
 void ElementTable::put(Element element) {
   if (element.number <= 0) throw std::out_of_range("ElementTable: element numbers start at 1");
   const auto number = element.number;
-  const Box box = Box::of(element.segment);
   if (const Element* old = elements_.find(number))
-    index_.move(number, Box::of(old->segment), box);
+    index_.move(number, old->segment, element.segment);
   else
-    index_.insert(number, box);
+    index_.insert(number, element.segment);
   elements_.put(number, std::move(element));
 }
 
 bool ElementTable::erase(std::int64_t number) {
   const Element* old = elements_.find(number);
   if (!old) return false;
-  index_.erase(number, Box::of(old->segment));
+  index_.erase(number, old->segment);
   return elements_.erase(number);
 }
 
@@ -46,15 +45,18 @@ void ElementTable::clear() {
 
 ObjectTable::ObjectTable(std::vector<ObjectState> objects) {
   auto by_id = std::make_shared<std::unordered_map<std::string, std::size_t>>();
+  std::vector<std::pair<std::int64_t, fusion::LineSegment>> edges;
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const auto& object = objects[i];
     if (!by_id->emplace(object.plan->id, i).second)
       throw std::invalid_argument("two plan objects share the id '" + object.plan->id + "'");
     if (object.body.edges().size() >= (std::size_t{1} << kEdgeBits))
       throw std::invalid_argument("plan object '" + object.plan->id + "' has too many edges");
-    for (std::size_t k = 0; k < object.body.edges().size(); ++k) edges_.insert(edge_key(i, k), edge_box(object, k));
+    for (std::size_t k = 0; k < object.body.edges().size(); ++k)
+      edges.emplace_back(edge_key(i, k), edge_segment(object, k));
     objects_.put(static_cast<std::int64_t>(i), std::move(objects[i]));
   }
+  edges_.insert_all(edges);
   by_id_ = std::move(by_id);
 }
 
@@ -72,7 +74,7 @@ void ObjectTable::put(std::size_t index, ObjectState object) {
   if (old.body.pose().x_m != object.body.pose().x_m || old.body.pose().y_m != object.body.pose().y_m ||
       old.body.pose().theta_rad != object.body.pose().theta_rad) {
     for (std::size_t k = 0; k < object.body.edges().size(); ++k)
-      edges_.move(edge_key(index, k), edge_box(old, k), edge_box(object, k));
+      edges_.move(edge_key(index, k), edge_segment(old, k), edge_segment(object, k));
   }
   objects_.put(static_cast<std::int64_t>(index), std::move(object));
 }
