@@ -44,7 +44,7 @@ TEST_F(ServerFixture, WmctlLoadsPostsAndShows) {
   EXPECT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("network <default network>"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("executor world: load"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("matcher.primitives (1 ports, priority 5): 1 activations"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("matcher.primitives (1 ports, priority 6): 1 activations"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("store.commit (1 ports, priority 0): 1 activations"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("matcher.primitives [fifo 256]: depth 0 (max 1), 1 in, 0 dropped, 0 refused"),
             std::string::npos)
