@@ -50,6 +50,7 @@ options_for() {
     fuzz_robot_commands) echo "-max_len=1024 -dict=fuzz/dict/json.dict" ;;  # "v w", {"v","w"}, a pose report
     fuzz_sonar_gate) echo "-max_len=600" ;;  # 7 doubles, then 16 bytes per reading: up to 32 readings
     fuzz_scan_record) echo "-max_len=4096" ;;  # records of 161 bytes and more (8 per reading)
+    fuzz_scan_cbor) echo "-max_len=8192" ;;  # CBOR scan bodies and batches: a 1 081-beam float32 body is 4.5 kB
     fuzz_scan_alignment) echo "-max_len=8192" ;;  # 9 doubles, then 56 bytes per line: up to 144 lines
     fuzz_foxglove) echo "-max_len=1024 -dict=fuzz/dict/json.dict" ;;  # a client's subscribe/unsubscribe texts
     # SWI-Prolog interrupts a goal at its time limit with SIGUSR2, which libFuzzer would take as "stop". Its
