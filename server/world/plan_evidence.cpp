@@ -44,26 +44,6 @@ std::optional<std::pair<double, double>> parameters_inside(const Eigen::Vector2d
   return std::pair{t0, t1};
 }
 
-/// The edges near a segment, found by its pieces (each no longer than a cell of the spatial index), grown by
-/// `reach`: the box of a long diagonal wall would hold half the building. Sorted, without repeats.
-std::vector<std::pair<std::size_t, std::size_t>> edges_along(const WorldState& state,
-                                                             const fusion::LineSegment& segment, double reach) {
-  const Eigen::Vector2d a = segment.p0(), b = segment.p1();
-  const auto pieces = static_cast<std::size_t>(std::clamp(std::ceil((b - a).norm() / SpatialHash::kCellM), 1.0, 1e6));
-  std::vector<std::pair<std::size_t, std::size_t>> edges;
-  for (std::size_t n = 0; n < pieces; ++n) {
-    const Eigen::Vector2d from = a + static_cast<double>(n) / static_cast<double>(pieces) * (b - a),
-                          to = a + static_cast<double>(n + 1) / static_cast<double>(pieces) * (b - a);
-    const auto near =
-        state.objects.edges_near({std::min(from.x(), to.x()) - reach, std::min(from.y(), to.y()) - reach,
-                                  std::max(from.x(), to.x()) + reach, std::max(from.y(), to.y()) + reach});
-    edges.insert(edges.end(), near.begin(), near.end());
-  }
-  std::sort(edges.begin(), edges.end());
-  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-  return edges;
-}
-
 /// Which samples lie where another drawn edge meets or crosses this one (at 30° or more): there the probe, looking
 /// across this edge, finds the other wall's cells whether this one stands or not.
 void mark_junctions(const WorldState& state, std::size_t object_index, std::size_t k,
@@ -75,7 +55,7 @@ void mark_junctions(const WorldState& state, std::size_t object_index, std::size
   const Eigen::Vector2d direction = segment.line.direction();
   const Eigen::Vector2d a = segment.p0(), ab = segment.p1() - a;
   const double count = static_cast<double>(points.size());
-  for (const auto& [i, j] : edges_along(state, segment, reach)) {
+  for (const auto& [i, j] : state.objects.edges_near(segment, reach)) {
     if (i == object_index && j == k) continue;
     const auto other = state.objects[i].body.world_edge(j, Eigen::Matrix2d::Zero());
     if (other.length_m() <= 0 || std::abs(direction.dot(other.line.direction())) > std::cos(kJunctionMinAngleRad))

@@ -74,19 +74,20 @@ void SpatialHash::add(std::int64_t bucket, const Entry& entry) {
   buckets_.put(bucket, std::move(changed));
 }
 
-std::vector<SpatialHash::Cell> SpatialHash::cells_of(const fusion::LineSegment& segment) {
+std::vector<SpatialHash::Cell> SpatialHash::cells_of(const fusion::LineSegment& segment, double margin) {
   const Eigen::Vector2d a = segment.p0(), b = segment.p1();
   const double pieces = std::ceil((b - a).norm() / kCellM);
   if (!(pieces <= static_cast<double>(kMaxCellsPerKey) / 3)) return {};  // NaN included
-  // Pieces no longer than a cell: each one's box meets at most 2 × 2 cells, and together they hold every point.
+  // Pieces no longer than a cell: each one's box meets at most 2 × 2 cells (more by the margin), and together they
+  // hold every point.
   const auto n = std::max<std::size_t>(1, static_cast<std::size_t>(pieces));
   std::vector<Cell> cells;
   Eigen::Vector2d from = a;
   for (std::size_t i = 1; i <= n; ++i) {
     const Eigen::Vector2d to =
         i == n ? b : Eigen::Vector2d(a + static_cast<double>(i) / static_cast<double>(n) * (b - a));
-    const Box piece{std::min(from.x(), to.x()), std::min(from.y(), to.y()), std::max(from.x(), to.x()),
-                    std::max(from.y(), to.y())};
+    const Box piece{std::min(from.x(), to.x()) - margin, std::min(from.y(), to.y()) - margin,
+                    std::max(from.x(), to.x()) + margin, std::max(from.y(), to.y()) + margin};
     for (auto ix = cell_coordinate(piece.x0); ix <= cell_coordinate(piece.x1); ++ix)
       for (auto iy = cell_coordinate(piece.y0); iy <= cell_coordinate(piece.y1); ++iy) cells.push_back({ix, iy});
     from = to;
@@ -147,9 +148,7 @@ void SpatialHash::insert_all(const std::vector<std::pair<std::int64_t, fusion::L
 }
 
 std::vector<std::int64_t> SpatialHash::query(const Box& box) const {
-  std::vector<std::int64_t> result;
-  if (const auto* large = buckets_.find(kLargeBucket))
-    for (const auto& entry : *large) result.push_back(entry.key);
+  std::vector<std::int64_t> result = large_keys();
   const auto cells = cells_of(box);
   if (cells.empty() && box.x0 <= box.x1 && box.y0 <= box.y1) {
     // A query larger than the cell limit: every entry whose cell lies in the box's range.
@@ -161,17 +160,34 @@ std::vector<std::int64_t> SpatialHash::query(const Box& box) const {
             entry.cell.iy <= hi.iy)
           result.push_back(entry.key);
   }
+  return keys_in(cells, std::move(result));
+}
+
+std::vector<std::int64_t> SpatialHash::query(const fusion::LineSegment& segment, double margin) const {
+  const auto cells = cells_of(segment, margin);
+  if (cells.empty()) return query(Box::of(segment, margin));  // too long to walk: its box answers, more widely
+  return keys_in(cells, large_keys());
+}
+
+std::vector<std::int64_t> SpatialHash::large_keys() const {
+  std::vector<std::int64_t> keys;
+  if (const auto* large = buckets_.find(kLargeBucket))
+    for (const auto& entry : *large) keys.push_back(entry.key);
+  return keys;
+}
+
+std::vector<std::int64_t> SpatialHash::keys_in(const std::vector<Cell>& cells, std::vector<std::int64_t> keys) const {
   for (const auto& cell : cells) {
     const auto* entries = buckets_.find(bucket_of(cell));
     if (!entries) continue;
     // Entries are sorted by cell: the ones of this cell are one run.
     for (auto it = std::lower_bound(entries->begin(), entries->end(), Entry{cell, INT64_MIN});
          it != entries->end() && it->cell == cell; ++it)
-      result.push_back(it->key);
+      keys.push_back(it->key);
   }
-  std::sort(result.begin(), result.end());
-  result.erase(std::unique(result.begin(), result.end()), result.end());
-  return result;
+  std::sort(keys.begin(), keys.end());
+  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  return keys;
 }
 
 }  // namespace wm::world

@@ -53,6 +53,9 @@ class SpatialHash {
   /// Every key registered with a box or segment that shares a cell with `box` (so every box that overlaps it, every
   /// segment with a point in it, and some near ones). Sorted, without repeats.
   std::vector<std::int64_t> query(const Box& box) const;
+  /// Every key registered in a cell within `margin` of the segment's cells: what lies near a long diagonal wall,
+  /// without the half of the building its bounding box holds. Sorted, without repeats.
+  std::vector<std::int64_t> query(const fusion::LineSegment& segment, double margin) const;
   void clear() { buckets_.clear(); }
 
  private:
@@ -68,14 +71,18 @@ class SpatialHash {
   // Bucket kLargeBucket holds the keys whose box covers too many cells (with cell {0, 0}).
   static constexpr std::int64_t kLargeBucket = static_cast<std::int64_t>(kBuckets);
 
-  static std::vector<Cell> cells_of(const Box& box);                      // sorted; empty when the box is too large
-  static std::vector<Cell> cells_of(const fusion::LineSegment& segment);  // sorted; empty when it is too long
+  static std::vector<Cell> cells_of(const Box& box);  // sorted; empty when the box is too large
+  // The cells of the segment's pieces' boxes grown by `margin`; sorted; empty when it is too long.
+  static std::vector<Cell> cells_of(const fusion::LineSegment& segment, double margin = 0.0);
   static std::int64_t bucket_of(const Cell& cell);
   void remove(std::int64_t bucket, const Entry& entry);
   void add(std::int64_t bucket, const Entry& entry);
   void insert_cells(std::int64_t key, const std::vector<Cell>& cells);
   void erase_cells(std::int64_t key, const std::vector<Cell>& cells);
   void move_cells(std::int64_t key, const std::vector<Cell>& from, const std::vector<Cell>& to);
+  std::vector<std::int64_t> large_keys() const;
+  /// `keys` and the keys registered in `cells`, sorted, without repeats.
+  std::vector<std::int64_t> keys_in(const std::vector<Cell>& cells, std::vector<std::int64_t> keys) const;
 
   CowMap<std::vector<Entry>> buckets_;  // sorted entries per bucket
 };

@@ -15,6 +15,15 @@ std::int64_t edge_key(std::size_t object, std::size_t edge) {
   return static_cast<std::int64_t>(object) << kEdgeBits | static_cast<std::int64_t>(edge);
 }
 
+// Keys back to (object index, edge index), in key order (so sorted).
+std::vector<std::pair<std::size_t, std::size_t>> edges_of(const std::vector<std::int64_t>& keys) {
+  std::vector<std::pair<std::size_t, std::size_t>> edges;
+  const std::int64_t edge_mask = (std::int64_t{1} << kEdgeBits) - 1;
+  for (const auto key : keys)
+    edges.emplace_back(static_cast<std::size_t>(key >> kEdgeBits), static_cast<std::size_t>(key & edge_mask));
+  return edges;
+}
+
 fusion::LineSegment edge_segment(const ObjectState& object, std::size_t k) {
   return object.body.world_edge(k, Eigen::Matrix2d::Zero());
 }
@@ -80,11 +89,12 @@ void ObjectTable::put(std::size_t index, ObjectState object) {
 }
 
 std::vector<std::pair<std::size_t, std::size_t>> ObjectTable::edges_near(const Box& box) const {
-  std::vector<std::pair<std::size_t, std::size_t>> result;
-  const std::int64_t edge_mask = (std::int64_t{1} << kEdgeBits) - 1;
-  for (const auto key : edges_.query(box))
-    result.emplace_back(static_cast<std::size_t>(key >> kEdgeBits), static_cast<std::size_t>(key & edge_mask));
-  return result;
+  return edges_of(edges_.query(box));
+}
+
+std::vector<std::pair<std::size_t, std::size_t>> ObjectTable::edges_near(const fusion::LineSegment& segment,
+                                                                         double reach) const {
+  return edges_of(edges_.query(segment, reach));
 }
 
 const ObjectState* WorldState::find_object(const std::string& id) const {

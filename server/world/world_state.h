@@ -205,6 +205,9 @@ class ObjectTable {
   void put(std::size_t index, ObjectState object);
   /// (object index, edge index) of every edge whose box overlaps `box`, and perhaps a few more. Sorted.
   std::vector<std::pair<std::size_t, std::size_t>> edges_near(const Box& box) const;
+  /// (object index, edge index) of every edge within about `reach` of the segment (its cells, not its bounding box),
+  /// and perhaps a few more. Sorted.
+  std::vector<std::pair<std::size_t, std::size_t>> edges_near(const fusion::LineSegment& segment, double reach) const;
 
  private:
   CowMap<ObjectState> objects_;

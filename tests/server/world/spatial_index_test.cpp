@@ -2,6 +2,7 @@
 // what the neighbourhood holds: sharing between copies, and queries checked against a brute-force scan.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <random>
@@ -94,6 +95,76 @@ TEST(SpatialHashTest, QueriesFindEveryOverlappingBoxAsABruteForceScanDoes) {
       }
       for (const auto key : found) EXPECT_TRUE(boxes.count(key)) << "removed key " << key << " still found";
     }
+  }
+}
+
+double point_segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-18), 0.0, 1.0);
+  return (p - (a + t * ab)).norm();
+}
+
+double segment_distance(const fusion::LineSegment& s, const fusion::LineSegment& t) {
+  const Eigen::Vector2d a = s.p0(), b = s.p1(), c = t.p0(), d = t.p1();
+  const auto cross = [](const Eigen::Vector2d& u, const Eigen::Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); };
+  const double d1 = cross(b - a, c - a), d2 = cross(b - a, d - a), d3 = cross(d - c, a - c), d4 = cross(d - c, b - c);
+  if (((d1 > 0) != (d2 > 0)) && ((d3 > 0) != (d4 > 0))) return 0.0;
+  return std::min({point_segment_distance(a, c, d), point_segment_distance(b, c, d), point_segment_distance(c, a, b),
+                   point_segment_distance(d, a, b)});
+}
+
+// Segments are kept in the cells they pass, long diagonal walls among them: a query by box finds every segment with
+// a point in the box, a query by segment every segment within the margin, as brute force says; after bulk insertion,
+// single insertions, moves and removals.
+TEST(SpatialHashTest, SegmentsAreFoundFromEveryBoxTheyCrossAndNearEverySegmentTheyPass) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> position(-300.0, 300.0), length(0.0, 20.0), angle(0.0, 6.3);
+  std::map<std::int64_t, fusion::LineSegment> segments;
+  const auto random_segment = [&](std::int64_t key) {
+    const double x = position(rng), y = position(rng), a = angle(rng);
+    const double l = key % 10 == 0 ? 150.0 + 3.0 * length(rng) * 10.0 : length(rng);  // a tenth 150-750 m long
+    return segment(x, y, x + l * std::cos(a), y + l * std::sin(a));
+  };
+  std::vector<std::pair<std::int64_t, fusion::LineSegment>> bulk;
+  for (std::int64_t key = 1; key <= 1500; ++key) bulk.emplace_back(key, random_segment(key));
+  for (const auto& [key, s] : bulk) segments.emplace(key, s);
+  SpatialHash hash;
+  hash.insert_all(bulk);
+  for (std::int64_t key = 1501; key <= 2000; ++key) {
+    segments.emplace(key, random_segment(key));
+    hash.insert(key, segments.at(key));
+  }
+  for (std::int64_t key = 1; key <= 2000; key += 7) {
+    const auto moved = random_segment(key);
+    hash.move(key, segments.at(key), moved);
+    segments.insert_or_assign(key, moved);
+  }
+  for (std::int64_t key = 2; key <= 2000; key += 11) {
+    hash.erase(key, segments.at(key));
+    segments.erase(key);
+  }
+  for (int q = 0; q < 60; ++q) {
+    const double x = position(rng), y = position(rng), size = q % 2 ? 1.0 : 30.0;
+    const Box box{x, y, x + size, y + size};
+    const auto by_box = hash.query(box);
+    const std::set<std::int64_t> found_by_box(by_box.begin(), by_box.end());
+    const auto probe = random_segment(q);
+    const double margin = q % 3 == 0 ? 0.0 : 2.5;
+    const auto by_segment = hash.query(probe, margin);
+    EXPECT_TRUE(std::is_sorted(by_segment.begin(), by_segment.end()));
+    const std::set<std::int64_t> found_by_segment(by_segment.begin(), by_segment.end());
+    EXPECT_EQ(found_by_segment.size(), by_segment.size()) << "no repeats";
+    for (const auto& [key, s] : segments) {
+      if (box.crossed_by(s)) {
+        EXPECT_TRUE(found_by_box.count(key)) << "key " << key << " crosses box " << q;
+      }
+      const double distance = segment_distance(s, probe);
+      if (distance < margin - 1e-9 || (margin == 0.0 && distance == 0.0)) {
+        EXPECT_TRUE(found_by_segment.count(key)) << "key " << key << " near probe " << q;
+      }
+    }
+    for (const auto key : by_box) EXPECT_TRUE(segments.count(key)) << "removed key " << key << " still found";
+    for (const auto key : by_segment) EXPECT_TRUE(segments.count(key)) << "removed key " << key << " still found";
   }
 }
 
